@@ -1,0 +1,1 @@
+//! Per-strip implicit kd-tree encoding (paper 3.2).

@@ -1,0 +1,1 @@
+//! The ReduceM file format.
