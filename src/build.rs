@@ -1,1 +1,161 @@
-//! TODO
+//! Conversion of one mesh chunk into encoded strips: the core API the pipeline runs per chunk.
+//!
+//! "One mesh chunk in memory → encoded strips with bounds". Converting a mesh that fits in
+//! memory is the one-chunk case: [`encode_chunk`], then [`crate::toplevel::build`] over the strip
+//! bounds, then [`crate::format::writer::write_file`].
+
+use std::path::Path;
+
+use rayon::prelude::*;
+
+use crate::encode::{encode_strip, split_strip, EncodedStrip};
+use crate::format::writer::{write_file, FileInfo, WriteError};
+use crate::geometry::Aabb;
+use crate::mesh::Mesh;
+use crate::strip;
+use crate::stripify::{stripify, StripifyParams};
+use crate::toplevel::{self, TopLevelParams};
+
+/// Build parameters, with the paper's values as defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildParams {
+    pub stripify: StripifyParams,
+    /// Strip kd-tree leaf size in windows (paper: 2 triangles).
+    pub leaf_windows: usize,
+    pub top_level: TopLevelParams,
+}
+
+impl Default for BuildParams {
+    fn default() -> Self {
+        BuildParams {
+            stripify: StripifyParams::default(),
+            leaf_windows: 2,
+            top_level: TopLevelParams::default(),
+        }
+    }
+}
+
+impl BuildParams {
+    /// Checks ranges the format imposes: references are counted in u16 and the leaf size in u8.
+    pub fn check(&self) -> Result<(), String> {
+        if !(1..=1000).contains(&self.stripify.max_length) {
+            return Err(format!(
+                "strip max_length {} is outside 1..=1000",
+                self.stripify.max_length
+            ));
+        }
+        if !(1..=255).contains(&self.leaf_windows) {
+            return Err(format!(
+                "strip leaf_triangles {} is outside 1..=255",
+                self.leaf_windows
+            ));
+        }
+        if self.stripify.sah_bins < 2 {
+            return Err(format!(
+                "sah_bins {} must be at least 2",
+                self.stripify.sah_bins
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The encoded strips of one chunk, in Strip-RT output order, with what the file header needs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct EncodedChunk {
+    pub strips: Vec<EncodedStrip>,
+    pub stats: ChunkStats,
+}
+
+/// Counts over one chunk; they add up over chunks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ChunkStats {
+    pub triangles: u64,
+    pub dropped_triangles: u64,
+    /// Distinct mesh vertices referenced by the chunk's strips.
+    pub input_vertices: u64,
+    pub stored_vertices: u64,
+    pub hierarchy_vertices: u64,
+    pub max_strip_length: u64,
+}
+
+impl ChunkStats {
+    pub fn add(&mut self, other: &ChunkStats) {
+        self.triangles += other.triangles;
+        self.dropped_triangles += other.dropped_triangles;
+        self.input_vertices += other.input_vertices;
+        self.stored_vertices += other.stored_vertices;
+        self.hierarchy_vertices += other.hierarchy_vertices;
+        self.max_strip_length = self.max_strip_length.max(other.max_strip_length);
+    }
+}
+
+/// Runs Strip-RT and strip encoding over one chunk.
+pub fn encode_chunk(mesh: &Mesh, params: &BuildParams) -> EncodedChunk {
+    let stripification = stripify(mesh, &params.stripify);
+    let strips: Vec<EncodedStrip> = stripification
+        .strips
+        .par_iter()
+        .flat_map_iter(|references| encode_fitting(references, mesh, params.leaf_windows))
+        .collect();
+    let mut stats = ChunkStats {
+        dropped_triangles: stripification.dropped_triangles,
+        input_vertices: count_referenced_vertices(&stripification.strips, mesh.positions.len()),
+        ..ChunkStats::default()
+    };
+    for s in &strips {
+        stats.stored_vertices += s.vertex_count as u64;
+        stats.hierarchy_vertices += s.hierarchy_copies as u64;
+    }
+    for references in &stripification.strips {
+        let length = strip::triangles(references).count() as u64;
+        stats.triangles += length;
+        stats.max_strip_length = stats.max_strip_length.max(length);
+    }
+    EncodedChunk { strips, stats }
+}
+
+/// Encodes a strip, halving it until every piece fits 1-byte local indices.
+fn encode_fitting(references: &[u32], mesh: &Mesh, leaf_windows: usize) -> Vec<EncodedStrip> {
+    match encode_strip(references, &mesh.positions, leaf_windows) {
+        Ok(encoded) => vec![encoded],
+        Err(_) => {
+            let (first, second) = split_strip(references);
+            let mut pieces = encode_fitting(first, mesh, leaf_windows);
+            pieces.extend(encode_fitting(second, mesh, leaf_windows));
+            pieces
+        }
+    }
+}
+
+fn count_referenced_vertices(strips: &[Vec<u32>], vertex_count: usize) -> u64 {
+    let mut referenced = vec![false; vertex_count];
+    for &v in strips.iter().flatten() {
+        referenced[v as usize] = true;
+    }
+    referenced.iter().filter(|&&r| r).count() as u64
+}
+
+/// Bounds of every strip, in chunk order, for the top-level build.
+pub fn strip_bounds(strips: &[EncodedStrip]) -> Vec<Aabb> {
+    strips.iter().map(|s| s.bounds).collect()
+}
+
+/// Converts a mesh that fits in memory (the one-chunk case) and writes the file at `out`.
+pub fn convert_mesh(
+    mesh: &Mesh,
+    params: &BuildParams,
+    out: &Path,
+) -> Result<ChunkStats, WriteError> {
+    let chunk = encode_chunk(mesh, params);
+    let bounds = strip_bounds(&chunk.strips);
+    let top = toplevel::build(&bounds, &params.top_level);
+    let info = FileInfo {
+        stats: chunk.stats,
+        leaf_windows: params.leaf_windows,
+        max_strip_length: params.stripify.max_length,
+        bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
+    };
+    write_file(out, &info, &top, &chunk.strips)?;
+    Ok(chunk.stats)
+}

@@ -1,1 +1,62 @@
-//! TODO
+//! Decoding a ReduceM file back to triangles: the proof that the representation is lossless.
+
+use std::fs::{self, File};
+use std::io::{self, BufWriter, Write};
+use std::path::Path;
+
+use crate::format::reader::ReducemFile;
+use crate::format::writer::temporary_path;
+use crate::geometry::Point;
+use crate::strip;
+
+/// Every stored triangle in file order, corners in input winding.
+pub fn triangles(file: &ReducemFile) -> impl Iterator<Item = [Point; 3]> + '_ {
+    (0..file.strip_count()).flat_map(move |s| {
+        let view = file.strip(s);
+        (0..view.window_count()).filter_map(move |k| view.window_points(k))
+    })
+}
+
+/// Writes every triangle as binary little-endian PLY (`float x,y,z`; `list uchar int
+/// vertex_indices`), each strip's stored vertices once, atomically replacing `out`.
+pub fn write_ply(file: &ReducemFile, out: &Path) -> io::Result<()> {
+    let temporary = temporary_path(out);
+    let result = write_ply_body(file, &temporary).and_then(|()| fs::rename(&temporary, out));
+    if result.is_err() {
+        let _ = fs::remove_file(&temporary);
+    }
+    result
+}
+
+fn write_ply_body(file: &ReducemFile, path: &Path) -> io::Result<()> {
+    let header = file.header();
+    let mut out = BufWriter::with_capacity(1 << 20, File::create(path)?);
+    write!(
+        out,
+        "ply\nformat binary_little_endian 1.0\ncomment decoded by reducem from {}\n\
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        file.path().display(),
+        header.stored_vertex_count,
+        header.triangle_count
+    )?;
+    for s in 0..file.strip_count() {
+        for vertex in file.strip(s).vertices {
+            out.write_all(bytemuck::cast_slice(vertex))?;
+        }
+    }
+    let mut first_vertex = 0u64;
+    for s in 0..file.strip_count() {
+        let view = file.strip(s);
+        for triangle in strip::triangles(view.references) {
+            out.write_all(&[3])?;
+            for r in triangle {
+                let index = i32::try_from(first_vertex + r as u64)
+                    .map_err(|_| io::Error::other("too many vertices for PLY int indices"))?;
+                out.write_all(&index.to_le_bytes())?;
+            }
+        }
+        first_vertex += view.vertices.len() as u64;
+    }
+    out.into_inner().map_err(|e| e.into_error())?.sync_all()
+}

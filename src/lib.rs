@@ -14,6 +14,7 @@ pub mod encode;
 pub mod format;
 pub mod geometry;
 pub mod input;
+pub mod inspect;
 pub mod mapping;
 pub mod mesh;
 pub mod strip;

@@ -1,1 +1,240 @@
-//! The ReduceM file format.
+//! The ReduceM file format, version 1: on-disk records and layout constants.
+//!
+//! `docs/FORMAT.md` is the specification; this module is its code form. A file is a 4096-byte
+//! header page (magic, version, endianness marker, counts, a section table with offsets, lengths
+//! and checksums, and a header checksum) followed by page-aligned sections. Every record here is
+//! `#[repr(C)]`, little-endian, `Pod`, and has its size asserted at compile time, so the reader
+//! views the mapping in place with no pointer fix-up.
+
+pub mod implicit_tree;
+pub mod reader;
+pub mod writer;
+
+use bytemuck::{Pod, Zeroable};
+
+/// First eight bytes of every ReduceM file.
+pub const MAGIC: [u8; 8] = *b"REDUCEM\0";
+/// Incremented on any incompatible layout change; readers reject other majors.
+pub const VERSION_MAJOR: u16 = 1;
+/// Incremented on compatible additions; readers accept any minor of their major.
+pub const VERSION_MINOR: u16 = 0;
+/// Written as a little-endian u32; a reader on a big-endian host sees `0x0403_0201`.
+pub const ENDIAN_MARKER: u32 = 0x0102_0304;
+/// Sections start at multiples of this, so each can be mapped and paged on its own.
+pub const SECTION_ALIGN: u64 = 4096;
+/// Bytes reserved for the header; the first section starts here.
+pub const HEADER_PAGE: u64 = SECTION_ALIGN;
+/// Deepest top-level node a valid file may have (root at depth 0); bounds the traversal stack.
+pub const MAX_TOP_DEPTH: usize = 128;
+/// The most vertices one strip can address with 1-byte local indices (paper 3.2).
+pub const MAX_STRIP_VERTICES: usize = 256;
+
+/// How vertex positions are stored in a strip block. The header names it so that a quantized
+/// encoding can be added without a new file family.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum VertexEncoding {
+    /// Three little-endian f32 per vertex, bit-exact copies of the input (lossless).
+    F32 = 0,
+}
+
+impl VertexEncoding {
+    pub fn from_u32(value: u32) -> Option<VertexEncoding> {
+        (value == VertexEncoding::F32 as u32).then_some(VertexEncoding::F32)
+    }
+
+    pub fn bytes_per_vertex(self) -> usize {
+        12
+    }
+}
+
+/// The sections of a version-1 file, in file order. The discriminant is the on-disk kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum SectionKind {
+    /// [`TopNode`] array: the global hierarchy over strips, depth-first.
+    TopNodes = 1,
+    /// [`StripRecord`] array: where each strip's block starts and its sizes.
+    StripRecords = 2,
+    /// Strip blocks: vertices, packed split axes, 1-byte vertex references.
+    StripData = 3,
+}
+
+impl SectionKind {
+    pub const ALL: [SectionKind; 3] = [
+        SectionKind::TopNodes,
+        SectionKind::StripRecords,
+        SectionKind::StripData,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SectionKind::TopNodes => "top_nodes",
+            SectionKind::StripRecords => "strip_records",
+            SectionKind::StripData => "strip_data",
+        }
+    }
+}
+
+/// One entry of the header's section table. 32 bytes.
+///
+/// | bytes | field |
+/// |---|---|
+/// | 0..4 | `kind` ([`SectionKind`]) |
+/// | 4..8 | reserved, zero |
+/// | 8..16 | `offset` from file start, multiple of 4096 |
+/// | 16..24 | `length` in bytes |
+/// | 24..32 | `checksum`: XXH3-64 of the section bytes |
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+#[repr(C)]
+pub struct SectionEntry {
+    pub kind: u32,
+    pub reserved: u32,
+    pub offset: u64,
+    pub length: u64,
+    pub checksum: u64,
+}
+const _: () = assert!(std::mem::size_of::<SectionEntry>() == 32);
+
+/// Number of entries in the version-1 section table.
+pub const SECTION_COUNT: usize = SectionKind::ALL.len();
+
+/// The file header at byte 0. 208 bytes; the rest of the first 4096-byte page is zero.
+///
+/// | bytes | field |
+/// |---|---|
+/// | 0..8 | `magic` = `REDUCEM\0` |
+/// | 8..10 | `version_major`, 10..12 `version_minor` |
+/// | 12..16 | `endian_marker` = 0x01020304 |
+/// | 16..20 | `header_bytes` = 208 |
+/// | 20..24 | `vertex_encoding` ([`VertexEncoding`]) |
+/// | 24..28 | `leaf_windows`: strip kd-tree leaf size in windows (1..=255) |
+/// | 28..32 | `max_strip_length` used by the build (informational) |
+/// | 32..40 | `triangle_count`: real (non-swap) triangles |
+/// | 40..48 | `strip_count` |
+/// | 48..56 | `stored_vertex_count`: vertices stored over all strips |
+/// | 56..64 | `input_vertex_count`: distinct vertices of the input after welding |
+/// | 64..72 | `dropped_triangle_count`: degenerate input triangles not stored |
+/// | 72..80 | `hierarchy_vertex_count`: stored copies that exist only to encode split bounds |
+/// | 80..92 | `bounds_min` f32×3, 92..104 `bounds_max` f32×3 |
+/// | 104..200 | section table: 3 × [`SectionEntry`] |
+/// | 200..208 | `header_checksum`: XXH3-64 of bytes 0..200 |
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct Header {
+    pub magic: [u8; 8],
+    pub version_major: u16,
+    pub version_minor: u16,
+    pub endian_marker: u32,
+    pub header_bytes: u32,
+    pub vertex_encoding: u32,
+    pub leaf_windows: u32,
+    pub max_strip_length: u32,
+    pub triangle_count: u64,
+    pub strip_count: u64,
+    pub stored_vertex_count: u64,
+    pub input_vertex_count: u64,
+    pub dropped_triangle_count: u64,
+    pub hierarchy_vertex_count: u64,
+    pub bounds_min: [f32; 3],
+    pub bounds_max: [f32; 3],
+    pub sections: [SectionEntry; SECTION_COUNT],
+    pub header_checksum: u64,
+}
+const _: () = assert!(std::mem::size_of::<Header>() == 208);
+
+/// Byte length of the header prefix covered by `header_checksum`.
+pub const HEADER_CHECKSUMMED_BYTES: usize = 200;
+
+/// A node of the global hierarchy over strips. 32 bytes, depth-first order, root at index 0.
+///
+/// | bytes | field |
+/// |---|---|
+/// | 0..12 | `min` f32×3 |
+/// | 12..24 | `max` f32×3 |
+/// | 24..28 | `payload`: internal → index of the right child (the left child is the next node); leaf → first strip |
+/// | 28..32 | `kind`: bit 31 set → internal node, bits 0..2 its split axis; clear → leaf, the value is its strip count (≥ 1) |
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct TopNode {
+    pub min: [f32; 3],
+    pub max: [f32; 3],
+    pub payload: u32,
+    pub kind: u32,
+}
+const _: () = assert!(std::mem::size_of::<TopNode>() == 32);
+
+const INTERNAL_BIT: u32 = 1 << 31;
+
+impl TopNode {
+    pub fn internal(min: [f32; 3], max: [f32; 3], right_child: u32, axis: usize) -> TopNode {
+        TopNode {
+            min,
+            max,
+            payload: right_child,
+            kind: INTERNAL_BIT | axis as u32,
+        }
+    }
+
+    pub fn leaf(min: [f32; 3], max: [f32; 3], first_strip: u32, strip_count: u32) -> TopNode {
+        TopNode {
+            min,
+            max,
+            payload: first_strip,
+            kind: strip_count,
+        }
+    }
+
+    pub fn is_internal(&self) -> bool {
+        self.kind & INTERNAL_BIT != 0
+    }
+
+    /// Split axis of an internal node (validated to be 0..=2 when the file is opened).
+    pub fn axis(&self) -> usize {
+        (self.kind & 3) as usize
+    }
+
+    pub fn strip_count(&self) -> u32 {
+        self.kind
+    }
+}
+
+/// Where a strip's block lives in the strip-data section. 8 bytes.
+///
+/// | bytes | field |
+/// |---|---|
+/// | 0..4 | `data_word`: block offset in the strip-data section, in 4-byte words |
+/// | 4..6 | `vertex_count`: stored vertices (3..=256) |
+/// | 6..8 | `reference_count`: 1-byte vertex references (≥ 3) |
+///
+/// A block is `vertex_count` vertices, then the split axes of the strip's kd-tree at 2 bits per
+/// node (4 per byte, node `i` in bits `2*(i%4)..`), then `reference_count` references, padded
+/// with zeros to a multiple of 4 bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+#[repr(C)]
+pub struct StripRecord {
+    pub data_word: u32,
+    pub vertex_count: u16,
+    pub reference_count: u16,
+}
+const _: () = assert!(std::mem::size_of::<StripRecord>() == 8);
+
+/// Bytes of packed 2-bit split axes for `nodes` kd-tree nodes.
+pub fn axis_bytes(nodes: usize) -> usize {
+    nodes.div_ceil(4)
+}
+
+/// Unpadded byte length of a strip block.
+pub fn strip_block_bytes(
+    encoding: VertexEncoding,
+    vertices: usize,
+    nodes: usize,
+    references: usize,
+) -> usize {
+    vertices * encoding.bytes_per_vertex() + axis_bytes(nodes) + references
+}
+
+/// Rounds a byte count up to the next multiple of `align`.
+pub fn align_up(value: u64, align: u64) -> u64 {
+    value.div_ceil(align) * align
+}

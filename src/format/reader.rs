@@ -1,0 +1,483 @@
+//! Opens a ReduceM file by mapping it and validating it once.
+//!
+//! Opening is cheap (one linear pass over records, references and nodes, no copy of the
+//! geometry) and strict: every offset, count, index and child link is checked, and a short or
+//! inconsistent file is an error, never a default. After a successful open, traversal can index
+//! the mapping without further checks and cannot read out of bounds, even on a crafted file.
+//! Checksums are verified only on request ([`ReducemFile::verify_checksums`]), since hashing
+//! pages in the whole file.
+//!
+//! This module is the read side: it depends on the format definitions only, never on the build
+//! side, the pipeline, PLY input, progress or channel code.
+
+use std::fs::File;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use memmap2::Mmap;
+use rayon::prelude::*;
+
+use super::implicit_tree::NodeCountTable;
+use super::{
+    axis_bytes, Header, SectionKind, StripRecord, TopNode, VertexEncoding, ENDIAN_MARKER,
+    HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH, SECTION_ALIGN,
+    VERSION_MAJOR,
+};
+use crate::geometry::Point;
+use crate::mapping::map_file;
+
+/// Why a file could not be opened, with the file and the byte offset of the defect.
+#[derive(Debug, thiserror::Error)]
+pub enum FormatError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}: {section} at byte {offset}: {detail}", path.display())]
+    Invalid {
+        path: PathBuf,
+        section: &'static str,
+        offset: u64,
+        detail: String,
+    },
+}
+
+/// A mapped, validated ReduceM file.
+pub struct ReducemFile {
+    path: PathBuf,
+    map: Mmap,
+    header: Header,
+    sections: [Range<usize>; 3],
+    node_counts: NodeCountTable,
+}
+
+/// One strip's block, viewed in place.
+#[derive(Clone, Copy, Debug)]
+pub struct StripView<'a> {
+    pub vertices: &'a [Point],
+    /// Split axes, 2 bits per internal node.
+    pub axes: &'a [u8],
+    /// 1-byte references into `vertices`, swaps included.
+    pub references: &'a [u8],
+}
+
+impl StripView<'_> {
+    pub fn window_count(&self) -> usize {
+        self.references.len() - 2
+    }
+
+    /// Split axis of internal node `node`.
+    #[inline]
+    pub fn axis(&self, node: usize) -> usize {
+        ((self.axes[node / 4] >> (2 * (node % 4))) & 3) as usize
+    }
+
+    /// Corners of window `k` in input winding, or `None` for a swap.
+    #[inline]
+    pub fn window_points(&self, k: usize) -> Option<[Point; 3]> {
+        crate::strip::window_triangle(self.references, k)
+            .map(|t| t.map(|r| self.vertices[r as usize]))
+    }
+}
+
+impl ReducemFile {
+    /// Maps and validates the file at `path`.
+    pub fn open(path: &Path) -> Result<ReducemFile, FormatError> {
+        let io_error = |source| FormatError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let file = File::open(path).map_err(io_error)?;
+        let map = map_file(&file).map_err(io_error)?;
+        let checker = Checker { path, map: &map };
+        let header = checker.header()?;
+        let sections = checker.sections(&header)?;
+        let node_counts = NodeCountTable::new(header.leaf_windows as usize, u16::MAX as usize);
+        let opened = ReducemFile {
+            path: path.to_path_buf(),
+            map,
+            header,
+            sections,
+            node_counts,
+        };
+        opened.validate_strips()?;
+        opened.validate_nodes()?;
+        Ok(opened)
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    pub fn file_bytes(&self) -> u64 {
+        self.map.len() as u64
+    }
+
+    pub fn node_counts(&self) -> &NodeCountTable {
+        &self.node_counts
+    }
+
+    pub fn section_bytes(&self, kind: SectionKind) -> &[u8] {
+        &self.map[self.sections[section_slot(kind)].clone()]
+    }
+
+    pub fn top_nodes(&self) -> &[TopNode] {
+        bytemuck::cast_slice(self.section_bytes(SectionKind::TopNodes))
+    }
+
+    pub fn strip_records(&self) -> &[StripRecord] {
+        bytemuck::cast_slice(self.section_bytes(SectionKind::StripRecords))
+    }
+
+    pub fn strip_count(&self) -> usize {
+        self.strip_records().len()
+    }
+
+    /// The strip at file position `index` (`index < strip_count()`).
+    #[inline]
+    pub fn strip(&self, index: usize) -> StripView<'_> {
+        strip_view(
+            self.section_bytes(SectionKind::StripData),
+            &self.strip_records()[index],
+            &self.node_counts,
+        )
+    }
+
+    /// Hashes every section and compares with the header's checksums.
+    pub fn verify_checksums(&self) -> Result<(), FormatError> {
+        for (slot, kind) in SectionKind::ALL.into_iter().enumerate() {
+            let entry = &self.header.sections[slot];
+            let actual = xxhash_rust::xxh3::xxh3_64(self.section_bytes(kind));
+            if actual != entry.checksum {
+                return Err(self.invalid(
+                    kind.name(),
+                    entry.offset,
+                    format!(
+                        "checksum {actual:#018x} does not match the header's {:#018x}",
+                        entry.checksum
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn invalid(&self, section: &'static str, offset: u64, detail: String) -> FormatError {
+        FormatError::Invalid {
+            path: self.path.clone(),
+            section,
+            offset,
+            detail,
+        }
+    }
+
+    fn section_offset(&self, kind: SectionKind) -> u64 {
+        self.header.sections[section_slot(kind)].offset
+    }
+
+    /// Checks every strip record, its block bounds, reference indices and split axes, and that
+    /// the real triangles add up to the header's count.
+    fn validate_strips(&self) -> Result<(), FormatError> {
+        let records = self.strip_records();
+        if records.len() as u64 != self.header.strip_count {
+            return Err(self.invalid(
+                "strip_records",
+                self.section_offset(SectionKind::StripRecords),
+                format!(
+                    "{} records, header says {} strips",
+                    records.len(),
+                    self.header.strip_count
+                ),
+            ));
+        }
+        let data = self.section_bytes(SectionKind::StripData);
+        let triangles = records
+            .par_iter()
+            .enumerate()
+            .map(|(index, record)| {
+                check_strip(data, record, &self.node_counts).map_err(|(offset, detail)| {
+                    let offset = offset.map_or(
+                        self.section_offset(SectionKind::StripRecords) + index as u64 * 8,
+                        |o| self.section_offset(SectionKind::StripData) + o,
+                    );
+                    self.invalid("strip_data", offset, format!("strip {index}: {detail}"))
+                })
+            })
+            .try_reduce(|| 0u64, |a, b| Ok(a + b))?;
+        if triangles != self.header.triangle_count {
+            return Err(self.invalid(
+                "header",
+                32,
+                format!(
+                    "{triangles} triangles in strips, header says {}",
+                    self.header.triangle_count
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Checks that the nodes form one tree in preorder within the depth limit, with strip ranges
+    /// inside the record array; every node has exactly one parent, so traversal terminates.
+    fn validate_nodes(&self) -> Result<(), FormatError> {
+        let nodes = self.top_nodes();
+        let base = self.section_offset(SectionKind::TopNodes);
+        let strips = self.strip_count() as u64;
+        let mut depth = vec![u8::MAX; nodes.len()];
+        depth[0] = 0;
+        for (index, node) in nodes.iter().enumerate() {
+            let fail = |detail: String| {
+                self.invalid(
+                    "top_nodes",
+                    base + index as u64 * 32,
+                    format!("node {index}: {detail}"),
+                )
+            };
+            if depth[index] == u8::MAX {
+                return Err(fail("has no parent".into()));
+            }
+            if !node.is_internal() {
+                let end = node.payload as u64 + node.strip_count() as u64;
+                let empty_model = strips == 0 && nodes.len() == 1;
+                if (node.strip_count() == 0 && !empty_model) || end > strips {
+                    return Err(fail(format!(
+                        "strips {}..{end} outside 0..{strips}",
+                        node.payload
+                    )));
+                }
+                continue;
+            }
+            if node.kind & !(1 << 31) > 2 {
+                return Err(fail(format!(
+                    "split axis {} is not 0, 1 or 2",
+                    node.kind & !(1 << 31)
+                )));
+            }
+            let right = node.payload as usize;
+            if right <= index + 1 || right >= nodes.len() {
+                return Err(fail(format!(
+                    "right child {right} outside {}..{}",
+                    index + 2,
+                    nodes.len()
+                )));
+            }
+            let child_depth = depth[index] + 1;
+            if child_depth as usize > MAX_TOP_DEPTH {
+                return Err(fail(format!("deeper than {MAX_TOP_DEPTH} levels")));
+            }
+            for child in [index + 1, right] {
+                if depth[child] != u8::MAX {
+                    return Err(fail(format!("child {child} has a second parent")));
+                }
+                depth[child] = child_depth;
+            }
+        }
+        Ok(())
+    }
+}
+
+fn section_slot(kind: SectionKind) -> usize {
+    kind as usize - 1
+}
+
+/// Views a strip's block; the record has been validated by [`check_strip`].
+#[inline]
+pub(crate) fn strip_view<'a>(
+    data: &'a [u8],
+    record: &StripRecord,
+    node_counts: &NodeCountTable,
+) -> StripView<'a> {
+    let start = record.data_word as usize * 4;
+    let vertex_end = start + record.vertex_count as usize * VertexEncoding::F32.bytes_per_vertex();
+    let windows = record.reference_count as usize - 2;
+    let axes_end = vertex_end + axis_bytes(node_counts.internal_nodes(windows));
+    StripView {
+        vertices: bytemuck::cast_slice(&data[start..vertex_end]),
+        axes: &data[vertex_end..axes_end],
+        references: &data[axes_end..axes_end + record.reference_count as usize],
+    }
+}
+
+/// Validates one record; returns its real-triangle count, or the data offset (if known) and
+/// what is wrong.
+fn check_strip(
+    data: &[u8],
+    record: &StripRecord,
+    node_counts: &NodeCountTable,
+) -> Result<u64, (Option<u64>, String)> {
+    let vertices = record.vertex_count as usize;
+    let references = record.reference_count as usize;
+    if !(3..=MAX_STRIP_VERTICES).contains(&vertices) || references < 3 {
+        return Err((
+            None,
+            format!("{vertices} vertices and {references} references"),
+        ));
+    }
+    let nodes = node_counts.internal_nodes(references - 2);
+    if 2 * nodes > vertices {
+        return Err((
+            None,
+            format!(
+                "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
+                2 * nodes
+            ),
+        ));
+    }
+    let start = record.data_word as u64 * 4;
+    let length =
+        (vertices * VertexEncoding::F32.bytes_per_vertex() + axis_bytes(nodes) + references) as u64;
+    if start + length > data.len() as u64 {
+        return Err((
+            Some(start),
+            format!(
+                "block of {length} bytes runs past the section end {}",
+                data.len()
+            ),
+        ));
+    }
+    let view = strip_view(data, record, node_counts);
+    if let Some(position) = view.references.iter().position(|&r| r as usize >= vertices) {
+        let offset = start + length - references as u64 + position as u64;
+        return Err((
+            Some(offset),
+            format!(
+                "reference {} out of range ({vertices} vertices)",
+                view.references[position]
+            ),
+        ));
+    }
+    if let Some(node) = (0..nodes).find(|&n| view.axis(n) > 2) {
+        return Err((Some(start), format!("node {node} has split axis 3")));
+    }
+    Ok(crate::strip::triangles(view.references).count() as u64)
+}
+
+/// Header and section-table checks, before anything else is trusted.
+struct Checker<'a> {
+    path: &'a Path,
+    map: &'a [u8],
+}
+
+impl Checker<'_> {
+    fn invalid(&self, section: &'static str, offset: u64, detail: String) -> FormatError {
+        FormatError::Invalid {
+            path: self.path.to_path_buf(),
+            section,
+            offset,
+            detail,
+        }
+    }
+
+    fn header(&self) -> Result<Header, FormatError> {
+        if (self.map.len() as u64) < HEADER_PAGE {
+            let detail = format!(
+                "file is {} bytes, the header page alone is {HEADER_PAGE}",
+                self.map.len()
+            );
+            return Err(self.invalid("header", 0, detail));
+        }
+        let header: Header =
+            bytemuck::pod_read_unaligned(&self.map[..std::mem::size_of::<Header>()]);
+        if header.magic != MAGIC {
+            return Err(self.invalid("header", 0, "not a ReduceM file (bad magic)".into()));
+        }
+        if header.endian_marker != ENDIAN_MARKER {
+            let detail = format!(
+                "endianness marker {:#010x}: written on or read on a big-endian host",
+                header.endian_marker
+            );
+            return Err(self.invalid("header", 12, detail));
+        }
+        if header.version_major != VERSION_MAJOR {
+            let detail = format!(
+                "format version {}.{}, this reader reads {VERSION_MAJOR}.x",
+                header.version_major, header.version_minor
+            );
+            return Err(self.invalid("header", 8, detail));
+        }
+        let checksum = xxhash_rust::xxh3::xxh3_64(&self.map[..HEADER_CHECKSUMMED_BYTES]);
+        if checksum != header.header_checksum
+            || header.header_bytes as usize != std::mem::size_of::<Header>()
+        {
+            return Err(self.invalid(
+                "header",
+                HEADER_CHECKSUMMED_BYTES as u64,
+                "header checksum mismatch".into(),
+            ));
+        }
+        if VertexEncoding::from_u32(header.vertex_encoding).is_none() {
+            return Err(self.invalid(
+                "header",
+                20,
+                format!("unknown vertex encoding {}", header.vertex_encoding),
+            ));
+        }
+        if !(1..=255).contains(&header.leaf_windows) {
+            return Err(self.invalid(
+                "header",
+                24,
+                format!("leaf size {} outside 1..=255", header.leaf_windows),
+            ));
+        }
+        Ok(header)
+    }
+
+    fn sections(&self, header: &Header) -> Result<[Range<usize>; 3], FormatError> {
+        let mut previous_end = HEADER_PAGE;
+        let mut ranges = [0..0, 0..0, 0..0];
+        for (slot, kind) in SectionKind::ALL.into_iter().enumerate() {
+            let entry = &header.sections[slot];
+            let table_offset = 104 + slot as u64 * 32;
+            let end = entry.offset.checked_add(entry.length).unwrap_or(u64::MAX);
+            let record = record_size(kind);
+            let detail = if entry.kind != kind as u32 {
+                Some(format!(
+                    "section {slot} has kind {}, expected {}",
+                    entry.kind, kind as u32
+                ))
+            } else if entry.offset % SECTION_ALIGN != 0 || entry.offset < previous_end {
+                Some(format!(
+                    "{} offset {} is unaligned or overlaps",
+                    kind.name(),
+                    entry.offset
+                ))
+            } else if end > self.map.len() as u64 {
+                Some(format!(
+                    "{} ends at {end}, past the file end {}",
+                    kind.name(),
+                    self.map.len()
+                ))
+            } else if entry.length % record != 0
+                || (kind == SectionKind::TopNodes && entry.length == 0)
+            {
+                Some(format!(
+                    "{} length {} is not a positive multiple of {record}",
+                    kind.name(),
+                    entry.length
+                ))
+            } else {
+                None
+            };
+            if let Some(detail) = detail {
+                return Err(self.invalid("section table", table_offset, detail));
+            }
+            ranges[slot] = entry.offset as usize..end as usize;
+            previous_end = end;
+        }
+        Ok(ranges)
+    }
+}
+
+fn record_size(kind: SectionKind) -> u64 {
+    match kind {
+        SectionKind::TopNodes => std::mem::size_of::<TopNode>() as u64,
+        SectionKind::StripRecords => std::mem::size_of::<StripRecord>() as u64,
+        SectionKind::StripData => 4,
+    }
+}

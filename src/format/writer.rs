@@ -1,0 +1,221 @@
+//! Writes a ReduceM file: sections first, header last, then fsync and an atomic rename, so a
+//! crash or a full disk leaves any earlier file at the destination untouched.
+
+use std::fs::{self, File};
+use std::io::{self, BufWriter, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use xxhash_rust::xxh3::Xxh3;
+
+use super::{
+    align_up, Header, SectionEntry, SectionKind, StripRecord, VertexEncoding, ENDIAN_MARKER,
+    HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR,
+    VERSION_MINOR,
+};
+use crate::build::ChunkStats;
+use crate::encode::EncodedStrip;
+use crate::geometry::Aabb;
+use crate::toplevel::TopLevel;
+
+/// What the header records about the build besides the sections.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FileInfo {
+    pub stats: ChunkStats,
+    pub leaf_windows: usize,
+    pub max_strip_length: usize,
+    pub bounds: Aabb,
+}
+
+/// A failed write, naming the file.
+#[derive(Debug, thiserror::Error)]
+#[error("writing {}: {source}", path.display())]
+pub struct WriteError {
+    pub path: PathBuf,
+    #[source]
+    pub source: io::Error,
+}
+
+/// Writes `strips` (indexed by the top level's `strip_order`) as a ReduceM file at `path`.
+pub fn write_file(
+    path: &Path,
+    info: &FileInfo,
+    top: &TopLevel,
+    strips: &[EncodedStrip],
+) -> Result<(), WriteError> {
+    let temporary = temporary_path(path);
+    let result =
+        write_temporary(&temporary, info, top, strips).and_then(|()| commit(&temporary, path));
+    if result.is_err() {
+        let _ = fs::remove_file(&temporary);
+    }
+    result.map_err(|source| WriteError {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// `dir/.name.tmp-PID`: same directory, so the rename is atomic; hidden, so globs skip it.
+pub fn temporary_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+}
+
+fn write_temporary(
+    temporary: &Path,
+    info: &FileInfo,
+    top: &TopLevel,
+    strips: &[EncodedStrip],
+) -> io::Result<()> {
+    let records = strip_records(top, strips)?;
+    let mut out = SectionWriter::new(File::create(temporary)?);
+    out.pad_to(HEADER_PAGE)?;
+    let nodes = out.section(SectionKind::TopNodes, |w| {
+        w.write_all(bytemuck::cast_slice(&top.nodes))
+    })?;
+    let records = out.section(SectionKind::StripRecords, |w| {
+        w.write_all(bytemuck::cast_slice(&records))
+    })?;
+    let data = out.section(SectionKind::StripData, |w| {
+        top.strip_order
+            .iter()
+            .try_for_each(|&s| w.write_all(&strips[s as usize].block))
+    })?;
+    let header = header(info, strips.len() as u64, [nodes, records, data]);
+    let mut file = out.finish()?;
+    file.seek(SeekFrom::Start(0))?;
+    file.write_all(bytemuck::bytes_of(&header))?;
+    file.sync_all()
+}
+
+fn commit(temporary: &Path, path: &Path) -> io::Result<()> {
+    fs::rename(temporary, path)?;
+    let directory = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    File::open(directory)?.sync_all()
+}
+
+/// Records in file order. Blocks are padded to 4 bytes, so offsets are counted in words.
+fn strip_records(top: &TopLevel, strips: &[EncodedStrip]) -> io::Result<Vec<StripRecord>> {
+    let mut word = 0u64;
+    top.strip_order
+        .iter()
+        .map(|&s| {
+            let strip = &strips[s as usize];
+            let record = StripRecord {
+                data_word: u32::try_from(word)
+                    .map_err(|_| too_large("strip data exceeds 16 GiB"))?,
+                vertex_count: strip.vertex_count,
+                reference_count: strip.reference_count,
+            };
+            word += strip.block.len() as u64 / 4;
+            Ok(record)
+        })
+        .collect()
+}
+
+fn too_large(what: &str) -> io::Error {
+    io::Error::new(
+        io::ErrorKind::FileTooLarge,
+        format!("{what}: too large for format version 1"),
+    )
+}
+
+fn header(info: &FileInfo, strip_count: u64, sections: [SectionEntry; SECTION_COUNT]) -> Header {
+    let mut header = Header {
+        magic: MAGIC,
+        version_major: VERSION_MAJOR,
+        version_minor: VERSION_MINOR,
+        endian_marker: ENDIAN_MARKER,
+        header_bytes: std::mem::size_of::<Header>() as u32,
+        vertex_encoding: VertexEncoding::F32 as u32,
+        leaf_windows: info.leaf_windows as u32,
+        max_strip_length: info.max_strip_length as u32,
+        triangle_count: info.stats.triangles,
+        strip_count,
+        stored_vertex_count: info.stats.stored_vertices,
+        input_vertex_count: info.stats.input_vertices,
+        dropped_triangle_count: info.stats.dropped_triangles,
+        hierarchy_vertex_count: info.stats.hierarchy_vertices,
+        bounds_min: info.bounds.min,
+        bounds_max: info.bounds.max,
+        sections,
+        header_checksum: 0,
+    };
+    header.header_checksum =
+        xxhash_rust::xxh3::xxh3_64(&bytemuck::bytes_of(&header)[..HEADER_CHECKSUMMED_BYTES]);
+    header
+}
+
+/// Sequential writer that aligns sections and hashes them as they pass.
+struct SectionWriter {
+    out: BufWriter<File>,
+    position: u64,
+}
+
+impl SectionWriter {
+    fn new(file: File) -> SectionWriter {
+        SectionWriter {
+            out: BufWriter::with_capacity(1 << 20, file),
+            position: 0,
+        }
+    }
+
+    fn pad_to(&mut self, offset: u64) -> io::Result<()> {
+        let zeros = vec![0u8; (offset - self.position) as usize];
+        self.out.write_all(&zeros)?;
+        self.position = offset;
+        Ok(())
+    }
+
+    fn section(
+        &mut self,
+        kind: SectionKind,
+        body: impl FnOnce(&mut HashingWriter<'_>) -> io::Result<()>,
+    ) -> io::Result<SectionEntry> {
+        self.pad_to(align_up(self.position, SECTION_ALIGN))?;
+        let offset = self.position;
+        let mut hashing = HashingWriter {
+            out: &mut self.out,
+            hasher: Xxh3::new(),
+            written: 0,
+        };
+        body(&mut hashing)?;
+        let (length, checksum) = (hashing.written, hashing.hasher.digest());
+        self.position += length;
+        Ok(SectionEntry {
+            kind: kind as u32,
+            reserved: 0,
+            offset,
+            length,
+            checksum,
+        })
+    }
+
+    fn finish(self) -> io::Result<File> {
+        self.out.into_inner().map_err(|e| e.into_error())
+    }
+}
+
+struct HashingWriter<'a> {
+    out: &'a mut BufWriter<File>,
+    hasher: Xxh3,
+    written: u64,
+}
+
+impl Write for HashingWriter<'_> {
+    fn write(&mut self, bytes: &[u8]) -> io::Result<usize> {
+        let n = self.out.write(bytes)?;
+        self.hasher.update(&bytes[..n]);
+        self.written += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()
+    }
+}
