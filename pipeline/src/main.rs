@@ -1,2 +1,102 @@
+//! The `pipeline` command: converts meshes to ReduceM files (`run`) and generates synthetic
+//! meshes (`gen`). Exit codes are a contract with cron jobs and are listed in README.md.
+
+mod config;
 mod gen;
-fn main() {}
+mod run;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// Exit codes (sysexits.h values, as batch schedulers expect).
+mod exit {
+    pub const USAGE: u8 = 64;
+    pub const BAD_INPUT: u8 = 65;
+    pub const INTERNAL: u8 = 70;
+    pub const IO: u8 = 74;
+    pub const CONFIG: u8 = 78;
+}
+
+#[derive(Parser)]
+#[command(
+    name = "pipeline",
+    version,
+    about = "Convert massive meshes to ReduceM files"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the conversion described by CONFIG.
+    Run { config: PathBuf },
+    /// Stream a synthetic mesh to binary PLY.
+    Gen {
+        kind: gen::Kind,
+        #[arg(long)]
+        triangles: u64,
+        #[arg(short, long)]
+        output: PathBuf,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) => {
+            let code = if error.use_stderr() { exit::USAGE } else { 0 };
+            let _ = error.print();
+            return ExitCode::from(code);
+        }
+    };
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("pipeline: error: {error:#}");
+            ExitCode::from(exit_code(&error))
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Run { config } => run::run(&config),
+        Command::Gen {
+            kind,
+            triangles,
+            output,
+            seed,
+        } => {
+            let summary = gen::generate(kind, triangles, seed, &output)?;
+            eprintln!(
+                "pipeline: wrote {} ({} vertices, {} triangles)",
+                output.display(),
+                summary.vertices,
+                summary.triangles
+            );
+            Ok(())
+        }
+    }
+}
+
+/// Classifies an error by the typed errors in its chain.
+fn exit_code(error: &anyhow::Error) -> u8 {
+    for cause in error.chain() {
+        if cause.is::<config::ConfigError>() {
+            return exit::CONFIG;
+        }
+        if cause.is::<reducem::input::InputError>() {
+            return exit::BAD_INPUT;
+        }
+        if cause.is::<std::io::Error>() || cause.is::<reducem::format::writer::WriteError>() {
+            return exit::IO;
+        }
+    }
+    exit::INTERNAL
+}

@@ -1,0 +1,168 @@
+//! The job configuration: a TOML file whose every key is known (unknown keys are errors with
+//! line and column), relative paths resolved against the file's directory.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::gen::Kind;
+
+/// A configuration problem, naming the file and, for syntax and unknown keys, line and column.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {message}", path.display())]
+pub struct ConfigError {
+    pub path: PathBuf,
+    pub message: String,
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    pub input: InputConfig,
+    pub output: OutputConfig,
+    #[serde(default)]
+    pub strip: StripConfig,
+    #[serde(default)]
+    pub work: WorkConfig,
+}
+
+/// Exactly one of `path` (a PLY or OBJ file) and `generate` (a synthetic mesh).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputConfig {
+    pub path: Option<PathBuf>,
+    pub generate: Option<GenerateConfig>,
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GenerateConfig {
+    pub kind: String,
+    pub triangles: u64,
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+}
+
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputConfig {
+    pub path: PathBuf,
+}
+
+/// Strip-RT and strip-encoding parameters; defaults are the paper's.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StripConfig {
+    pub max_length: usize,
+    pub leaf_triangles: usize,
+    pub sah_bins: usize,
+}
+
+impl Default for StripConfig {
+    fn default() -> Self {
+        StripConfig {
+            max_length: 60,
+            leaf_triangles: 2,
+            sah_bins: 16,
+        }
+    }
+}
+
+/// Where intermediate files go; defaults to `<output>.work` next to the output.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorkConfig {
+    pub dir: Option<PathBuf>,
+}
+
+fn default_seed() -> u64 {
+    1
+}
+
+/// The input after validation.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Input {
+    File(PathBuf),
+    Generate {
+        kind: Kind,
+        triangles: u64,
+        seed: u64,
+    },
+}
+
+impl Config {
+    /// Reads, parses and checks `path`; relative paths in it become relative to its directory.
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let error = |message: String| ConfigError {
+            path: path.to_path_buf(),
+            message,
+        };
+        let text = std::fs::read_to_string(path).map_err(|e| error(e.to_string()))?;
+        let mut config: Config =
+            toml::from_str(&text).map_err(|e| error(e.to_string().trim_end().to_string()))?;
+        config.resolve_paths(path.parent().unwrap_or(Path::new("")));
+        config.input().map_err(error)?;
+        config.build_params().check().map_err(error)?;
+        Ok(config)
+    }
+
+    fn resolve_paths(&mut self, base: &Path) {
+        let resolve = |p: &mut PathBuf| *p = base.join(&*p);
+        self.input.path.as_mut().map(resolve);
+        resolve(&mut self.output.path);
+        self.work.dir.as_mut().map(resolve);
+    }
+
+    pub fn input(&self) -> Result<Input, String> {
+        match (&self.input.path, &self.input.generate) {
+            (Some(path), None) => Ok(Input::File(path.clone())),
+            (None, Some(generate)) => {
+                let kind =
+                    <Kind as clap::ValueEnum>::from_str(&generate.kind, true).map_err(|_| {
+                        format!(
+                            "[input.generate] kind = {:?} is not one of {}",
+                            generate.kind,
+                            kind_names()
+                        )
+                    })?;
+                Ok(Input::Generate {
+                    kind,
+                    triangles: generate.triangles,
+                    seed: generate.seed,
+                })
+            }
+            _ => Err("[input] needs exactly one of `path` and `[input.generate]`".into()),
+        }
+    }
+
+    pub fn work_dir(&self) -> PathBuf {
+        self.work.dir.clone().unwrap_or_else(|| {
+            let mut name = self
+                .output
+                .path
+                .file_name()
+                .unwrap_or_default()
+                .to_os_string();
+            name.push(".work");
+            self.output.path.with_file_name(name)
+        })
+    }
+
+    pub fn build_params(&self) -> reducem::build::BuildParams {
+        let mut params = reducem::build::BuildParams {
+            leaf_windows: self.strip.leaf_triangles,
+            ..Default::default()
+        };
+        params.stripify.max_length = self.strip.max_length;
+        params.stripify.sah_bins = self.strip.sah_bins;
+        params
+    }
+}
+
+fn kind_names() -> String {
+    <Kind as clap::ValueEnum>::value_variants()
+        .iter()
+        .filter_map(|k| clap::ValueEnum::to_possible_value(k).map(|v| v.get_name().to_string()))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
