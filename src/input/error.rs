@@ -112,7 +112,7 @@ pub enum InputErrorKind {
     TooFewFaceVertices(u64),
     #[error("coordinate {axis} is {value}, not a finite number")]
     NonFiniteCoordinate { axis: char, value: f64 },
-    #[error("coordinate {axis} = {value} is too large for a 32-bit float")]
+    #[error("coordinate {axis} = {value:e} is too large for a 32-bit float")]
     CoordinateOverflowsF32 { axis: char, value: f64 },
     #[error("OBJ: {0}")]
     Obj(String),
