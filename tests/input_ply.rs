@@ -595,9 +595,11 @@ fn truncated_fixed_size_vertices_fail_the_count_check() {
 
 #[test]
 fn truncated_face_names_element_index_and_offset() {
-    let (bytes, header_length) = sample_binary_with_header();
-    // Faces: quad (17 bytes), triangle (13), triangle (13); cut inside the third one's indices.
-    let third_face = header_length + 5 * VERTEX_BYTES + 17 + 13;
+    let faces = vec![vec![0, 1, 2, 3], vec![3, 2, 4, 0], vec![3, 2, 4]];
+    let bytes = plain_ply(Format::Little, FLOAT_UCHAR_INT, &sample_positions(), &faces);
+    let header_length = plain_header(Format::Little, FLOAT_UCHAR_INT, 5, 3).len();
+    // Faces: two quads (17 bytes each) and a triangle; cut inside the triangle's indices.
+    let third_face = header_length + 5 * VERTEX_BYTES + 17 + 17;
     let cut = third_face + 1 + 4 + 2;
     let (error, path) = read_error(&bytes[..cut]);
     let value_offset = third_face + 1 + 4;
@@ -613,6 +615,35 @@ fn truncated_face_names_element_index_and_offset() {
              element (2 more bytes needed)"
         )
     );
+}
+
+#[test]
+fn truncated_vertex_with_list_property_names_element_index_and_offset() {
+    let header = "ply\nformat binary_big_endian 1.0\nelement vertex 5\nproperty float x\n\
+                  property float y\nproperty float z\nproperty list uchar float extra\n\
+                  element face 0\nproperty list uchar int vertex_indices\nend_header\n";
+    let mut body = Body::new(Format::Big);
+    for position in sample_positions() {
+        for coordinate in position {
+            body.value("float", coordinate);
+        }
+        body.value("uchar", 2.0)
+            .value("float", 0.5)
+            .value("float", 0.25);
+    }
+    let mut bytes = header.as_bytes().to_vec();
+    bytes.extend_from_slice(&body.bytes);
+    let list_start = header.len() + 4 * 21 + VERTEX_BYTES;
+    let (error, _) = read_error(&bytes[..list_start + 1 + 2]);
+    // The skipped list of two floats needs 8 bytes; 2 are present.
+    assert_eq!(
+        error.location,
+        element_location("vertex", 4, list_start + 1, None)
+    );
+    assert_eq!(error.kind, InputErrorKind::Truncated { needed: 6 });
+
+    let mesh = read("vertex-list.ply", &bytes).unwrap();
+    assert_eq!(mesh.positions, sample_mesh().positions);
 }
 
 #[test]
@@ -651,7 +682,7 @@ fn huge_face_count_fails_before_reading_or_allocating() {
         error.kind,
         InputErrorKind::CountExceedsFile {
             count: 1 << 40,
-            min_bytes_each: 1,
+            min_bytes_each: 13,
             remaining: 43
         }
     );
@@ -1084,4 +1115,125 @@ proptest! {
         prop_assert_eq!(bits(&mesh.positions), bits(&positions));
         prop_assert_eq!(mesh.triangles, fan_triangles(&faces));
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Throughput (ignored: run with `cargo test --test input_ply -- --ignored --nocapture`)
+
+/// Writes a binary little-endian grid of `side × side` vertices and two triangles per cell
+/// straight to bytes (the `Body` helper is too slow for 10M faces).
+fn write_grid_ply(path: &Path, side: u32) -> (usize, usize) {
+    let face_count = 2 * (side - 1) as usize * (side - 1) as usize;
+    let vertex_count = (side * side) as usize;
+    let mut bytes =
+        plain_header(Format::Little, FLOAT_UCHAR_INT, vertex_count, face_count).into_bytes();
+    bytes.reserve(vertex_count * 12 + face_count * 13);
+    for i in 0..side * side {
+        for coordinate in [(i % side) as f32, (i / side) as f32, (i % 97) as f32 * 0.01] {
+            bytes.extend_from_slice(&coordinate.to_le_bytes());
+        }
+    }
+    for row in 0..side - 1 {
+        for column in 0..side - 1 {
+            let corner = row * side + column;
+            for triangle in [
+                [corner, corner + 1, corner + side + 1],
+                [corner, corner + side + 1, corner + side],
+            ] {
+                bytes.push(3);
+                for index in triangle {
+                    bytes.extend_from_slice(&(index as i32).to_le_bytes());
+                }
+            }
+        }
+    }
+    std::fs::write(path, &bytes).expect("write benchmark file");
+    (bytes.len(), face_count)
+}
+
+fn report(label: &str, bytes: usize, triangles: usize, seconds: f64) {
+    println!(
+        "{label}: {seconds:.3} s, {:.0} MB/s, {:.1} M triangles/s",
+        bytes as f64 / seconds / 1e6,
+        triangles as f64 / seconds / 1e6
+    );
+}
+
+#[test]
+#[ignore = "writes a ~190 MB file and measures read speed"]
+fn measure_binary_read_throughput() {
+    use std::time::Instant;
+
+    let path = std::env::temp_dir().join(format!("reducem-input-bench-{}.ply", std::process::id()));
+    let (bytes, triangles) = write_grid_ply(&path, 2237);
+    println!("{} MB, {triangles} triangles", bytes / 1_000_000);
+
+    let start = Instant::now();
+    let ply = PlyFile::open(&path).unwrap();
+    let positions = ply.read_positions().unwrap();
+    let parallel = ply.read_triangles().unwrap();
+    report(
+        "open + positions + triangles (parallel)",
+        bytes,
+        triangles,
+        start.elapsed().as_secs_f64(),
+    );
+
+    let start = Instant::now();
+    let mut streamed = 0usize;
+    ply.for_each_triangle(|_, _| streamed += 1).unwrap();
+    report(
+        "for_each_triangle (sequential)",
+        bytes,
+        triangles,
+        start.elapsed().as_secs_f64(),
+    );
+    assert_eq!(streamed, parallel.len());
+
+    let start = Instant::now();
+    let mesh = weld_identical_positions(Mesh {
+        positions,
+        triangles: parallel,
+    });
+    report("weld", bytes, triangles, start.elapsed().as_secs_f64());
+    assert_eq!(mesh.positions.len(), 2237 * 2237);
+
+    let start = Instant::now();
+    let mesh = read_mesh(&path).unwrap();
+    report(
+        "read_mesh (with weld)",
+        bytes,
+        triangles,
+        start.elapsed().as_secs_f64(),
+    );
+    assert_eq!(mesh.triangles.len(), triangles);
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+#[ignore = "compares against ply-rs-bw's own decoding on a ~19 MB file"]
+fn measure_speedup_over_ply_rs() {
+    use ply_rs_bw::parser::Parser;
+    use ply_rs_bw::ply::DefaultElement;
+    use std::time::Instant;
+
+    let path = std::env::temp_dir().join(format!(
+        "reducem-input-bench-small-{}.ply",
+        std::process::id()
+    ));
+    let (bytes, triangles) = write_grid_ply(&path, 708);
+
+    let start = Instant::now();
+    let mesh = PlyFile::open(&path).unwrap().read_mesh().unwrap();
+    let ours = start.elapsed().as_secs_f64();
+    report("ours", bytes, triangles, ours);
+
+    let start = Instant::now();
+    let mut file = std::fs::File::open(&path).unwrap();
+    let ply = Parser::<DefaultElement>::new().read_ply(&mut file).unwrap();
+    let theirs = start.elapsed().as_secs_f64();
+    report("ply-rs-bw", bytes, triangles, theirs);
+    println!("speedup {:.1}x", theirs / ours);
+    assert_eq!(ply.payload["face"].len(), mesh.triangles.len());
+    let _ = std::fs::remove_file(&path);
 }

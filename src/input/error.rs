@@ -84,6 +84,8 @@ pub enum InputErrorKind {
     MissingElement(&'static str),
     #[error("unsupported property: {0}")]
     UnsupportedProperty(String),
+    /// Reported at the element's first instance (index 0, its start offset), before any of
+    /// it is read.
     #[error(
         "the header declares {count} elements of at least {min_bytes_each} bytes each, \
          but only {remaining} bytes remain in the file"

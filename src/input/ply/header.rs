@@ -151,6 +151,24 @@ pub struct Header {
     pub face: FaceLayout,
 }
 
+impl Header {
+    /// The fewest bytes one instance of element `position` can occupy. A face needs at least
+    /// three indices to be valid, so counting them keeps a lying face count from reserving
+    /// more triangles than the file could describe.
+    pub fn min_instance_size(&self, position: usize) -> u64 {
+        let element = &self.elements[position];
+        let generic = element.min_size(self.encoding);
+        if position != self.face.element {
+            return generic;
+        }
+        let three_indices = match self.encoding {
+            BodyEncoding::Binary(_) => 3 * self.face.index.size() as u64,
+            BodyEncoding::Ascii => 3,
+        };
+        generic + three_indices
+    }
+}
+
 const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
 const FACE_LIST_NAMES: [&str; 2] = ["vertex_indices", "vertex_index"];
 

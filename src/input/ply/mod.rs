@@ -151,7 +151,7 @@ impl PlyFile {
     }
 
     fn fits(&self, start: ElementStart, count: u64, stride: usize) -> bool {
-        let remaining = (self.bytes.len() - start.offset) as u64;
+        let remaining = self.bytes.len().saturating_sub(start.offset) as u64;
         count
             .checked_mul(stride as u64)
             .is_some_and(|needed| needed <= remaining)
@@ -232,7 +232,15 @@ fn locate_elements(
         line: header.body_first_line,
     };
     for (position, element) in header.elements[..=last_needed].iter().enumerate() {
-        check_count_fits(path, bytes.len(), element, start, header.encoding)?;
+        let min_bytes_each = header.min_instance_size(position);
+        check_count_fits(
+            path,
+            bytes.len(),
+            element,
+            min_bytes_each,
+            start,
+            header.encoding,
+        )?;
         starts.push(start);
         if position < last_needed {
             start = skip_element(path, bytes, element, start, header.encoding)?;
@@ -245,11 +253,11 @@ fn check_count_fits(
     path: &Path,
     file_length: usize,
     element: &Element,
+    min_bytes_each: u64,
     start: ElementStart,
     encoding: BodyEncoding,
 ) -> Result<(), InputError> {
-    let min_bytes_each = element.min_size(encoding);
-    let remaining = (file_length - start.offset) as u64;
+    let remaining = file_length.saturating_sub(start.offset) as u64;
     let fits = element
         .count
         .checked_mul(min_bytes_each)
