@@ -267,8 +267,7 @@ fn body_encoding(encoding: Encoding) -> BodyEncoding {
     }
 }
 
-/// The position of the element named `name` and its index among the ply-rs definitions, which
-/// keep declaration order.
+/// Where the element named `name` is among the ply-rs definitions (kept in declaration order).
 fn find_element(definitions: &[&ElementDef], name: &'static str) -> Result<usize, InputErrorKind> {
     definitions
         .iter()
