@@ -90,11 +90,20 @@ impl Volume {
         let mut amplitude = 1.0;
         while octaves.is_empty() || spacing >= MIN_SPACING {
             let shift = [0; 3].map(|_| (rng.next_u64() % spacing as u64) as usize);
-            octaves.push(Octave { spacing, amplitude, seed: rng.next_u64(), shift });
+            octaves.push(Octave {
+                spacing,
+                amplitude,
+                seed: rng.next_u64(),
+                shift,
+            });
             spacing /= 2;
             amplitude *= 0.5;
         }
-        Volume { cells, octaves, cases: case_table() }
+        Volume {
+            cells,
+            octaves,
+            cases: case_table(),
+        }
     }
 
     fn samples_per_side(&self) -> usize {
@@ -125,7 +134,11 @@ impl Volume {
 
     /// Runs `visit(z, plane z, plane z + 1)` for each plane in `planes`,
     /// computing every plane once; the last plane has no upper neighbour.
-    fn for_each_plane(&self, planes: Range<usize>, mut visit: impl FnMut(usize, &[f32], Option<&[f32]>)) {
+    fn for_each_plane(
+        &self,
+        planes: Range<usize>,
+        mut visit: impl FnMut(usize, &[f32], Option<&[f32]>),
+    ) {
         let (mut lower, mut upper) = (Vec::new(), Vec::new());
         self.fill_plane(planes.start, &mut lower);
         for z in planes {
@@ -156,7 +169,12 @@ impl Volume {
     }
 
     /// Calls `visit(x, y)` for each sign-changing z-edge between two planes.
-    fn for_each_vertical_crossing(&self, lower: &[f32], upper: &[f32], mut visit: impl FnMut(usize, usize)) {
+    fn for_each_vertical_crossing(
+        &self,
+        lower: &[f32],
+        upper: &[f32],
+        mut visit: impl FnMut(usize, usize),
+    ) {
         let n = self.samples_per_side();
         for (at, (&below, &above)) in lower.iter().zip(upper).enumerate() {
             if inside(below) != inside(above) {
@@ -167,7 +185,12 @@ impl Volume {
 
     /// Calls `visit(x, y, case)` for each cube between two planes that the
     /// surface passes through, in (y, x) order.
-    fn for_each_surface_cube(&self, lower: &[f32], upper: &[f32], mut visit: impl FnMut(usize, usize, &Case)) {
+    fn for_each_surface_cube(
+        &self,
+        lower: &[f32],
+        upper: &[f32],
+        mut visit: impl FnMut(usize, usize, &Case),
+    ) {
         let n = self.samples_per_side();
         for y in 0..self.cells {
             for x in 0..self.cells {
@@ -209,9 +232,12 @@ impl Volume {
             .map(|slab| {
                 let mut counts = Vec::new();
                 let planes = slabs.range(slab);
-                self.for_each_plane(planes.start as usize..planes.end as usize, |_, lower, upper| {
-                    counts.push(self.count_group(lower, upper));
-                });
+                self.for_each_plane(
+                    planes.start as usize..planes.end as usize,
+                    |_, lower, upper| {
+                        counts.push(self.count_group(lower, upper));
+                    },
+                );
                 counts
             })
             .collect();
@@ -231,7 +257,13 @@ impl Volume {
         position
     }
 
-    fn write_group_vertices(&self, z: usize, lower: &[f32], upper: Option<&[f32]>, out: &mut VertexBuf) {
+    fn write_group_vertices(
+        &self,
+        z: usize,
+        lower: &[f32],
+        upper: Option<&[f32]>,
+        out: &mut VertexBuf,
+    ) {
         let n = self.samples_per_side();
         self.for_each_plane_crossing(lower, |axis, x, y| {
             let step = if axis == 0 { 1 } else { n };
@@ -256,7 +288,14 @@ impl Volume {
         ids
     }
 
-    fn write_layer_faces(&self, z: usize, lower: &[f32], upper: &[f32], groups: &[GroupStart], out: &mut FaceBuf) {
+    fn write_layer_faces(
+        &self,
+        z: usize,
+        lower: &[f32],
+        upper: &[f32],
+        groups: &[GroupStart],
+        out: &mut FaceBuf,
+    ) {
         let n = self.samples_per_side();
         let (here, above) = (groups[z], groups[z + 1]);
         let lower_ids = self.plane_ids(lower, here.first_id);
@@ -277,7 +316,8 @@ impl Volume {
                     _ => upper_ids[axis][at],
                 }
             };
-            case.iter().for_each(|triangle| out.push(triangle.map(edge_id)));
+            case.iter()
+                .for_each(|triangle| out.push(triangle.map(edge_id)));
         });
     }
 }
@@ -287,7 +327,9 @@ impl Volume {
 /// bracketing `z`, not per sample.
 fn add_octave(octave: &Octave, n: usize, z: usize, out: &mut [f32]) {
     let spacing = octave.spacing;
-    let weights: Vec<f32> = (0..spacing).map(|k| fade(k as f64 / spacing as f64) as f32).collect();
+    let weights: Vec<f32> = (0..spacing)
+        .map(|k| fade(k as f64 / spacing as f64) as f32)
+        .collect();
     let [sx, sy, sz] = octave.shift;
     let lattice_z = ((z + sz) / spacing) as i64;
     let weight_z = weights[(z + sz) % spacing];
@@ -304,7 +346,10 @@ fn add_octave(octave: &Octave, n: usize, z: usize, out: &mut [f32]) {
     let mut row = vec![0.0f32; nodes_x];
     for y in 0..n {
         let (node_y, weight_y) = ((y + sy) / spacing, weights[(y + sy) % spacing]);
-        let (near, far) = (&lattice[node_y * nodes_x..], &lattice[(node_y + 1) * nodes_x..]);
+        let (near, far) = (
+            &lattice[node_y * nodes_x..],
+            &lattice[(node_y + 1) * nodes_x..],
+        );
         for (node, value) in row.iter_mut().enumerate() {
             *value = near[node] + (far[node] - near[node]) * weight_y;
         }
@@ -332,8 +377,12 @@ fn choose_volume(triangles: u64, seed: u64) -> (Volume, Vec<GroupCount>) {
         let counts = volume.count_groups();
         let total = counts.iter().map(|c| c.triangles).sum::<u64>() as f64;
         let error = (total - target).abs() / target;
-        let next_cells = ((cells as f64 * (target / total.max(1.0)).cbrt()).round() as usize).max(MIN_CELLS);
-        if best.as_ref().is_none_or(|(best_error, ..)| error < *best_error) {
+        let next_cells =
+            ((cells as f64 * (target / total.max(1.0)).cbrt()).round() as usize).max(MIN_CELLS);
+        if best
+            .as_ref()
+            .is_none_or(|(best_error, ..)| error < *best_error)
+        {
             best = Some((error, volume, counts));
         }
         if error <= COUNT_TOLERANCE || next_cells == cells {
@@ -367,7 +416,9 @@ pub fn generate(triangles: u64, seed: u64, target: &Target) -> Result<GenSummary
     };
     let mut writer = PlyWriter::create(target, declared)?;
     writer.write_vertices(slabs.count(), |slab, out| {
-        volume.for_each_plane(planes(slab), |z, lower, upper| volume.write_group_vertices(z, lower, upper, out));
+        volume.for_each_plane(planes(slab), |z, lower, upper| {
+            volume.write_group_vertices(z, lower, upper, out)
+        });
     })?;
     writer.write_faces(slabs.count(), |slab, out| {
         volume.for_each_plane(planes(slab), |z, lower, upper| {
@@ -391,7 +442,10 @@ mod tests {
             let error = summary.triangles.abs_diff(requested) as f64 / requested as f64;
             assert!(error < 0.25, "asked {requested}, got {summary:?}");
             mesh.assert_closed_consistent_manifold();
-            assert!(mesh.signed_volume() > 0.0, "normals must face out of the solid");
+            assert!(
+                mesh.signed_volume() > 0.0,
+                "normals must face out of the solid"
+            );
         }
     }
 }

@@ -30,9 +30,18 @@ pub const CORNERS: usize = 8;
 /// The 12 cube edges as (lower corner, upper corner): four along x, then
 /// four along y, then four along z, so `edge / 4` is the edge's axis.
 pub const EDGE_CORNERS: [(u8, u8); 12] = [
-    (0, 1), (2, 3), (4, 5), (6, 7),
-    (0, 2), (1, 3), (4, 6), (5, 7),
-    (0, 4), (1, 5), (2, 6), (3, 7),
+    (0, 1),
+    (2, 3),
+    (4, 5),
+    (6, 7),
+    (0, 2),
+    (1, 3),
+    (4, 6),
+    (5, 7),
+    (0, 4),
+    (1, 5),
+    (2, 6),
+    (3, 7),
 ];
 
 /// The surface inside a cube with a given corner pattern: triangles whose
@@ -43,7 +52,9 @@ pub type Case = Vec<[u8; 3]>;
 /// inside.
 pub fn case_table() -> Vec<Case> {
     let faces = cube_faces();
-    (0..=255u8).map(|pattern| build_case(pattern, &faces)).collect()
+    (0..=255u8)
+        .map(|pattern| build_case(pattern, &faces))
+        .collect()
 }
 
 /// The six faces' corners, counter-clockwise seen from outside the cube.
@@ -65,7 +76,10 @@ fn cube_faces() -> [[u8; 4]; 6] {
 
 fn edge_between(a: u8, b: u8) -> u8 {
     let key = (a.min(b), a.max(b));
-    EDGE_CORNERS.iter().position(|&edge| edge == key).expect("adjacent corners") as u8
+    EDGE_CORNERS
+        .iter()
+        .position(|&edge| edge == key)
+        .expect("adjacent corners") as u8
 }
 
 /// Bit `f` set when the edge lies on cube face `f`.
@@ -102,7 +116,8 @@ fn build_case(pattern: u8, faces: &[[u8; 4]; 6]) -> Case {
         }
         let mut polygon = vec![start];
         visited[start as usize] = true;
-        while let Some(edge) = next_edge[*polygon.last().unwrap() as usize].filter(|&e| e != start) {
+        while let Some(edge) = next_edge[*polygon.last().unwrap() as usize].filter(|&e| e != start)
+        {
             visited[edge as usize] = true;
             polygon.push(edge);
         }
@@ -117,7 +132,9 @@ fn triangulate(polygon: &[u8], faces: &[[u8; 4]; 6], case: &mut Case) {
     // A fan from `apex` has diagonals to every polygon vertex but its two
     // neighbours; all of them must cross the cube's interior.
     let apex = (0..n)
-        .find(|&apex| (2..n - 1).all(|offset| face_masks[apex] & face_masks[(apex + offset) % n] == 0))
+        .find(|&apex| {
+            (2..n - 1).all(|offset| face_masks[apex] & face_masks[(apex + offset) % n] == 0)
+        })
         .expect("every marching-cubes polygon has an interior fan");
     let corner = |k: usize| polygon[(apex + k) % n];
     for offset in 1..n - 1 {

@@ -57,8 +57,12 @@ pub struct GenSummary {
 /// atomically to `out` as binary little-endian PLY.
 pub fn generate(kind: Kind, triangles: u64, seed: u64, out: &Path) -> Result<GenSummary> {
     let name = format!("{kind:?}").to_lowercase();
-    let comment = format!("reducem pipeline gen kind={name} seed={seed} requested_triangles={triangles}");
-    let target = ply::Target { path: out, comment: &comment };
+    let comment =
+        format!("reducem pipeline gen kind={name} seed={seed} requested_triangles={triangles}");
+    let target = ply::Target {
+        path: out,
+        comment: &comment,
+    };
     match kind {
         Kind::Scan => scan::generate(triangles, seed, &target),
         Kind::Terrain => terrain::generate(triangles, seed, &target),
@@ -123,7 +127,11 @@ mod tests {
     fn same_seed_gives_identical_bytes_and_different_seed_differs() {
         for kind in ALL_KINDS {
             let first = bytes_of(kind, 3000, 7);
-            assert_eq!(first, bytes_of(kind, 3000, 7), "{kind:?} is not deterministic");
+            assert_eq!(
+                first,
+                bytes_of(kind, 3000, 7),
+                "{kind:?} is not deterministic"
+            );
             let other = bytes_of(kind, 3000, 8);
             let header_end = |b: &[u8]| b.windows(11).position(|w| w == b"end_header\n").unwrap();
             assert_ne!(

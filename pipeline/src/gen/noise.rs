@@ -20,7 +20,9 @@ fn mix(mut z: u64) -> u64 {
 /// A 64-bit hash of a seed and a sequence of integer keys.
 pub fn hash(seed: u64, keys: &[i64]) -> u64 {
     keys.iter()
-        .fold(mix(seed ^ 0x9E37_79B9_7F4A_7C15), |h, &key| mix(h ^ key as u64))
+        .fold(mix(seed ^ 0x9E37_79B9_7F4A_7C15), |h, &key| {
+            mix(h ^ key as u64)
+        })
 }
 
 /// A uniform value in [-1, 1) for a lattice node.

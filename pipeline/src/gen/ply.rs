@@ -175,10 +175,9 @@ impl PlyWriter {
 }
 
 fn temporary_path(target: &Path) -> PathBuf {
-    let name = target.file_name().map_or_else(
-        || "mesh".into(),
-        |name| name.to_string_lossy().into_owned(),
-    );
+    let name = target
+        .file_name()
+        .map_or_else(|| "mesh".into(), |name| name.to_string_lossy().into_owned());
     target.with_file_name(format!(".{name}.{}.partial", std::process::id()))
 }
 
@@ -223,11 +222,22 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("mesh.ply");
         fs::write(&out, b"previous good output").unwrap();
-        let target = Target { path: &out, comment: "test" };
-        let declared = GenSummary { vertices: 3, triangles: 1 };
+        let target = Target {
+            path: &out,
+            comment: "test",
+        };
+        let declared = GenSummary {
+            vertices: 3,
+            triangles: 1,
+        };
         let mut writer = PlyWriter::create(&target, declared).unwrap();
-        writer.write_vertices(1, |_, buf| buf.push([0.0; 3])).unwrap();
-        assert!(writer.finish().is_err(), "short vertex count must be refused");
+        writer
+            .write_vertices(1, |_, buf| buf.push([0.0; 3]))
+            .unwrap();
+        assert!(
+            writer.finish().is_err(),
+            "short vertex count must be refused"
+        );
         assert_eq!(fs::read(&out).unwrap(), b"previous good output");
         assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
     }

@@ -37,7 +37,8 @@ const NOISE_OCTAVES: u32 = 7;
 
 /// The two triangles of a grid quad as (row, column) offsets from its
 /// first corner, counter-clockwise seen from outside.
-pub const QUAD_TRIANGLES: [[(u32, u32); 3]; 2] = [[(0, 0), (1, 0), (1, 1)], [(0, 0), (1, 1), (0, 1)]];
+pub const QUAD_TRIANGLES: [[(u32, u32); 3]; 2] =
+    [[(0, 0), (1, 0), (1, 1)], [(0, 0), (1, 1), (0, 1)]];
 
 /// The displaced torus, sampled on a `rows x columns` periodic grid.
 pub struct ScanSurface {
@@ -77,12 +78,21 @@ impl ScanSurface {
         let u = row as f64 / self.rows as f64;
         let (sin_u, cos_u) = (TAU * u).sin_cos();
         let noise = self.noise.row(u);
-        out.extend(self.tube_directions.iter().enumerate().map(|(j, &(cos_v, sin_v))| {
-            let v = j as f64 / self.columns as f64;
-            let tube = TUBE_RADIUS + DISPLACEMENT * noise.at(v);
-            let radial = MAJOR_RADIUS + tube * cos_v;
-            [(radial * cos_u) as f32, (radial * sin_u) as f32, (tube * sin_v) as f32]
-        }));
+        out.extend(
+            self.tube_directions
+                .iter()
+                .enumerate()
+                .map(|(j, &(cos_v, sin_v))| {
+                    let v = j as f64 / self.columns as f64;
+                    let tube = TUBE_RADIUS + DISPLACEMENT * noise.at(v);
+                    let radial = MAJOR_RADIUS + tube * cos_v;
+                    [
+                        (radial * cos_u) as f32,
+                        (radial * sin_u) as f32,
+                        (tube * sin_v) as f32,
+                    ]
+                }),
+        );
     }
 
     /// Vertex ids of the triangles of quad `(row, column)`, wrapping around.
@@ -103,7 +113,11 @@ pub fn generate(triangles: u64, seed: u64, target: &Target) -> Result<GenSummary
         vertices: surface.vertices(),
         triangles: surface.triangles(),
     };
-    let rows = Chunking::by_work(surface.rows as u64, 2 * surface.columns as u64, TRIANGLES_PER_CHUNK);
+    let rows = Chunking::by_work(
+        surface.rows as u64,
+        2 * surface.columns as u64,
+        TRIANGLES_PER_CHUNK,
+    );
     let mut writer = PlyWriter::create(target, declared)?;
     writer.write_vertices(rows.count(), |chunk, out| {
         let mut positions = Vec::with_capacity(surface.columns as usize);
@@ -116,7 +130,10 @@ pub fn generate(triangles: u64, seed: u64, target: &Target) -> Result<GenSummary
     writer.write_faces(rows.count(), |chunk, out| {
         for row in rows.range(chunk) {
             for column in 0..surface.columns {
-                surface.quad_triangles(row as u32, column).into_iter().for_each(|t| out.push(t));
+                surface
+                    .quad_triangles(row as u32, column)
+                    .into_iter()
+                    .for_each(|t| out.push(t));
             }
         }
     })?;

@@ -65,12 +65,18 @@ fn icosahedron(seed: u64) -> ([Vec3; CORNERS], Vec<[u32; 3]>) {
     let mut corners = [[0.0; 3]; CORNERS];
     for (index, corner) in corners.iter_mut().enumerate() {
         let (rotation, signs) = (index / 4, index % 4);
-        let base = [0.0, if signs & 1 == 0 { 1.0 } else { -1.0 }, if signs & 2 == 0 { phi } else { -phi }];
+        let base = [
+            0.0,
+            if signs & 1 == 0 { 1.0 } else { -1.0 },
+            if signs & 2 == 0 { phi } else { -phi },
+        ];
         *corner = [0, 1, 2].map(|axis| base[(axis + 3 - rotation) % 3]);
     }
     let corners = corners.map(|corner| rotate(corner, seed));
     let adjacent = |a: usize, b: usize| {
-        let d: f64 = (0..3).map(|axis| (corners[a][axis] - corners[b][axis]).powi(2)).sum();
+        let d: f64 = (0..3)
+            .map(|axis| (corners[a][axis] - corners[b][axis]).powi(2))
+            .sum();
         (d - 4.0).abs() < 1e-6
     };
     let mut faces = Vec::with_capacity(FACES);
@@ -101,8 +107,15 @@ fn rotate(p: Vec3, seed: u64) -> Vec3 {
 /// Reorders a face so its normal points away from the centre.
 fn outward(face: [u32; 3], corners: &[Vec3; CORNERS]) -> [u32; 3] {
     let [a, b, c] = face.map(|i| corners[i as usize]);
-    let (u, v) = ([0, 1, 2].map(|i| b[i] - a[i]), [0, 1, 2].map(|i| c[i] - a[i]));
-    let normal = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+    let (u, v) = (
+        [0, 1, 2].map(|i| b[i] - a[i]),
+        [0, 1, 2].map(|i| c[i] - a[i]),
+    );
+    let normal = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
     let facing: f64 = (0..3).map(|i| normal[i] * (a[i] + b[i] + c[i])).sum();
     if facing > 0.0 {
         face
@@ -158,8 +171,15 @@ impl Icosphere {
 
     fn edge_point_id(&self, from: u32, to: u32, steps_from_start: u32) -> u32 {
         let (low, high) = (from.min(to), from.max(to));
-        let edge = self.edges.binary_search(&(low, high)).expect("icosahedron edge");
-        let steps_from_low = if from == low { steps_from_start } else { self.k - steps_from_start };
+        let edge = self
+            .edges
+            .binary_search(&(low, high))
+            .expect("icosahedron edge");
+        let steps_from_low = if from == low {
+            steps_from_start
+        } else {
+            self.k - steps_from_start
+        };
         (CORNERS as u32) + edge as u32 * (self.k - 1) + steps_from_low - 1
     }
 
@@ -192,14 +212,18 @@ impl Icosphere {
     }
 
     fn interior_chunks_per_face(&self) -> u32 {
-        self.k.saturating_sub(2).div_ceil(self.interior_rows_per_chunk)
+        self.k
+            .saturating_sub(2)
+            .div_ceil(self.interior_rows_per_chunk)
     }
 
     /// Chunk 0 holds corners and edge points, then each face's interior
     /// rows in blocks, matching the id order.
     fn vertex_chunk(&self, chunk: usize, out: &mut VertexBuf) {
         if chunk == 0 {
-            self.corners.iter().for_each(|&c| out.push(on_unit_sphere(c)));
+            self.corners
+                .iter()
+                .for_each(|&c| out.push(on_unit_sphere(c)));
             for &(low, high) in &self.edges {
                 let (a, b) = (self.corners[low as usize], self.corners[high as usize]);
                 for step in 1..self.k {
@@ -250,7 +274,9 @@ impl Icosphere {
 pub fn generate(triangles: u64, seed: u64, target: &Target) -> Result<GenSummary> {
     let sphere = Icosphere::new(triangles, seed);
     let mut writer = PlyWriter::create(target, sphere.summary())?;
-    writer.write_vertices(sphere.vertex_chunks(), |chunk, out| sphere.vertex_chunk(chunk, out))?;
+    writer.write_vertices(sphere.vertex_chunks(), |chunk, out| {
+        sphere.vertex_chunk(chunk, out)
+    })?;
     let face_chunks = FACES * sphere.face_chunks_per_face() as usize;
     writer.write_faces(face_chunks, |chunk, out| sphere.face_chunk(chunk, out))?;
     writer.finish()

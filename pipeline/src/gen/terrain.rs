@@ -67,11 +67,14 @@ pub fn generate(triangles: u64, seed: u64, target: &Target) -> Result<GenSummary
     let mut writer = PlyWriter::create(target, declared)?;
     let rows = Chunking::by_work(vertex_rows, 2 * side as u64, TRIANGLES_PER_CHUNK);
     writer.write_vertices(rows.count(), |chunk, out| {
-        rows.range(chunk).for_each(|j| field.row_positions(j as u32, out));
+        rows.range(chunk)
+            .for_each(|j| field.row_positions(j as u32, out));
     })?;
     let quad_rows = Chunking::by_work(side as u64, 2 * side as u64, TRIANGLES_PER_CHUNK);
     writer.write_faces(quad_rows.count(), |chunk, out| {
-        quad_rows.range(chunk).for_each(|j| field.row_triangles(j as u32, out));
+        quad_rows
+            .range(chunk)
+            .for_each(|j| field.row_triangles(j as u32, out));
     })?;
     writer.finish()
 }

@@ -55,15 +55,25 @@ impl Mesh {
         let mut rest = &data[..];
         assert_eq!(take_line(&mut rest), "ply");
         assert_eq!(take_line(&mut rest), "format binary_little_endian 1.0");
-        let comment = take_line(&mut rest).strip_prefix("comment ").unwrap().to_string();
+        let comment = take_line(&mut rest)
+            .strip_prefix("comment ")
+            .unwrap()
+            .to_string();
         let vertices = expect_count(take_line(&mut rest), "element vertex ");
         for axis in ["x", "y", "z"] {
             assert_eq!(take_line(&mut rest), format!("property float {axis}"));
         }
         let faces = expect_count(take_line(&mut rest), "element face ");
-        assert_eq!(take_line(&mut rest), "property list uchar int vertex_indices");
+        assert_eq!(
+            take_line(&mut rest),
+            "property list uchar int vertex_indices"
+        );
         assert_eq!(take_line(&mut rest), "end_header");
-        assert_eq!(rest.len(), vertices * 12 + faces * 13, "body size disagrees with header");
+        assert_eq!(
+            rest.len(),
+            vertices * 12 + faces * 13,
+            "body size disagrees with header"
+        );
         let (vertex_bytes, face_bytes) = rest.split_at(vertices * 12);
         let positions = vertex_bytes
             .chunks_exact(12)
@@ -76,7 +86,11 @@ impl Mesh {
                 [1, 5, 9].map(|o| le_u32(&r[o..o + 4]))
             })
             .collect();
-        Mesh { comment, positions, faces }
+        Mesh {
+            comment,
+            positions,
+            faces,
+        }
     }
 
     fn corner(&self, index: u32) -> [f64; 3] {
@@ -91,7 +105,10 @@ impl Mesh {
 
     pub fn assert_indices_in_range(&self) {
         let limit = self.positions.len() as u32;
-        assert!(self.faces.iter().flatten().all(|&i| i < limit), "index out of range");
+        assert!(
+            self.faces.iter().flatten().all(|&i| i < limit),
+            "index out of range"
+        );
     }
 
     pub fn assert_no_degenerate_triangles(&self) {
@@ -132,7 +149,10 @@ impl Mesh {
     pub fn assert_consistent_manifold_with_boundary(&self) -> usize {
         let uses = self.edge_uses();
         for (edge, &(forward, backward)) in &uses {
-            assert!(forward <= 1 && backward <= 1, "edge {edge:?} used {forward}+{backward}");
+            assert!(
+                forward <= 1 && backward <= 1,
+                "edge {edge:?} used {forward}+{backward}"
+            );
         }
         uses.values().filter(|&&(f, b)| f + b == 1).count()
     }
@@ -184,7 +204,11 @@ impl Mesh {
                 })
             })
             .collect();
-        let faces = self.faces.iter().map(|f| f.map(|i| remap[i as usize])).collect();
+        let faces = self
+            .faces
+            .iter()
+            .map(|f| f.map(|i| remap[i as usize]))
+            .collect();
         Mesh {
             comment: self.comment.clone(),
             positions,
@@ -198,7 +222,11 @@ fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 }
 
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
