@@ -13,6 +13,7 @@ pub mod build;
 pub mod decode;
 pub mod encode;
 pub mod format;
+pub mod gen;
 pub mod geometry;
 pub mod input;
 pub mod inspect;
