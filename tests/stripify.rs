@@ -330,9 +330,9 @@ fn non_manifold_fan_edges_are_boundaries() {
         triangles: vec![[0, 1, 2], [1, 0, 3], [1, 0, 4], [1, 5, 2]],
     };
     let adjacency = Adjacency::build(&mesh);
-    for triangle in 0..3 {
-        let across_fan_edge = adjacency.neighbours[triangle][if triangle == 0 { 0 } else { 0 }];
-        assert_eq!(across_fan_edge, NO_NEIGHBOUR);
+    for fan_triangle in &adjacency.neighbours[..3] {
+        // Edge 0 is the fan edge (0, 1) in each of the three triangles.
+        assert_eq!(fan_triangle[0], NO_NEIGHBOUR);
     }
     assert_eq!(adjacency.neighbours[0][1], 3);
     stripify_checked(&mesh, &defaults());
