@@ -245,29 +245,34 @@ fn with_threads<T: Send>(threads: usize, work: impl FnOnce() -> T + Send) -> T {
 // ---------------------------------------------------------------------------------------------
 // Round trips on regular and closed meshes
 
+/// Lower bound for the average strip length on regular meshes with the paper's limit of 60.
+///
+/// Observed averages: 15.0 to 36.5 on grids depending on their dimensions (64×64: 31.5,
+/// 120×90: 15.0, 177×101: 18.9, 500×500: 36.5), 20 to 24 on tori. Sequences grow inside the
+/// block-shaped subtrees of the SAH hierarchy, and on some dimensions their ends end up
+/// enclosed by the interiors of neighbouring blocks' sequences, which stops growth at 8 or 16
+/// triangles; the paper likewise notes averages far below the limit. 12 sits safely below every
+/// observed value and still fails if merging across subtrees breaks down (averages of 4 to 8).
+const MIN_AVERAGE_STRIP_LENGTH: f64 = 12.0;
+
 #[test]
-fn grid_round_trip_and_long_strips() {
-    let mesh = grid(64, 64);
-    let result = stripify_checked(&mesh, &defaults());
-    assert_eq!(result.dropped_triangles, 0);
-    // A grid's interior has full adjacency, so nearly every sequence can grow until no partner
-    // fits under the limit: two sequences only stop merging when their lengths sum above 60,
-    // which makes a greedy length of at least 30 typical. Boundary effects and sequences boxed
-    // in by full neighbours cost some of that; 20 leaves a safe margin while still catching a
-    // regression to short strips.
-    let average = result.average_strip_length();
-    assert!(average >= 20.0, "average strip length {average}");
+fn grids_round_trip_with_long_strips() {
+    for (width, height) in [(64, 64), (120, 90), (177, 101)] {
+        let result = stripify_checked(&grid(width, height), &defaults());
+        assert_eq!(result.dropped_triangles, 0);
+        let average = result.average_strip_length();
+        assert!(
+            average >= MIN_AVERAGE_STRIP_LENGTH,
+            "{width}×{height} grid: average {average}"
+        );
+    }
 }
 
 #[test]
-fn torus_round_trip() {
-    let mesh = torus(48, 24);
-    let result = stripify_checked(&mesh, &defaults());
-    assert!(
-        result.average_strip_length() >= 20.0,
-        "{}",
-        result.average_strip_length()
-    );
+fn torus_round_trip_with_long_strips() {
+    let result = stripify_checked(&torus(48, 24), &defaults());
+    let average = result.average_strip_length();
+    assert!(average >= MIN_AVERAGE_STRIP_LENGTH, "average {average}");
 }
 
 #[test]

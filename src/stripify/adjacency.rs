@@ -8,7 +8,7 @@
 //! Edges are matched with a counting sort of edge uses by their lower vertex index, then a tiny
 //! sort inside each vertex's bucket, rather than through a hash map or a global sort: it is
 //! O(n), deterministic, and needs 8 bytes per edge use plus 4 per vertex, released before
-//! partitioning starts. It runs single-threaded; at about 40 ns per triangle it is not the
+//! partitioning starts. It runs single-threaded; at well under 100 ns per triangle it is not the
 //! bottleneck.
 //!
 //! Two triangles become neighbours across an edge only when it is a manifold edge (exactly two

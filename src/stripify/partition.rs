@@ -56,8 +56,6 @@ pub struct Hierarchy {
     nodes: Vec<NodeLinks>,
     /// Leaf node of each local triangle.
     leaf_of_triangle: Vec<u32>,
-    /// Local triangle of each leaf position (leaf node id minus `n - 1`).
-    triangle_of_leaf: Vec<u32>,
 }
 
 /// A triangle's bounds, moved around during partitioning so that the binning passes read
@@ -136,15 +134,13 @@ impl Hierarchy {
         };
         build_subtree(sah_bins.max(2), subtree, root, &mut SplitScratch::default());
 
-        let triangle_of_leaf: Vec<u32> = refs.iter().map(|r| r.triangle).collect();
         let mut leaf_of_triangle = vec![NO_NODE; n];
-        for (position, &triangle) in triangle_of_leaf.iter().enumerate() {
-            leaf_of_triangle[triangle as usize] = (n - 1 + position) as u32;
+        for (position, r) in refs.iter().enumerate() {
+            leaf_of_triangle[r.triangle as usize] = (n - 1 + position) as u32;
         }
         Hierarchy {
             nodes,
             leaf_of_triangle,
-            triangle_of_leaf,
         }
     }
 
@@ -186,7 +182,7 @@ impl Hierarchy {
     pub fn validate(&self) -> Result<(), String> {
         let n = self.leaf_of_triangle.len();
         let expected_nodes = if n == 0 { 0 } else { 2 * n - 1 };
-        if self.nodes.len() != expected_nodes || self.triangle_of_leaf.len() != n {
+        if self.nodes.len() != expected_nodes {
             return Err(format!("{} nodes for {n} triangles", self.nodes.len()));
         }
         self.validate_leaf_map()?;
@@ -195,13 +191,17 @@ impl Hierarchy {
 
     fn validate_leaf_map(&self) -> Result<(), String> {
         let first_leaf = self.leaf_of_triangle.len().saturating_sub(1);
+        let mut leaf_taken = vec![false; self.leaf_of_triangle.len()];
         for (triangle, &leaf) in self.leaf_of_triangle.iter().enumerate() {
             let position = (leaf as usize).checked_sub(first_leaf);
-            let back = position.and_then(|p| self.triangle_of_leaf.get(p));
-            if back != Some(&(triangle as u32)) {
-                return Err(format!(
-                    "triangle {triangle} maps to leaf {leaf}, which holds {back:?}"
-                ));
+            let taken = position.and_then(|p| leaf_taken.get_mut(p));
+            match taken {
+                Some(taken) if !*taken => *taken = true,
+                _ => {
+                    return Err(format!(
+                        "triangle {triangle} maps to bad or shared leaf {leaf}"
+                    ))
+                }
             }
         }
         Ok(())
