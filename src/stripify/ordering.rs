@@ -7,8 +7,9 @@
 //! two sequences is then O(1): link the two touching ends and update the two outer ends. The
 //! paper's explicit per-sequence triangle lists, four open-edge pointers and triangle → sequence
 //! pointers are all implied by this: an end's open edges are its edges to a neighbour that is
-//! not already a path link, and "same sequence" is `other_end` equality. Memory is 20 bytes per
-//! triangle.
+//! not already a path link, and "same sequence" is `other_end` equality. Memory is 28 bytes per
+//! triangle (links, other end, length, node, merge stamp, option count), plus each round's
+//! candidate list.
 //!
 //! Each round collects all candidate pairs (end `t`, neighbouring end `u` of another sequence,
 //! combined length within the maximum) in parallel, sorts them by `(urgency, score, t, u)` and
@@ -29,7 +30,7 @@
 //!   stuck at its length forever; serving the most constrained sequences first is the classic
 //!   min-degree heuristic for greedy matchings. Measured with max length 60: it nearly removes
 //!   single-triangle strips on a torus (1579 of 51k strips → 8) and raises its average strip
-//!   length by about 8% (18.8 → 20.3 on 1M triangles); grids stay within 2% either way. The
+//!   length by about 8% (18.8 → 20.3 on 1M triangles); grids change by about 2% either way. The
 //!   price is that a sequence may take a worse-scored partner that would otherwise be stranded.
 //!
 //! Candidates only ever disappear (merging shortens nothing and only removes ends), so an end
@@ -91,12 +92,15 @@ impl Candidate {
     }
 }
 
+/// The ordering state; see the module docs for the representation.
 struct Sequences<'a> {
     adjacency: &'a Adjacency,
     hierarchy: &'a Hierarchy,
     max_length: u32,
     paths: Paths,
+    /// Sequence length, valid at sequence ends.
     length: Vec<u32>,
+    /// Sequence hierarchy node, valid at sequence ends.
     node: Vec<u32>,
     /// Round stamp of the last round in which a triangle's sequence merged.
     merged_in_round: Vec<u32>,
@@ -215,6 +219,7 @@ impl Sequences<'_> {
         self.options[t as usize] + other_options
     }
 
+    /// Ranks each candidate by the option count of its more constrained sequence.
     fn set_urgencies(&self, candidates: &mut [Candidate]) {
         candidates.par_iter_mut().for_each(|candidate| {
             let fewest = self
