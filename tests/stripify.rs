@@ -523,17 +523,32 @@ proptest! {
 // ---------------------------------------------------------------------------------------------
 // Throughput (run with `cargo test --release -- --ignored --nocapture`)
 
+/// CPU seconds used by this process so far, from `/proc/self/stat` (Linux), or `None`. The
+/// machines this runs on are shared, so wall-clock time alone says little about the algorithm.
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let fields: Vec<&str> = stat.rsplit(')').next()?.split_whitespace().collect();
+    let ticks = |index: usize| fields.get(index)?.parse::<f64>().ok();
+    // utime and stime, fields 14 and 15 of the file (11 and 12 after the command name), in
+    // clock ticks of 1/100 s on Linux.
+    Some((ticks(11)? + ticks(12)?) / 100.0)
+}
+
 fn report_throughput(name: &str, mesh: &Mesh) {
     let params = defaults();
     for threads in [1, 2] {
+        let cpu_start = process_cpu_seconds();
         let start = Instant::now();
         let result = with_threads(threads, || stripify(mesh, &params));
         let seconds = start.elapsed().as_secs_f64();
+        let cpu = cpu_start.and_then(|before| Some(process_cpu_seconds()? - before));
+        let per_second = |s: f64| mesh.triangles.len() as f64 / s / 1e6;
         println!(
-            "{name}: {} triangles, {threads} thread(s): {:.2} s, {:.2} M triangles/s, {} strips, average length {:.2}",
+            "{name}: {} triangles, {threads} thread(s): wall {seconds:.2} s ({:.2} M triangles/s), \
+             cpu {}, {} strips, average length {:.2}",
             mesh.triangles.len(),
-            seconds,
-            mesh.triangles.len() as f64 / seconds / 1e6,
+            per_second(seconds),
+            cpu.map_or("?".to_string(), |c| format!("{c:.2} s ({:.2} M triangles/cpu-s)", per_second(c))),
             result.strips.len(),
             result.average_strip_length()
         );
