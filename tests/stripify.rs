@@ -390,8 +390,7 @@ fn degenerate_triangles_are_dropped_and_counted() {
     let original = mesh.triangles.len();
     // Repeated indices.
     mesh.triangles.extend([[0, 0, 1], [2, 3, 2], [5, 5, 5]]);
-    // Collinear: three vertices on the first grid row (z varies, so pick coincident-free ones
-    // on a straight line by adding them).
+    // Collinear: three new, distinct points on one straight line.
     let base = mesh.positions.len() as u32;
     mesh.positions
         .extend([[0.0, 0.0, 9.0], [1.0, 1.0, 9.0], [2.0, 2.0, 9.0]]);
