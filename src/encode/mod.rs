@@ -1,19 +1,17 @@
 //! Strip encoding (paper 3.2, Fig. 2): local vertices, an implicit left-balanced spatial kd-tree
 //! whose split bounds are the strip's own reordered vertices, and 1-byte local references.
 //!
-//! For each internal node (preorder `i`, see [`crate::format::implicit_tree`]) the encoder picks a
-//! split axis, then stores at slot `2i` a vertex attaining the maximum of the left windows on that
-//! axis and at slot `2i + 1` a vertex attaining the minimum of the right windows. The traversal
-//! reads those two coordinates as the planes of a spatial kd-tree (a bounding interval hierarchy
-//! node), so no plane values are stored beyond the vertices themselves. Vertices never used as a
-//! bound follow the bound slots in order of first reference, for locality of the strip walk.
+//! For each internal node (preorder `i`, see [`crate::format::implicit_tree`]) the encoder picks
+//! the split axis whose exact child extremes give the lowest surface-area cost, then stores at
+//! slot `2i` a vertex at or above the maximum of the left windows on that axis and at slot
+//! `2i + 1` a vertex at or below the minimum of the right windows. The traversal reads those two
+//! coordinates as the planes of a spatial kd-tree (a bounding interval hierarchy node), so no
+//! plane values are stored beyond the vertices themselves. Vertices never used as a bound follow
+//! the bound slots in order of first reference, for locality of the strip walk.
 //!
-//! A vertex can be the bound of two nodes; it is then stored twice ("hierarchy overhead", the
-//! paper's Table 1 metric). As the paper suggests, among equal candidates the encoder prefers a
-//! vertex not stored yet. Beyond the paper, the axis choice itself weighs duplication: each axis
-//! is scored by the surface-area cost of the two clipped child boxes, inflated by
-//! [`DUPLICATE_PENALTY`] per bound that would need a copy, because a copy costs 12 bytes forever
-//! while a slightly worse split costs a little traversal time.
+//! A vertex that bounds two nodes is stored twice ("hierarchy overhead", the paper's Table 1
+//! metric). The paper minimizes this by "considering previously unused candidates first"; see
+//! `assign_bounds` for how far we take that.
 //!
 //! Deviation from the paper: the split axes are kept as 2-bit fields after the vertices instead
 //! of in the sign bits of box-relative coordinates, because box-relative f32 coordinates would
@@ -29,7 +27,7 @@ use crate::strip::window_count;
 
 /// How far beyond its exact extreme a split bound may lie, as a fraction of the node's extent on
 /// the split axis, to use a vertex not stored yet instead of a copy.
-pub const MAX_LOOSENESS: f32 = 1.0;
+pub const MAX_LOOSENESS: f32 = 0.25;
 
 /// One encoded strip: its block (padded to 4 bytes) and what the top level needs to know.
 #[derive(Clone, Debug, PartialEq)]
