@@ -6,8 +6,16 @@ fn main() {
         let view = f.strip(s);
         w += view.window_count();
         t += reducem::strip::triangles(view.references).count();
-        let mut d: Vec<u8> = view.references.to_vec(); d.sort(); d.dedup(); v += d.len();
-        nodes += reducem::format::implicit_tree::internal_nodes(view.window_count(), f.leaf_windows());
+        let mut d: Vec<u8> = view.references.to_vec();
+        d.sort();
+        d.dedup();
+        v += d.len();
+        nodes +=
+            reducem::format::implicit_tree::internal_nodes(view.window_count(), f.leaf_windows());
     }
-    println!("windows {w} tris {t} swaps {} distinct-per-strip {v} slots {}", w - t, 2 * nodes);
+    println!(
+        "windows {w} tris {t} swaps {} distinct-per-strip {v} slots {}",
+        w - t,
+        2 * nodes
+    );
 }

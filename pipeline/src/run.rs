@@ -50,6 +50,8 @@ pub fn run(config_path: &Path) -> anyhow::Result<()> {
             .with_context(|| format!("creating {}", parent.display()))?;
     }
     let stats = reducem::build::convert_mesh(&mesh, &config.build_params(), &config.output.path)?;
+    reducem::format::reader::ReducemFile::open(&config.output.path)
+        .context("verifying the written file")?;
     let bytes = std::fs::metadata(&config.output.path)?.len();
     log(&format!(
         "wrote {}: {} triangles in {} bytes ({:.2} bytes/triangle), {} dropped, {:.1} s",

@@ -211,10 +211,13 @@ impl<'a> StripLayout<'a> {
         let mut taken = vec![false; self.distinct.len()];
         for slot in order {
             let bound = &slots[slot];
-            let closest = self.candidates(bound).filter(|&v| !taken[v as usize]).min_by(|&a, &b| {
-                let distance = |v: u16| (self.point(v)[bound.axis] - bound.limit).abs();
-                distance(a).total_cmp(&distance(b)).then(a.cmp(&b))
-            });
+            let closest = self
+                .candidates(bound)
+                .filter(|&v| !taken[v as usize])
+                .min_by(|&a, &b| {
+                    let distance = |v: u16| (self.point(v)[bound.axis] - bound.limit).abs();
+                    distance(a).total_cmp(&distance(b)).then(a.cmp(&b))
+                });
             let vertex = closest.unwrap_or(bound.exact);
             taken[vertex as usize] = true;
             assigned[slot] = vertex;

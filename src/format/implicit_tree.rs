@@ -45,7 +45,14 @@ mod tests {
     use super::*;
 
     /// Walks the tree recursively, checking preorder numbering against `right_child`.
-    fn walk(node: usize, lo: usize, hi: usize, leaf: usize, next: &mut usize, leaves: &mut Vec<(usize, usize)>) {
+    fn walk(
+        node: usize,
+        lo: usize,
+        hi: usize,
+        leaf: usize,
+        next: &mut usize,
+        leaves: &mut Vec<(usize, usize)>,
+    ) {
         if is_leaf(lo, hi, leaf) {
             leaves.push((lo, hi));
             return;
@@ -55,7 +62,14 @@ mod tests {
         let mid = split_point(lo, hi, leaf);
         assert!(lo < mid && mid < hi);
         walk(node + 1, lo, mid, leaf, next, leaves);
-        walk(right_child(node, lo, mid, leaf), mid, hi, leaf, next, leaves);
+        walk(
+            right_child(node, lo, mid, leaf),
+            mid,
+            hi,
+            leaf,
+            next,
+            leaves,
+        );
     }
 
     #[test]
@@ -64,7 +78,11 @@ mod tests {
             for windows in 1..200 {
                 let (mut next, mut leaves) = (0, Vec::new());
                 walk(0, 0, windows, leaf, &mut next, &mut leaves);
-                assert_eq!(next, internal_nodes(windows, leaf), "leaf {leaf} windows {windows}");
+                assert_eq!(
+                    next,
+                    internal_nodes(windows, leaf),
+                    "leaf {leaf} windows {windows}"
+                );
                 let covered: Vec<usize> = leaves.iter().flat_map(|&(lo, hi)| lo..hi).collect();
                 assert_eq!(covered, (0..windows).collect::<Vec<_>>());
                 let (last, full) = leaves.split_last().unwrap();

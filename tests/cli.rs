@@ -1,0 +1,95 @@
+//! The `reducem` command-line contract: `inspect --json` keys and consistency, `decode` output.
+
+mod common;
+
+use std::process::Command;
+
+use common::{canonical_sorted, expected_triangles, temp_path, torus};
+use reducem::build::{convert_mesh, BuildParams};
+use reducem::input::read_mesh;
+
+fn reducem(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_reducem"))
+        .args(args)
+        .output()
+        .expect("run reducem")
+}
+
+#[test]
+fn inspect_json_has_the_contract_keys_and_adds_up() {
+    let mesh = torus(40, 20);
+    let path = temp_path("cli-inspect.rdm");
+    convert_mesh(&mesh, &BuildParams::default(), &path).expect("convert");
+    let output = reducem(&["inspect", path.to_str().unwrap(), "--json", "--verify"]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stats: serde_json::Value = serde_json::from_slice(&output.stdout).expect("one JSON object");
+    for key in [
+        "triangles",
+        "dropped_triangles",
+        "strips",
+        "input_vertices",
+        "stored_vertices",
+        "file_bytes",
+        "bytes_per_triangle",
+        "bytes_by_section",
+        "hierarchy_overhead_pct",
+        "avg_strip_length",
+        "max_strip_length",
+    ] {
+        assert!(stats.get(key).is_some(), "missing key {key}");
+    }
+    assert_eq!(stats["triangles"], 1600);
+    assert_eq!(stats["input_vertices"], 800);
+    let file_bytes = std::fs::metadata(&path).unwrap().len();
+    assert_eq!(stats["file_bytes"], file_bytes);
+    let section_sum: u64 = stats["bytes_by_section"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(section_sum, file_bytes);
+    assert!(stats["max_strip_length"].as_u64().unwrap() <= 60);
+}
+
+#[test]
+fn decode_writes_the_input_triangles_as_ply() {
+    let mesh = torus(30, 12);
+    let path = temp_path("cli-decode.rdm");
+    let ply = temp_path("cli-decode.ply");
+    convert_mesh(&mesh, &BuildParams::default(), &path).expect("convert");
+    let output = reducem(&[
+        "decode",
+        path.to_str().unwrap(),
+        "-o",
+        ply.to_str().unwrap(),
+    ]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let decoded = read_mesh(&ply).expect("decoded PLY reads back");
+    let decoded_triangles = decoded.triangles.iter().map(|t| decoded.triangle_points(t));
+    assert_eq!(
+        canonical_sorted(decoded_triangles),
+        expected_triangles(&mesh)
+    );
+}
+
+#[test]
+fn a_corrupt_file_is_an_error_naming_it() {
+    let path = temp_path("cli-corrupt.rdm");
+    std::fs::write(&path, b"not a reducem file").unwrap();
+    let output = reducem(&["inspect", path.to_str().unwrap()]);
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("cli-corrupt.rdm") && stderr.contains("header"),
+        "{stderr}"
+    );
+}
