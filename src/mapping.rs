@@ -3,9 +3,18 @@
 use std::fs::File;
 use std::io;
 
-use memmap2::Mmap;
+use memmap2::{Mmap, MmapOptions};
 
-/// Maps `file` read-only.
+/// Maps all of `file` read-only.
+pub fn map_file(file: &File) -> io::Result<Mmap> {
+    let length = file.metadata()?.len();
+    let length = usize::try_from(length).map_err(|_| io::Error::other("file too large to map"))?;
+    map_range(file, 0, length)
+}
+
+/// Maps `length` bytes of `file` from `offset` read-only. Out-of-core passes map one window at a
+/// time and drop it before the next, so resident memory stays bounded by the window size rather
+/// than the file size.
 ///
 /// # Safety
 /// This is the only `unsafe` call in the project. A mapping is undefined behaviour if another
@@ -14,7 +23,9 @@ use memmap2::Mmap;
 /// seeing the old inode; inputs belong to the user, who must not edit them during a run. Every
 /// reader bounds-checks against the mapped length and never trusts the content, so a file that
 /// is corrupt (rather than concurrently modified) cannot cause out-of-bounds reads.
-pub fn map_file(file: &File) -> io::Result<Mmap> {
+pub fn map_range(file: &File, offset: u64, length: usize) -> io::Result<Mmap> {
+    let mut options = MmapOptions::new();
+    options.offset(offset).len(length);
     // SAFETY: see the function documentation; files are replaced by rename, never in place.
-    unsafe { Mmap::map(file) }
+    unsafe { options.map(file) }
 }
