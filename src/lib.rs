@@ -10,6 +10,7 @@
 
 pub mod atomic;
 pub mod build;
+pub mod chunking;
 pub mod decode;
 pub mod encode;
 pub mod format;

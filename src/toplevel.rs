@@ -291,3 +291,99 @@ impl TopLevel {
         Ok(())
     }
 }
+
+/// One chunk's finished hierarchy, as the splice sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Subtree {
+    pub bounds: Aabb,
+    pub node_count: u32,
+    pub strip_count: u32,
+}
+
+/// One step of the spliced hierarchy in final preorder: an upper node over chunks, or a whole
+/// chunk subtree whose nodes and strips are renumbered from the given bases.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SpliceItem {
+    Node(TopNode),
+    Subtree {
+        index: usize,
+        node_base: u32,
+        strip_base: u32,
+    },
+}
+
+/// Joins per-chunk hierarchies under an upper SAH hierarchy over their root boxes (paper 4.2:
+/// chunks stripified separately, "with a merge operation at the end").
+///
+/// Each chunk's nodes and strips stay contiguous, so the final file can be written by streaming
+/// chunk after chunk, and a subtree's nodes and strips sit together in the file. The upper
+/// hierarchy is built like the per-chunk ones with one chunk per leaf. Chunks without strips are
+/// left out.
+pub fn splice(subtrees: &[Subtree], params: &TopLevelParams) -> Vec<SpliceItem> {
+    let used: Vec<usize> = (0..subtrees.len()).filter(|&i| subtrees[i].strip_count > 0).collect();
+    if used.is_empty() {
+        return vec![SpliceItem::Node(TopNode::leaf(Aabb::EMPTY.min, Aabb::EMPTY.max, 0, 0))];
+    }
+    let bounds: Vec<Aabb> = used.iter().map(|&i| subtrees[i].bounds).collect();
+    let upper_params = TopLevelParams {
+        max_leaf_strips: 1,
+        ..params.clone()
+    };
+    let upper = build(&bounds, &upper_params);
+    let mut walk = SpliceWalk {
+        upper: &upper,
+        used: &used,
+        subtrees,
+        items: Vec::new(),
+        next_node: 0,
+        next_strip: 0,
+    };
+    walk.visit(0);
+    walk.items
+}
+
+struct SpliceWalk<'a> {
+    upper: &'a TopLevel,
+    used: &'a [usize],
+    subtrees: &'a [Subtree],
+    items: Vec<SpliceItem>,
+    next_node: u32,
+    next_strip: u32,
+}
+
+impl SpliceWalk<'_> {
+    fn visit(&mut self, node: usize) {
+        let upper_node = self.upper.nodes[node];
+        if !upper_node.is_internal() {
+            let index = self.used[self.upper.strip_order[upper_node.payload as usize] as usize];
+            self.items.push(SpliceItem::Subtree {
+                index,
+                node_base: self.next_node,
+                strip_base: self.next_strip,
+            });
+            self.next_node += self.subtrees[index].node_count;
+            self.next_strip += self.subtrees[index].strip_count;
+            return;
+        }
+        let position = self.items.len();
+        self.items.push(SpliceItem::Node(upper_node));
+        self.next_node += 1;
+        self.visit(node + 1);
+        let right = self.next_node;
+        if let SpliceItem::Node(spliced) = &mut self.items[position] {
+            spliced.payload = right;
+        }
+        self.visit(upper_node.payload as usize);
+    }
+}
+
+/// A chunk node renumbered into the final file: links and strip ranges shift by the bases.
+pub fn relocate(node: &TopNode, node_base: u32, strip_base: u32) -> TopNode {
+    let mut moved = *node;
+    moved.payload += if node.is_internal() {
+        node_base
+    } else {
+        strip_base
+    };
+    moved
+}

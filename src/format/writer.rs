@@ -36,6 +36,12 @@ pub struct WriteError {
     pub source: io::Error,
 }
 
+/// Produces the sections' bytes in file order; the writer aligns, hashes and places them.
+pub trait SectionSource {
+    fn strip_count(&self) -> u64;
+    fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()>;
+}
+
 /// Writes `strips` (indexed by the top level's `strip_order`) as a ReduceM file at `path`.
 pub fn write_file(
     path: &Path,
@@ -43,7 +49,26 @@ pub fn write_file(
     top: &TopLevel,
     strips: &[EncodedStrip],
 ) -> Result<(), WriteError> {
-    write_atomically(path, |out| write_sections(out, info, top, strips)).map_err(|source| {
+    let error = |source| WriteError {
+        path: path.to_path_buf(),
+        source,
+    };
+    let records = strip_records(top, strips).map_err(error)?;
+    let mut source = InMemory {
+        top,
+        strips,
+        records,
+    };
+    write_streaming(path, info, &mut source)
+}
+
+/// Writes a ReduceM file whose sections come from `source`, atomically.
+pub fn write_streaming(
+    path: &Path,
+    info: &FileInfo,
+    source: &mut impl SectionSource,
+) -> Result<(), WriteError> {
+    write_atomically(path, |out| write_sections(out, info, source)).map_err(|source| {
         WriteError {
             path: path.to_path_buf(),
             source,
@@ -54,26 +79,42 @@ pub fn write_file(
 fn write_sections(
     file: &mut BufWriter<File>,
     info: &FileInfo,
-    top: &TopLevel,
-    strips: &[EncodedStrip],
+    source: &mut impl SectionSource,
 ) -> io::Result<()> {
-    let records = strip_records(top, strips)?;
     let mut out = SectionWriter::new(file);
     out.pad_to(HEADER_PAGE)?;
-    let nodes = out.section(SectionKind::TopNodes, |w| {
-        w.write_all(bytemuck::cast_slice(&top.nodes))
-    })?;
-    let records = out.section(SectionKind::StripRecords, |w| {
-        w.write_all(bytemuck::cast_slice(&records))
-    })?;
-    let data = out.section(SectionKind::StripData, |w| {
-        top.strip_order
-            .iter()
-            .try_for_each(|&s| w.write_all(&strips[s as usize].block))
-    })?;
-    let header = header(info, strips.len() as u64, [nodes, records, data]);
+    let mut entries = [SectionEntry::default(); SECTION_COUNT];
+    for (entry, kind) in entries.iter_mut().zip(SectionKind::ALL) {
+        *entry = out.section(kind, |w| source.write_section(kind, w))?;
+    }
+    let header = header(info, source.strip_count(), entries);
     file.seek(SeekFrom::Start(0))?;
     file.write_all(bytemuck::bytes_of(&header))
+}
+
+/// The sections of a model converted in memory.
+struct InMemory<'a> {
+    top: &'a TopLevel,
+    strips: &'a [EncodedStrip],
+    records: Vec<StripRecord>,
+}
+
+impl SectionSource for InMemory<'_> {
+    fn strip_count(&self) -> u64 {
+        self.strips.len() as u64
+    }
+
+    fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()> {
+        match kind {
+            SectionKind::TopNodes => out.write_all(bytemuck::cast_slice(&self.top.nodes)),
+            SectionKind::StripRecords => out.write_all(bytemuck::cast_slice(&self.records)),
+            SectionKind::StripData => self
+                .top
+                .strip_order
+                .iter()
+                .try_for_each(|&s| out.write_all(&self.strips[s as usize].block)),
+        }
+    }
 }
 
 /// Records in file order. Blocks are padded to 4 bytes, so offsets are counted in words.
@@ -149,7 +190,7 @@ impl<'a, W: Write> SectionWriter<'a, W> {
     fn section(
         &mut self,
         kind: SectionKind,
-        body: impl FnOnce(&mut HashingWriter<'_, W>) -> io::Result<()>,
+        body: impl FnOnce(&mut dyn Write) -> io::Result<()>,
     ) -> io::Result<SectionEntry> {
         self.pad_to(align_up(self.position, SECTION_ALIGN))?;
         let offset = self.position;

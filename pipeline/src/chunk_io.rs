@@ -1,0 +1,181 @@
+//! The pipeline's intermediate files: mesh chunks (zstd-compressed) and strip chunks (raw, so
+//! the write stage can stream their sections into the final file).
+//!
+//! Both are private to a work directory and versioned by the format version in every stage
+//! fingerprint, so they carry a magic number but no compatibility promises.
+
+use std::fs::File;
+use std::io::{self, BufReader, Read, Seek, SeekFrom, Write};
+use std::path::Path;
+
+use bytemuck::{Pod, Zeroable};
+use reducem::build::ChunkStats;
+use reducem::format::{StripRecord, TopNode};
+use reducem::geometry::{Aabb, Point};
+use reducem::mesh::Mesh;
+
+const MESH_MAGIC: [u8; 8] = *b"RDMMESH1";
+const STRIP_MAGIC: [u8; 8] = *b"RDMSTRP1";
+/// zstd level: chunks are written once and read once, so speed matters more than ratio.
+const ZSTD_LEVEL: i32 = 1;
+
+/// Writes a mesh chunk: magic, vertex and triangle counts, positions, triangles, compressed.
+pub fn write_mesh(out: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let mut encoder = zstd::Encoder::new(out, ZSTD_LEVEL)?;
+    encoder.write_all(&MESH_MAGIC)?;
+    encoder.write_all(&(mesh.positions.len() as u64).to_le_bytes())?;
+    encoder.write_all(&(mesh.triangles.len() as u64).to_le_bytes())?;
+    encoder.write_all(bytemuck::cast_slice(&mesh.positions))?;
+    encoder.write_all(bytemuck::cast_slice(&mesh.triangles))?;
+    encoder.finish()?;
+    Ok(())
+}
+
+pub fn read_mesh(path: &Path) -> io::Result<Mesh> {
+    let mut bytes = Vec::new();
+    zstd::Decoder::new(File::open(path)?)?.read_to_end(&mut bytes)?;
+    let invalid = || io::Error::new(io::ErrorKind::InvalidData, format!("{}: not a mesh chunk", path.display()));
+    if bytes.len() < 24 || bytes[..8] != MESH_MAGIC {
+        return Err(invalid());
+    }
+    let count = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap_or_default()) as usize;
+    let (vertices, triangles) = (count(8), count(16));
+    let positions_end = 24 + vertices * 12;
+    if bytes.len() != positions_end + triangles * 12 {
+        return Err(invalid());
+    }
+    Ok(Mesh {
+        positions: bytemuck::pod_collect_to_vec::<u8, Point>(&bytes[24..positions_end]),
+        triangles: bytemuck::pod_collect_to_vec::<u8, [u32; 3]>(&bytes[positions_end..]),
+    })
+}
+
+/// Header of a strip chunk. 104 bytes, followed by `node_count` [`TopNode`]s (chunk-local
+/// links), `strip_count` [`StripRecord`]s (chunk-local data words) and `data_bytes` strip blocks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct StripChunkHeader {
+    pub magic: [u8; 8],
+    pub strip_count: u64,
+    pub node_count: u64,
+    pub data_bytes: u64,
+    /// triangles, dropped, input vertices, stored vertices, hierarchy vertices, max strip length.
+    pub stats: [u64; 6],
+    pub bounds_min: [f32; 3],
+    pub bounds_max: [f32; 3],
+}
+const _: () = assert!(std::mem::size_of::<StripChunkHeader>() == 104);
+
+impl StripChunkHeader {
+    pub fn new(stats: &ChunkStats, bounds: &Aabb, nodes: usize, records: usize, data_bytes: usize) -> Self {
+        StripChunkHeader {
+            magic: STRIP_MAGIC,
+            strip_count: records as u64,
+            node_count: nodes as u64,
+            data_bytes: data_bytes as u64,
+            stats: [
+                stats.triangles,
+                stats.dropped_triangles,
+                stats.input_vertices,
+                stats.stored_vertices,
+                stats.hierarchy_vertices,
+                stats.max_strip_length,
+            ],
+            bounds_min: bounds.min,
+            bounds_max: bounds.max,
+        }
+    }
+
+    pub fn stats(&self) -> ChunkStats {
+        let [triangles, dropped_triangles, input_vertices, stored_vertices, hierarchy_vertices, max_strip_length] =
+            self.stats;
+        ChunkStats {
+            triangles,
+            dropped_triangles,
+            input_vertices,
+            stored_vertices,
+            hierarchy_vertices,
+            max_strip_length,
+        }
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            min: self.bounds_min,
+            max: self.bounds_max,
+        }
+    }
+
+    fn nodes_offset(&self) -> u64 {
+        std::mem::size_of::<StripChunkHeader>() as u64
+    }
+
+    fn records_offset(&self) -> u64 {
+        self.nodes_offset() + self.node_count * std::mem::size_of::<TopNode>() as u64
+    }
+
+    fn data_offset(&self) -> u64 {
+        self.records_offset() + self.strip_count * std::mem::size_of::<StripRecord>() as u64
+    }
+}
+
+/// Writes a strip chunk.
+pub fn write_strips(
+    out: &mut impl Write,
+    header: &StripChunkHeader,
+    nodes: &[TopNode],
+    records: &[StripRecord],
+    data: &[&[u8]],
+) -> io::Result<()> {
+    out.write_all(bytemuck::bytes_of(header))?;
+    out.write_all(bytemuck::cast_slice(nodes))?;
+    out.write_all(bytemuck::cast_slice(records))?;
+    data.iter().try_for_each(|block| out.write_all(block))
+}
+
+/// A strip chunk opened for reading one section at a time.
+pub struct StripChunk {
+    file: BufReader<File>,
+    pub header: StripChunkHeader,
+}
+
+impl StripChunk {
+    pub fn open(path: &Path) -> io::Result<StripChunk> {
+        let mut file = BufReader::with_capacity(1 << 20, File::open(path)?);
+        let mut header = StripChunkHeader::zeroed();
+        file.read_exact(bytemuck::bytes_of_mut(&mut header))?;
+        let expected = header.data_offset() + header.data_bytes;
+        if header.magic != STRIP_MAGIC || file.get_ref().metadata()?.len() != expected {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidData,
+                format!("{}: not a complete strip chunk", path.display()),
+            ));
+        }
+        Ok(StripChunk { file, header })
+    }
+
+    pub fn nodes(&mut self) -> io::Result<Vec<TopNode>> {
+        self.read_records(self.header.nodes_offset(), self.header.node_count as usize)
+    }
+
+    pub fn records(&mut self) -> io::Result<Vec<StripRecord>> {
+        self.read_records(self.header.records_offset(), self.header.strip_count as usize)
+    }
+
+    /// Copies the strip blocks to `out`.
+    pub fn copy_data(&mut self, out: &mut dyn Write) -> io::Result<()> {
+        self.file.seek(SeekFrom::Start(self.header.data_offset()))?;
+        let copied = io::copy(&mut (&mut self.file).take(self.header.data_bytes), out)?;
+        if copied != self.header.data_bytes {
+            return Err(io::Error::new(io::ErrorKind::UnexpectedEof, "strip chunk data is short"));
+        }
+        Ok(())
+    }
+
+    fn read_records<T: Pod>(&mut self, offset: u64, count: usize) -> io::Result<Vec<T>> {
+        self.file.seek(SeekFrom::Start(offset))?;
+        let mut records = vec![T::zeroed(); count];
+        self.file.read_exact(bytemuck::cast_slice_mut(&mut records))?;
+        Ok(records)
+    }
+}

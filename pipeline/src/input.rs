@@ -1,0 +1,107 @@
+//! The job's input: a user file, identified by its content hash (cached in the manifest while
+//! path, size and modification time are unchanged, so a rerun does not reread 5 GB), or a
+//! synthetic mesh generated into the work directory as a unit of its own.
+
+use std::path::PathBuf;
+use std::time::UNIX_EPOCH;
+
+use anyhow::Context;
+use reducem::gen;
+
+use crate::config::Input;
+use crate::fingerprint::{hash_file, Fingerprint};
+use crate::manifest::{Freshness, InputIdentity};
+use crate::stage::Job;
+
+/// Where the mesh is and what identifies its content.
+pub struct ResolvedInput {
+    pub path: PathBuf,
+    pub content: String,
+}
+
+const GENERATE_UNIT: &str = "generate";
+
+/// Resolves the input, generating it first if the configuration asks for a synthetic mesh.
+pub fn resolve(job: &Job) -> anyhow::Result<ResolvedInput> {
+    match job.config.input().map_err(anyhow::Error::msg)? {
+        Input::File(path) => Ok(ResolvedInput {
+            content: content_hash(job, &path)?,
+            path,
+        }),
+        Input::Generate { kind, triangles, seed } => {
+            let (relative, fingerprint) = generated(kind, triangles, seed);
+            let path = job.work.file(&relative);
+            if job.freshness(GENERATE_UNIT, &fingerprint) != Freshness::Fresh {
+                job.progress.event(GENERATE_UNIT, "start", &format!("{kind:?} mesh, {triangles} triangles, seed {seed}"));
+                gen::generate(kind, triangles, seed, &path)?;
+                job.complete(GENERATE_UNIT, &fingerprint, &[relative])?;
+            }
+            Ok(ResolvedInput {
+                path,
+                content: format!("generated:{}", fingerprint.digest()),
+            })
+        }
+    }
+}
+
+/// The input as far as it is known without doing any work (for `status`).
+pub fn peek(job: &Job) -> Result<ResolvedInput, String> {
+    match job.config.input()? {
+        Input::File(path) => {
+            let identity = identity(&path).map_err(|e| format!("input {}: {e}", path.display()))?;
+            let cached = job.manifest().input.clone().filter(|c| same_identity(c, &identity));
+            let content = cached.map_or_else(|| format!("unhashed:{}:{}", identity.bytes, identity.modified_ns), |c| c.hash);
+            Ok(ResolvedInput { path, content })
+        }
+        Input::Generate { kind, triangles, seed } => {
+            let (relative, fingerprint) = generated(kind, triangles, seed);
+            match job.freshness(GENERATE_UNIT, &fingerprint) {
+                Freshness::Fresh => Ok(ResolvedInput {
+                    path: job.work.file(&relative),
+                    content: format!("generated:{}", fingerprint.digest()),
+                }),
+                _ => Err("the generated input is not made yet".into()),
+            }
+        }
+    }
+}
+
+fn generated(kind: gen::Kind, triangles: u64, seed: u64) -> (String, Fingerprint) {
+    let name = format!("{kind:?}").to_lowercase();
+    let fingerprint = Fingerprint::new()
+        .with("input.generate.kind", &name)
+        .with("input.generate.triangles", triangles)
+        .with("input.generate.seed", seed);
+    (format!("generated-{name}-{triangles}-{seed}.ply"), fingerprint)
+}
+
+fn content_hash(job: &Job, path: &std::path::Path) -> anyhow::Result<String> {
+    let identity = identity(path).with_context(|| format!("reading {}", path.display()))?;
+    if let Some(cached) = job.manifest().input.clone().filter(|c| same_identity(c, &identity)) {
+        return Ok(cached.hash);
+    }
+    job.progress.event("input", "start", &format!("hashing {}", path.display()));
+    let hash = hash_file(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut manifest = job.manifest();
+    manifest.input = Some(InputIdentity {
+        hash: hash.clone(),
+        ..identity
+    });
+    manifest.save(&job.work.manifest()).context("writing the manifest")?;
+    Ok(hash)
+}
+
+fn identity(path: &std::path::Path) -> std::io::Result<InputIdentity> {
+    let meta = std::fs::metadata(path)?;
+    let modified_ns = meta.modified()?.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    Ok(InputIdentity {
+        path: std::fs::canonicalize(path)?.display().to_string(),
+        bytes: meta.len(),
+        modified_ns,
+        hash: String::new(),
+    })
+}
+
+fn same_identity(cached: &InputIdentity, current: &InputIdentity) -> bool {
+    cached.path == current.path && cached.bytes == current.bytes && cached.modified_ns == current.modified_ns
+}

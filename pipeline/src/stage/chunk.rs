@@ -1,0 +1,157 @@
+//! Stage *chunk*: one streaming partition of the input into spatially compact chunks of at most
+//! `[chunk] max_triangles` triangles, each written with its own welded local vertex array,
+//! zstd-compressed (`reducem::chunking` has the algorithm).
+//!
+//! The stage is one unit: a run killed inside it redoes it from the start, since its passes
+//! share one plan. Triangles are first spilled per chunk as global vertex indices (12 bytes
+//! each), then each chunk gathers its positions with `positions_of` and is written on its own,
+//! so memory holds one chunk at a time, plus the 2-byte cell of every vertex.
+
+use std::fs::{self, File};
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::Path;
+
+use anyhow::Context;
+use reducem::chunking::{self, MeshSource, Partition};
+use reducem::geometry::Aabb;
+use serde::{Deserialize, Serialize};
+
+use crate::chunk_io;
+use crate::fingerprint::Fingerprint;
+use crate::input::ResolvedInput;
+use crate::manifest::Freshness;
+use crate::stage::{read_json, write_json, Job};
+use crate::workdir::mesh_chunk;
+
+pub const UNIT: &str = "chunk";
+const PLAN: &str = "chunks/plan.json";
+
+/// The stage's result as later stages need it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Chunked {
+    pub digest: String,
+    pub triangles_per_chunk: Vec<u64>,
+    pub bounds_min: [f32; 3],
+    pub bounds_max: [f32; 3],
+}
+
+impl Chunked {
+    pub fn chunk_count(&self) -> usize {
+        self.triangles_per_chunk.len()
+    }
+}
+
+pub fn fingerprint(job: &Job, input: &ResolvedInput) -> Fingerprint {
+    Fingerprint::new()
+        .with("input", &input.content)
+        .with("chunk.max_triangles", job.config.chunk.max_triangles)
+}
+
+/// The recorded result, if the stage is fresh.
+pub fn fresh_result(job: &Job, fingerprint: &Fingerprint) -> Option<Chunked> {
+    (job.freshness(UNIT, fingerprint) == Freshness::Fresh)
+        .then(|| read_json(&job.work.file(PLAN)).ok())
+        .flatten()
+        .filter(|chunked: &Chunked| chunked.digest == fingerprint.digest())
+}
+
+pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
+    let fingerprint = fingerprint(job, input);
+    if let Some(chunked) = fresh_result(job, &fingerprint) {
+        job.progress.event(UNIT, "skip", &format!("fresh, {} chunks", chunked.chunk_count()));
+        return Ok(chunked);
+    }
+    clear_chunks(job)?;
+    let source = open_source(&input.path)?;
+    let partition = chunking::partition(&*source, job.config.chunk.max_triangles)?;
+    let triangles_per_chunk = spill(job, &*source, &partition)?;
+    let progress = job.progress.stage(UNIT, triangles_per_chunk.len() as u64, "chunks");
+    let mut outputs = Vec::new();
+    for chunk in 0..triangles_per_chunk.len() {
+        outputs.push(write_chunk(job, &*source, chunk)?);
+        progress.advance(1);
+    }
+    let chunked = Chunked {
+        digest: fingerprint.digest(),
+        triangles_per_chunk,
+        bounds_min: partition.bounds.min,
+        bounds_max: partition.bounds.max,
+    };
+    write_json(&job.work.file(PLAN), &chunked)?;
+    outputs.push(PLAN.to_string());
+    job.complete(UNIT, &fingerprint, &outputs)?;
+    progress.finish(&format!(", {} chunks", chunked.chunk_count()));
+    Ok(chunked)
+}
+
+/// The input as a [`MeshSource`]. Inputs that cannot be streamed are read whole.
+fn open_source(path: &Path) -> anyhow::Result<Box<dyn MeshSource>> {
+    Ok(Box::new(reducem::input::read_mesh(path)?))
+}
+
+fn clear_chunks(job: &Job) -> anyhow::Result<()> {
+    let dir = job.work.file("chunks");
+    if dir.exists() {
+        fs::remove_dir_all(&dir).with_context(|| format!("clearing {}", dir.display()))?;
+    }
+    fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))
+}
+
+fn spill_path(job: &Job, chunk: usize) -> std::path::PathBuf {
+    job.work.file(&format!("chunks/spill-{chunk:06}.ids"))
+}
+
+/// Writes every triangle's global vertex indices to its chunk's spill file.
+fn spill(job: &Job, source: &dyn MeshSource, partition: &Partition) -> anyhow::Result<Vec<u64>> {
+    let chunk_count = partition.plan.chunk_count();
+    let mut writers = (0..chunk_count)
+        .map(|chunk| {
+            let path = spill_path(job, chunk);
+            File::create(&path)
+                .map(|f| BufWriter::with_capacity(1 << 16, f))
+                .with_context(|| format!("creating {}", path.display()))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut counts = vec![0u64; chunk_count];
+    let mut first_error = None;
+    chunking::distribute(source, partition, &mut |chunk, triangle| {
+        counts[chunk as usize] += 1;
+        if first_error.is_none() {
+            first_error = writers[chunk as usize].write_all(bytemuck::cast_slice(&triangle)).err();
+        }
+    })?;
+    if let Some(error) = first_error {
+        return Err(error).context("writing spill files");
+    }
+    for writer in &mut writers {
+        writer.flush().context("writing spill files")?;
+    }
+    Ok(counts)
+}
+
+/// Turns one spill file into a mesh chunk and removes the spill.
+fn write_chunk(job: &Job, source: &dyn MeshSource, chunk: usize) -> anyhow::Result<String> {
+    let spill = spill_path(job, chunk);
+    let mut bytes = Vec::new();
+    BufReader::new(File::open(&spill)?).read_to_end(&mut bytes)?;
+    let triangles: Vec<[u32; 3]> = bytemuck::pod_collect_to_vec(&bytes);
+    drop(bytes);
+    let distinct = chunking::distinct_vertices(&triangles);
+    let positions = source.positions_of(&distinct)?;
+    let mesh = reducem::input::weld_identical_positions(chunking::local_mesh(&triangles, &distinct, positions));
+    let relative = mesh_chunk(chunk);
+    let path = job.work.file(&relative);
+    reducem::atomic::write_atomically(&path, |out| chunk_io::write_mesh(out, &mesh))
+        .with_context(|| format!("writing {}", path.display()))?;
+    fs::remove_file(&spill).with_context(|| format!("removing {}", spill.display()))?;
+    Ok(relative)
+}
+
+impl Chunked {
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            min: self.bounds_min,
+            max: self.bounds_max,
+        }
+    }
+}

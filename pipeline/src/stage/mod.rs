@@ -1,0 +1,81 @@
+//! The stages of a conversion, one file each, in run order. A stage only orchestrates: it
+//! decides from the manifest whether its work is fresh, calls the algorithms in the `reducem`
+//! library, writes its outputs atomically and records them in the manifest last.
+
+pub mod chunk;
+pub mod hierarchy;
+pub mod merge;
+pub mod strip;
+pub mod write;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Mutex;
+
+use anyhow::Context;
+
+use crate::config::Config;
+use crate::fingerprint::Fingerprint;
+use crate::manifest::{Freshness, Manifest};
+use crate::progress::Progress;
+use crate::workdir::WorkDir;
+
+/// What every stage works with.
+pub struct Job<'a> {
+    pub config: &'a Config,
+    pub work: WorkDir,
+    pub progress: &'a Progress,
+    manifest: Mutex<Manifest>,
+}
+
+impl<'a> Job<'a> {
+    pub fn new(config: &'a Config, work: WorkDir, progress: &'a Progress) -> Job<'a> {
+        let manifest = Manifest::load(&work.manifest());
+        Job {
+            config,
+            work,
+            progress,
+            manifest: Mutex::new(manifest),
+        }
+    }
+
+    pub fn freshness(&self, key: &str, fingerprint: &Fingerprint) -> Freshness {
+        self.lock_manifest().freshness(self.work.root(), key, fingerprint)
+    }
+
+    /// Records a unit as complete, after its outputs (paths relative to the work directory, or
+    /// absolute) were renamed into place, and saves the manifest atomically.
+    pub fn complete(&self, key: &str, fingerprint: &Fingerprint, outputs: &[String]) -> anyhow::Result<()> {
+        let mut sizes = BTreeMap::new();
+        for output in outputs {
+            let path = self.work.file(output);
+            let meta = std::fs::metadata(&path).with_context(|| format!("checking {}", path.display()))?;
+            sizes.insert(output.clone(), meta.len());
+        }
+        let mut manifest = self.lock_manifest();
+        manifest.record(key, fingerprint, sizes);
+        let path = self.work.manifest();
+        manifest.save(&path).with_context(|| format!("writing {}", path.display()))
+    }
+
+    pub fn manifest(&self) -> std::sync::MutexGuard<'_, Manifest> {
+        self.lock_manifest()
+    }
+
+    fn lock_manifest(&self) -> std::sync::MutexGuard<'_, Manifest> {
+        self.manifest.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+}
+
+/// Reads a small JSON output of an earlier stage.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<T> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    serde_json::from_slice(&bytes).with_context(|| format!("parsing {}", path.display()))
+}
+
+/// Writes a small JSON output atomically.
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
+    let json = serde_json::to_vec_pretty(value)?;
+    reducem::atomic::write_atomically(path, |out| std::io::Write::write_all(out, &json))
+        .with_context(|| format!("writing {}", path.display()))
+}

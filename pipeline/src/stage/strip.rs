@@ -1,0 +1,84 @@
+//! Stage *strip*: adjacency, Strip-RT, strip encoding and the chunk's own top-level hierarchy
+//! (`reducem::build`, `reducem::toplevel`), chunks in parallel on the rayon pool. Each chunk is
+//! a unit of its own in the manifest, so a killed run keeps every chunk it finished. Memory is
+//! about threads × one chunk.
+
+use anyhow::Context;
+use rayon::prelude::*;
+use reducem::build::{encode_chunk, strip_bounds};
+use reducem::format::StripRecord;
+use reducem::toplevel::{self, TopLevelParams};
+
+use crate::chunk_io::{self, StripChunkHeader};
+use crate::fingerprint::Fingerprint;
+use crate::manifest::Freshness;
+use crate::stage::chunk::Chunked;
+use crate::stage::Job;
+use crate::workdir::{mesh_chunk, strip_chunk};
+
+/// The manifest key of one chunk's unit.
+pub fn unit(chunk: usize) -> String {
+    format!("strip/chunk-{chunk:06}")
+}
+
+pub fn fingerprint(job: &Job, chunked: &Chunked, chunk: usize) -> Fingerprint {
+    let strip = &job.config.strip;
+    Fingerprint::new()
+        .with("chunk_stage", &chunked.digest)
+        .with("chunk", chunk)
+        .with("strip.max_length", strip.max_length)
+        .with("strip.leaf_triangles", strip.leaf_triangles)
+        .with("strip.sah_bins", strip.sah_bins)
+        .with("top_level", format!("{:?}", TopLevelParams::default()))
+}
+
+/// Digest over every chunk's fingerprint: what later stages depend on.
+pub fn digest(job: &Job, chunked: &Chunked) -> String {
+    let mut all = Fingerprint::new();
+    for chunk in 0..chunked.chunk_count() {
+        all.add(&unit(chunk), fingerprint(job, chunked, chunk).digest());
+    }
+    all.digest()
+}
+
+pub fn run(job: &Job, chunked: &Chunked) -> anyhow::Result<String> {
+    let pending: Vec<usize> = (0..chunked.chunk_count())
+        .filter(|&chunk| job.freshness(&unit(chunk), &fingerprint(job, chunked, chunk)) != Freshness::Fresh)
+        .collect();
+    let progress = job.progress.stage("strip", chunked.chunk_count() as u64, "chunks");
+    progress.advance((chunked.chunk_count() - pending.len()) as u64);
+    pending.par_iter().try_for_each(|&chunk| {
+        strip_one(job, chunk).with_context(|| format!("chunk {chunk}"))?;
+        job.complete(&unit(chunk), &fingerprint(job, chunked, chunk), &[strip_chunk(chunk)])?;
+        progress.advance(1);
+        anyhow::Ok(())
+    })?;
+    progress.finish(&format!(", {} chunks converted, {} fresh", pending.len(), chunked.chunk_count() - pending.len()));
+    Ok(digest(job, chunked))
+}
+
+fn strip_one(job: &Job, chunk: usize) -> anyhow::Result<()> {
+    let mesh_path = job.work.file(&mesh_chunk(chunk));
+    let mesh = chunk_io::read_mesh(&mesh_path).with_context(|| format!("reading {}", mesh_path.display()))?;
+    let encoded = encode_chunk(&mesh, &job.config.build_params());
+    drop(mesh);
+    let bounds = strip_bounds(&encoded.strips);
+    let top = toplevel::build(&bounds, &TopLevelParams::default());
+    let mut records = Vec::with_capacity(encoded.strips.len());
+    let mut word = 0u32;
+    for &s in &top.strip_order {
+        let strip = &encoded.strips[s as usize];
+        records.push(StripRecord {
+            data_word: word,
+            vertex_count: strip.vertex_count,
+            reference_count: strip.reference_count,
+        });
+        word += strip.block.len() as u32 / 4;
+    }
+    let blocks: Vec<&[u8]> = top.strip_order.iter().map(|&s| encoded.strips[s as usize].block.as_slice()).collect();
+    let chunk_bounds = bounds.iter().fold(reducem::geometry::Aabb::EMPTY, |a, b| a.union(b));
+    let header = StripChunkHeader::new(&encoded.stats, &chunk_bounds, top.nodes.len(), records.len(), word as usize * 4);
+    let path = job.work.file(&strip_chunk(chunk));
+    reducem::atomic::write_atomically(&path, |out| chunk_io::write_strips(out, &header, &top.nodes, &records, &blocks))
+        .with_context(|| format!("writing {}", path.display()))
+}

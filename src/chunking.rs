@@ -1,0 +1,263 @@
+//! Spatial partition of a massive mesh into chunks that fit in memory (paper 4.2: "we first
+//! decompose an input model into small chunks, each of which fits into main memory").
+//!
+//! The model bounds are cut into a grid of 32 × 32 × 32 cells numbered in Morton order, so that
+//! consecutive cell numbers are spatially close. A triangle belongs to the cell of its first
+//! vertex: that needs only a 2-byte cell number per vertex during the partition pass, not the
+//! positions of all three corners (the one model-sized array of the pipeline, 2 bytes per
+//! vertex). Cells are then taken in Morton order and packed greedily into chunks of at most
+//! `max_triangles`; a cell that alone exceeds the limit is dealt out over several chunks of its
+//! own in input order. Chunks are therefore compact regions of space, which keeps strips and the
+//! per-chunk hierarchies local, and their boundaries are the only places where strips cannot
+//! continue.
+
+use crate::geometry::{Aabb, Point};
+use crate::input::InputError;
+use crate::mesh::Mesh;
+
+/// A mesh read in passes, so that a model larger than memory can be partitioned: positions in
+/// windows, triangles in input order, and positions of chosen vertices.
+pub trait MeshSource {
+    fn vertex_count(&self) -> u64;
+    fn for_each_position_window(&self, visit: &mut dyn FnMut(u64, &[Point])) -> Result<(), InputError>;
+    fn for_each_triangle(&self, visit: &mut dyn FnMut(u64, [u32; 3])) -> Result<(), InputError>;
+    /// Positions of `sorted_ids` (strictly ascending), in that order.
+    fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError>;
+}
+
+/// A mesh already in memory (inputs that cannot be streamed, such as ASCII PLY and OBJ).
+impl MeshSource for Mesh {
+    fn vertex_count(&self) -> u64 {
+        self.positions.len() as u64
+    }
+
+    fn for_each_position_window(&self, visit: &mut dyn FnMut(u64, &[Point])) -> Result<(), InputError> {
+        visit(0, &self.positions);
+        Ok(())
+    }
+
+    fn for_each_triangle(&self, visit: &mut dyn FnMut(u64, [u32; 3])) -> Result<(), InputError> {
+        for (index, &triangle) in self.triangles.iter().enumerate() {
+            visit(index as u64, triangle);
+        }
+        Ok(())
+    }
+
+    fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError> {
+        Ok(sorted_ids.iter().map(|&v| self.positions[v as usize]).collect())
+    }
+}
+
+/// The partition of a source: the plan, and each vertex's cell (which [`distribute`] needs).
+pub struct Partition {
+    pub plan: ChunkPlan,
+    pub vertex_cells: Vec<u16>,
+    pub bounds: Aabb,
+}
+
+/// Three passes: bounds, the cell of every vertex, the triangle count of every cell; then packs
+/// cells into chunks of at most `max_triangles`.
+pub fn partition(source: &dyn MeshSource, max_triangles: u64) -> Result<Partition, InputError> {
+    let mut bounds = Aabb::EMPTY;
+    source.for_each_position_window(&mut |_, positions| {
+        bounds.grow(&Aabb::from_points(positions));
+    })?;
+    let grid = CellGrid::new(&bounds);
+    let mut vertex_cells = Vec::with_capacity(source.vertex_count() as usize);
+    source.for_each_position_window(&mut |_, positions| {
+        vertex_cells.extend(positions.iter().map(|p| grid.cell(p)));
+    })?;
+    let mut triangles_per_cell = vec![0u64; CELL_COUNT];
+    source.for_each_triangle(&mut |_, triangle| {
+        triangles_per_cell[vertex_cells[triangle[0] as usize] as usize] += 1;
+    })?;
+    Ok(Partition {
+        plan: ChunkPlan::new(&triangles_per_cell, max_triangles),
+        vertex_cells,
+        bounds,
+    })
+}
+
+/// One more pass handing every triangle, in input order, to `sink(chunk, triangle)`.
+pub fn distribute(
+    source: &dyn MeshSource,
+    partition: &Partition,
+    sink: &mut dyn FnMut(u32, [u32; 3]),
+) -> Result<(), InputError> {
+    let mut seen_per_cell = vec![0u64; CELL_COUNT];
+    source.for_each_triangle(&mut |_, triangle| {
+        let cell = partition.vertex_cells[triangle[0] as usize];
+        let ordinal = &mut seen_per_cell[cell as usize];
+        sink(partition.plan.chunk_of(cell, *ordinal), triangle);
+        *ordinal += 1;
+    })
+}
+
+/// Morton bits per axis; 3 × 5 = 15 bits, so a cell number fits a u16.
+const BITS_PER_AXIS: u32 = 5;
+/// Number of cells of the grid.
+pub const CELL_COUNT: usize = 1 << (3 * BITS_PER_AXIS);
+
+/// The Morton-ordered cell grid over a model's bounds.
+#[derive(Clone, Copy, Debug)]
+pub struct CellGrid {
+    min: Point,
+    scale: [f32; 3],
+}
+
+impl CellGrid {
+    pub fn new(bounds: &Aabb) -> CellGrid {
+        let cells = (1u32 << BITS_PER_AXIS) as f32;
+        let scale = [0, 1, 2].map(|axis| {
+            let extent = bounds.extent(axis);
+            if extent > 0.0 && extent.is_finite() {
+                cells / extent
+            } else {
+                0.0
+            }
+        });
+        CellGrid {
+            min: bounds.min,
+            scale,
+        }
+    }
+
+    /// The Morton number of the cell containing `point`.
+    pub fn cell(&self, point: &Point) -> u16 {
+        let last = (1u32 << BITS_PER_AXIS) - 1;
+        let coordinate = |axis: usize| {
+            let offset = (point[axis] - self.min[axis]) * self.scale[axis];
+            (offset.max(0.0) as u32).min(last)
+        };
+        interleave([coordinate(0), coordinate(1), coordinate(2)])
+    }
+}
+
+fn interleave(coordinates: [u32; 3]) -> u16 {
+    let mut code = 0u16;
+    for bit in 0..BITS_PER_AXIS {
+        for (axis, c) in coordinates.iter().enumerate() {
+            code |= (((c >> bit) & 1) as u16) << (3 * bit + axis as u32);
+        }
+    }
+    code
+}
+
+/// Which chunk each triangle goes to, given its cell and its ordinal among that cell's
+/// triangles in input order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ChunkPlan {
+    first_chunk: Vec<u32>,
+    oversized: Vec<bool>,
+    max_triangles: u64,
+    chunk_count: u32,
+}
+
+impl ChunkPlan {
+    /// Packs cells in Morton order into chunks of at most `max_triangles` (≥ 1) triangles.
+    pub fn new(triangles_per_cell: &[u64], max_triangles: u64) -> ChunkPlan {
+        let max_triangles = max_triangles.max(1);
+        let mut plan = ChunkPlan {
+            first_chunk: vec![0; triangles_per_cell.len()],
+            oversized: vec![false; triangles_per_cell.len()],
+            max_triangles,
+            chunk_count: 0,
+        };
+        let mut fill = 0u64;
+        for (cell, &count) in triangles_per_cell.iter().enumerate() {
+            if count == 0 {
+                continue;
+            }
+            if count > max_triangles {
+                plan.first_chunk[cell] = plan.chunk_count;
+                plan.oversized[cell] = true;
+                plan.chunk_count += count.div_ceil(max_triangles) as u32;
+                fill = max_triangles;
+                continue;
+            }
+            if plan.chunk_count == 0 || fill + count > max_triangles {
+                plan.chunk_count += 1;
+                fill = 0;
+            }
+            plan.first_chunk[cell] = plan.chunk_count - 1;
+            fill += count;
+        }
+        plan
+    }
+
+    pub fn chunk_count(&self) -> usize {
+        self.chunk_count as usize
+    }
+
+    /// The chunk of the `ordinal`-th triangle (in input order) of `cell`.
+    pub fn chunk_of(&self, cell: u16, ordinal: u64) -> u32 {
+        let cell = cell as usize;
+        let extra = if self.oversized[cell] {
+            (ordinal / self.max_triangles) as u32
+        } else {
+            0
+        };
+        self.first_chunk[cell] + extra
+    }
+}
+
+/// Builds a chunk's mesh from its triangles as global vertex indices: the distinct vertices,
+/// ascending, become the chunk's local vertex array (`positions` are theirs, in that order).
+pub fn local_mesh(triangles: &[[u32; 3]], distinct_vertices: &[u32], positions: Vec<Point>) -> Mesh {
+    let local = |v: u32| distinct_vertices.partition_point(|&d| d < v) as u32;
+    Mesh {
+        positions,
+        triangles: triangles.iter().map(|t| t.map(local)).collect(),
+    }
+}
+
+/// The ascending distinct vertex indices used by `triangles`.
+pub fn distinct_vertices(triangles: &[[u32; 3]]) -> Vec<u32> {
+    let mut vertices: Vec<u32> = triangles.iter().flatten().copied().collect();
+    vertices.sort_unstable();
+    vertices.dedup();
+    vertices
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cells_pack_in_order_and_big_cells_get_their_own_chunks() {
+        let mut counts = vec![0u64; 8];
+        counts[0] = 3;
+        counts[1] = 4;
+        counts[2] = 10;
+        counts[5] = 2;
+        let plan = ChunkPlan::new(&counts, 5);
+        // [cell 0: 3] [cell 1: 4] [cell 2: 5 + 5] [cell 5: 2]
+        assert_eq!(plan.chunk_count(), 5);
+        assert_eq!(plan.chunk_of(0, 2), 0);
+        assert_eq!(plan.chunk_of(1, 0), 1);
+        assert_eq!(plan.chunk_of(2, 4), 2);
+        assert_eq!(plan.chunk_of(2, 5), 3);
+        assert_eq!(plan.chunk_of(5, 1), 4);
+    }
+
+    #[test]
+    fn morton_cells_stay_in_range_and_order_corners() {
+        let bounds = Aabb {
+            min: [0.0; 3],
+            max: [1.0; 3],
+        };
+        let grid = CellGrid::new(&bounds);
+        assert_eq!(grid.cell(&[0.0; 3]), 0);
+        assert_eq!(grid.cell(&[1.0; 3]) as usize, CELL_COUNT - 1);
+        assert_eq!(grid.cell(&[-5.0, 9.0, 0.5]), grid.cell(&[0.0, 1.0, 0.5]));
+    }
+
+    #[test]
+    fn local_mesh_renumbers_by_ascending_global_index() {
+        let triangles = [[10, 4, 7], [7, 4, 2]];
+        let distinct = distinct_vertices(&triangles);
+        assert_eq!(distinct, vec![2, 4, 7, 10]);
+        let mesh = local_mesh(&triangles, &distinct, vec![[0.0; 3]; 4]);
+        assert_eq!(mesh.triangles, vec![[3, 1, 2], [2, 1, 0]]);
+    }
+}
