@@ -20,3 +20,4 @@ pub mod mesh;
 pub mod strip;
 pub mod stripify;
 pub mod toplevel;
+pub mod trace;
