@@ -17,6 +17,7 @@ pub mod input;
 pub mod inspect;
 pub mod mapping;
 pub mod mesh;
+pub mod render;
 pub mod strip;
 pub mod stripify;
 pub mod toplevel;

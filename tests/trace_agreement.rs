@@ -46,7 +46,11 @@ fn check_ray(tracer: &Tracer, ray: &Ray) -> bool {
         ray.tmax,
     )
     .expect("the reported triangle is hit");
-    assert_eq!(own.t.to_bits(), hit.t.to_bits(), "t differs from its triangle's");
+    assert_eq!(
+        own.t.to_bits(),
+        hit.t.to_bits(),
+        "t differs from its triangle's"
+    );
     check_hit_point(ray, &hit, &reported);
     true
 }
@@ -58,10 +62,7 @@ fn check_hit_point(ray: &Ray, hit: &reducem::trace::Hit, corners: &[Point; 3]) {
         let on_triangle =
             w0 * corners[0][axis] + hit.u * corners[1][axis] + hit.v * corners[2][axis];
         let on_ray = ray.origin[axis] + hit.t * ray.direction[axis];
-        let scale = corners
-            .iter()
-            .map(|c| c[axis].abs())
-            .fold(1.0f32, f32::max);
+        let scale = corners.iter().map(|c| c[axis].abs()).fold(1.0f32, f32::max);
         assert!(
             (on_triangle - on_ray).abs() <= 1e-3 * scale,
             "hit point {on_triangle} vs ray point {on_ray} on axis {axis}"
@@ -114,7 +115,10 @@ fn check_mesh(mesh: &Mesh, name: &str) {
             };
             let tracer = Tracer::new(file, options);
             let mut hits = 0;
-            for ray in random_rays(mesh, 300, 7).iter().chain(&aimed_rays(mesh, 11)) {
+            for ray in random_rays(mesh, 300, 7)
+                .iter()
+                .chain(&aimed_rays(mesh, 11))
+            {
                 hits += check_ray(&tracer, ray) as usize;
             }
             assert!(hits > 50, "{name}: only {hits} hits, the test is too weak");
@@ -208,8 +212,26 @@ fn tmin_and_tmax_bound_the_hits() {
         tmax: f32::INFINITY,
     };
     let t = tracer.intersect(&ray).expect("hit").t;
-    assert_eq!(tracer.intersect(&Ray { tmax: t, ..ray }).map(|h| h.t), Some(t));
-    assert_eq!(tracer.intersect(&Ray { tmax: t * 0.99, ..ray }), None);
-    assert_eq!(tracer.intersect(&Ray { tmin: t * 1.01, ..ray }), None);
-    assert!(!tracer.occluded(&Ray { tmax: t * 0.99, ..ray }));
+    assert_eq!(
+        tracer.intersect(&Ray { tmax: t, ..ray }).map(|h| h.t),
+        Some(t)
+    );
+    assert_eq!(
+        tracer.intersect(&Ray {
+            tmax: t * 0.99,
+            ..ray
+        }),
+        None
+    );
+    assert_eq!(
+        tracer.intersect(&Ray {
+            tmin: t * 1.01,
+            ..ray
+        }),
+        None
+    );
+    assert!(!tracer.occluded(&Ray {
+        tmax: t * 0.99,
+        ..ray
+    }));
 }

@@ -169,7 +169,10 @@ fn traverse(
             }
             depth -= 1;
             let deferred = stack[depth];
-            let alive = deferred.t_near.simd_le(bounds(closest, finished)).to_bitmask();
+            let alive = deferred
+                .t_near
+                .simd_le(bounds(closest, finished))
+                .to_bitmask();
             let mask = deferred.mask & alive;
             if mask != 0 {
                 current = PacketDeferred { mask, ..deferred };

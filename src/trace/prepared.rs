@@ -102,10 +102,7 @@ mod tests {
     #[test]
     fn parallel_ray_outside_the_slab_misses() {
         let r = ray([-1.0, 2.0, 0.5], [1.0, 0.0, -0.0]);
-        assert_eq!(
-            r.clip_box(&[0.0; 3], &[1.0; 3], 0.0, f32::INFINITY),
-            None
-        );
+        assert_eq!(r.clip_box(&[0.0; 3], &[1.0; 3], 0.0, f32::INFINITY), None);
     }
 
     #[test]

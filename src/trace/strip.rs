@@ -233,7 +233,11 @@ impl StripQuery<'_> {
             let [a, b, c] = [references[k], references[k + 1], references[k + 2]];
             if a != b && b != c && a != c {
                 let corners = [points[k], points[k + 1], points[k + 2]];
-                let weights = [trailing_edge, edge(&points[k + 2], &points[k]), leading_edge];
+                let weights = [
+                    trailing_edge,
+                    edge(&points[k + 2], &points[k]),
+                    leading_edge,
+                ];
                 if let Some(hit) = resolve(&corners, weights, self.ray.tmin, closest.t) {
                     closest.offer(hit.t, index, (lo + k) as u16, hit.weights);
                     found = true;

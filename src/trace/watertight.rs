@@ -202,7 +202,12 @@ mod tests {
 
     #[test]
     fn shared_edge_is_hit_by_one_side() {
-        let quad = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        let quad = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
         let first = [quad[0], quad[1], quad[2]];
         let second = [quad[0], quad[2], quad[3]];
         for i in 0..=64 {

@@ -189,7 +189,8 @@ pub fn slivers(count: u32) -> Mesh {
     mesh.positions.push([0.0, 0.0, 0.0]);
     for i in 0..=count {
         let angle = i as f32 / count as f32 * 0.01;
-        mesh.positions.push([10.0 * angle.cos(), 10.0 * angle.sin(), 0.0]);
+        mesh.positions
+            .push([10.0 * angle.cos(), 10.0 * angle.sin(), 0.0]);
     }
     for i in 1..=count {
         mesh.triangles.push([0, i, i + 1]);
@@ -327,7 +328,8 @@ pub fn hit_triangle(file: &ReducemFile, hit: &Hit) -> [Point; 3] {
 }
 
 pub fn shares_vertex(a: &[Point; 3], b: &[Point; 3]) -> bool {
-    a.iter().any(|p| b.iter().any(|q| p.map(f32::to_bits) == q.map(f32::to_bits)))
+    a.iter()
+        .any(|p| b.iter().any(|q| p.map(f32::to_bits) == q.map(f32::to_bits)))
 }
 
 /// Bit patterns of every field, so hits compare exactly.
