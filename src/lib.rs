@@ -8,6 +8,7 @@
 //! together per chunk and [`format::writer`] writes the file. Read side: [`format::reader`] maps
 //! and validates a file; it depends on nothing from the build side.
 
+pub mod baseline;
 pub mod build;
 pub mod decode;
 pub mod encode;
