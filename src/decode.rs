@@ -1,11 +1,10 @@
 //! Decoding a ReduceM file back to triangles: the proof that the representation is lossless.
 
-use std::fs::{self, File};
-use std::io::{self, BufWriter, Write};
+use std::io::{self, Write};
 use std::path::Path;
 
+use crate::atomic::write_atomically;
 use crate::format::reader::ReducemFile;
-use crate::format::writer::temporary_path;
 use crate::geometry::Point;
 use crate::strip;
 
@@ -20,17 +19,11 @@ pub fn triangles(file: &ReducemFile) -> impl Iterator<Item = [Point; 3]> + '_ {
 /// Writes every triangle as binary little-endian PLY (`float x,y,z`; `list uchar int
 /// vertex_indices`), each strip's stored vertices once, atomically replacing `out`.
 pub fn write_ply(file: &ReducemFile, out: &Path) -> io::Result<()> {
-    let temporary = temporary_path(out);
-    let result = write_ply_body(file, &temporary).and_then(|()| fs::rename(&temporary, out));
-    if result.is_err() {
-        let _ = fs::remove_file(&temporary);
-    }
-    result
+    write_atomically(out, |out| write_ply_body(file, out))
 }
 
-fn write_ply_body(file: &ReducemFile, path: &Path) -> io::Result<()> {
+fn write_ply_body(file: &ReducemFile, out: &mut impl Write) -> io::Result<()> {
     let header = file.header();
-    let mut out = BufWriter::with_capacity(1 << 20, File::create(path)?);
     write!(
         out,
         "ply\nformat binary_little_endian 1.0\ncomment decoded by reducem from {}\n\
@@ -58,5 +51,5 @@ fn write_ply_body(file: &ReducemFile, path: &Path) -> io::Result<()> {
         }
         first_vertex += view.vertices.len() as u64;
     }
-    out.into_inner().map_err(|e| e.into_error())?.sync_all()
+    Ok(())
 }

@@ -8,11 +8,13 @@
 //! together per chunk and [`format::writer`] writes the file. Read side: [`format::reader`] maps
 //! and validates a file; it depends on nothing from the build side.
 
+pub mod atomic;
 pub mod baseline;
 pub mod build;
 pub mod decode;
 pub mod encode;
 pub mod format;
+pub mod gen;
 pub mod geometry;
 pub mod input;
 pub mod inspect;

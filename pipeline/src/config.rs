@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use crate::gen::Kind;
+use reducem::gen::Kind;
 
 /// A configuration problem, naming the file and, for syntax and unknown keys, line and column.
 #[derive(Debug, thiserror::Error)]

@@ -2,13 +2,18 @@
 //! meshes (`gen`). Exit codes are a contract with cron jobs and are listed in README.md.
 
 mod config;
-mod gen;
+mod fingerprint;
+mod lock;
+mod manifest;
+mod workdir;
+
 mod run;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use reducem::gen;
 
 /// Exit codes (sysexits.h values, as batch schedulers expect).
 mod exit {

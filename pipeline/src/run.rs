@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::Context;
 
 use crate::config::{Config, Input};
-use crate::gen;
+use reducem::gen;
 
 pub fn run(config_path: &Path) -> anyhow::Result<()> {
     let started = Instant::now();

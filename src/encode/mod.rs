@@ -154,8 +154,7 @@ impl<'a> StripLayout<'a> {
                     left.clone(),
                     right.clone(),
                     &node_box,
-                    mid - lo,
-                    hi - mid,
+                    (mid - lo, hi - mid),
                 )
             })
             .min_by(|a, b| a.cost.total_cmp(&b.cost))
@@ -173,17 +172,41 @@ impl<'a> StripLayout<'a> {
         self.place_splits(mid, hi, right_box, leaf_windows, axes);
     }
 
+    /// The cheapest bounds on `axis`. Each side considers the exact extreme of its windows and,
+    /// when that vertex is already stored, the tightest not-yet-stored vertex beyond it: a looser
+    /// but still conservative plane that costs no copy.
     fn split_choice(
         &self,
         axis: usize,
         left: std::ops::Range<usize>,
         right: std::ops::Range<usize>,
         node_box: &Aabb,
-        left_windows: usize,
-        right_windows: usize,
+        windows: (usize, usize),
     ) -> SplitChoice {
-        let left_bound = self.extreme(left, axis, |a, b| a > b);
-        let right_bound = self.extreme(right, axis, |a, b| a < b);
+        let upper = self.extreme(left, axis, |a, b| a > b);
+        let lower = self.extreme(right, axis, |a, b| a < b);
+        let uppers = [Some(upper), self.unstored_beyond(upper, axis, |a, b| a >= b)];
+        let lowers = [Some(lower), self.unstored_beyond(lower, axis, |a, b| a <= b)];
+        let mut best: Option<SplitChoice> = None;
+        for left_bound in uppers.into_iter().flatten() {
+            for right_bound in lowers.into_iter().flatten() {
+                let choice = self.score(axis, left_bound, right_bound, node_box, windows);
+                if best.as_ref().is_none_or(|b| choice.cost < b.cost) {
+                    best = Some(choice);
+                }
+            }
+        }
+        best.unwrap_or_else(|| unreachable!("the exact extremes are always candidates"))
+    }
+
+    fn score(
+        &self,
+        axis: usize,
+        left_bound: u16,
+        right_bound: u16,
+        node_box: &Aabb,
+        (left_windows, right_windows): (usize, usize),
+    ) -> SplitChoice {
         let mut left_box = *node_box;
         left_box.max[axis] = left_box.max[axis].min(self.point(left_bound)[axis]);
         let mut right_box = *node_box;
@@ -201,6 +224,25 @@ impl<'a> StripLayout<'a> {
             right_bound,
             cost: area_cost * (1.0 + DUPLICATE_PENALTY * copies as f64),
         }
+    }
+
+    /// When `exact` is already stored: the not-yet-stored vertex whose coordinate on `axis` is
+    /// `as_loose_as` the exact one's and closest to it (lowest index among equals).
+    fn unstored_beyond(
+        &self,
+        exact: u16,
+        axis: usize,
+        as_loose_as: fn(f32, f32) -> bool,
+    ) -> Option<u16> {
+        self.home[exact as usize]?;
+        let limit = self.point(exact)[axis];
+        (0..self.distinct.len() as u16)
+            .filter(|&v| self.home[v as usize].is_none())
+            .filter(|&v| as_loose_as(self.point(v)[axis], limit))
+            .min_by(|&a, &b| {
+                let distance = |v: u16| (self.point(v)[axis] - limit).abs();
+                distance(a).total_cmp(&distance(b)).then(a.cmp(&b))
+            })
     }
 
     /// The vertex of `local[range]` most extreme on `axis` under `better`; among equal

@@ -1,7 +1,7 @@
-//! Writes a ReduceM file: sections first, header last, then fsync and an atomic rename, so a
-//! crash or a full disk leaves any earlier file at the destination untouched.
+//! Writes a ReduceM file: sections first, header last, through [`crate::atomic`], so a crash or
+//! a full disk leaves any earlier file at the destination untouched.
 
-use std::fs::{self, File};
+use std::fs::File;
 use std::io::{self, BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
@@ -12,6 +12,7 @@ use super::{
     HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR,
     VERSION_MINOR,
 };
+use crate::atomic::write_atomically;
 use crate::build::ChunkStats;
 use crate::encode::EncodedStrip;
 use crate::geometry::Aabb;
@@ -42,35 +43,22 @@ pub fn write_file(
     top: &TopLevel,
     strips: &[EncodedStrip],
 ) -> Result<(), WriteError> {
-    let temporary = temporary_path(path);
-    let result =
-        write_temporary(&temporary, info, top, strips).and_then(|()| commit(&temporary, path));
-    if result.is_err() {
-        let _ = fs::remove_file(&temporary);
-    }
-    result.map_err(|source| WriteError {
-        path: path.to_path_buf(),
-        source,
+    write_atomically(path, |out| write_sections(out, info, top, strips)).map_err(|source| {
+        WriteError {
+            path: path.to_path_buf(),
+            source,
+        }
     })
 }
 
-/// `dir/.name.tmp-PID`: same directory, so the rename is atomic; hidden, so globs skip it.
-pub fn temporary_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
-}
-
-fn write_temporary(
-    temporary: &Path,
+fn write_sections(
+    file: &mut BufWriter<File>,
     info: &FileInfo,
     top: &TopLevel,
     strips: &[EncodedStrip],
 ) -> io::Result<()> {
     let records = strip_records(top, strips)?;
-    let mut out = SectionWriter::new(File::create(temporary)?);
+    let mut out = SectionWriter::new(file);
     out.pad_to(HEADER_PAGE)?;
     let nodes = out.section(SectionKind::TopNodes, |w| {
         w.write_all(bytemuck::cast_slice(&top.nodes))
@@ -84,19 +72,8 @@ fn write_temporary(
             .try_for_each(|&s| w.write_all(&strips[s as usize].block))
     })?;
     let header = header(info, strips.len() as u64, [nodes, records, data]);
-    let mut file = out.finish()?;
     file.seek(SeekFrom::Start(0))?;
-    file.write_all(bytemuck::bytes_of(&header))?;
-    file.sync_all()
-}
-
-fn commit(temporary: &Path, path: &Path) -> io::Result<()> {
-    fs::rename(temporary, path)?;
-    let directory = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    File::open(directory)?.sync_all()
+    file.write_all(bytemuck::bytes_of(&header))
 }
 
 /// Records in file order. Blocks are padded to 4 bytes, so offsets are counted in words.
@@ -152,17 +129,14 @@ fn header(info: &FileInfo, strip_count: u64, sections: [SectionEntry; SECTION_CO
 }
 
 /// Sequential writer that aligns sections and hashes them as they pass.
-struct SectionWriter {
-    out: BufWriter<File>,
+struct SectionWriter<'a, W: Write> {
+    out: &'a mut W,
     position: u64,
 }
 
-impl SectionWriter {
-    fn new(file: File) -> SectionWriter {
-        SectionWriter {
-            out: BufWriter::with_capacity(1 << 20, file),
-            position: 0,
-        }
+impl<'a, W: Write> SectionWriter<'a, W> {
+    fn new(out: &'a mut W) -> SectionWriter<'a, W> {
+        SectionWriter { out, position: 0 }
     }
 
     fn pad_to(&mut self, offset: u64) -> io::Result<()> {
@@ -175,12 +149,12 @@ impl SectionWriter {
     fn section(
         &mut self,
         kind: SectionKind,
-        body: impl FnOnce(&mut HashingWriter<'_>) -> io::Result<()>,
+        body: impl FnOnce(&mut HashingWriter<'_, W>) -> io::Result<()>,
     ) -> io::Result<SectionEntry> {
         self.pad_to(align_up(self.position, SECTION_ALIGN))?;
         let offset = self.position;
         let mut hashing = HashingWriter {
-            out: &mut self.out,
+            out: &mut *self.out,
             hasher: Xxh3::new(),
             written: 0,
         };
@@ -195,19 +169,15 @@ impl SectionWriter {
             checksum,
         })
     }
-
-    fn finish(self) -> io::Result<File> {
-        self.out.into_inner().map_err(|e| e.into_error())
-    }
 }
 
-struct HashingWriter<'a> {
-    out: &'a mut BufWriter<File>,
+struct HashingWriter<'a, W: Write> {
+    out: &'a mut W,
     hasher: Xxh3,
     written: u64,
 }
 
-impl Write for HashingWriter<'_> {
+impl<W: Write> Write for HashingWriter<'_, W> {
     fn write(&mut self, bytes: &[u8]) -> io::Result<usize> {
         let n = self.out.write(bytes)?;
         self.hasher.update(&bytes[..n]);

@@ -1,21 +1,38 @@
-//! Mesh input: PLY (binary little/big endian and ASCII) and OBJ.
+//! Mesh input: PLY (binary little/big endian and ASCII) and OBJ, triangulated and welded.
+//!
+//! [`read_mesh`] is the one-call entry point. [`PlyFile`] is exposed separately so the
+//! out-of-core chunker can stream positions and triangles without building a [`Mesh`].
+//! Every reader triangulates polygons as fans `(v0, vi, vi+1)`, keeping winding; welding is a
+//! separate pass so that both formats share it and streaming callers can skip it.
+
+mod error;
+mod obj;
+mod ply;
+mod weld;
 
 use std::path::Path;
 
+pub use error::{InputError, InputErrorKind, Location};
+pub use obj::read_obj;
+pub use ply::PlyFile;
+pub use weld::weld_identical_positions;
+
 use crate::mesh::Mesh;
 
-/// Errors reading a mesh, each naming the file and where in it the defect is.
-#[derive(Debug, thiserror::Error)]
-pub enum InputError {
-    #[error("{path}: {message}")]
-    Invalid { path: String, message: String },
-}
-
-/// Reads a mesh by file extension (`.ply` or `.obj`), triangulates polygons and welds
-/// bit-identical positions.
+/// Reads a mesh by file extension (`.ply` or `.obj`, any case), triangulates polygons and
+/// welds bit-identical positions.
 pub fn read_mesh(path: &Path) -> Result<Mesh, InputError> {
-    Err(InputError::Invalid {
-        path: path.display().to_string(),
-        message: "mesh input is not implemented yet".into(),
-    })
+    let extension = path
+        .extension()
+        .and_then(|extension| extension.to_str())
+        .map(str::to_ascii_lowercase);
+    let mesh = match extension.as_deref() {
+        Some("ply") => PlyFile::open(path)?.read_mesh()?,
+        Some("obj") => read_obj(path)?,
+        _ => {
+            let kind = InputErrorKind::UnsupportedExtension;
+            return Err(InputError::new(path, Location::File, kind));
+        }
+    };
+    Ok(weld_identical_positions(mesh))
 }

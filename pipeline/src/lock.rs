@@ -1,0 +1,70 @@
+//! The work-directory lock that keeps overlapping cron runs apart.
+//!
+//! An advisory lock (`File::try_lock`, flock on Unix) on `<work>/lock`: the kernel drops it when
+//! the holding process exits, however it dies, so a lock left by a dead process never blocks. The
+//! holder writes its pid, host and start time into the file so that a second run can name it.
+//! Caveat: flock is per-host on some network filesystems (see README, cluster use).
+
+use std::fs::{File, OpenOptions};
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+/// The work directory is locked by another live run.
+#[derive(Debug, thiserror::Error)]
+#[error("work directory {} is locked by another run ({holder})", dir.display())]
+pub struct LockedError {
+    pub dir: PathBuf,
+    pub holder: String,
+}
+
+/// Held for the life of a run; dropping it (or the process dying) releases the lock.
+#[derive(Debug)]
+pub struct WorkLock {
+    _file: File,
+}
+
+impl WorkLock {
+    /// Takes the lock without waiting.
+    pub fn acquire(dir: &Path) -> anyhow::Result<WorkLock> {
+        let path = dir.join("lock");
+        let mut file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)?;
+        if let Err(error) = file.try_lock() {
+            return Err(match error {
+                std::fs::TryLockError::WouldBlock => LockedError {
+                    dir: dir.to_path_buf(),
+                    holder: read_holder(&mut file),
+                }
+                .into(),
+                std::fs::TryLockError::Error(error) => error.into(),
+            });
+        }
+        file.set_len(0)?;
+        file.seek(SeekFrom::Start(0))?;
+        writeln!(file, "{}", holder_description())?;
+        file.sync_data()?;
+        Ok(WorkLock { _file: file })
+    }
+}
+
+fn read_holder(file: &mut File) -> String {
+    let mut text = String::new();
+    let _ = file.read_to_string(&mut text);
+    match text.trim() {
+        "" => "holder unknown".to_string(),
+        holder => holder.to_string(),
+    }
+}
+
+fn holder_description() -> String {
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+    let since = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    format!("pid {} on host {} since unix time {since}", std::process::id(), host.trim())
+}

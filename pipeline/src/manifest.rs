@@ -1,0 +1,111 @@
+//! The manifest: what completed, with which fingerprint, producing which files.
+//!
+//! It lives at `<work>/manifest.json` and is rewritten atomically (temp file, fsync, rename)
+//! after a unit's outputs have been renamed into place, never before: a run killed at any moment
+//! leaves either the old record (the unit is redone, rewriting identical bytes) or the new one
+//! (the outputs it names are complete).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::fingerprint::Fingerprint;
+use reducem::atomic::write_atomically;
+
+/// Bumped when the manifest layout changes; an unknown version means "nothing is fresh".
+const MANIFEST_VERSION: u32 = 1;
+
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub version: u32,
+    /// Completed units by key: a stage name, or `stage/chunk-N` for one chunk of a stage.
+    pub units: BTreeMap<String, UnitRecord>,
+    /// Cached content hash of the input, valid while its identity is unchanged.
+    pub input: Option<InputIdentity>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct UnitRecord {
+    pub fingerprint: String,
+    pub parts: BTreeMap<String, String>,
+    /// Outputs relative to the work directory, with their sizes.
+    pub outputs: BTreeMap<String, u64>,
+}
+
+/// An input file's identity (path, size, modification time) and its content hash.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct InputIdentity {
+    pub path: String,
+    pub bytes: u64,
+    pub modified_ns: u128,
+    pub hash: String,
+}
+
+/// Whether a unit must run, and why.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Freshness {
+    Fresh,
+    Pending,
+    Stale(String),
+}
+
+impl Manifest {
+    /// Loads the manifest; a missing or unreadable one is empty (everything pending).
+    pub fn load(path: &Path) -> Manifest {
+        std::fs::read(path)
+            .ok()
+            .and_then(|bytes| serde_json::from_slice::<Manifest>(&bytes).ok())
+            .filter(|m| m.version == MANIFEST_VERSION)
+            .unwrap_or_default()
+    }
+
+    pub fn save(&self, path: &Path) -> std::io::Result<()> {
+        let mut saved = self.clone();
+        saved.version = MANIFEST_VERSION;
+        let json = serde_json::to_vec_pretty(&saved).map_err(std::io::Error::other)?;
+        write_atomically(path, |file| std::io::Write::write_all(file, &json))
+    }
+
+    /// Compares the recorded unit with what it would depend on now, and checks its outputs.
+    pub fn freshness(&self, work_dir: &Path, key: &str, fingerprint: &Fingerprint) -> Freshness {
+        let Some(record) = self.units.get(key) else {
+            return Freshness::Pending;
+        };
+        if record.fingerprint != fingerprint.digest() {
+            return Freshness::Stale(changed_parts(&record.parts, fingerprint.parts()));
+        }
+        for (output, bytes) in &record.outputs {
+            match std::fs::metadata(work_dir.join(output)) {
+                Ok(meta) if meta.len() == *bytes => {}
+                Ok(meta) => return Freshness::Stale(format!("{output} is {} bytes, expected {bytes}", meta.len())),
+                Err(_) => return Freshness::Stale(format!("{output} is missing")),
+            }
+        }
+        Freshness::Fresh
+    }
+
+    pub fn record(&mut self, key: &str, fingerprint: &Fingerprint, outputs: BTreeMap<String, u64>) {
+        self.units.insert(
+            key.to_string(),
+            UnitRecord {
+                fingerprint: fingerprint.digest(),
+                parts: fingerprint.parts().clone(),
+                outputs,
+            },
+        );
+    }
+}
+
+fn changed_parts(recorded: &BTreeMap<String, String>, current: &BTreeMap<String, String>) -> String {
+    let mut changes = Vec::new();
+    for (name, value) in current {
+        match recorded.get(name) {
+            Some(old) if old == value => {}
+            Some(old) => changes.push(format!("{name} changed from {old} to {value}")),
+            None => changes.push(format!("{name} is new")),
+        }
+    }
+    changes.extend(recorded.keys().filter(|k| !current.contains_key(*k)).map(|k| format!("{k} was removed")));
+    changes.join("; ")
+}

@@ -1,0 +1,46 @@
+//! The work directory: where each stage's outputs live, and the atomic write every one of them
+//! goes through.
+
+use std::fs;
+use std::io;
+use std::path::{Path, PathBuf};
+
+/// Paths inside a job's work directory.
+#[derive(Clone, Debug)]
+pub struct WorkDir {
+    root: PathBuf,
+}
+
+impl WorkDir {
+    pub fn new(root: PathBuf) -> WorkDir {
+        WorkDir { root }
+    }
+
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    pub fn manifest(&self) -> PathBuf {
+        self.root.join("manifest.json")
+    }
+
+    /// A path relative to the root, as recorded in the manifest.
+    pub fn file(&self, relative: &str) -> PathBuf {
+        self.root.join(relative)
+    }
+
+    pub fn create(&self) -> io::Result<()> {
+        fs::create_dir_all(self.root.join("chunks"))?;
+        fs::create_dir_all(self.root.join("strips"))
+    }
+}
+
+/// Relative path of mesh chunk `index`.
+pub fn mesh_chunk(index: usize) -> String {
+    format!("chunks/chunk-{index:06}.mesh.zst")
+}
+
+/// Relative path of the strip-stage output of chunk `index`.
+pub fn strip_chunk(index: usize) -> String {
+    format!("strips/chunk-{index:06}.strips")
+}

@@ -1,0 +1,71 @@
+//! OBJ input through `tobj`, keeping positions only.
+//!
+//! OBJ meshes of the sizes ReduceM targets are rare (the format is slow to write and parse),
+//! so the robust parser of `tobj` is preferred over a hand-written fast path. `tobj` fans
+//! polygons exactly like the PLY reader (`v0, vi, vi+1`), so winding is kept. Each object or
+//! group becomes a separate `tobj` model with its own vertex list; the models are
+//! concatenated with index offsets, and the shared welding step reconnects vertices that
+//! models duplicated.
+//!
+//! `tobj` reports errors without positions, so OBJ errors name only the file and the defect.
+
+use std::path::Path;
+
+use crate::input::error::{InputError, InputErrorKind, Location};
+use crate::mesh::Mesh;
+
+pub fn read_obj(path: &Path) -> Result<Mesh, InputError> {
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    // Materials are irrelevant to geometry; a missing .mtl file must not fail the read.
+    let (models, _materials) = tobj::load_obj(path, &options).map_err(|error| {
+        InputError::new(path, Location::File, InputErrorKind::Obj(error.to_string()))
+    })?;
+    let mut mesh = Mesh::default();
+    for model in &models {
+        append_model(path, &mut mesh, &model.mesh)?;
+    }
+    Ok(mesh)
+}
+
+fn append_model(path: &Path, mesh: &mut Mesh, model: &tobj::Mesh) -> Result<(), InputError> {
+    let offset = mesh.positions.len();
+    let vertex_count = offset + model.positions.len() / 3;
+    if vertex_count as u64 > 1 << 32 {
+        let kind = InputErrorKind::TooManyVertices {
+            vertex_count: vertex_count as u64,
+        };
+        return Err(InputError::new(path, Location::File, kind));
+    }
+    // Every index, offset included, is below `vertex_count` ≤ 2^32.
+    let offset = offset as u32;
+    for point in model.positions.chunks_exact(3) {
+        let point = [point[0], point[1], point[2]];
+        check_finite(path, point)?;
+        mesh.positions.push(point);
+    }
+    mesh.triangles.extend(
+        model
+            .indices
+            .chunks_exact(3)
+            .map(|corners| [corners[0], corners[1], corners[2]].map(|corner| corner + offset)),
+    );
+    Ok(())
+}
+
+fn check_finite(path: &Path, point: [f32; 3]) -> Result<(), InputError> {
+    match point.iter().position(|coordinate| !coordinate.is_finite()) {
+        None => Ok(()),
+        Some(axis) => {
+            let kind = InputErrorKind::NonFiniteCoordinate {
+                axis: ['x', 'y', 'z'][axis],
+                value: point[axis].into(),
+            };
+            Err(InputError::new(path, Location::File, kind))
+        }
+    }
+}

@@ -1,0 +1,199 @@
+//! Parallel decoding of binary elements whose instances all have the same size.
+//!
+//! With a fixed stride, instance `i` starts at `start + i * stride`, so rayon workers decode
+//! blocks independently straight into their slice of the output. Vertices qualify whenever
+//! they have no list property. Faces never have a fixed stride in general, but nearly every
+//! large mesh is all triangles; we *assume* a stride of three indices and let each block
+//! confirm that every face it decodes has length 3. If any block finds another length, the
+//! guess was wrong and the caller falls back to the sequential reader (which also produces
+//! the proper error for faces shorter than 3), so the guess never changes results.
+//!
+//! Errors stay deterministic: each block stops at its first defect, and the first defect in
+//! block order wins. All faces before it were triangles, so it is also the first defect a
+//! sequential read would meet.
+
+use std::path::Path;
+
+use rayon::prelude::*;
+
+use crate::geometry::Point;
+use crate::input::error::InputError;
+
+use super::binary::BinaryReader;
+use super::elements::{narrow_coordinate, read_vertex_index};
+use super::header::{Endian, FaceLayout, Property, Scalar, VertexLayout, VertexRole};
+use super::values::ValueReader;
+
+const BLOCK: usize = 1 << 16;
+
+/// A binary element of `count` fixed-size instances starting at `start` in `bytes`, with the
+/// whole extent already known to lie inside `bytes`.
+pub struct FixedStrideElement<'a> {
+    pub path: &'a Path,
+    pub name: &'a str,
+    pub bytes: &'a [u8],
+    pub start: usize,
+    pub count: usize,
+    pub endian: Endian,
+}
+
+/// Offset within a vertex and type of x, y and z, plus the vertex size, when it is fixed.
+pub struct FixedVertex {
+    stride: usize,
+    coordinates: [(usize, Scalar); 3],
+}
+
+impl FixedVertex {
+    pub fn from_layout(layout: &VertexLayout) -> Option<FixedVertex> {
+        let mut coordinates = [(0, Scalar::F32); 3];
+        let mut offset = 0;
+        for role in &layout.roles {
+            match *role {
+                VertexRole::Coordinate { axis, scalar } => {
+                    coordinates[axis] = (offset, scalar);
+                    offset += scalar.size();
+                }
+                VertexRole::Skip(Property::Scalar(scalar)) => offset += scalar.size(),
+                VertexRole::Skip(Property::List { .. }) => return None,
+            }
+        }
+        Some(FixedVertex {
+            stride: offset,
+            coordinates,
+        })
+    }
+
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+}
+
+pub fn read_positions(
+    element: &FixedStrideElement,
+    vertex: &FixedVertex,
+) -> Result<Vec<Point>, InputError> {
+    let mut positions = vec![[0.0; 3]; element.count];
+    let outcomes: Vec<Result<(), InputError>> = positions
+        .par_chunks_mut(BLOCK)
+        .enumerate()
+        .map(|(block, points)| decode_vertex_block(element, vertex, block * BLOCK, points))
+        .collect();
+    outcomes.into_iter().collect::<Result<(), _>>()?;
+    Ok(positions)
+}
+
+fn decode_vertex_block(
+    element: &FixedStrideElement,
+    vertex: &FixedVertex,
+    first: usize,
+    points: &mut [Point],
+) -> Result<(), InputError> {
+    for (offset_in_block, point) in points.iter_mut().enumerate() {
+        let index = first + offset_in_block;
+        let base = element.start + index * vertex.stride;
+        for (axis, &(offset, scalar)) in vertex.coordinates.iter().enumerate() {
+            let mut reader = BinaryReader::new(element.bytes, base + offset, element.endian);
+            point[axis] = reader
+                .read_float(scalar)
+                .and_then(|value| narrow_coordinate(&reader, axis, value))
+                .map_err(|defect| defect.at_element(element.path, element.name, index as u64))?;
+        }
+    }
+    Ok(())
+}
+
+/// Face layout under the all-triangles assumption.
+pub struct TriangleFaces {
+    length_offset: usize,
+    length: Scalar,
+    index: Scalar,
+    stride: usize,
+}
+
+impl TriangleFaces {
+    pub fn from_layout(layout: &FaceLayout) -> Option<TriangleFaces> {
+        let before = fixed_size(&layout.before)?;
+        let after = fixed_size(&layout.after)?;
+        Some(TriangleFaces {
+            length_offset: before,
+            length: layout.length,
+            index: layout.index,
+            stride: before + layout.length.size() + 3 * layout.index.size() + after,
+        })
+    }
+
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+}
+
+fn fixed_size(properties: &[Property]) -> Option<usize> {
+    properties
+        .iter()
+        .map(|property| match property {
+            Property::Scalar(scalar) => Some(scalar.size()),
+            Property::List { .. } => None,
+        })
+        .sum()
+}
+
+enum BlockOutcome {
+    Decoded,
+    NotAllTriangles,
+    Failed(InputError),
+}
+
+/// Decodes all faces as triangles; `None` when some face is not a triangle.
+pub fn read_triangles(
+    element: &FixedStrideElement,
+    faces: &TriangleFaces,
+    vertex_count: u64,
+) -> Option<Result<Vec<[u32; 3]>, InputError>> {
+    let mut triangles = vec![[0; 3]; element.count];
+    let outcomes: Vec<BlockOutcome> = triangles
+        .par_chunks_mut(BLOCK)
+        .enumerate()
+        .map(|(block, out)| decode_triangle_block(element, faces, vertex_count, block * BLOCK, out))
+        .collect();
+    for outcome in outcomes {
+        match outcome {
+            BlockOutcome::Decoded => {}
+            BlockOutcome::NotAllTriangles => return None,
+            BlockOutcome::Failed(error) => return Some(Err(error)),
+        }
+    }
+    Some(Ok(triangles))
+}
+
+fn decode_triangle_block(
+    element: &FixedStrideElement,
+    faces: &TriangleFaces,
+    vertex_count: u64,
+    first: usize,
+    out: &mut [[u32; 3]],
+) -> BlockOutcome {
+    for (offset_in_block, triangle) in out.iter_mut().enumerate() {
+        let index = first + offset_in_block;
+        let base = element.start + index * faces.stride + faces.length_offset;
+        let mut reader = BinaryReader::new(element.bytes, base, element.endian);
+        let decoded = reader.read_list_length(faces.length).and_then(|length| {
+            if length != 3 {
+                return Ok(None);
+            }
+            let mut corners = [0; 3];
+            for corner in &mut corners {
+                *corner = read_vertex_index(&mut reader, faces.index, vertex_count)?;
+            }
+            Ok(Some(corners))
+        });
+        match decoded {
+            Ok(Some(corners)) => *triangle = corners,
+            Ok(None) => return BlockOutcome::NotAllTriangles,
+            Err(defect) => {
+                let error = defect.at_element(element.path, element.name, index as u64);
+                return BlockOutcome::Failed(error);
+            }
+        }
+    }
+    BlockOutcome::Decoded
+}

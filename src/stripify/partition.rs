@@ -1,0 +1,462 @@
+//! Strip-RT step 2, partitioning (paper 4.1, "Partitioning").
+//!
+//! A binned-SAH object hierarchy (BVH-like) is built top-down over the kept triangles, down to
+//! one triangle per leaf, exactly as the paper describes; the ordering step only needs each
+//! node's parent and depth plus the triangle → leaf map (the paper's "inverse mapping").
+//!
+//! Design choices:
+//! - Node ids do not depend on construction order, so the top levels can be built in parallel
+//!   with `rayon::join` and the result is still identical for any thread count. The leaves are
+//!   the triangles in their final partitioned order: leaf at position `p` is node
+//!   `n - 1 + p`. Every internal node splits a contiguous range of positions at some `mid`, and
+//!   every `mid` in `1..n` is used by exactly one node, so the internal node gets id `mid - 1`.
+//!   The ids of a subtree then form contiguous ranges too, which lets the recursion hand out
+//!   disjoint `&mut` slices to parallel tasks.
+//! - Splits use `sah_bins` bins per axis over the centroid bounds and the classic cost
+//!   `area(left) * count(left) + area(right) * count(right)`. Nodes with fewer triangles than
+//!   bins use one bin per triangle: more bins than triangles rarely find a better split, and the
+//!   many tiny nodes near the leaves would otherwise dominate the build time.
+//! - When SAH cannot separate the triangles (all centroids equal, or non-finite coordinates),
+//!   the node is split at the median along the longest centroid axis.
+//! - Deviation from the paper: below depth [`MAX_SAH_DEPTH`] every split is a median split.
+//!   SAH alone can peel off one triangle per level on adversarial inputs; the guard bounds the
+//!   depth by `MAX_SAH_DEPTH + log2(n)`, which keeps the ordering step's ancestor walks and the
+//!   recursion's stack depth logarithmic. Real meshes never reach it.
+
+use rayon::prelude::*;
+
+use crate::geometry::Aabb;
+use crate::mesh::Mesh;
+
+/// Marks the root's missing parent.
+pub const NO_NODE: u32 = u32::MAX;
+
+/// Depth below which SAH is no longer trusted to make progress; see the module docs.
+pub const MAX_SAH_DEPTH: u32 = 64;
+
+/// Ranges at least this large are split into parallel tasks; smaller ones are not worth the
+/// scheduling overhead.
+const PARALLEL_MIN_TRIANGLES: usize = 16 * 1024;
+
+/// Parent and depth of one hierarchy node.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NodeLinks {
+    pub parent: u32,
+    pub depth: u32,
+}
+
+/// The SAH object hierarchy over the kept (local) triangles.
+#[derive(Clone, Debug, Default)]
+pub struct Hierarchy {
+    /// Per node id; internal nodes are `0..n-1`, leaves `n-1..2n-1` (see the module docs).
+    nodes: Vec<NodeLinks>,
+    /// Leaf node of each local triangle.
+    leaf_of_triangle: Vec<u32>,
+    /// Local triangle of each leaf position (leaf node id minus `n - 1`).
+    triangle_of_leaf: Vec<u32>,
+}
+
+/// A triangle's bounds, moved around during partitioning so that the binning passes read
+/// contiguous memory.
+#[derive(Clone, Copy, Debug)]
+struct TriangleRef {
+    bounds: Aabb,
+    triangle: u32,
+}
+
+impl TriangleRef {
+    fn centroid(&self, axis: usize) -> f32 {
+        self.bounds.centroid(axis)
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Bin {
+    bounds: Aabb,
+    count: u32,
+}
+
+const EMPTY_BIN: Bin = Bin {
+    bounds: Aabb::EMPTY,
+    count: 0,
+};
+
+/// Per-task scratch memory, reused across the nodes one task builds.
+#[derive(Default)]
+struct SplitScratch {
+    bins: Vec<Bin>,
+    right_costs: Vec<f64>,
+}
+
+impl Hierarchy {
+    /// Builds the hierarchy over `kept` mesh triangles (local triangle `i` is mesh triangle
+    /// `kept[i]`). `sah_bins` below 2 is treated as 2.
+    pub fn build(mesh: &Mesh, kept: &[u32], sah_bins: usize) -> Hierarchy {
+        let n = kept.len();
+        if n == 0 {
+            return Hierarchy::default();
+        }
+        let mut refs: Vec<TriangleRef> = kept
+            .par_iter()
+            .enumerate()
+            .map(|(local, &mesh_index)| TriangleRef {
+                bounds: Aabb::from_points(
+                    &mesh.triangle_points(&mesh.triangles[mesh_index as usize]),
+                ),
+                triangle: local as u32,
+            })
+            .collect();
+        let mut nodes = vec![NodeLinks::default(); 2 * n - 1];
+        let (internal, leaves) = nodes.split_at_mut(n - 1);
+        let root = NodeLinks {
+            parent: NO_NODE,
+            depth: 0,
+        };
+        let mut scratch = SplitScratch::default();
+        build_subtree(
+            sah_bins.max(2),
+            &mut refs,
+            internal,
+            leaves,
+            0,
+            root,
+            &mut scratch,
+        );
+
+        let triangle_of_leaf: Vec<u32> = refs.iter().map(|r| r.triangle).collect();
+        let mut leaf_of_triangle = vec![NO_NODE; n];
+        for (position, &triangle) in triangle_of_leaf.iter().enumerate() {
+            leaf_of_triangle[triangle as usize] = (n - 1 + position) as u32;
+        }
+        Hierarchy {
+            nodes,
+            leaf_of_triangle,
+            triangle_of_leaf,
+        }
+    }
+
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    pub fn leaf_of(&self, triangle: u32) -> u32 {
+        self.leaf_of_triangle[triangle as usize]
+    }
+
+    pub fn parent(&self, node: u32) -> u32 {
+        self.nodes[node as usize].parent
+    }
+
+    pub fn depth(&self, node: u32) -> u32 {
+        self.nodes[node as usize].depth
+    }
+
+    /// Deepest node that is an ancestor of (or equal to) both `a` and `b`. Walks parent links,
+    /// so it costs the depth of the two nodes below their common ancestor.
+    pub fn lowest_common_ancestor(&self, mut a: u32, mut b: u32) -> u32 {
+        while self.depth(a) > self.depth(b) {
+            a = self.parent(a);
+        }
+        while self.depth(b) > self.depth(a) {
+            b = self.parent(b);
+        }
+        while a != b {
+            a = self.parent(a);
+            b = self.parent(b);
+        }
+        a
+    }
+
+    /// Checks the structural invariants: every triangle sits in exactly one leaf, exactly one
+    /// root at depth 0, every other node one deeper than its parent, internal nodes have two
+    /// children and leaves none.
+    pub fn validate(&self) -> Result<(), String> {
+        let n = self.leaf_of_triangle.len();
+        let expected_nodes = if n == 0 { 0 } else { 2 * n - 1 };
+        if self.nodes.len() != expected_nodes || self.triangle_of_leaf.len() != n {
+            return Err(format!("{} nodes for {n} triangles", self.nodes.len()));
+        }
+        self.validate_leaf_map()?;
+        self.validate_links()
+    }
+
+    fn validate_leaf_map(&self) -> Result<(), String> {
+        let first_leaf = self.leaf_of_triangle.len().saturating_sub(1);
+        for (triangle, &leaf) in self.leaf_of_triangle.iter().enumerate() {
+            let position = (leaf as usize).checked_sub(first_leaf);
+            let back = position.and_then(|p| self.triangle_of_leaf.get(p));
+            if back != Some(&(triangle as u32)) {
+                return Err(format!(
+                    "triangle {triangle} maps to leaf {leaf}, which holds {back:?}"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_links(&self) -> Result<(), String> {
+        let first_leaf = self.leaf_of_triangle.len().saturating_sub(1);
+        let mut child_counts = vec![0u32; self.nodes.len()];
+        let mut roots = 0;
+        for (node, links) in self.nodes.iter().enumerate() {
+            if links.parent == NO_NODE {
+                roots += 1;
+                if links.depth != 0 {
+                    return Err(format!("root {node} has depth {}", links.depth));
+                }
+                continue;
+            }
+            let parent = self
+                .nodes
+                .get(links.parent as usize)
+                .ok_or(format!("node {node}: bad parent"))?;
+            if links.depth != parent.depth + 1 || links.parent as usize >= first_leaf {
+                return Err(format!(
+                    "node {node} at depth {} under {:?}",
+                    links.depth, parent
+                ));
+            }
+            child_counts[links.parent as usize] += 1;
+        }
+        if !self.nodes.is_empty() && roots != 1 {
+            return Err(format!("{roots} roots"));
+        }
+        for (node, &count) in child_counts.iter().enumerate() {
+            let expected = if node < first_leaf { 2 } else { 0 };
+            if count != expected {
+                return Err(format!(
+                    "node {node} has {count} children, expected {expected}"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Builds the subtree over `refs`, whose leaves start at position `offset`. `internal` and
+/// `leaves` are exactly this subtree's node slots (ids `offset..offset + len - 1` and leaf
+/// positions `offset..offset + len`); `links` are the parent and depth of the subtree root.
+fn build_subtree(
+    sah_bins: usize,
+    refs: &mut [TriangleRef],
+    internal: &mut [NodeLinks],
+    leaves: &mut [NodeLinks],
+    offset: usize,
+    links: NodeLinks,
+    scratch: &mut SplitScratch,
+) {
+    if refs.len() == 1 {
+        leaves[0] = links;
+        return;
+    }
+    let parallel = refs.len() >= PARALLEL_MIN_TRIANGLES;
+    let mid = partition_node(sah_bins, refs, links.depth, scratch);
+    let (left_internal, own_and_right) = internal.split_at_mut(mid - 1);
+    let (own, right_internal) = own_and_right.split_at_mut(1);
+    own[0] = links;
+    let child_links = NodeLinks {
+        parent: (offset + mid - 1) as u32,
+        depth: links.depth + 1,
+    };
+    let (left_refs, right_refs) = refs.split_at_mut(mid);
+    let (left_leaves, right_leaves) = leaves.split_at_mut(mid);
+    let right_offset = offset + mid;
+    if parallel {
+        rayon::join(
+            || {
+                build_subtree(
+                    sah_bins,
+                    left_refs,
+                    left_internal,
+                    left_leaves,
+                    offset,
+                    child_links,
+                    scratch,
+                )
+            },
+            || {
+                let mut right_scratch = SplitScratch::default();
+                build_subtree(
+                    sah_bins,
+                    right_refs,
+                    right_internal,
+                    right_leaves,
+                    right_offset,
+                    child_links,
+                    &mut right_scratch,
+                )
+            },
+        );
+    } else {
+        build_subtree(
+            sah_bins,
+            left_refs,
+            left_internal,
+            left_leaves,
+            offset,
+            child_links,
+            scratch,
+        );
+        build_subtree(
+            sah_bins,
+            right_refs,
+            right_internal,
+            right_leaves,
+            right_offset,
+            child_links,
+            scratch,
+        );
+    }
+}
+
+/// Reorders `refs` into a left and a right part and returns the size of the left part, which
+/// is always in `1..refs.len()`.
+fn partition_node(
+    sah_bins: usize,
+    refs: &mut [TriangleRef],
+    depth: u32,
+    scratch: &mut SplitScratch,
+) -> usize {
+    let centroid_bounds = centroid_bounds(refs);
+    if depth < MAX_SAH_DEPTH {
+        let bins = sah_bins.min(refs.len());
+        if let Some(split) = best_sah_split(refs, &centroid_bounds, bins, scratch) {
+            return partition_in_place(refs, |r| split.goes_left(r));
+        }
+    }
+    median_split(refs, centroid_bounds.longest_axis())
+}
+
+fn centroid_bounds(refs: &[TriangleRef]) -> Aabb {
+    let mut bounds = Aabb::EMPTY;
+    for r in refs {
+        bounds.grow_point(&[0, 1, 2].map(|axis| r.centroid(axis)));
+    }
+    bounds
+}
+
+/// A bin boundary on one axis: triangles whose centroid falls into a bin below `first_right_bin`
+/// go left.
+#[derive(Clone, Copy, Debug)]
+struct SahSplit {
+    axis: usize,
+    binning: Binning,
+    first_right_bin: usize,
+}
+
+impl SahSplit {
+    fn goes_left(&self, r: &TriangleRef) -> bool {
+        self.binning.bin(r.centroid(self.axis)) < self.first_right_bin
+    }
+}
+
+/// Maps centroids on one axis to bins. The same instance is used for binning and for the final
+/// partition, so both agree bit for bit.
+#[derive(Clone, Copy, Debug)]
+struct Binning {
+    min: f32,
+    scale: f32,
+    bins: usize,
+}
+
+impl Binning {
+    fn bin(&self, centroid: f32) -> usize {
+        // `as usize` saturates (NaN → 0), so non-finite input cannot index out of range.
+        (((centroid - self.min) * self.scale) as usize).min(self.bins - 1)
+    }
+}
+
+/// Finds the cheapest SAH split over all three axes, or `None` when no axis separates the
+/// centroids. Ties keep the first candidate (x before y before z, lower bins first).
+fn best_sah_split(
+    refs: &[TriangleRef],
+    centroid_bounds: &Aabb,
+    bins: usize,
+    scratch: &mut SplitScratch,
+) -> Option<SahSplit> {
+    let mut best: Option<(f64, SahSplit)> = None;
+    for axis in 0..3 {
+        let extent = centroid_bounds.extent(axis);
+        if !(extent > 0.0 && extent.is_finite()) {
+            continue;
+        }
+        let binning = Binning {
+            min: centroid_bounds.min[axis],
+            scale: bins as f32 / extent,
+            bins,
+        };
+        fill_bins(refs, axis, &binning, scratch);
+        if let Some((cost, first_right_bin)) = cheapest_boundary(scratch) {
+            if best.is_none_or(|(best_cost, _)| cost < best_cost) {
+                let split = SahSplit {
+                    axis,
+                    binning,
+                    first_right_bin,
+                };
+                best = Some((cost, split));
+            }
+        }
+    }
+    best.map(|(_, split)| split)
+}
+
+fn fill_bins(refs: &[TriangleRef], axis: usize, binning: &Binning, scratch: &mut SplitScratch) {
+    scratch.bins.clear();
+    scratch.bins.resize(binning.bins, EMPTY_BIN);
+    for r in refs {
+        let bin = &mut scratch.bins[binning.bin(r.centroid(axis))];
+        bin.bounds.grow(&r.bounds);
+        bin.count += 1;
+    }
+}
+
+/// Sweeps the filled bins from both sides and returns the cost and position of the cheapest
+/// boundary that leaves triangles on both sides.
+fn cheapest_boundary(scratch: &mut SplitScratch) -> Option<(f64, usize)> {
+    let bins = &scratch.bins;
+    let right_costs = &mut scratch.right_costs;
+    right_costs.clear();
+    right_costs.resize(bins.len(), f64::INFINITY);
+    let (mut right_bounds, mut right_count) = (Aabb::EMPTY, 0u32);
+    for boundary in (1..bins.len()).rev() {
+        right_bounds.grow(&bins[boundary].bounds);
+        right_count += bins[boundary].count;
+        if right_count > 0 {
+            right_costs[boundary] = right_bounds.surface_area() * right_count as f64;
+        }
+    }
+    let (mut left_bounds, mut left_count) = (Aabb::EMPTY, 0u32);
+    let mut best: Option<(f64, usize)> = None;
+    for boundary in 1..bins.len() {
+        left_bounds.grow(&bins[boundary - 1].bounds);
+        left_count += bins[boundary - 1].count;
+        if left_count == 0 || right_costs[boundary].is_infinite() {
+            continue;
+        }
+        let cost = left_bounds.surface_area() * left_count as f64 + right_costs[boundary];
+        if best.is_none_or(|(best_cost, _)| cost < best_cost) {
+            best = Some((cost, boundary));
+        }
+    }
+    best
+}
+
+/// Moves the elements satisfying `goes_left` to the front and returns how many there are.
+/// Deterministic for a given input order, which is all the build needs (no stability).
+fn partition_in_place(refs: &mut [TriangleRef], goes_left: impl Fn(&TriangleRef) -> bool) -> usize {
+    let mut left_end = 0;
+    for i in 0..refs.len() {
+        if goes_left(&refs[i]) {
+            refs.swap(left_end, i);
+            left_end += 1;
+        }
+    }
+    left_end
+}
+
+/// Splits into halves by centroid along `axis`; `select_nth_unstable_by` is deterministic.
+fn median_split(refs: &mut [TriangleRef], axis: usize) -> usize {
+    let mid = refs.len() / 2;
+    refs.select_nth_unstable_by(mid, |a, b| a.centroid(axis).total_cmp(&b.centroid(axis)));
+    mid
+}
