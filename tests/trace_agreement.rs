@@ -235,3 +235,36 @@ fn tmin_and_tmax_bound_the_hits() {
         ..ray
     }));
 }
+
+/// A mesh of every generator kind, read back through the input module.
+fn generated(kind: reducem::gen::Kind, triangles: u64) -> Mesh {
+    let path = temp_path(&format!("gen-{kind:?}.ply"));
+    reducem::gen::generate(kind, triangles, 3, &path).expect("generate");
+    reducem::input::read_mesh(&path).expect("read generated mesh")
+}
+
+#[test]
+fn every_generator_kind_agrees_with_brute_force() {
+    use reducem::gen::Kind;
+    for kind in [
+        Kind::Scan,
+        Kind::Terrain,
+        Kind::Isosurface,
+        Kind::Cad,
+        Kind::Soup,
+        Kind::Sphere,
+    ] {
+        let mesh = generated(kind, 1500);
+        let path = temp_path(&format!("gen-{kind:?}.rdm"));
+        convert_mesh(&mesh, &BuildParams::default(), &path).expect("convert");
+        let file = ReducemFile::open(&path).expect("open");
+        let tracer = Tracer::new(&file, TraceOptions::default());
+        let mut aimed = aimed_rays(&mesh, 13);
+        aimed.truncate(3000);
+        let mut hits = 0;
+        for ray in random_rays(&mesh, 300, 9).iter().chain(&aimed) {
+            hits += check_ray(&tracer, ray) as usize;
+        }
+        assert!(hits > 100, "{kind:?}: only {hits} hits");
+    }
+}

@@ -145,3 +145,15 @@ fn packets_match_single_rays_bit_for_bit() {
         a.iter().map(hit_bits).collect::<Vec<_>>()
     );
 }
+
+#[test]
+fn rays_from_inside_the_generated_sphere_never_escape() {
+    let path = temp_path("gen-sphere.ply");
+    reducem::gen::generate(reducem::gen::Kind::Sphere, 2000, 1, &path).expect("generate");
+    let sphere = reducem::input::read_mesh(&path).expect("read");
+    check_sphere(&sphere, [0.0; 3], 1.0, "gen-sphere");
+    let offset = transformed(&sphere, |x| x + 1e5);
+    check_sphere(&offset, [1e5; 3], 1.0, "gen-sphere-offset");
+    let tiny = transformed(&sphere, |x| x * 1e-3);
+    check_sphere(&tiny, [0.0; 3], 1e-3, "gen-sphere-tiny");
+}

@@ -185,8 +185,14 @@ impl<'a> StripLayout<'a> {
     ) -> SplitChoice {
         let upper = self.extreme(left, axis, |a, b| a > b);
         let lower = self.extreme(right, axis, |a, b| a < b);
-        let uppers = [Some(upper), self.unstored_beyond(upper, axis, |a, b| a >= b)];
-        let lowers = [Some(lower), self.unstored_beyond(lower, axis, |a, b| a <= b)];
+        let uppers = [
+            Some(upper),
+            self.unstored_beyond(upper, axis, |a, b| a >= b),
+        ];
+        let lowers = [
+            Some(lower),
+            self.unstored_beyond(lower, axis, |a, b| a <= b),
+        ];
         let mut best: Option<SplitChoice> = None;
         for left_bound in uppers.into_iter().flatten() {
             for right_bound in lowers.into_iter().flatten() {

@@ -1,19 +1,18 @@
 //! 8-bit sRGB PNG output of a linear-RGB frame, written atomically (temporary file + rename) so
 //! a failed render never leaves a truncated image behind.
 
-use std::fs::{self, File};
-use std::io::BufWriter;
+use std::io;
 use std::path::{Path, PathBuf};
 
 use super::Frame;
-use crate::format::writer::temporary_path;
+use crate::atomic;
 
 #[derive(Debug, thiserror::Error)]
 #[error("writing {}: {source}", path.display())]
 pub struct ImageError {
     pub path: PathBuf,
     #[source]
-    pub source: png::EncodingError,
+    pub source: io::Error,
 }
 
 /// The frame as 8-bit sRGB bytes, three per pixel.
@@ -41,24 +40,17 @@ fn encode_srgb(linear: f32) -> u8 {
 }
 
 pub fn write_png(frame: &Frame, out: &Path) -> Result<(), ImageError> {
-    let temporary = temporary_path(out);
-    let result = encode(frame, &temporary)
-        .and_then(|()| fs::rename(&temporary, out).map_err(png::EncodingError::from));
-    if result.is_err() {
-        let _ = fs::remove_file(&temporary);
-    }
-    result.map_err(|source| ImageError {
+    atomic::write_atomically(out, |writer| {
+        let mut encoder = png::Encoder::new(writer, frame.width, frame.height);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut png = encoder.write_header().map_err(io::Error::other)?;
+        png.write_image_data(&srgb_bytes(frame))
+            .map_err(io::Error::other)?;
+        png.finish().map_err(io::Error::other)
+    })
+    .map_err(|source| ImageError {
         path: out.to_path_buf(),
         source,
     })
-}
-
-fn encode(frame: &Frame, path: &Path) -> Result<(), png::EncodingError> {
-    let writer = BufWriter::new(File::create(path)?);
-    let mut encoder = png::Encoder::new(writer, frame.width, frame.height);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header()?;
-    writer.write_image_data(&srgb_bytes(frame))?;
-    writer.finish()
 }

@@ -7,11 +7,11 @@
 //! written to a temporary file and renamed, so a failed run leaves no partial output.
 
 use std::fs;
-use std::io;
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
 use super::{Hit, Ray};
-use crate::format::writer::temporary_path;
+use crate::atomic;
 
 /// Bytes per ray record.
 pub const RAY_BYTES: usize = 32;
@@ -154,10 +154,5 @@ pub fn encode_occlusion(occluded: &[bool]) -> Vec<u8> {
 
 /// Writes `bytes` to a temporary file beside `path` and renames it into place.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    let temporary = temporary_path(path);
-    let result = fs::write(&temporary, bytes).and_then(|()| fs::rename(&temporary, path));
-    if result.is_err() {
-        let _ = fs::remove_file(&temporary);
-    }
-    result
+    atomic::write_atomically(path, |out| out.write_all(bytes))
 }
