@@ -42,6 +42,12 @@ struct Args {
     runs: usize,
     #[arg(long, value_delimiter = ',', default_value = "1,2")]
     threads: Vec<usize>,
+    /// ReduceM's `TraceOptions::subtree_windows`.
+    #[arg(long, default_value_t = TraceOptions::default().subtree_windows)]
+    subtree_windows: usize,
+    /// Benchmark ReduceM alone (for tuning).
+    #[arg(long)]
+    reducem_only: bool,
     /// Where generated meshes and converted files are cached between runs.
     #[arg(long, default_value = "/tmp/reducem-bench")]
     dir: PathBuf,
@@ -91,7 +97,9 @@ impl Engine for Baseline {
         "baseline SAH BVH".into()
     }
     fn intersect_batch(&self, rays: &[Ray]) -> u64 {
-        rays.iter().filter(|r| self.bvh.intersect(r).is_some()).count() as u64
+        rays.iter()
+            .filter(|r| self.bvh.intersect(r).is_some())
+            .count() as u64
     }
     fn occluded(&self, ray: &Ray) -> bool {
         self.bvh.occluded(ray)
@@ -143,7 +151,13 @@ fn main() -> anyhow::Result<()> {
 
     for packets in [true, false] {
         let engine = ReduceM {
-            tracer: Tracer::new(&file, TraceOptions { packets, ..TraceOptions::default() }),
+            tracer: Tracer::new(
+                &file,
+                TraceOptions {
+                    packets,
+                    subtree_windows: args.subtree_windows,
+                },
+            ),
         };
         run_engine(&engine, &workload, &args);
     }
@@ -154,12 +168,18 @@ fn main() -> anyhow::Result<()> {
         mib(memory.mapped_resident_bytes.unwrap_or(0)),
         mib(memory.process_rss_bytes.unwrap_or(0))
     );
+    if args.reducem_only {
+        return Ok(());
+    }
 
     let started = Instant::now();
     let baseline = Baseline {
         bvh: TriangleBvh::build(&mesh),
     };
-    println!("  baseline built in {:.1} s", started.elapsed().as_secs_f64());
+    println!(
+        "  baseline built in {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
     run_engine(&baseline, &workload, &args);
     println!(
         "  baseline memory: {:.1} MiB (nodes, indices, vertices)",
@@ -218,7 +238,11 @@ fn surfaces(tracer: &Tracer, primary: &[Ray]) -> Vec<Surface> {
             let hit = hit?;
             let direction = Vec3::from(ray.direction);
             let normal = Vec3::from(hit.normal);
-            let normal = if normal.dot(direction) > 0.0 { -normal } else { normal };
+            let normal = if normal.dot(direction) > 0.0 {
+                -normal
+            } else {
+                normal
+            };
             let point = Vec3::from(ray.origin) + direction * hit.t;
             Some(Surface {
                 origin: offset_origin(point, normal),

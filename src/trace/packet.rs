@@ -86,11 +86,10 @@ impl Lanes {
     /// Lanewise [`PreparedRay::clip_box`]: the same operations in the same order.
     #[inline(always)]
     fn clip_box(&self, node: &TopNode, t_far: f32x8) -> (f32x8, f32x8, u32) {
-        let negative = &self.rays[0].negative;
         let mut near = self.tmin;
         let mut far = t_far;
-        for axis in 0..3 {
-            let (entry, exit) = if negative[axis] {
+        for (axis, &negative) in self.rays[0].negative.iter().enumerate() {
+            let (entry, exit) = if negative {
                 (node.max[axis], node.min[axis])
             } else {
                 (node.min[axis], node.max[axis])

@@ -281,12 +281,14 @@ pub fn write_strips(mesh: &Mesh, strips: &[Vec<u32>], leaf_windows: usize, path:
             }
         }
     }
-    let mut stats = ChunkStats::default();
-    stats.stored_vertices = encoded.iter().map(|s| s.vertex_count as u64).sum();
-    stats.triangles = strips
-        .iter()
-        .map(|s| strip::triangles(s).count() as u64)
-        .sum();
+    let stats = ChunkStats {
+        stored_vertices: encoded.iter().map(|s| s.vertex_count as u64).sum(),
+        triangles: strips
+            .iter()
+            .map(|s| strip::triangles(s).count() as u64)
+            .sum(),
+        ..ChunkStats::default()
+    };
     let bounds: Vec<Aabb> = encoded.iter().map(|s| s.bounds).collect();
     let top = toplevel::build(&bounds, &TopLevelParams::default());
     let info = FileInfo {
