@@ -245,29 +245,34 @@ fn with_threads<T: Send>(threads: usize, work: impl FnOnce() -> T + Send) -> T {
 // ---------------------------------------------------------------------------------------------
 // Round trips on regular and closed meshes
 
+/// Lower bound for the average strip length on regular meshes with the paper's limit of 60.
+///
+/// Observed averages: 15.0 to 36.5 on grids depending on their dimensions (64×64: 31.5,
+/// 120×90: 15.0, 177×101: 18.9, 500×500: 36.5), 20 to 24 on tori. Sequences grow inside the
+/// block-shaped subtrees of the SAH hierarchy, and on some dimensions their ends end up
+/// enclosed by the interiors of neighbouring blocks' sequences, which stops growth at 8 or 16
+/// triangles; the paper likewise notes averages far below the limit. 12 sits safely below every
+/// observed value and still fails if merging across subtrees breaks down (averages of 4 to 8).
+const MIN_AVERAGE_STRIP_LENGTH: f64 = 12.0;
+
 #[test]
-fn grid_round_trip_and_long_strips() {
-    let mesh = grid(64, 64);
-    let result = stripify_checked(&mesh, &defaults());
-    assert_eq!(result.dropped_triangles, 0);
-    // A grid's interior has full adjacency, so nearly every sequence can grow until no partner
-    // fits under the limit: two sequences only stop merging when their lengths sum above 60,
-    // which makes a greedy length of at least 30 typical. Boundary effects and sequences boxed
-    // in by full neighbours cost some of that; 20 leaves a safe margin while still catching a
-    // regression to short strips.
-    let average = result.average_strip_length();
-    assert!(average >= 20.0, "average strip length {average}");
+fn grids_round_trip_with_long_strips() {
+    for (width, height) in [(64, 64), (120, 90), (177, 101)] {
+        let result = stripify_checked(&grid(width, height), &defaults());
+        assert_eq!(result.dropped_triangles, 0);
+        let average = result.average_strip_length();
+        assert!(
+            average >= MIN_AVERAGE_STRIP_LENGTH,
+            "{width}×{height} grid: average {average}"
+        );
+    }
 }
 
 #[test]
-fn torus_round_trip() {
-    let mesh = torus(48, 24);
-    let result = stripify_checked(&mesh, &defaults());
-    assert!(
-        result.average_strip_length() >= 20.0,
-        "{}",
-        result.average_strip_length()
-    );
+fn torus_round_trip_with_long_strips() {
+    let result = stripify_checked(&torus(48, 24), &defaults());
+    let average = result.average_strip_length();
+    assert!(average >= MIN_AVERAGE_STRIP_LENGTH, "average {average}");
 }
 
 #[test]
@@ -330,9 +335,9 @@ fn non_manifold_fan_edges_are_boundaries() {
         triangles: vec![[0, 1, 2], [1, 0, 3], [1, 0, 4], [1, 5, 2]],
     };
     let adjacency = Adjacency::build(&mesh);
-    for triangle in 0..3 {
-        let across_fan_edge = adjacency.neighbours[triangle][if triangle == 0 { 0 } else { 0 }];
-        assert_eq!(across_fan_edge, NO_NEIGHBOUR);
+    for fan_triangle in &adjacency.neighbours[..3] {
+        // Edge 0 is the fan edge (0, 1) in each of the three triangles.
+        assert_eq!(fan_triangle[0], NO_NEIGHBOUR);
     }
     assert_eq!(adjacency.neighbours[0][1], 3);
     stripify_checked(&mesh, &defaults());
@@ -385,8 +390,7 @@ fn degenerate_triangles_are_dropped_and_counted() {
     let original = mesh.triangles.len();
     // Repeated indices.
     mesh.triangles.extend([[0, 0, 1], [2, 3, 2], [5, 5, 5]]);
-    // Collinear: three vertices on the first grid row (z varies, so pick coincident-free ones
-    // on a straight line by adding them).
+    // Collinear: three new, distinct points on one straight line.
     let base = mesh.positions.len() as u32;
     mesh.positions
         .extend([[0.0, 0.0, 9.0], [1.0, 1.0, 9.0], [2.0, 2.0, 9.0]]);
@@ -518,17 +522,32 @@ proptest! {
 // ---------------------------------------------------------------------------------------------
 // Throughput (run with `cargo test --release -- --ignored --nocapture`)
 
+/// CPU seconds used by this process so far, from `/proc/self/stat` (Linux), or `None`. The
+/// machines this runs on are shared, so wall-clock time alone says little about the algorithm.
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let fields: Vec<&str> = stat.rsplit(')').next()?.split_whitespace().collect();
+    let ticks = |index: usize| fields.get(index)?.parse::<f64>().ok();
+    // utime and stime, fields 14 and 15 of the file (11 and 12 after the command name), in
+    // clock ticks of 1/100 s on Linux.
+    Some((ticks(11)? + ticks(12)?) / 100.0)
+}
+
 fn report_throughput(name: &str, mesh: &Mesh) {
     let params = defaults();
     for threads in [1, 2] {
+        let cpu_start = process_cpu_seconds();
         let start = Instant::now();
         let result = with_threads(threads, || stripify(mesh, &params));
         let seconds = start.elapsed().as_secs_f64();
+        let cpu = cpu_start.and_then(|before| Some(process_cpu_seconds()? - before));
+        let per_second = |s: f64| mesh.triangles.len() as f64 / s / 1e6;
         println!(
-            "{name}: {} triangles, {threads} thread(s): {:.2} s, {:.2} M triangles/s, {} strips, average length {:.2}",
+            "{name}: {} triangles, {threads} thread(s): wall {seconds:.2} s ({:.2} M triangles/s), \
+             cpu {}, {} strips, average length {:.2}",
             mesh.triangles.len(),
-            seconds,
-            mesh.triangles.len() as f64 / seconds / 1e6,
+            per_second(seconds),
+            cpu.map_or("?".to_string(), |c| format!("{c:.2} s ({:.2} M triangles/cpu-s)", per_second(c))),
             result.strips.len(),
             result.average_strip_length()
         );

@@ -22,13 +22,14 @@
 
 use std::fmt;
 
-use crate::format::implicit_tree::{internal_nodes, split_point};
+use crate::format::implicit_tree::{internal_nodes, is_leaf, split_point};
 use crate::format::{align_up, axis_bytes, VertexEncoding, MAX_STRIP_VERTICES};
 use crate::geometry::{Aabb, Point};
 use crate::strip::window_count;
 
-/// Relative cost increase of an axis per split bound that must be stored a second time.
-pub const DUPLICATE_PENALTY: f64 = 0.5;
+/// How far beyond its exact extreme a split bound may lie, as a fraction of the node's extent on
+/// the split axis, to use a vertex not stored yet instead of a copy.
+pub const MAX_LOOSENESS: f32 = 1.0;
 
 /// One encoded strip: its block (padded to 4 bytes) and what the top level needs to know.
 #[derive(Clone, Debug, PartialEq)]
@@ -66,11 +67,12 @@ pub fn encode_strip(
     let mut layout = StripLayout::new(references, positions);
     let windows = window_count(references.len());
     let nodes = internal_nodes(windows, leaf_windows);
-    layout.slots.reserve(2 * nodes);
-    let mut axes = Vec::with_capacity(nodes);
+    let mut splits = Vec::with_capacity(nodes);
     let root_box = layout.range_bounds(0, references.len());
-    layout.place_splits(0, windows, root_box, leaf_windows, &mut axes);
+    layout.choose_splits(0, windows, root_box, leaf_windows, &mut splits);
+    layout.assign_bounds(&splits);
     layout.place_remaining_vertices();
+    let axes: Vec<u8> = splits.iter().map(|s| s.axis as u8).collect();
     let needed = layout.slots.len();
     if needed > MAX_STRIP_VERTICES {
         return Err(TooManyVertices { needed });
@@ -131,128 +133,54 @@ impl<'a> StripLayout<'a> {
         Aabb::from_points(self.local[start..end].iter().map(|&v| self.point(v)))
     }
 
-    /// Preorder walk over internal nodes, choosing each node's axis and bound vertices.
-    fn place_splits(
-        &mut self,
+    /// Preorder walk over internal nodes choosing each node's axis by the surface-area cost of
+    /// the two clipped child boxes, with the children's exact extremes as planes.
+    fn choose_splits(
+        &self,
         lo: usize,
         hi: usize,
         node_box: Aabb,
         leaf_windows: usize,
-        axes: &mut Vec<u8>,
+        splits: &mut Vec<NodeSplit>,
     ) {
-        if hi - lo <= leaf_windows {
+        if is_leaf(lo, hi, leaf_windows) {
             return;
         }
-        let mid = split_point(lo, hi);
+        let mid = split_point(lo, hi, leaf_windows);
         // Window k references positions k..k+3, so windows [lo, mid) reference [lo, mid + 2).
-        let left = lo..mid + 2;
-        let right = mid..hi + 2;
-        let choice = (0..3)
-            .map(|axis| {
-                self.split_choice(
-                    axis,
-                    left.clone(),
-                    right.clone(),
-                    &node_box,
-                    (mid - lo, hi - mid),
-                )
+        let (left, right) = (lo..mid + 2, mid..hi + 2);
+        let split = (0..3)
+            .map(|axis| NodeSplit {
+                axis,
+                upper: self.extreme(left.clone(), axis, |a, b| a > b),
+                lower: self.extreme(right.clone(), axis, |a, b| a < b),
+                node_box,
             })
-            .min_by(|a, b| a.cost.total_cmp(&b.cost))
+            .min_by(|a, b| {
+                let cost = |s: &NodeSplit| self.split_cost(s, (mid - lo, hi - mid));
+                cost(a).total_cmp(&cost(b))
+            })
             .unwrap_or_else(|| unreachable!("three axes"));
-        axes.push(choice.axis as u8);
-        self.store(choice.left_bound);
-        self.store(choice.right_bound);
-        let mut left_box = node_box;
-        left_box.max[choice.axis] =
-            left_box.max[choice.axis].min(self.point(choice.left_bound)[choice.axis]);
-        let mut right_box = node_box;
-        right_box.min[choice.axis] =
-            right_box.min[choice.axis].max(self.point(choice.right_bound)[choice.axis]);
-        self.place_splits(lo, mid, left_box, leaf_windows, axes);
-        self.place_splits(mid, hi, right_box, leaf_windows, axes);
+        let (left_box, right_box) = self.child_boxes(&split);
+        splits.push(split);
+        self.choose_splits(lo, mid, left_box, leaf_windows, splits);
+        self.choose_splits(mid, hi, right_box, leaf_windows, splits);
     }
 
-    /// The cheapest bounds on `axis`. Each side considers the exact extreme of its windows and,
-    /// when that vertex is already stored, the tightest not-yet-stored vertex beyond it: a looser
-    /// but still conservative plane that costs no copy.
-    fn split_choice(
-        &self,
-        axis: usize,
-        left: std::ops::Range<usize>,
-        right: std::ops::Range<usize>,
-        node_box: &Aabb,
-        windows: (usize, usize),
-    ) -> SplitChoice {
-        let upper = self.extreme(left, axis, |a, b| a > b);
-        let lower = self.extreme(right, axis, |a, b| a < b);
-        let uppers = [
-            Some(upper),
-            self.unstored_beyond(upper, axis, |a, b| a >= b),
-        ];
-        let lowers = [
-            Some(lower),
-            self.unstored_beyond(lower, axis, |a, b| a <= b),
-        ];
-        let mut best: Option<SplitChoice> = None;
-        for left_bound in uppers.into_iter().flatten() {
-            for right_bound in lowers.into_iter().flatten() {
-                let choice = self.score(axis, left_bound, right_bound, node_box, windows);
-                if best.as_ref().is_none_or(|b| choice.cost < b.cost) {
-                    best = Some(choice);
-                }
-            }
-        }
-        best.unwrap_or_else(|| unreachable!("the exact extremes are always candidates"))
+    fn child_boxes(&self, split: &NodeSplit) -> (Aabb, Aabb) {
+        let axis = split.axis;
+        let (mut left, mut right) = (split.node_box, split.node_box);
+        left.max[axis] = left.max[axis].min(self.point(split.upper)[axis]);
+        right.min[axis] = right.min[axis].max(self.point(split.lower)[axis]);
+        (left, right)
     }
 
-    fn score(
-        &self,
-        axis: usize,
-        left_bound: u16,
-        right_bound: u16,
-        node_box: &Aabb,
-        (left_windows, right_windows): (usize, usize),
-    ) -> SplitChoice {
-        let mut left_box = *node_box;
-        left_box.max[axis] = left_box.max[axis].min(self.point(left_bound)[axis]);
-        let mut right_box = *node_box;
-        right_box.min[axis] = right_box.min[axis].max(self.point(right_bound)[axis]);
-        let area_cost = left_box.surface_area() * left_windows as f64
-            + right_box.surface_area() * right_windows as f64;
-        let copies = [left_bound, right_bound]
-            .iter()
-            .filter(|&&v| self.home[v as usize].is_some())
-            .count()
-            + usize::from(left_bound == right_bound);
-        SplitChoice {
-            axis,
-            left_bound,
-            right_bound,
-            cost: area_cost * (1.0 + DUPLICATE_PENALTY * copies as f64),
-        }
+    fn split_cost(&self, split: &NodeSplit, (left_windows, right_windows): (usize, usize)) -> f64 {
+        let (left, right) = self.child_boxes(split);
+        left.surface_area() * left_windows as f64 + right.surface_area() * right_windows as f64
     }
 
-    /// When `exact` is already stored: the not-yet-stored vertex whose coordinate on `axis` is
-    /// `as_loose_as` the exact one's and closest to it (lowest index among equals).
-    fn unstored_beyond(
-        &self,
-        exact: u16,
-        axis: usize,
-        as_loose_as: fn(f32, f32) -> bool,
-    ) -> Option<u16> {
-        self.home[exact as usize]?;
-        let limit = self.point(exact)[axis];
-        (0..self.distinct.len() as u16)
-            .filter(|&v| self.home[v as usize].is_none())
-            .filter(|&v| as_loose_as(self.point(v)[axis], limit))
-            .min_by(|&a, &b| {
-                let distance = |v: u16| (self.point(v)[axis] - limit).abs();
-                distance(a).total_cmp(&distance(b)).then(a.cmp(&b))
-            })
-    }
-
-    /// The vertex of `local[range]` most extreme on `axis` under `better`; among equal
-    /// coordinates, one not stored yet, then the lowest index (for determinism).
+    /// The exact extreme of `local[range]` on `axis` under `better` (lowest index among equals).
     fn extreme(
         &self,
         range: std::ops::Range<usize>,
@@ -262,21 +190,63 @@ impl<'a> StripLayout<'a> {
         let mut best = self.local[range.start];
         for &v in &self.local[range] {
             let (value, best_value) = (self.point(v)[axis], self.point(best)[axis]);
-            let tie_preferred = value == best_value && self.prefers(v, best);
-            if better(value, best_value) || tie_preferred {
+            if better(value, best_value) || (value == best_value && v < best) {
                 best = v;
             }
         }
         best
     }
 
-    fn prefers(&self, candidate: u16, current: u16) -> bool {
-        let unstored = |v: u16| self.home[v as usize].is_none();
-        match (unstored(candidate), unstored(current)) {
-            (true, false) => true,
-            (false, true) => false,
-            _ => candidate < current,
+    /// Fills the bound slots, most constrained slot first, each with the not-yet-stored vertex
+    /// closest to its exact extreme among those that keep the plane conservative and within
+    /// [`MAX_LOOSENESS`] of the node's extent; with none left, the exact extreme is stored again.
+    ///
+    /// Deviation from the paper, which takes a split-vertex candidate equal to the extreme:
+    /// with leaves of two windows a strip has about as many bound slots as distinct vertices,
+    /// so exact candidates collide constantly (over half the input vertices were copied on a
+    /// scanned surface). A slightly looser plane costs a little culling; a copy costs 12 bytes.
+    fn assign_bounds(&mut self, splits: &[NodeSplit]) {
+        let slots: Vec<BoundSlot> = splits.iter().flat_map(|s| self.bound_slots(s)).collect();
+        let mut order: Vec<usize> = (0..slots.len()).collect();
+        order.sort_by_key(|&slot| (self.candidates(&slots[slot]).count(), slot));
+        let mut assigned = vec![0u16; slots.len()];
+        let mut taken = vec![false; self.distinct.len()];
+        for slot in order {
+            let bound = &slots[slot];
+            let closest = self.candidates(bound).filter(|&v| !taken[v as usize]).min_by(|&a, &b| {
+                let distance = |v: u16| (self.point(v)[bound.axis] - bound.limit).abs();
+                distance(a).total_cmp(&distance(b)).then(a.cmp(&b))
+            });
+            let vertex = closest.unwrap_or(bound.exact);
+            taken[vertex as usize] = true;
+            assigned[slot] = vertex;
         }
+        for vertex in assigned {
+            self.store(vertex);
+        }
+    }
+
+    fn bound_slots(&self, split: &NodeSplit) -> [BoundSlot; 2] {
+        let axis = split.axis;
+        let reach = MAX_LOOSENESS * split.node_box.extent(axis);
+        let slot = |exact: u16, upper: bool| {
+            let limit = self.point(exact)[axis];
+            let far = if upper { limit + reach } else { limit - reach };
+            BoundSlot {
+                axis,
+                exact,
+                limit,
+                range: if upper { (limit, far) } else { (far, limit) },
+            }
+        };
+        [slot(split.upper, true), slot(split.lower, false)]
+    }
+
+    fn candidates<'s>(&'s self, bound: &'s BoundSlot) -> impl Iterator<Item = u16> + 's {
+        (0..self.distinct.len() as u16).filter(move |&v| {
+            let value = self.point(v)[bound.axis];
+            bound.range.0 <= value && value <= bound.range.1
+        })
     }
 
     fn store(&mut self, vertex: u16) {
@@ -325,11 +295,21 @@ impl<'a> StripLayout<'a> {
     }
 }
 
-struct SplitChoice {
+/// A node's split axis and the exact extremes of its children (left maximum, right minimum).
+struct NodeSplit {
     axis: usize,
-    left_bound: u16,
-    right_bound: u16,
-    cost: f64,
+    upper: u16,
+    lower: u16,
+    node_box: Aabb,
+}
+
+/// One bound slot: any vertex whose coordinate on `axis` lies in `range` keeps the plane
+/// conservative (at or beyond the exact extreme `limit`) and close enough to be useful.
+struct BoundSlot {
+    axis: usize,
+    exact: u16,
+    limit: f32,
+    range: (f32, f32),
 }
 
 /// Packs up to four 2-bit axes, node `i` of the group in bits `2i..2i+2`.
@@ -349,8 +329,7 @@ pub fn validate(strip: &EncodedStrip, leaf_windows: usize) -> Result<(), String>
         reference_count: strip.reference_count,
     };
     let windows = window_count(strip.reference_count as usize);
-    let table = crate::format::implicit_tree::NodeCountTable::new(leaf_windows, windows);
-    let view = crate::format::reader::strip_view(&strip.block, &record, &table);
+    let view = crate::format::reader::strip_view(&strip.block, &record, leaf_windows);
     if let Some(r) = view
         .references
         .iter()
@@ -377,12 +356,12 @@ fn validate_node(
     leaf_windows: usize,
     next_node: &mut usize,
 ) -> Result<(), String> {
-    if hi - lo <= leaf_windows {
+    if is_leaf(lo, hi, leaf_windows) {
         return Ok(());
     }
     let node = *next_node;
     *next_node += 1;
-    let mid = split_point(lo, hi);
+    let mid = split_point(lo, hi, leaf_windows);
     let axis = view.axis(node);
     let coordinate = |position: usize| view.vertices[view.references[position] as usize][axis];
     let (upper, lower) = (

@@ -1,88 +1,85 @@
 //! Shape of the implicit, left-balanced kd-tree of one strip (paper 3.2, Fig. 2).
 //!
-//! The tree is never stored: its shape follows from the strip's window count and the leaf size.
-//! A node covering windows `[lo, hi)` is a leaf when `hi - lo <= leaf_windows`; otherwise it
-//! splits at `lo + ceil((hi - lo) / 2)` (the left half takes the odd window, hence
-//! "left-balanced"). Internal nodes are numbered in preorder, so the left child of node `i` is
-//! `i + 1` and the right child is `i + 1 + internal_nodes(left_len)`. Internal node `i` owns
-//! stored vertices `2i` (the left child's upper bound on the split axis) and `2i + 1` (the right
-//! child's lower bound); leaves own nothing.
+//! The tree is never stored: its shape follows from the strip's window count `w` and the leaf
+//! size `L`. The windows are cut into `ceil(w / L)` buckets of `L` consecutive windows (the last
+//! may be shorter); the tree is the left-balanced binary tree over the buckets: a node over
+//! buckets `[b0, b1)` with more than one bucket splits after `ceil((b1 - b0) / 2)` buckets. So
+//! there are exactly `buckets - 1` internal nodes, every leaf but the last holds exactly `L`
+//! windows, and internal nodes numbered in preorder have their left child at `i + 1` and their
+//! right child at `i + left_buckets`. Internal node `i` owns stored vertices `2i` (the left
+//! child's upper bound on the split axis) and `2i + 1` (the right child's lower bound).
 //!
-//! Deviation from the paper: the split is over windows (real triangles and swaps alike) rather
-//! than over real triangles only, so that the active interval of the traversal is a plain range
-//! of strip positions and needs no index table. Swap windows are rare and cost one compare each.
+//! Deviation from the paper: the tree is over windows (real triangles and swaps alike) rather
+//! than real triangles only, so that the active interval of the traversal is a plain range of
+//! strip positions with no index table. Full buckets matter for compactness: a halving split
+//! leaves many one-window leaves, up to twice as many nodes, and every node costs two stored
+//! bound vertices.
 
 /// Number of internal nodes of the tree over `windows` windows.
-pub fn internal_nodes(windows: usize, leaf_windows: usize) -> usize {
-    if windows <= leaf_windows {
-        return 0;
-    }
-    let left = windows.div_ceil(2);
-    1 + internal_nodes(left, leaf_windows) + internal_nodes(windows - left, leaf_windows)
-}
-
-/// Where node `[lo, hi)` splits its windows.
 #[inline]
-pub fn split_point(lo: usize, hi: usize) -> usize {
-    lo + (hi - lo).div_ceil(2)
+pub fn internal_nodes(windows: usize, leaf_windows: usize) -> usize {
+    windows.div_ceil(leaf_windows).saturating_sub(1)
 }
 
-/// Internal node counts for every window count a strip may have, so that traversal finds the
-/// right child without recursion. Built once per file (the leaf size is in the header).
-#[derive(Clone, Debug)]
-pub struct NodeCountTable {
-    leaf_windows: usize,
-    counts: Vec<u16>,
+/// Whether the node over windows `[lo, hi)` is a leaf.
+#[inline]
+pub fn is_leaf(lo: usize, hi: usize, leaf_windows: usize) -> bool {
+    hi - lo <= leaf_windows
 }
 
-impl NodeCountTable {
-    /// Covers window counts `0..=max_windows`.
-    pub fn new(leaf_windows: usize, max_windows: usize) -> NodeCountTable {
-        let mut counts = vec![0u16; max_windows + 1];
-        for windows in leaf_windows + 1..=max_windows {
-            let left = windows.div_ceil(2);
-            counts[windows] = 1 + counts[left] + counts[windows - left];
-        }
-        NodeCountTable {
-            leaf_windows,
-            counts,
-        }
-    }
+/// Where the internal node over windows `[lo, hi)` splits (`lo` is a bucket boundary).
+#[inline]
+pub fn split_point(lo: usize, hi: usize, leaf_windows: usize) -> usize {
+    let buckets = (hi - lo).div_ceil(leaf_windows);
+    lo + buckets.div_ceil(2) * leaf_windows
+}
 
-    pub fn leaf_windows(&self) -> usize {
-        self.leaf_windows
-    }
-
-    /// Internal nodes over `windows` windows; `windows` must be within the table.
-    #[inline]
-    pub fn internal_nodes(&self, windows: usize) -> usize {
-        self.counts[windows] as usize
-    }
-
-    pub fn max_windows(&self) -> usize {
-        self.counts.len() - 1
-    }
+/// Preorder index of the right child of internal node `node` over `[lo, hi)` split at `mid`.
+#[inline]
+pub fn right_child(node: usize, lo: usize, mid: usize, leaf_windows: usize) -> usize {
+    node + (mid - lo) / leaf_windows
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// Walks the tree recursively, checking preorder numbering against `right_child`.
+    fn walk(node: usize, lo: usize, hi: usize, leaf: usize, next: &mut usize, leaves: &mut Vec<(usize, usize)>) {
+        if is_leaf(lo, hi, leaf) {
+            leaves.push((lo, hi));
+            return;
+        }
+        assert_eq!(node, *next);
+        *next += 1;
+        let mid = split_point(lo, hi, leaf);
+        assert!(lo < mid && mid < hi);
+        walk(node + 1, lo, mid, leaf, next, leaves);
+        walk(right_child(node, lo, mid, leaf), mid, hi, leaf, next, leaves);
+    }
+
     #[test]
-    fn table_matches_recursive_definition() {
-        for leaf in 1..5 {
-            let table = NodeCountTable::new(leaf, 300);
-            for windows in 0..=300 {
-                assert_eq!(table.internal_nodes(windows), internal_nodes(windows, leaf));
+    fn preorder_numbering_and_full_leaves() {
+        for leaf in 1..6 {
+            for windows in 1..200 {
+                let (mut next, mut leaves) = (0, Vec::new());
+                walk(0, 0, windows, leaf, &mut next, &mut leaves);
+                assert_eq!(next, internal_nodes(windows, leaf), "leaf {leaf} windows {windows}");
+                let covered: Vec<usize> = leaves.iter().flat_map(|&(lo, hi)| lo..hi).collect();
+                assert_eq!(covered, (0..windows).collect::<Vec<_>>());
+                let (last, full) = leaves.split_last().unwrap();
+                assert!(full.iter().all(|&(lo, hi)| hi - lo == leaf));
+                assert!(last.1 - last.0 <= leaf);
             }
         }
     }
 
     #[test]
-    fn two_window_leaves_over_seven_windows() {
-        // [0,7) -> [0,4) [4,7); [0,4) -> [0,2) [2,4); [4,7) -> [4,6) [6,7): three internal nodes.
+    fn seven_windows_in_two_window_leaves() {
+        // Buckets [0,2) [2,4) [4,6) [6,7): root splits after two buckets at window 4.
         assert_eq!(internal_nodes(7, 2), 3);
-        assert_eq!(split_point(0, 7), 4);
-        assert_eq!(split_point(4, 7), 6);
+        assert_eq!(split_point(0, 7, 2), 4);
+        assert_eq!(right_child(0, 0, 4, 2), 2);
+        assert_eq!(split_point(4, 7, 2), 6);
     }
 }

@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use memmap2::Mmap;
 use rayon::prelude::*;
 
-use super::implicit_tree::NodeCountTable;
+use super::implicit_tree::internal_nodes;
 use super::{
     axis_bytes, Header, SectionKind, StripRecord, TopNode, VertexEncoding, ENDIAN_MARKER,
     HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH, SECTION_ALIGN,
@@ -50,7 +50,6 @@ pub struct ReducemFile {
     map: Mmap,
     header: Header,
     sections: [Range<usize>; 3],
-    node_counts: NodeCountTable,
 }
 
 /// One strip's block, viewed in place.
@@ -94,13 +93,11 @@ impl ReducemFile {
         let checker = Checker { path, map: &map };
         let header = checker.header()?;
         let sections = checker.sections(&header)?;
-        let node_counts = NodeCountTable::new(header.leaf_windows as usize, u16::MAX as usize);
         let opened = ReducemFile {
             path: path.to_path_buf(),
             map,
             header,
             sections,
-            node_counts,
         };
         opened.validate_strips()?;
         opened.validate_nodes()?;
@@ -119,8 +116,9 @@ impl ReducemFile {
         self.map.len() as u64
     }
 
-    pub fn node_counts(&self) -> &NodeCountTable {
-        &self.node_counts
+    /// Strip kd-tree leaf size in windows.
+    pub fn leaf_windows(&self) -> usize {
+        self.header.leaf_windows as usize
     }
 
     pub fn section_bytes(&self, kind: SectionKind) -> &[u8] {
@@ -145,7 +143,7 @@ impl ReducemFile {
         strip_view(
             self.section_bytes(SectionKind::StripData),
             &self.strip_records()[index],
-            &self.node_counts,
+            self.leaf_windows(),
         )
     }
 
@@ -201,7 +199,7 @@ impl ReducemFile {
             .par_iter()
             .enumerate()
             .map(|(index, record)| {
-                check_strip(data, record, &self.node_counts).map_err(|(offset, detail)| {
+                check_strip(data, record, self.leaf_windows()).map_err(|(offset, detail)| {
                     let offset = offset.map_or(
                         self.section_offset(SectionKind::StripRecords) + index as u64 * 8,
                         |o| self.section_offset(SectionKind::StripData) + o,
@@ -291,12 +289,12 @@ fn section_slot(kind: SectionKind) -> usize {
 pub(crate) fn strip_view<'a>(
     data: &'a [u8],
     record: &StripRecord,
-    node_counts: &NodeCountTable,
+    leaf_windows: usize,
 ) -> StripView<'a> {
     let start = record.data_word as usize * 4;
     let vertex_end = start + record.vertex_count as usize * VertexEncoding::F32.bytes_per_vertex();
     let windows = record.reference_count as usize - 2;
-    let axes_end = vertex_end + axis_bytes(node_counts.internal_nodes(windows));
+    let axes_end = vertex_end + axis_bytes(internal_nodes(windows, leaf_windows));
     StripView {
         vertices: bytemuck::cast_slice(&data[start..vertex_end]),
         axes: &data[vertex_end..axes_end],
@@ -309,7 +307,7 @@ pub(crate) fn strip_view<'a>(
 fn check_strip(
     data: &[u8],
     record: &StripRecord,
-    node_counts: &NodeCountTable,
+    leaf_windows: usize,
 ) -> Result<u64, (Option<u64>, String)> {
     let vertices = record.vertex_count as usize;
     let references = record.reference_count as usize;
@@ -319,7 +317,7 @@ fn check_strip(
             format!("{vertices} vertices and {references} references"),
         ));
     }
-    let nodes = node_counts.internal_nodes(references - 2);
+    let nodes = internal_nodes(references - 2, leaf_windows);
     if 2 * nodes > vertices {
         return Err((
             None,
@@ -341,7 +339,7 @@ fn check_strip(
             ),
         ));
     }
-    let view = strip_view(data, record, node_counts);
+    let view = strip_view(data, record, leaf_windows);
     if let Some(position) = view.references.iter().position(|&r| r as usize >= vertices) {
         let offset = start + length - references as u64 + position as u64;
         return Err((

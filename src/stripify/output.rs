@@ -14,6 +14,9 @@
 //! entering through the oppositely traversed edge decodes in its input winding, with or without
 //! a swap (the swap shifts the window parity and reverses the edge at the same time).
 //!
+//! There is at most one swap per triangle, so a strip of `L` triangles has at most `2L + 1`
+//! references: 121 for the paper's limit of 60, within its one-byte vertex indices.
+//!
 //! Strips come out in the order of their starting triangle, that is, roughly in input order.
 
 use rayon::prelude::*;
@@ -27,14 +30,14 @@ pub fn strips(mesh: &Mesh, adjacency: &Adjacency, paths: &Paths) -> Vec<Vec<u32>
     let starts: Vec<u32> = (0..adjacency.kept.len() as u32)
         .filter(|&t| paths.is_end(t) && t <= paths.other_end[t as usize])
         .collect();
-    let walker = StripWriter {
+    let writer = StripWriter {
         mesh,
         adjacency,
         paths,
     };
     starts
         .par_iter()
-        .map(|&start| walker.strip_from(start))
+        .map(|&start| writer.strip_from(start))
         .collect()
 }
 
