@@ -22,11 +22,7 @@ impl Fingerprint {
         let mut fingerprint = Fingerprint::default();
         fingerprint.add(
             "format_version",
-            format!(
-                "{}.{}",
-                reducem::format::VERSION_MAJOR,
-                reducem::format::VERSION_MINOR
-            ),
+            format!("{}.{}", reducem::format::VERSION_MAJOR, reducem::format::VERSION_MINOR),
         );
         fingerprint.add("program_version", env!("CARGO_PKG_VERSION"));
         fingerprint

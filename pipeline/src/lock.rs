@@ -66,9 +66,5 @@ fn holder_description() -> String {
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_secs())
         .unwrap_or(0);
-    format!(
-        "pid {} on host {} since unix time {since}",
-        std::process::id(),
-        host.trim()
-    )
+    format!("pid {} on host {} since unix time {since}", std::process::id(), host.trim())
 }

@@ -78,12 +78,7 @@ impl Manifest {
         for (output, bytes) in &record.outputs {
             match std::fs::metadata(work_dir.join(output)) {
                 Ok(meta) if meta.len() == *bytes => {}
-                Ok(meta) => {
-                    return Freshness::Stale(format!(
-                        "{output} is {} bytes, expected {bytes}",
-                        meta.len()
-                    ))
-                }
+                Ok(meta) => return Freshness::Stale(format!("{output} is {} bytes, expected {bytes}", meta.len())),
                 Err(_) => return Freshness::Stale(format!("{output} is missing")),
             }
         }
@@ -102,10 +97,7 @@ impl Manifest {
     }
 }
 
-fn changed_parts(
-    recorded: &BTreeMap<String, String>,
-    current: &BTreeMap<String, String>,
-) -> String {
+fn changed_parts(recorded: &BTreeMap<String, String>, current: &BTreeMap<String, String>) -> String {
     let mut changes = Vec::new();
     for (name, value) in current {
         match recorded.get(name) {
@@ -114,11 +106,6 @@ fn changed_parts(
             None => changes.push(format!("{name} is new")),
         }
     }
-    changes.extend(
-        recorded
-            .keys()
-            .filter(|k| !current.contains_key(*k))
-            .map(|k| format!("{k} was removed")),
-    );
+    changes.extend(recorded.keys().filter(|k| !current.contains_key(*k)).map(|k| format!("{k} was removed")));
     changes.join("; ")
 }
