@@ -154,7 +154,7 @@ impl<'f> Tracer<'f> {
     fn query<'a>(&'a self, ray: &'a PreparedRay, any_hit: bool) -> StripQuery<'a> {
         StripQuery {
             ray,
-            counts: self.file.node_counts(),
+            leaf_windows: self.file.leaf_windows(),
             subtree_windows: self.options.subtree_windows,
             any_hit,
         }

@@ -22,7 +22,7 @@
 
 use super::prepared::{PreparedRay, FAR_INFLATION};
 use super::watertight::{edge, resolve, RayPoint};
-use crate::format::implicit_tree::{split_point, NodeCountTable};
+use crate::format::implicit_tree::{is_leaf, right_child, split_point};
 use crate::format::reader::StripView;
 
 /// Most windows intersected in one batch; bounds the per-batch stack arrays.
@@ -78,7 +78,8 @@ fn enters(node: Pending, closest_t: f32) -> Option<Pending> {
 /// What one strip traversal looks for.
 pub struct StripQuery<'a> {
     pub ray: &'a PreparedRay,
-    pub counts: &'a NodeCountTable,
+    /// The file's strip kd-tree leaf size (it defines the tree's shape).
+    pub leaf_windows: usize,
     pub subtree_windows: usize,
     /// Stop at the first hit in range (shadow and occlusion rays).
     pub any_hit: bool,
@@ -104,7 +105,6 @@ impl StripQuery<'_> {
         t_far: f32,
         closest: &mut Closest,
     ) -> bool {
-        let leaf_windows = self.counts.leaf_windows().max(self.subtree_windows);
         let mut stack = [Pending::default(); STRIP_STACK];
         let mut depth = 0;
         let mut current = Pending {
@@ -116,7 +116,7 @@ impl StripQuery<'_> {
         };
         loop {
             let (lo, hi) = (current.lo as usize, current.hi as usize);
-            if hi - lo <= leaf_windows {
+            if hi - lo <= self.subtree_windows || is_leaf(lo, hi, self.leaf_windows) {
                 if self.intersect(view, index, lo, hi, closest) && self.any_hit {
                     return true;
                 }
@@ -158,7 +158,7 @@ impl StripQuery<'_> {
         closest_t: f32,
     ) -> (Option<Pending>, Option<Pending>) {
         let (index, lo, hi) = (node.node as usize, node.lo as usize, node.hi as usize);
-        let mid = split_point(lo, hi);
+        let mid = split_point(lo, hi, self.leaf_windows);
         let axis = view.axis(index);
         let ray = self.ray;
         let left_max = ray.plane_distance(axis, view.vertices[2 * index][axis]);
@@ -170,7 +170,7 @@ impl StripQuery<'_> {
             ..*node
         };
         let right = Pending {
-            node: node.node + 1 + self.counts.internal_nodes(mid - lo) as u32,
+            node: right_child(index, lo, mid, self.leaf_windows) as u32,
             lo: mid as u32,
             hi: node.hi,
             ..*node
