@@ -9,6 +9,7 @@
 //! and validates a file; it depends on nothing from the build side.
 
 pub mod atomic;
+pub mod baseline;
 pub mod build;
 pub mod chunking;
 pub mod decode;
@@ -20,6 +21,8 @@ pub mod input;
 pub mod inspect;
 pub mod mapping;
 pub mod mesh;
+pub mod render;
 pub mod strip;
 pub mod stripify;
 pub mod toplevel;
+pub mod trace;

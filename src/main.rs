@@ -1,14 +1,19 @@
-//! The `reducem` command: inspect, decode (and, later, render and query) ReduceM files.
+//! The `reducem` command: inspect, decode, query and render ReduceM files.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use reducem::format::reader::ReducemFile;
+use reducem::trace::{ray_file, TraceOptions, Tracer};
 
 #[derive(Parser)]
-#[command(name = "reducem", version, about = "Inspect and decode ReduceM files")]
+#[command(
+    name = "reducem",
+    version,
+    about = "Inspect, decode, query and render ReduceM files"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -32,6 +37,30 @@ enum Command {
         #[arg(short, long)]
         output: PathBuf,
     },
+    /// Trace a binary ray file (f32 x 8 per ray: origin, direction, tmin, tmax) and write the
+    /// closest hits (f32 x 4 per ray: t, normal; t = inf on a miss) or, with --occluded, one byte
+    /// per ray (1 = occluded).
+    Query {
+        file: PathBuf,
+        #[arg(long)]
+        rays: PathBuf,
+        #[arg(short, long)]
+        output: PathBuf,
+        #[arg(long)]
+        occluded: bool,
+    },
+    /// Render an image of the model as a scene file describes it, tracing only the effects the
+    /// scene asks for.
+    Render {
+        file: PathBuf,
+        #[arg(long)]
+        scene: PathBuf,
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Print the report as one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 fn main() -> ExitCode {
@@ -52,7 +81,44 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             reducem::decode::write_ply(&opened, &output)
                 .with_context(|| format!("writing {}", output.display()))
         }
+        Command::Query {
+            file,
+            rays,
+            output,
+            occluded,
+        } => query(&file, &rays, &output, occluded),
+        Command::Render {
+            file,
+            scene,
+            output,
+            json,
+        } => render(&file, &scene, &output, json),
     }
+}
+
+fn query(path: &Path, rays: &Path, output: &Path, occluded: bool) -> anyhow::Result<()> {
+    let rays = ray_file::read_rays(rays)?;
+    let file = ReducemFile::open(path)?;
+    let tracer = Tracer::new(&file, TraceOptions::default());
+    let bytes = if occluded {
+        ray_file::encode_occlusion(&tracer.occluded_batch(&rays))
+    } else {
+        ray_file::encode_hits(&tracer.intersect_batch(&rays))
+    };
+    ray_file::write_atomically(output, &bytes)
+        .with_context(|| format!("writing {}", output.display()))
+}
+
+fn render(path: &Path, scene: &Path, output: &Path, json: bool) -> anyhow::Result<()> {
+    let scene = reducem::render::scene::Scene::load(scene)?;
+    let file = ReducemFile::open(path)?;
+    let report = reducem::render::render_to_png(&file, &scene, output)?;
+    if json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print!("{report}");
+    }
+    Ok(())
 }
 
 fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<()> {

@@ -1,0 +1,200 @@
+//! Ray tracing straight from a mapped ReduceM file (paper 3.2, "Traversal and intersection").
+//!
+//! Two-level traversal: the global hierarchy over strips ([`top`], or [`packet`] for coherent
+//! rays), then each strip's implicit kd-tree with watertight intersection of its windows
+//! ([`strip`], [`watertight`]). Nothing is copied out of the mapping: nodes, strip records,
+//! vertices and references are read in place, so resident memory is whatever the rays touch.
+//!
+//! Guarantees:
+//! * Watertight: a ray through a shared edge or vertex of a closed mesh always hits (see
+//!   [`watertight`]); bounds tests are conservative under rounding (see [`prepared`]).
+//! * Deterministic: the closest hit is the smallest `(t, strip, window)` among the hits, so the
+//!   result does not depend on visiting order, packet width or thread count. Packets run the
+//!   same per-ray arithmetic as single rays and give bit-identical hits.
+//!
+//! This module is read side only: it uses `format`, `geometry` and `strip`, nothing from the
+//! build side or the pipeline.
+
+pub mod packet;
+pub mod prepared;
+pub mod ray_file;
+pub mod strip;
+pub mod top;
+pub mod watertight;
+
+use rayon::prelude::*;
+
+use crate::format::reader::ReducemFile;
+use crate::geometry::Point;
+use prepared::PreparedRay;
+use strip::{Closest, StripQuery};
+
+/// A ray `origin + t * direction` for `t` in `[tmin, tmax]`; `tmin >= 0`, direction non-zero
+/// (need not be unit length: `t` is in units of the direction).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    pub origin: Point,
+    pub direction: Point,
+    pub tmin: f32,
+    pub tmax: f32,
+}
+
+/// The closest intersection of a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    /// Barycentric weights of the triangle's second and third corners in input winding: the hit
+    /// point is `(1 - u - v) * v0 + u * v1 + v * v2`.
+    pub u: f32,
+    pub v: f32,
+    /// Unit geometric normal `normalize((v1 - v0) × (v2 - v0))` in input winding.
+    pub normal: Point,
+    /// File position of the strip.
+    pub strip: u32,
+    /// Window of the strip (its triangle is decoded by [`crate::strip::window_triangle`]).
+    pub window: u16,
+}
+
+/// Tuning of the traversal. Results do not depend on it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TraceOptions {
+    /// Intervals of at most this many windows are intersected at once instead of descending
+    /// further (the paper's "external parameter"); the file's leaf size applies when larger.
+    pub subtree_windows: usize,
+    /// Trace batches as packets of [`packet::PACKET_WIDTH`] rays at the top level.
+    pub packets: bool,
+}
+
+impl Default for TraceOptions {
+    fn default() -> Self {
+        TraceOptions {
+            subtree_windows: 4,
+            packets: true,
+        }
+    }
+}
+
+/// Rays handed to one rayon task: enough to amortize scheduling, few enough to balance.
+const BATCH_CHUNK: usize = 256;
+
+/// Traces rays against one mapped file.
+pub struct Tracer<'f> {
+    file: &'f ReducemFile,
+    options: TraceOptions,
+}
+
+impl<'f> Tracer<'f> {
+    pub fn new(file: &'f ReducemFile, options: TraceOptions) -> Tracer<'f> {
+        Tracer { file, options }
+    }
+
+    pub fn file(&self) -> &'f ReducemFile {
+        self.file
+    }
+
+    pub fn options(&self) -> &TraceOptions {
+        &self.options
+    }
+
+    /// The closest hit in `[tmin, tmax]`, if any.
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let prepared = PreparedRay::new(ray);
+        let mut closest = Closest::none(ray.tmax);
+        top::trace_ray(self.file, &self.query(&prepared, false), &mut closest);
+        self.finish(&closest)
+    }
+
+    /// Whether anything is hit in `[tmin, tmax]`; stops at the first hit found.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let prepared = PreparedRay::new(ray);
+        let mut closest = Closest::none(ray.tmax);
+        top::trace_ray(self.file, &self.query(&prepared, true), &mut closest)
+    }
+
+    /// [`Tracer::intersect`] for every ray, in parallel; packets when the options say so.
+    pub fn intersect_batch(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
+        rays.par_chunks(BATCH_CHUNK)
+            .flat_map_iter(|chunk| self.intersect_chunk(chunk))
+            .collect()
+    }
+
+    /// [`Tracer::occluded`] for every ray, in parallel; packets when the options say so.
+    pub fn occluded_batch(&self, rays: &[Ray]) -> Vec<bool> {
+        rays.par_chunks(BATCH_CHUNK)
+            .flat_map_iter(|chunk| self.occluded_chunk(chunk))
+            .collect()
+    }
+
+    /// [`Tracer::intersect`] over consecutive rays on the calling thread.
+    pub fn intersect_chunk(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
+        if !self.options.packets {
+            return rays.iter().map(|ray| self.intersect(ray)).collect();
+        }
+        let mut hits = Vec::with_capacity(rays.len());
+        for group in rays.chunks(packet::PACKET_WIDTH) {
+            let closest = packet::trace_packet(self, group, false);
+            hits.extend(closest.iter().take(group.len()).map(|c| self.finish(c)));
+        }
+        hits
+    }
+
+    /// [`Tracer::occluded`] over consecutive rays on the calling thread.
+    pub fn occluded_chunk(&self, rays: &[Ray]) -> Vec<bool> {
+        if !self.options.packets {
+            return rays.iter().map(|ray| self.occluded(ray)).collect();
+        }
+        let mut occluded = Vec::with_capacity(rays.len());
+        for group in rays.chunks(packet::PACKET_WIDTH) {
+            let closest = packet::trace_packet(self, group, true);
+            occluded.extend(closest.iter().take(group.len()).map(Closest::found));
+        }
+        occluded
+    }
+
+    fn query<'a>(&'a self, ray: &'a PreparedRay, any_hit: bool) -> StripQuery<'a> {
+        StripQuery {
+            ray,
+            leaf_windows: self.file.leaf_windows(),
+            subtree_windows: self.options.subtree_windows,
+            any_hit,
+        }
+    }
+
+    /// Turns the traversal's closest hit into a [`Hit`] in the triangle's input winding.
+    fn finish(&self, closest: &Closest) -> Option<Hit> {
+        if !closest.found() {
+            return None;
+        }
+        let view = self.file.strip(closest.strip as usize);
+        let window = closest.window as usize;
+        let corners = view.window_points(window)?;
+        let [w0, w1, w2] = closest.weights;
+        // Odd windows list their first two corners in the opposite order of the input winding.
+        let (u, v) = if window % 2 == 0 { (w1, w2) } else { (w0, w2) };
+        Some(Hit {
+            t: closest.t,
+            u,
+            v,
+            normal: unit_normal(&corners),
+            strip: closest.strip,
+            window: closest.window,
+        })
+    }
+}
+
+/// `normalize((v1 - v0) × (v2 - v0))`, in f64 so that slivers with tiny edges keep a direction.
+pub fn unit_normal(corners: &[Point; 3]) -> Point {
+    let [a, b, c] = corners.map(|p| p.map(f64::from));
+    let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    let n = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    if length == 0.0 {
+        return [0.0; 3];
+    }
+    n.map(|x| (x / length) as f32)
+}

@@ -1,0 +1,158 @@
+//! The binary ray and hit files of `reducem query`.
+//!
+//! Rays: little-endian f32 × 8 per ray (`ox oy oz dx dy dz tmin tmax`), 32 bytes, no header.
+//! Hits: f32 × 4 per ray (`t nx ny nz`), `t = +inf` and a zero normal on a miss. Occlusion: one
+//! byte per ray, 1 when occluded. A ray file is validated whole before anything is traced, and
+//! every defect names the file, the ray and the byte offset of the offending field. Output is
+//! written to a temporary file and renamed, so a failed run leaves no partial output.
+
+use std::fs;
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+
+use super::{Hit, Ray};
+use crate::atomic;
+
+/// Bytes per ray record.
+pub const RAY_BYTES: usize = 32;
+
+const FIELD_NAMES: [&str; 8] = ["ox", "oy", "oz", "dx", "dy", "dz", "tmin", "tmax"];
+
+/// Why a ray file was rejected.
+#[derive(Debug, thiserror::Error)]
+pub enum RayFileError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: io::Error,
+    },
+    #[error(
+        "{}: {size} bytes is not a multiple of {RAY_BYTES} (8 little-endian f32 per ray): \
+         ray {ray} at byte {offset} is incomplete",
+        path.display()
+    )]
+    Truncated {
+        path: PathBuf,
+        size: usize,
+        ray: usize,
+        offset: usize,
+    },
+    #[error("{}: ray {ray} at byte {offset}: {detail}", path.display())]
+    Invalid {
+        path: PathBuf,
+        ray: usize,
+        offset: usize,
+        detail: String,
+    },
+}
+
+/// Reads and validates the ray file at `path`.
+pub fn read_rays(path: &Path) -> Result<Vec<Ray>, RayFileError> {
+    let bytes = fs::read(path).map_err(|source| RayFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_rays(path, &bytes)
+}
+
+/// Validates `bytes` as a ray file (`path` is only for messages).
+pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>, RayFileError> {
+    if bytes.len() % RAY_BYTES != 0 {
+        let ray = bytes.len() / RAY_BYTES;
+        return Err(RayFileError::Truncated {
+            path: path.to_path_buf(),
+            size: bytes.len(),
+            ray,
+            offset: ray * RAY_BYTES,
+        });
+    }
+    bytes
+        .chunks_exact(RAY_BYTES)
+        .enumerate()
+        .map(|(index, record)| {
+            parse_ray(record).map_err(|(field, detail)| RayFileError::Invalid {
+                path: path.to_path_buf(),
+                ray: index,
+                offset: index * RAY_BYTES + field * 4,
+                detail,
+            })
+        })
+        .collect()
+}
+
+/// One record; on error, the offending field and what is wrong with it.
+fn parse_ray(record: &[u8]) -> Result<Ray, (usize, String)> {
+    let fields: [f32; 8] = std::array::from_fn(|i| {
+        f32::from_le_bytes([
+            record[4 * i],
+            record[4 * i + 1],
+            record[4 * i + 2],
+            record[4 * i + 3],
+        ])
+    });
+    if let Some(field) = fields.iter().position(|x| x.is_nan()) {
+        return Err((field, format!("{} is NaN", FIELD_NAMES[field])));
+    }
+    if let Some(field) = fields[..6].iter().position(|x| x.is_infinite()) {
+        return Err((field, format!("{} is infinite", FIELD_NAMES[field])));
+    }
+    let [ox, oy, oz, dx, dy, dz, tmin, tmax] = fields;
+    if [dx, dy, dz] == [0.0; 3] {
+        return Err((3, "direction is zero".into()));
+    }
+    if tmin < 0.0 {
+        return Err((6, format!("tmin {tmin} is negative")));
+    }
+    if tmin > tmax {
+        return Err((6, format!("tmin {tmin} is greater than tmax {tmax}")));
+    }
+    Ok(Ray {
+        origin: [ox, oy, oz],
+        direction: [dx, dy, dz],
+        tmin,
+        tmax,
+    })
+}
+
+/// Encodes rays in the ray-file layout (for tools and tests that produce ray files).
+pub fn encode_rays(rays: &[Ray]) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(rays.len() * RAY_BYTES);
+    for ray in rays {
+        let fields = [
+            ray.origin[0],
+            ray.origin[1],
+            ray.origin[2],
+            ray.direction[0],
+            ray.direction[1],
+            ray.direction[2],
+            ray.tmin,
+            ray.tmax,
+        ];
+        bytes.extend(fields.iter().flat_map(|x| x.to_le_bytes()));
+    }
+    bytes
+}
+
+/// `t nx ny nz` per ray; a miss is `+inf 0 0 0`.
+pub fn encode_hits(hits: &[Option<Hit>]) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(hits.len() * 16);
+    for hit in hits {
+        let fields = match hit {
+            Some(hit) => [hit.t, hit.normal[0], hit.normal[1], hit.normal[2]],
+            None => [f32::INFINITY, 0.0, 0.0, 0.0],
+        };
+        bytes.extend(fields.iter().flat_map(|x| x.to_le_bytes()));
+    }
+    bytes
+}
+
+/// One byte per ray, 1 when occluded.
+pub fn encode_occlusion(occluded: &[bool]) -> Vec<u8> {
+    occluded.iter().map(|&o| o as u8).collect()
+}
+
+/// Writes `bytes` to a temporary file beside `path` and renames it into place.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    atomic::write_atomically(path, |out| out.write_all(bytes))
+}

@@ -1,0 +1,176 @@
+//! `reducem query`: ray files against the library, and malformed ray files rejected.
+
+mod trace_support;
+
+use std::path::Path;
+use std::process::Command;
+
+use reducem::trace::ray_file::{encode_rays, RAY_BYTES};
+use reducem::trace::{Ray, TraceOptions, Tracer};
+use trace_support::*;
+
+fn run_query(model: &Path, rays: &Path, out: &Path, occluded: bool) -> std::process::Output {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_reducem"));
+    command
+        .arg("query")
+        .arg(model)
+        .arg("--rays")
+        .arg(rays)
+        .arg("-o")
+        .arg(out);
+    if occluded {
+        command.arg("--occluded");
+    }
+    command.output().expect("run reducem")
+}
+
+fn f32s(bytes: &[u8]) -> Vec<f32> {
+    bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect()
+}
+
+fn sample_rays() -> Vec<Ray> {
+    let mut rng = Rng::new(17);
+    (0..500)
+        .map(|_| {
+            let origin = [
+                rng.range(-6.0, 6.0),
+                rng.range(-6.0, 6.0),
+                rng.range(-3.0, 3.0),
+            ];
+            let target = [
+                rng.range(-4.0, 4.0),
+                rng.range(-4.0, 4.0),
+                rng.range(-1.0, 1.0),
+            ];
+            let mut ray = ray_towards(origin, target);
+            ray.tmax = if rng.unit() < 0.5 {
+                f32::INFINITY
+            } else {
+                rng.range(0.1, 2.0)
+            };
+            ray
+        })
+        .collect()
+}
+
+#[test]
+fn query_round_trip_matches_the_library() {
+    let mesh = torus(20, 10);
+    let model = temp_path("query-torus.rdm");
+    write_strips(&mesh, &long_strips(&mesh, 50), 2, &model);
+    let file = reducem::format::reader::ReducemFile::open(&model).expect("open");
+    let tracer = Tracer::new(&file, TraceOptions::default());
+    let rays = sample_rays();
+    let ray_path = temp_path("query.rays");
+    std::fs::write(&ray_path, encode_rays(&rays)).expect("write rays");
+
+    let hits_path = temp_path("query.hits");
+    let output = run_query(&model, &ray_path, &hits_path, false);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let values = f32s(&std::fs::read(&hits_path).expect("hits"));
+    assert_eq!(values.len(), 4 * rays.len());
+    let mut hit_count = 0;
+    for (ray, record) in rays.iter().zip(values.chunks_exact(4)) {
+        match tracer.intersect(ray) {
+            Some(hit) => {
+                hit_count += 1;
+                assert_eq!(record[0].to_bits(), hit.t.to_bits());
+                assert_eq!(record[1..], hit.normal[..]);
+            }
+            None => assert_eq!(record, [f32::INFINITY, 0.0, 0.0, 0.0]),
+        }
+    }
+    assert!(hit_count > 50 && hit_count < rays.len());
+
+    let occluded_path = temp_path("query.occluded");
+    let output = run_query(&model, &ray_path, &occluded_path, true);
+    assert!(output.status.success());
+    let bytes = std::fs::read(&occluded_path).expect("occluded");
+    let expected: Vec<u8> = rays.iter().map(|r| tracer.occluded(r) as u8).collect();
+    assert_eq!(bytes, expected);
+}
+
+/// Runs a query over `bytes` as the ray file; it must fail with `expected` in the message and
+/// write nothing.
+fn assert_rejected(bytes: &[u8], name: &str, expected: &str) {
+    let mesh = grid(3, 3);
+    let model = temp_path("query-grid.rdm");
+    write_strips(&mesh, &long_strips(&mesh, 10), 2, &model);
+    let ray_path = temp_path(name);
+    std::fs::write(&ray_path, bytes).expect("write rays");
+    let out = temp_path(&format!("{name}.hits"));
+    let output = run_query(&model, &ray_path, &out, false);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{name} accepted");
+    assert!(
+        stderr.contains(name),
+        "message does not name the file: {stderr}"
+    );
+    assert!(
+        stderr.contains(expected),
+        "expected {expected:?} in: {stderr}"
+    );
+    assert!(!out.exists(), "output written for {name}");
+}
+
+fn good_ray() -> Ray {
+    Ray {
+        origin: [0.5, 0.5, 3.0],
+        direction: [0.0, 0.0, -1.0],
+        tmin: 0.0,
+        tmax: f32::INFINITY,
+    }
+}
+
+#[test]
+fn malformed_ray_files_are_rejected_with_position() {
+    let two = encode_rays(&[good_ray(), good_ray()]);
+    assert_rejected(
+        &two[..RAY_BYTES + 20],
+        "truncated.rays",
+        "52 bytes is not a multiple of 32 (8 little-endian f32 per ray): ray 1 at byte 32",
+    );
+    let nan = encode_rays(&[
+        good_ray(),
+        Ray {
+            origin: [0.0, f32::NAN, 0.0],
+            ..good_ray()
+        },
+    ]);
+    assert_rejected(&nan, "nan.rays", "ray 1 at byte 36: oy is NaN");
+    let zero = encode_rays(&[Ray {
+        direction: [0.0, -0.0, 0.0],
+        ..good_ray()
+    }]);
+    assert_rejected(&zero, "zero.rays", "ray 0 at byte 12: direction is zero");
+    let reversed = encode_rays(&[
+        good_ray(),
+        good_ray(),
+        Ray {
+            tmin: 2.0,
+            tmax: 1.0,
+            ..good_ray()
+        },
+    ]);
+    assert_rejected(
+        &reversed,
+        "reversed.rays",
+        "ray 2 at byte 88: tmin 2 is greater than tmax 1",
+    );
+    let negative = encode_rays(&[Ray {
+        tmin: -1.0,
+        ..good_ray()
+    }]);
+    assert_rejected(
+        &negative,
+        "negative.rays",
+        "ray 0 at byte 24: tmin -1 is negative",
+    );
+}
