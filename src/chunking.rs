@@ -19,7 +19,10 @@ use crate::mesh::Mesh;
 /// windows, triangles in input order, and positions of chosen vertices.
 pub trait MeshSource {
     fn vertex_count(&self) -> u64;
-    fn for_each_position_window(&self, visit: &mut dyn FnMut(u64, &[Point])) -> Result<(), InputError>;
+    fn for_each_position_window(
+        &self,
+        visit: &mut dyn FnMut(u64, &[Point]),
+    ) -> Result<(), InputError>;
     fn for_each_triangle(&self, visit: &mut dyn FnMut(u64, [u32; 3])) -> Result<(), InputError>;
     /// Positions of `sorted_ids` (strictly ascending), in that order.
     fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError>;
@@ -31,7 +34,10 @@ impl MeshSource for Mesh {
         self.positions.len() as u64
     }
 
-    fn for_each_position_window(&self, visit: &mut dyn FnMut(u64, &[Point])) -> Result<(), InputError> {
+    fn for_each_position_window(
+        &self,
+        visit: &mut dyn FnMut(u64, &[Point]),
+    ) -> Result<(), InputError> {
         visit(0, &self.positions);
         Ok(())
     }
@@ -44,7 +50,10 @@ impl MeshSource for Mesh {
     }
 
     fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError> {
-        Ok(sorted_ids.iter().map(|&v| self.positions[v as usize]).collect())
+        Ok(sorted_ids
+            .iter()
+            .map(|&v| self.positions[v as usize])
+            .collect())
     }
 }
 
@@ -203,7 +212,11 @@ impl ChunkPlan {
 
 /// Builds a chunk's mesh from its triangles as global vertex indices: the distinct vertices,
 /// ascending, become the chunk's local vertex array (`positions` are theirs, in that order).
-pub fn local_mesh(triangles: &[[u32; 3]], distinct_vertices: &[u32], positions: Vec<Point>) -> Mesh {
+pub fn local_mesh(
+    triangles: &[[u32; 3]],
+    distinct_vertices: &[u32],
+    positions: Vec<Point>,
+) -> Mesh {
     let local = |v: u32| distinct_vertices.partition_point(|&d| d < v) as u32;
     Mesh {
         positions,

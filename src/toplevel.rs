@@ -320,9 +320,16 @@ pub enum SpliceItem {
 /// hierarchy is built like the per-chunk ones with one chunk per leaf. Chunks without strips are
 /// left out.
 pub fn splice(subtrees: &[Subtree], params: &TopLevelParams) -> Vec<SpliceItem> {
-    let used: Vec<usize> = (0..subtrees.len()).filter(|&i| subtrees[i].strip_count > 0).collect();
+    let used: Vec<usize> = (0..subtrees.len())
+        .filter(|&i| subtrees[i].strip_count > 0)
+        .collect();
     if used.is_empty() {
-        return vec![SpliceItem::Node(TopNode::leaf(Aabb::EMPTY.min, Aabb::EMPTY.max, 0, 0))];
+        return vec![SpliceItem::Node(TopNode::leaf(
+            Aabb::EMPTY.min,
+            Aabb::EMPTY.max,
+            0,
+            0,
+        ))];
     }
     let bounds: Vec<Aabb> = used.iter().map(|&i| subtrees[i].bounds).collect();
     let upper_params = TopLevelParams {

@@ -89,7 +89,18 @@ impl ReducemFile {
             source,
         };
         let file = File::open(path).map_err(io_error)?;
+        let validated = Self::validate(path, map_file(&file).map_err(io_error)?)?;
+        // Validation paged in the whole file. Serving traversal from a fresh mapping of the same
+        // (never modified in place) file keeps the resident set to the pages rays really reach.
         let map = map_file(&file).map_err(io_error)?;
+        if map.len() != validated.map.len() {
+            let detail = "the file changed size while it was being opened".to_string();
+            return Err(validated.invalid("file", 0, detail));
+        }
+        Ok(ReducemFile { map, ..validated })
+    }
+
+    fn validate(path: &Path, map: Mmap) -> Result<ReducemFile, FormatError> {
         let checker = Checker { path, map: &map };
         let header = checker.header()?;
         let sections = checker.sections(&header)?;

@@ -68,11 +68,9 @@ pub fn write_streaming(
     info: &FileInfo,
     source: &mut impl SectionSource,
 ) -> Result<(), WriteError> {
-    write_atomically(path, |out| write_sections(out, info, source)).map_err(|source| {
-        WriteError {
-            path: path.to_path_buf(),
-            source,
-        }
+    write_atomically(path, |out| write_sections(out, info, source)).map_err(|source| WriteError {
+        path: path.to_path_buf(),
+        source,
     })
 }
 
