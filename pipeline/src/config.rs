@@ -21,6 +21,8 @@ pub struct Config {
     pub input: InputConfig,
     pub output: OutputConfig,
     #[serde(default)]
+    pub chunk: ChunkConfig,
+    #[serde(default)]
     pub strip: StripConfig,
     #[serde(default)]
     pub work: WorkConfig,
@@ -47,6 +49,23 @@ pub struct GenerateConfig {
 #[serde(deny_unknown_fields)]
 pub struct OutputConfig {
     pub path: PathBuf,
+}
+
+/// Out-of-core partition parameters.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ChunkConfig {
+    /// Most triangles per chunk. The default keeps one chunk's Strip-RT and encoding within
+    /// about 1 GiB (roughly 250 bytes per triangle at peak).
+    pub max_triangles: u64,
+}
+
+impl Default for ChunkConfig {
+    fn default() -> Self {
+        ChunkConfig {
+            max_triangles: 4_000_000,
+        }
+    }
 }
 
 /// Strip-RT and strip-encoding parameters; defaults are the paper's.
@@ -103,6 +122,9 @@ impl Config {
         config.resolve_paths(path.parent().unwrap_or(Path::new("")));
         config.input().map_err(error)?;
         config.build_params().check().map_err(error)?;
+        if config.chunk.max_triangles == 0 {
+            return Err(error("[chunk] max_triangles must be at least 1".into()));
+        }
         Ok(config)
     }
 

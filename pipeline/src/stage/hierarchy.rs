@@ -1,0 +1,101 @@
+//! Stage *hierarchy*: the global hierarchy over all strips, as an upper SAH hierarchy over the
+//! chunks' own hierarchies (`reducem::toplevel::splice`). Its output is the final node order:
+//! upper nodes and, for each chunk, where its nodes and strips start.
+
+use reducem::format::TopNode;
+use reducem::toplevel::{splice, SpliceItem, Subtree, TopLevelParams};
+use serde::{Deserialize, Serialize};
+
+use crate::fingerprint::Fingerprint;
+use crate::manifest::Freshness;
+use crate::stage::merge::Merged;
+use crate::stage::{read_json, write_json, Job};
+
+pub const UNIT: &str = "hierarchy";
+const PLAN: &str = "hierarchy.json";
+
+/// One step of the final node order (see [`SpliceItem`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Step {
+    Node { min: [f32; 3], max: [f32; 3], payload: u32, kind: u32 },
+    Chunk { index: usize, node_base: u32, strip_base: u32 },
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Hierarchy {
+    pub digest: String,
+    pub steps: Vec<Step>,
+}
+
+pub fn fingerprint(merged: &Merged) -> Fingerprint {
+    Fingerprint::new()
+        .with("merge_stage", &merged.digest)
+        .with("top_level", format!("{:?}", TopLevelParams::default()))
+}
+
+pub fn fresh_result(job: &Job, fingerprint: &Fingerprint) -> Option<Hierarchy> {
+    (job.freshness(UNIT, fingerprint) == Freshness::Fresh)
+        .then(|| read_json(&job.work.file(PLAN)).ok())
+        .flatten()
+        .filter(|hierarchy: &Hierarchy| hierarchy.digest == fingerprint.digest())
+}
+
+pub fn run(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
+    let fingerprint = fingerprint(merged);
+    if let Some(hierarchy) = fresh_result(job, &fingerprint) {
+        job.progress.event(UNIT, "skip", "fresh");
+        return Ok(hierarchy);
+    }
+    let progress = job.progress.stage(UNIT, merged.chunks.len() as u64, "chunks");
+    let subtrees: Vec<Subtree> = merged
+        .chunks
+        .iter()
+        .map(|c| Subtree {
+            bounds: reducem::geometry::Aabb {
+                min: c.bounds_min,
+                max: c.bounds_max,
+            },
+            node_count: c.nodes,
+            strip_count: c.strips,
+        })
+        .collect();
+    let steps = splice(&subtrees, &TopLevelParams::default()).into_iter().map(step).collect();
+    let hierarchy = Hierarchy {
+        digest: fingerprint.digest(),
+        steps,
+    };
+    write_json(&job.work.file(PLAN), &hierarchy)?;
+    job.complete(UNIT, &fingerprint, &[PLAN.to_string()])?;
+    progress.advance(merged.chunks.len() as u64);
+    progress.finish("");
+    Ok(hierarchy)
+}
+
+fn step(item: SpliceItem) -> Step {
+    match item {
+        SpliceItem::Node(node) => Step::Node {
+            min: node.min,
+            max: node.max,
+            payload: node.payload,
+            kind: node.kind,
+        },
+        SpliceItem::Subtree {
+            index,
+            node_base,
+            strip_base,
+        } => Step::Chunk {
+            index,
+            node_base,
+            strip_base,
+        },
+    }
+}
+
+impl Step {
+    pub fn node(&self) -> Option<TopNode> {
+        match *self {
+            Step::Node { min, max, payload, kind } => Some(TopNode { min, max, payload, kind }),
+            Step::Chunk { .. } => None,
+        }
+    }
+}

@@ -1,0 +1,102 @@
+//! Stage *merge*: gathers every chunk's strip summary (strip, node and data sizes, bounds and
+//! statistics) into one table, and fixes where each chunk's strip blocks will sit in the final
+//! strip-data section. Reads only the 104-byte chunk headers.
+
+use anyhow::Context;
+use reducem::build::ChunkStats;
+use reducem::geometry::Aabb;
+use serde::{Deserialize, Serialize};
+
+use crate::chunk_io::StripChunk;
+use crate::fingerprint::Fingerprint;
+use crate::manifest::Freshness;
+use crate::stage::{read_json, write_json, Job};
+use crate::workdir::strip_chunk;
+
+pub const UNIT: &str = "merge";
+const TABLE: &str = "merge.json";
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ChunkSummary {
+    pub strips: u32,
+    pub nodes: u32,
+    pub data_bytes: u64,
+    pub bounds_min: [f32; 3],
+    pub bounds_max: [f32; 3],
+    /// triangles, dropped, input vertices, stored vertices, hierarchy vertices, max strip length.
+    pub stats: [u64; 6],
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Merged {
+    pub digest: String,
+    pub chunks: Vec<ChunkSummary>,
+}
+
+impl Merged {
+    pub fn stats(&self) -> ChunkStats {
+        let mut total = ChunkStats::default();
+        for chunk in &self.chunks {
+            let [triangles, dropped_triangles, input_vertices, stored_vertices, hierarchy_vertices, max_strip_length] =
+                chunk.stats;
+            total.add(&ChunkStats {
+                triangles,
+                dropped_triangles,
+                input_vertices,
+                stored_vertices,
+                hierarchy_vertices,
+                max_strip_length,
+            });
+        }
+        total
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        self.chunks
+            .iter()
+            .filter(|c| c.strips > 0)
+            .fold(Aabb::EMPTY, |b, c| b.union(&Aabb { min: c.bounds_min, max: c.bounds_max }))
+    }
+}
+
+pub fn fingerprint(strip_digest: &str) -> Fingerprint {
+    Fingerprint::new().with("strip_stage", strip_digest)
+}
+
+pub fn fresh_result(job: &Job, fingerprint: &Fingerprint) -> Option<Merged> {
+    (job.freshness(UNIT, fingerprint) == Freshness::Fresh)
+        .then(|| read_json(&job.work.file(TABLE)).ok())
+        .flatten()
+        .filter(|merged: &Merged| merged.digest == fingerprint.digest())
+}
+
+pub fn run(job: &Job, chunk_count: usize, strip_digest: &str) -> anyhow::Result<Merged> {
+    let fingerprint = fingerprint(strip_digest);
+    if let Some(merged) = fresh_result(job, &fingerprint) {
+        job.progress.event(UNIT, "skip", "fresh");
+        return Ok(merged);
+    }
+    let progress = job.progress.stage(UNIT, chunk_count as u64, "chunks");
+    let mut chunks = Vec::with_capacity(chunk_count);
+    for chunk in 0..chunk_count {
+        let path = job.work.file(&strip_chunk(chunk));
+        let header = StripChunk::open(&path).with_context(|| format!("reading {}", path.display()))?.header;
+        chunks.push(ChunkSummary {
+            strips: header.strip_count as u32,
+            nodes: header.node_count as u32,
+            data_bytes: header.data_bytes,
+            bounds_min: header.bounds_min,
+            bounds_max: header.bounds_max,
+            stats: header.stats,
+        });
+        progress.advance(1);
+    }
+    let merged = Merged {
+        digest: fingerprint.digest(),
+        chunks,
+    };
+    write_json(&job.work.file(TABLE), &merged)?;
+    job.complete(UNIT, &fingerprint, &[TABLE.to_string()])?;
+    progress.finish(&format!(", {} strips", merged.chunks.iter().map(|c| c.strips as u64).sum::<u64>()));
+    Ok(merged)
+}

@@ -1,0 +1,141 @@
+//! Stage *write*: streams the final ReduceM file from the strip chunks in hierarchy order (nodes,
+//! then records, then strip data, each chunk's part in turn), writes it atomically (temporary
+//! file, fsync, rename; an earlier output survives any failure) and verifies it by opening it.
+
+use std::io::{self, Write};
+use std::path::PathBuf;
+
+use anyhow::Context;
+use reducem::format::reader::ReducemFile;
+use reducem::format::writer::{write_streaming, FileInfo, SectionSource};
+use reducem::format::SectionKind;
+use reducem::toplevel::relocate;
+
+use crate::chunk_io::StripChunk;
+use crate::fingerprint::Fingerprint;
+use crate::manifest::Freshness;
+use crate::stage::hierarchy::{Hierarchy, Step};
+use crate::stage::merge::Merged;
+use crate::stage::Job;
+use crate::workdir::strip_chunk;
+
+pub const UNIT: &str = "write";
+
+pub fn output_path(job: &Job) -> PathBuf {
+    std::path::absolute(&job.config.output.path).unwrap_or_else(|_| job.config.output.path.clone())
+}
+
+pub fn fingerprint(job: &Job, hierarchy: &Hierarchy) -> Fingerprint {
+    Fingerprint::new()
+        .with("hierarchy_stage", &hierarchy.digest)
+        .with("output.path", output_path(job).display())
+}
+
+pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<()> {
+    let fingerprint = fingerprint(job, hierarchy);
+    let output = output_path(job);
+    if job.freshness(UNIT, &fingerprint) == Freshness::Fresh {
+        job.progress.event(UNIT, "skip", &format!("fresh: {}", output.display()));
+        return Ok(());
+    }
+    let progress = job.progress.stage(UNIT, 3, "sections");
+    if let Some(parent) = output.parent() {
+        std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
+    }
+    let info = FileInfo {
+        stats: merged.stats(),
+        leaf_windows: job.config.strip.leaf_triangles,
+        max_strip_length: job.config.strip.max_length,
+        bounds: merged.bounds(),
+    };
+    let mut source = Spliced::new(job, merged, hierarchy)?;
+    write_streaming(&output, &info, &mut source)?;
+    progress.advance(3);
+    ReducemFile::open(&output).context("verifying the written file")?;
+    job.complete(UNIT, &fingerprint, &[output.display().to_string()])?;
+    let bytes = std::fs::metadata(&output)?.len();
+    progress.finish(&format!(
+        ": {} ({} triangles, {:.2} bytes/triangle)",
+        output.display(),
+        info.stats.triangles,
+        bytes as f64 / info.stats.triangles.max(1) as f64
+    ));
+    Ok(())
+}
+
+/// The final file's sections, read chunk by chunk from the strip stage's outputs.
+struct Spliced<'a> {
+    job: &'a Job<'a>,
+    steps: &'a [Step],
+    strip_count: u64,
+    /// Where each chunk's strip blocks start in the strip-data section, in 4-byte words.
+    data_word_base: Vec<u32>,
+}
+
+impl<'a> Spliced<'a> {
+    fn new(job: &'a Job<'a>, merged: &'a Merged, hierarchy: &'a Hierarchy) -> anyhow::Result<Spliced<'a>> {
+        let mut data_word_base = vec![0u32; merged.chunks.len()];
+        let mut words = 0u64;
+        for step in &hierarchy.steps {
+            if let Step::Chunk { index, .. } = *step {
+                data_word_base[index] = u32::try_from(words).context("strip data exceeds 16 GiB")?;
+                words += merged.chunks[index].data_bytes / 4;
+            }
+        }
+        Ok(Spliced {
+            job,
+            steps: &hierarchy.steps,
+            strip_count: merged.chunks.iter().map(|c| c.strips as u64).sum(),
+            data_word_base,
+        })
+    }
+
+    fn chunk(&self, index: usize) -> io::Result<StripChunk> {
+        let path = self.job.work.file(&strip_chunk(index));
+        StripChunk::open(&path).map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", path.display())))
+    }
+
+    fn chunks(&self) -> impl Iterator<Item = (usize, u32, u32)> + '_ {
+        self.steps.iter().filter_map(|step| match *step {
+            Step::Chunk {
+                index,
+                node_base,
+                strip_base,
+            } => Some((index, node_base, strip_base)),
+            Step::Node { .. } => None,
+        })
+    }
+}
+
+impl SectionSource for Spliced<'_> {
+    fn strip_count(&self) -> u64 {
+        self.strip_count
+    }
+
+    fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()> {
+        match kind {
+            SectionKind::TopNodes => self.steps.iter().try_for_each(|step| match *step {
+                Step::Node { .. } => out.write_all(bytemuck::bytes_of(&step.node().unwrap_or_default())),
+                Step::Chunk {
+                    index,
+                    node_base,
+                    strip_base,
+                } => {
+                    let nodes = self.chunk(index)?.nodes()?;
+                    let moved: Vec<_> = nodes.iter().map(|n| relocate(n, node_base, strip_base)).collect();
+                    out.write_all(bytemuck::cast_slice(&moved))
+                }
+            }),
+            SectionKind::StripRecords => self.chunks().try_for_each(|(index, _, _)| {
+                let mut records = self.chunk(index)?.records()?;
+                for record in &mut records {
+                    record.data_word += self.data_word_base[index];
+                }
+                out.write_all(bytemuck::cast_slice(&records))
+            }),
+            SectionKind::StripData => self
+                .chunks()
+                .try_for_each(|(index, _, _)| self.chunk(index)?.copy_data(out)),
+        }
+    }
+}
