@@ -577,20 +577,51 @@ fn vertices_with_lists_are_not_streamable_but_their_triangles_are() {
 // ---------------------------------------------------------------------------------------------
 // Resident memory on a large file
 
-/// Peak resident set size of this process so far, in bytes (Linux `VmHWM`).
-fn peak_resident_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|line| line.starts_with("VmHWM:"))?;
-    let kibibytes: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kibibytes * 1024)
-}
-
-/// Restarts the peak so that each measured phase reports only its own peak (Linux ≥ 4.0).
-fn reset_peak_resident() {
-    std::fs::write("/proc/self/clear_refs", "5").expect("reset VmHWM");
+/// A `/proc/self/status` field in bytes (Linux).
+fn status_bytes(field: &str) -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").expect("read /proc/self/status");
+    let line = status.lines().find(|line| line.starts_with(field));
+    let kibibytes = line.and_then(|line| line.split_whitespace().nth(1));
+    kibibytes.and_then(|k| k.parse::<u64>().ok()).expect(field) * 1024
 }
 
 const MIB: f64 = (1 << 20) as f64;
+
+/// Runs `work` and prints its time, throughput over `file_bytes`, and peak resident memory
+/// (`VmHWM`, restarted just before through `clear_refs`, Linux ≥ 4.0) next to the resident
+/// memory it started from. Returns the peak.
+fn measure(label: &str, file_bytes: u64, work: impl FnOnce()) -> u64 {
+    std::fs::write("/proc/self/clear_refs", "5").expect("restart VmHWM");
+    let before = status_bytes("VmRSS:");
+    let start = Instant::now();
+    work();
+    let seconds = start.elapsed().as_secs_f64();
+    let peak = status_bytes("VmHWM:");
+    println!(
+        "{label}: {seconds:.2} s ({:.0} MiB/s), peak RSS {:.0} MiB (from {:.0} MiB)",
+        file_bytes as f64 / MIB / seconds,
+        peak as f64 / MIB,
+        before as f64 / MIB
+    );
+    peak
+}
+
+/// Streams positions and triangles, returning vertex count, triangle count and index sum.
+fn stream_all(path: &std::path::Path, window_bytes: usize) -> (u64, u64, u64) {
+    let stream = PlyStream::open(path).unwrap();
+    let mut vertices = 0u64;
+    stream
+        .for_each_position_window(window_bytes, |_, window| vertices += window.len() as u64)
+        .unwrap();
+    let (mut triangles, mut index_sum) = (0u64, 0u64);
+    stream
+        .for_each_triangle(window_bytes, |_, triangle| {
+            triangles += 1;
+            index_sum += u64::from(triangle[0]);
+        })
+        .unwrap();
+    (vertices, triangles, index_sum)
+}
 
 #[test]
 #[ignore = "generates a ~10M-triangle file and measures memory; run with --ignored --nocapture"]
@@ -599,56 +630,35 @@ fn streaming_10m_triangles_keeps_resident_memory_near_the_window_size() {
     let path = directory.path().join("scan-10m.ply");
     reducem::gen::generate(reducem::gen::Kind::Scan, 10_000_000, 1, &path).unwrap();
     let file_bytes = std::fs::metadata(&path).unwrap().len();
-    let window_bytes = 64 << 20;
+    println!("file {:.0} MiB", file_bytes as f64 / MIB);
 
-    reset_peak_resident();
-    let start = Instant::now();
-    let stream = PlyStream::open(&path).unwrap();
-    let mut vertices = 0u64;
-    stream
-        .for_each_position_window(window_bytes, |_, window| vertices += window.len() as u64)
-        .unwrap();
-    let mut triangles = 0u64;
-    let mut index_sum = 0u64;
-    stream
-        .for_each_triangle(window_bytes, |_, triangle| {
-            triangles += 1;
-            index_sum += u64::from(triangle[0]);
-        })
-        .unwrap();
-    let streamed_seconds = start.elapsed().as_secs_f64();
-    let streamed_peak = peak_resident_bytes().unwrap();
-
-    reset_peak_resident();
-    let start = Instant::now();
-    let whole = PlyFile::open(&path).unwrap();
-    let whole_vertices = whole.read_positions().unwrap().len() as u64;
-    let mut whole_index_sum = 0u64;
-    whole
-        .for_each_triangle(|_, triangle| whole_index_sum += u64::from(triangle[0]))
-        .unwrap();
-    let whole_seconds = start.elapsed().as_secs_f64();
-    let whole_peak = peak_resident_bytes().unwrap();
-
-    let file_mib = file_bytes as f64 / MIB;
-    println!(
-        "file {file_mib:.0} MiB, {vertices} vertices, {triangles} triangles, \
-         window {} MiB",
-        window_bytes >> 20
-    );
-    println!(
-        "PlyStream: {streamed_seconds:.2} s ({:.0} MiB/s), peak RSS {:.0} MiB",
-        file_mib / streamed_seconds,
-        streamed_peak as f64 / MIB
-    );
-    println!(
-        "PlyFile:   {whole_seconds:.2} s ({:.0} MiB/s), peak RSS {:.0} MiB",
-        file_mib / whole_seconds,
-        whole_peak as f64 / MIB
-    );
-    assert_eq!((whole_vertices, whole_index_sum), (vertices, index_sum));
-    assert!(
-        streamed_peak < whole_peak,
-        "windows must not touch the whole file at once"
-    );
+    let mut whole_counts = (0, 0, 0);
+    let whole_peak = measure("PlyFile (whole mapping)", file_bytes, || {
+        let whole = PlyFile::open(&path).unwrap();
+        let (mut triangles, mut index_sum) = (0u64, 0u64);
+        whole
+            .for_each_triangle(|_, triangle| {
+                triangles += 1;
+                index_sum += u64::from(triangle[0]);
+            })
+            .unwrap();
+        whole_counts = (
+            whole.read_positions().unwrap().len() as u64,
+            triangles,
+            index_sum,
+        );
+    });
+    for window_mib in [64, 16] {
+        let mut counts = (0, 0, 0);
+        let label = format!("PlyStream ({window_mib} MiB windows)");
+        let peak = measure(&label, file_bytes, || {
+            counts = stream_all(&path, window_mib << 20)
+        });
+        assert_eq!(counts, whole_counts);
+        assert!(
+            peak < whole_peak,
+            "windows must not touch the whole file at once"
+        );
+    }
+    println!("{} vertices, {} triangles", whole_counts.0, whole_counts.1);
 }
