@@ -95,6 +95,10 @@ pub enum InputErrorKind {
         min_bytes_each: u64,
         remaining: u64,
     },
+    /// Windowed reading (`input::stream`) needs a binary body, and a fixed vertex size for
+    /// positions; other files are read whole.
+    #[error("the body cannot be read window by window: {0}")]
+    NotStreamable(&'static str),
     #[error("{vertex_count} vertices cannot be indexed with 32 bits")]
     TooManyVertices { vertex_count: u64 },
     #[error("file ends in the middle of the element ({needed} more bytes needed)")]

@@ -1,13 +1,16 @@
 //! Mesh input: PLY (binary little/big endian and ASCII) and OBJ, triangulated and welded.
 //!
-//! [`read_mesh`] is the one-call entry point. [`PlyFile`] is exposed separately so the
-//! out-of-core chunker can stream positions and triangles without building a [`Mesh`].
+//! [`read_mesh`] is the one-call entry point. [`PlyFile`] is exposed separately so callers
+//! can read positions and triangles without building a [`Mesh`], and [`PlyStream`] reads
+//! binary PLY window by window so the out-of-core chunker's memory stays bounded by the window
+//! rather than the file size.
 //! Every reader triangulates polygons as fans `(v0, vi, vi+1)`, keeping winding; welding is a
 //! separate pass so that both formats share it and streaming callers can skip it.
 
 mod error;
 mod obj;
 mod ply;
+pub mod stream;
 mod weld;
 
 use std::path::Path;
@@ -15,6 +18,7 @@ use std::path::Path;
 pub use error::{InputError, InputErrorKind, Location};
 pub use obj::read_obj;
 pub use ply::PlyFile;
+pub use stream::PlyStream;
 pub use weld::weld_identical_positions;
 
 use crate::mesh::Mesh;

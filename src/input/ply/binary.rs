@@ -1,8 +1,9 @@
-//! Reading values from a binary (little or big endian) PLY body in the mapped file.
+//! Reading values from a binary (little or big endian) PLY body in a mapped file or window.
 //!
-//! The reader indexes the whole mapping with file-absolute positions, so a defect's byte
-//! offset is simply the reader's position and parallel workers can each start a reader at
-//! their own block. Every read is bounds-checked and turns a short file into a `Truncated`
+//! The reader indexes its byte slice directly and knows the file offset of the slice's first
+//! byte (its origin: 0 for a whole-file mapping, the window start for a windowed one), so a
+//! defect's byte offset is always absolute in the file while positions stay cheap slice
+//! indices. Parallel workers can each start a reader at their own block. Every read is bounds-checked and turns a short file into a `Truncated`
 //! defect rather than a panic. Values are assembled with `from_le_bytes` after reversing
 //! big-endian bytes, which keeps one code path per type.
 
@@ -12,6 +13,7 @@ use crate::input::error::InputErrorKind;
 
 pub struct BinaryReader<'a> {
     bytes: &'a [u8],
+    origin: u64,
     position: usize,
     last_value: usize,
     endian: Endian,
@@ -21,12 +23,19 @@ impl<'a> BinaryReader<'a> {
     pub fn new(bytes: &'a [u8], position: usize, endian: Endian) -> BinaryReader<'a> {
         BinaryReader {
             bytes,
+            origin: 0,
             position,
             last_value: position,
             endian,
         }
     }
 
+    /// Declares that `bytes[0]` is at file offset `origin`, for readers over a window.
+    pub fn with_origin(self, origin: u64) -> BinaryReader<'a> {
+        BinaryReader { origin, ..self }
+    }
+
+    /// Position in the slice (not in the file).
     pub fn position(&self) -> usize {
         self.position
     }
@@ -56,10 +65,14 @@ impl<'a> BinaryReader<'a> {
         Ok(value)
     }
 
+    fn file_offset(&self, position: usize) -> u64 {
+        self.origin + position as u64
+    }
+
     fn truncated(&self, needed: u64) -> Defect {
         Defect {
             kind: InputErrorKind::Truncated { needed },
-            byte_offset: self.position as u64,
+            byte_offset: self.file_offset(self.position),
             line: None,
         }
     }
@@ -69,7 +82,7 @@ impl ValueReader for BinaryReader<'_> {
     fn defect_at_last_value(&self, kind: InputErrorKind) -> Defect {
         Defect {
             kind,
-            byte_offset: self.last_value as u64,
+            byte_offset: self.file_offset(self.last_value),
             line: None,
         }
     }
@@ -87,7 +100,7 @@ impl ValueReader for BinaryReader<'_> {
                     kind: InputErrorKind::UnsupportedProperty(
                         "floating-point value where an integer is required".into(),
                     ),
-                    byte_offset: self.position as u64,
+                    byte_offset: self.file_offset(self.position),
                     line: None,
                 });
             }

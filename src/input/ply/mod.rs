@@ -11,13 +11,17 @@
 //! left in the file (`count × smallest possible instance ≤ remaining`), so a corrupt header
 //! claiming 2^40 faces fails at once instead of looping or allocating. That check also bounds
 //! every allocation made later by the file size.
+//!
+//! The decoders (`binary`, `elements`, `parallel`, `header`, `values`) are crate-visible so
+//! that `input::stream` can run them over bounded windows of the file instead of one
+//! whole-file mapping; [`PlyFile::into_layout`] hands it the parsed layout without the mapping.
 
 mod ascii;
-mod binary;
-mod elements;
-mod header;
-mod parallel;
-mod values;
+pub(crate) mod binary;
+pub(crate) mod elements;
+pub(crate) mod header;
+pub(crate) mod parallel;
+pub(crate) mod values;
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -42,6 +46,14 @@ struct ElementStart {
     line: u64,
 }
 
+/// A PLY file's parsed header and where its mesh elements start, without the mapping.
+pub(crate) struct PlyLayout {
+    pub header: Header,
+    pub file_length: u64,
+    pub vertex_start: u64,
+    pub face_start: u64,
+}
+
 /// An opened PLY file, ready to decode.
 pub struct PlyFile {
     path: PathBuf,
@@ -53,11 +65,13 @@ pub struct PlyFile {
 
 impl PlyFile {
     pub fn open(path: &Path) -> Result<PlyFile, InputError> {
-        let io_error = |error: std::io::Error| {
-            InputError::new(path, Location::File, InputErrorKind::Io(error.to_string()))
-        };
-        let file = File::open(path).map_err(io_error)?;
-        let bytes = map_file(&file).map_err(io_error)?;
+        let file = File::open(path).map_err(|error| io_error(path, &error))?;
+        PlyFile::open_file(path, &file)
+    }
+
+    /// Opens an already open `file`, naming it `path` in errors.
+    pub(crate) fn open_file(path: &Path, file: &File) -> Result<PlyFile, InputError> {
+        let bytes = map_file(file).map_err(|error| io_error(path, &error))?;
         let header = header::parse_header(path, &bytes)?;
         let vertex_count = header.elements[header.vertex.element].count;
         if vertex_count > 1 << 32 {
@@ -72,6 +86,16 @@ impl PlyFile {
             bytes,
             header,
         })
+    }
+
+    /// Drops the mapping, keeping what is needed to map the elements again window by window.
+    pub(crate) fn into_layout(self) -> PlyLayout {
+        PlyLayout {
+            file_length: self.bytes.len() as u64,
+            vertex_start: self.vertex_start.offset as u64,
+            face_start: self.face_start.offset as u64,
+            header: self.header,
+        }
     }
 
     pub fn vertex_count(&self) -> u64 {
@@ -167,7 +191,9 @@ impl PlyFile {
             path: &self.path,
             name: &element.name,
             bytes: &self.bytes,
+            origin: 0,
             start: start.offset,
+            first_index: 0,
             // Fits in memory: `fits` bounded count × stride by the mapped length.
             count: element.count as usize,
             endian,
@@ -216,6 +242,10 @@ impl PlyFile {
         }
         Ok(())
     }
+}
+
+pub(crate) fn io_error(path: &Path, error: &std::io::Error) -> InputError {
+    InputError::new(path, Location::File, InputErrorKind::Io(error.to_string()))
 }
 
 /// Finds the start of every element up to the later of `vertex` and `face`, checking each

@@ -11,6 +11,10 @@
 //! Errors stay deterministic: each block stops at its first defect, and the first defect in
 //! block order wins. All faces before it were triangles, so it is also the first defect a
 //! sequential read would meet.
+//!
+//! The element may be a window of a larger one (see `input::stream`): `origin` and
+//! `first_index` translate window-relative positions and indices back to the file's, so
+//! errors read the same whichever way the element was mapped.
 
 use std::path::Path;
 
@@ -22,7 +26,7 @@ use crate::input::error::InputError;
 use super::binary::BinaryReader;
 use super::elements::{narrow_coordinate, read_vertex_index};
 use super::header::{Endian, FaceLayout, Property, Scalar, VertexLayout, VertexRole};
-use super::values::ValueReader;
+use super::values::{Defect, ValueReader};
 
 const BLOCK: usize = 1 << 16;
 
@@ -32,9 +36,23 @@ pub struct FixedStrideElement<'a> {
     pub path: &'a Path,
     pub name: &'a str,
     pub bytes: &'a [u8],
+    /// File offset of `bytes[0]`.
+    pub origin: u64,
     pub start: usize,
+    /// Element index of the instance at `start`.
+    pub first_index: u64,
     pub count: usize,
     pub endian: Endian,
+}
+
+impl FixedStrideElement<'_> {
+    fn reader_at(&self, position: usize) -> BinaryReader<'_> {
+        BinaryReader::new(self.bytes, position, self.endian).with_origin(self.origin)
+    }
+
+    fn error_at(&self, defect: Defect, index: usize) -> InputError {
+        defect.at_element(self.path, self.name, self.first_index + index as u64)
+    }
 }
 
 /// Offset within a vertex and type of x, y and z, plus the vertex size, when it is fixed.
@@ -89,17 +107,27 @@ fn decode_vertex_block(
     points: &mut [Point],
 ) -> Result<(), InputError> {
     for (offset_in_block, point) in points.iter_mut().enumerate() {
-        let index = first + offset_in_block;
-        let base = element.start + index * vertex.stride;
-        for (axis, &(offset, scalar)) in vertex.coordinates.iter().enumerate() {
-            let mut reader = BinaryReader::new(element.bytes, base + offset, element.endian);
-            point[axis] = reader
-                .read_float(scalar)
-                .and_then(|value| narrow_coordinate(&reader, axis, value))
-                .map_err(|defect| defect.at_element(element.path, element.name, index as u64))?;
-        }
+        *point = decode_vertex(element, vertex, first + offset_in_block)?;
     }
     Ok(())
+}
+
+/// Decodes instance `index` (counted from `element.start`, which must be below `element.count`).
+pub fn decode_vertex(
+    element: &FixedStrideElement,
+    vertex: &FixedVertex,
+    index: usize,
+) -> Result<Point, InputError> {
+    let base = element.start + index * vertex.stride;
+    let mut point = [0.0; 3];
+    for (axis, &(offset, scalar)) in vertex.coordinates.iter().enumerate() {
+        let mut reader = element.reader_at(base + offset);
+        point[axis] = reader
+            .read_float(scalar)
+            .and_then(|value| narrow_coordinate(&reader, axis, value))
+            .map_err(|defect| element.error_at(defect, index))?;
+    }
+    Ok(point)
 }
 
 /// Face layout under the all-triangles assumption.
@@ -175,7 +203,7 @@ fn decode_triangle_block(
     for (offset_in_block, triangle) in out.iter_mut().enumerate() {
         let index = first + offset_in_block;
         let base = element.start + index * faces.stride + faces.length_offset;
-        let mut reader = BinaryReader::new(element.bytes, base, element.endian);
+        let mut reader = element.reader_at(base);
         let decoded = reader.read_list_length(faces.length).and_then(|length| {
             if length != 3 {
                 return Ok(None);
@@ -189,10 +217,7 @@ fn decode_triangle_block(
         match decoded {
             Ok(Some(corners)) => *triangle = corners,
             Ok(None) => return BlockOutcome::NotAllTriangles,
-            Err(defect) => {
-                let error = defect.at_element(element.path, element.name, index as u64);
-                return BlockOutcome::Failed(error);
-            }
+            Err(defect) => return BlockOutcome::Failed(element.error_at(defect, index)),
         }
     }
     BlockOutcome::Decoded
