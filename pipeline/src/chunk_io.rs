@@ -34,11 +34,17 @@ pub fn write_mesh(out: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
 pub fn read_mesh(path: &Path) -> io::Result<Mesh> {
     let mut bytes = Vec::new();
     zstd::Decoder::new(File::open(path)?)?.read_to_end(&mut bytes)?;
-    let invalid = || io::Error::new(io::ErrorKind::InvalidData, format!("{}: not a mesh chunk", path.display()));
+    let invalid = || {
+        io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("{}: not a mesh chunk", path.display()),
+        )
+    };
     if bytes.len() < 24 || bytes[..8] != MESH_MAGIC {
         return Err(invalid());
     }
-    let count = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap_or_default()) as usize;
+    let count =
+        |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap_or_default()) as usize;
     let (vertices, triangles) = (count(8), count(16));
     let positions_end = 24 + vertices * 12;
     if bytes.len() != positions_end + triangles * 12 {
@@ -67,7 +73,13 @@ pub struct StripChunkHeader {
 const _: () = assert!(std::mem::size_of::<StripChunkHeader>() == 104);
 
 impl StripChunkHeader {
-    pub fn new(stats: &ChunkStats, bounds: &Aabb, nodes: usize, records: usize, data_bytes: usize) -> Self {
+    pub fn new(
+        stats: &ChunkStats,
+        bounds: &Aabb,
+        nodes: usize,
+        records: usize,
+        data_bytes: usize,
+    ) -> Self {
         StripChunkHeader {
             magic: STRIP_MAGIC,
             strip_count: records as u64,
@@ -83,26 +95,6 @@ impl StripChunkHeader {
             ],
             bounds_min: bounds.min,
             bounds_max: bounds.max,
-        }
-    }
-
-    pub fn stats(&self) -> ChunkStats {
-        let [triangles, dropped_triangles, input_vertices, stored_vertices, hierarchy_vertices, max_strip_length] =
-            self.stats;
-        ChunkStats {
-            triangles,
-            dropped_triangles,
-            input_vertices,
-            stored_vertices,
-            hierarchy_vertices,
-            max_strip_length,
-        }
-    }
-
-    pub fn bounds(&self) -> Aabb {
-        Aabb {
-            min: self.bounds_min,
-            max: self.bounds_max,
         }
     }
 
@@ -159,7 +151,10 @@ impl StripChunk {
     }
 
     pub fn records(&mut self) -> io::Result<Vec<StripRecord>> {
-        self.read_records(self.header.records_offset(), self.header.strip_count as usize)
+        self.read_records(
+            self.header.records_offset(),
+            self.header.strip_count as usize,
+        )
     }
 
     /// Copies the strip blocks to `out`.
@@ -167,7 +162,10 @@ impl StripChunk {
         self.file.seek(SeekFrom::Start(self.header.data_offset()))?;
         let copied = io::copy(&mut (&mut self.file).take(self.header.data_bytes), out)?;
         if copied != self.header.data_bytes {
-            return Err(io::Error::new(io::ErrorKind::UnexpectedEof, "strip chunk data is short"));
+            return Err(io::Error::new(
+                io::ErrorKind::UnexpectedEof,
+                "strip chunk data is short",
+            ));
         }
         Ok(())
     }
@@ -175,7 +173,8 @@ impl StripChunk {
     fn read_records<T: Pod>(&mut self, offset: u64, count: usize) -> io::Result<Vec<T>> {
         self.file.seek(SeekFrom::Start(offset))?;
         let mut records = vec![T::zeroed(); count];
-        self.file.read_exact(bytemuck::cast_slice_mut(&mut records))?;
+        self.file
+            .read_exact(bytemuck::cast_slice_mut(&mut records))?;
         Ok(records)
     }
 }

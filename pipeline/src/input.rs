@@ -28,11 +28,19 @@ pub fn resolve(job: &Job) -> anyhow::Result<ResolvedInput> {
             content: content_hash(job, &path)?,
             path,
         }),
-        Input::Generate { kind, triangles, seed } => {
+        Input::Generate {
+            kind,
+            triangles,
+            seed,
+        } => {
             let (relative, fingerprint) = generated(kind, triangles, seed);
             let path = job.work.file(&relative);
             if job.freshness(GENERATE_UNIT, &fingerprint) != Freshness::Fresh {
-                job.progress.event(GENERATE_UNIT, "start", &format!("{kind:?} mesh, {triangles} triangles, seed {seed}"));
+                job.progress.event(
+                    GENERATE_UNIT,
+                    "start",
+                    &format!("{kind:?} mesh, {triangles} triangles, seed {seed}"),
+                );
                 gen::generate(kind, triangles, seed, &path)?;
                 job.complete(GENERATE_UNIT, &fingerprint, &[relative])?;
             }
@@ -49,11 +57,22 @@ pub fn peek(job: &Job) -> Result<ResolvedInput, String> {
     match job.config.input()? {
         Input::File(path) => {
             let identity = identity(&path).map_err(|e| format!("input {}: {e}", path.display()))?;
-            let cached = job.manifest().input.clone().filter(|c| same_identity(c, &identity));
-            let content = cached.map_or_else(|| format!("unhashed:{}:{}", identity.bytes, identity.modified_ns), |c| c.hash);
+            let cached = job
+                .manifest()
+                .input
+                .clone()
+                .filter(|c| same_identity(c, &identity));
+            let content = cached.map_or_else(
+                || format!("unhashed:{}:{}", identity.bytes, identity.modified_ns),
+                |c| c.hash,
+            );
             Ok(ResolvedInput { path, content })
         }
-        Input::Generate { kind, triangles, seed } => {
+        Input::Generate {
+            kind,
+            triangles,
+            seed,
+        } => {
             let (relative, fingerprint) = generated(kind, triangles, seed);
             match job.freshness(GENERATE_UNIT, &fingerprint) {
                 Freshness::Fresh => Ok(ResolvedInput {
@@ -72,28 +91,42 @@ fn generated(kind: gen::Kind, triangles: u64, seed: u64) -> (String, Fingerprint
         .with("input.generate.kind", &name)
         .with("input.generate.triangles", triangles)
         .with("input.generate.seed", seed);
-    (format!("generated-{name}-{triangles}-{seed}.ply"), fingerprint)
+    (
+        format!("generated-{name}-{triangles}-{seed}.ply"),
+        fingerprint,
+    )
 }
 
 fn content_hash(job: &Job, path: &std::path::Path) -> anyhow::Result<String> {
     let identity = identity(path).with_context(|| format!("reading {}", path.display()))?;
-    if let Some(cached) = job.manifest().input.clone().filter(|c| same_identity(c, &identity)) {
+    if let Some(cached) = job
+        .manifest()
+        .input
+        .clone()
+        .filter(|c| same_identity(c, &identity))
+    {
         return Ok(cached.hash);
     }
-    job.progress.event("input", "start", &format!("hashing {}", path.display()));
+    job.progress
+        .event("input", "start", &format!("hashing {}", path.display()));
     let hash = hash_file(path).with_context(|| format!("reading {}", path.display()))?;
     let mut manifest = job.manifest();
     manifest.input = Some(InputIdentity {
         hash: hash.clone(),
         ..identity
     });
-    manifest.save(&job.work.manifest()).context("writing the manifest")?;
+    manifest
+        .save(&job.work.manifest())
+        .context("writing the manifest")?;
     Ok(hash)
 }
 
 fn identity(path: &std::path::Path) -> std::io::Result<InputIdentity> {
     let meta = std::fs::metadata(path)?;
-    let modified_ns = meta.modified()?.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    let modified_ns = meta
+        .modified()?
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
     Ok(InputIdentity {
         path: std::fs::canonicalize(path)?.display().to_string(),
         bytes: meta.len(),
@@ -103,5 +136,7 @@ fn identity(path: &std::path::Path) -> std::io::Result<InputIdentity> {
 }
 
 fn same_identity(cached: &InputIdentity, current: &InputIdentity) -> bool {
-    cached.path == current.path && cached.bytes == current.bytes && cached.modified_ns == current.modified_ns
+    cached.path == current.path
+        && cached.bytes == current.bytes
+        && cached.modified_ns == current.modified_ns
 }

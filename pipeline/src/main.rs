@@ -1,13 +1,17 @@
-//! The `pipeline` command: converts meshes to ReduceM files (`run`) and generates synthetic
-//! meshes (`gen`). Exit codes are a contract with cron jobs and are listed in README.md.
+//! The `pipeline` command: converts meshes to ReduceM files (`run`, `status`, `clean`) and
+//! generates synthetic meshes (`gen`). Exit codes are a contract with cron jobs and are listed in README.md.
 
+mod chunk_io;
 mod config;
 mod fingerprint;
+mod input;
 mod lock;
 mod manifest;
-mod workdir;
-
+mod progress;
 mod run;
+mod stage;
+mod status;
+mod workdir;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -21,6 +25,7 @@ mod exit {
     pub const BAD_INPUT: u8 = 65;
     pub const INTERNAL: u8 = 70;
     pub const IO: u8 = 74;
+    pub const LOCKED: u8 = 75;
     pub const CONFIG: u8 = 78;
 }
 
@@ -37,8 +42,20 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run the conversion described by CONFIG.
-    Run { config: PathBuf },
+    /// Run (or resume) the conversion described by CONFIG.
+    Run {
+        config: PathBuf,
+        /// Progress bars on a terminal, plain log lines otherwise; or force one.
+        #[arg(long, value_enum, default_value_t = progress::LogFormat::Auto)]
+        log_format: progress::LogFormat,
+        /// When another run holds the work directory: fail with exit code 75, or skip with 0.
+        #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
+        if_locked: run::IfLocked,
+    },
+    /// List stages and chunks as done, pending or stale, with the reason.
+    Status { config: PathBuf },
+    /// Remove the work directory of CONFIG.
+    Clean { config: PathBuf },
     /// Stream a synthetic mesh to binary PLY.
     Gen {
         kind: gen::Kind,
@@ -71,7 +88,13 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Run { config } => run::run(&config),
+        Command::Run {
+            config,
+            log_format,
+            if_locked,
+        } => run::run(&config, log_format, if_locked),
+        Command::Status { config } => status::status(&config),
+        Command::Clean { config } => run::clean(&config),
         Command::Gen {
             kind,
             triangles,
@@ -93,6 +116,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 /// Classifies an error by the typed errors in its chain.
 fn exit_code(error: &anyhow::Error) -> u8 {
     for cause in error.chain() {
+        if cause.is::<lock::LockedError>() {
+            return exit::LOCKED;
+        }
         if cause.is::<config::ConfigError>() {
             return exit::CONFIG;
         }

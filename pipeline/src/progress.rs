@@ -58,8 +58,12 @@ impl Progress {
         self.event(stage, "start", &format!("{total} {unit} to do"));
         let bar = (self.mode == Mode::Bars).then(|| {
             let bar = ProgressBar::new(total);
-            let template = format!("{stage:>9} [{{bar:30}}] {{pos}}/{{len}} {unit} {{elapsed}} eta {{eta}}");
-            bar.set_style(ProgressStyle::with_template(&template).unwrap_or_else(|_| ProgressStyle::default_bar()));
+            let template =
+                format!("{stage:>9} [{{bar:30}}] {{pos}}/{{len}} {unit} {{elapsed}} eta {{eta}}");
+            bar.set_style(
+                ProgressStyle::with_template(&template)
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
             bar
         });
         StageProgress {
@@ -104,7 +108,10 @@ impl StageProgress {
         let elapsed = self.started.elapsed().as_secs_f64();
         let eta = elapsed / done.max(1) as f64 * self.total.saturating_sub(done) as f64;
         let percent = 100.0 * done as f64 / self.total.max(1) as f64;
-        let message = format!("{done}/{} {} ({percent:.0}%), eta {eta:.0} s", self.total, self.unit);
+        let message = format!(
+            "{done}/{} {} ({percent:.0}%), eta {eta:.0} s",
+            self.total, self.unit
+        );
         self.log("progress", &message, Some((done, eta)));
     }
 
@@ -112,7 +119,10 @@ impl StageProgress {
         if let Some(bar) = &self.bar {
             bar.finish_and_clear();
         }
-        let message = format!("done in {:.1} s{summary}", self.started.elapsed().as_secs_f64());
+        let message = format!(
+            "done in {:.1} s{summary}",
+            self.started.elapsed().as_secs_f64()
+        );
         self.log("done", &message, None);
     }
 

@@ -27,12 +27,17 @@ pub fn run(config_path: &Path, log_format: LogFormat, if_locked: IfLocked) -> an
     let started = Instant::now();
     let config = Config::load(config_path)?;
     let work = WorkDir::new(config.work_dir());
-    work.create().with_context(|| format!("creating {}", work.root().display()))?;
+    work.create()
+        .with_context(|| format!("creating {}", work.root().display()))?;
     let progress = Progress::new(log_format);
     let _lock = match WorkLock::acquire(work.root()) {
         Ok(lock) => lock,
         Err(error) if if_locked == IfLocked::Skip && error.is::<LockedError>() => {
-            progress.event("run", "skip", &format!("{error:#}; skipping (--if-locked skip)"));
+            progress.event(
+                "run",
+                "skip",
+                &format!("{error:#}; skipping (--if-locked skip)"),
+            );
             return Ok(());
         }
         Err(error) => return Err(error),
@@ -44,7 +49,11 @@ pub fn run(config_path: &Path, log_format: LogFormat, if_locked: IfLocked) -> an
     let merged = merge::run(&job, chunked.chunk_count(), &strip_digest)?;
     let hierarchy = hierarchy::run(&job, &merged)?;
     write::run(&job, &merged, &hierarchy)?;
-    progress.event("run", "done", &format!("finished in {:.1} s", started.elapsed().as_secs_f64()));
+    progress.event(
+        "run",
+        "done",
+        &format!("finished in {:.1} s", started.elapsed().as_secs_f64()),
+    );
     Ok(())
 }
 

@@ -4,7 +4,6 @@
 use std::path::Path;
 
 use crate::config::Config;
-use crate::fingerprint::Fingerprint;
 use crate::input;
 use crate::manifest::Freshness;
 use crate::progress::{LogFormat, Progress};
@@ -27,26 +26,33 @@ pub fn status(config_path: &Path) -> anyhow::Result<()> {
     };
     let mut strip_done = true;
     for index in 0..chunked.chunk_count() {
-        let state = job.freshness(&strip::unit(index), &strip::fingerprint(&job, &chunked, index));
+        let state = job.freshness(
+            &strip::unit(index),
+            &strip::fingerprint(&job, &chunked, index),
+        );
         strip_done &= state == Freshness::Fresh;
         report(&strip::unit(index), &state);
     }
     if !strip_done {
         return pending_from("merge", "waits for strip");
     }
-    let later: [(&str, Box<dyn Fn() -> Option<Fingerprint>>); 0] = [];
-    drop(later);
     let merge_fingerprint = merge::fingerprint(&strip::digest(&job, &chunked));
     report("merge", &job.freshness(merge::UNIT, &merge_fingerprint));
     let Some(merged) = merge::fresh_result(&job, &merge_fingerprint) else {
         return pending_from("hierarchy", "waits for merge");
     };
     let hierarchy_fingerprint = hierarchy::fingerprint(&merged);
-    report("hierarchy", &job.freshness(hierarchy::UNIT, &hierarchy_fingerprint));
+    report(
+        "hierarchy",
+        &job.freshness(hierarchy::UNIT, &hierarchy_fingerprint),
+    );
     let Some(built) = hierarchy::fresh_result(&job, &hierarchy_fingerprint) else {
         return pending_from("write", "waits for hierarchy");
     };
-    report("write", &job.freshness(write::UNIT, &write::fingerprint(&job, &built)));
+    report(
+        "write",
+        &job.freshness(write::UNIT, &write::fingerprint(&job, &built)),
+    );
     Ok(())
 }
 

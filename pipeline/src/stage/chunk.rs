@@ -13,7 +13,8 @@ use std::path::Path;
 
 use anyhow::Context;
 use reducem::chunking::{self, MeshSource, Partition};
-use reducem::geometry::Aabb;
+use reducem::geometry::Point;
+use reducem::input::{InputError, PlyStream};
 use serde::{Deserialize, Serialize};
 
 use crate::chunk_io;
@@ -58,14 +59,20 @@ pub fn fresh_result(job: &Job, fingerprint: &Fingerprint) -> Option<Chunked> {
 pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     let fingerprint = fingerprint(job, input);
     if let Some(chunked) = fresh_result(job, &fingerprint) {
-        job.progress.event(UNIT, "skip", &format!("fresh, {} chunks", chunked.chunk_count()));
+        job.progress.event(
+            UNIT,
+            "skip",
+            &format!("fresh, {} chunks", chunked.chunk_count()),
+        );
         return Ok(chunked);
     }
     clear_chunks(job)?;
     let source = open_source(&input.path)?;
     let partition = chunking::partition(&*source, job.config.chunk.max_triangles)?;
     let triangles_per_chunk = spill(job, &*source, &partition)?;
-    let progress = job.progress.stage(UNIT, triangles_per_chunk.len() as u64, "chunks");
+    let progress = job
+        .progress
+        .stage(UNIT, triangles_per_chunk.len() as u64, "chunks");
     let mut outputs = Vec::new();
     for chunk in 0..triangles_per_chunk.len() {
         outputs.push(write_chunk(job, &*source, chunk)?);
@@ -84,9 +91,46 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     Ok(chunked)
 }
 
-/// The input as a [`MeshSource`]. Inputs that cannot be streamed are read whole.
+/// Bytes of input mapped at a time by the streaming passes.
+const WINDOW_BYTES: usize = 64 << 20;
+
+/// The input as a [`MeshSource`]: binary PLY streams through bounded windows; inputs that
+/// cannot be streamed (ASCII PLY, OBJ: small in practice) are read whole.
 fn open_source(path: &Path) -> anyhow::Result<Box<dyn MeshSource>> {
+    let is_ply = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+    if is_ply {
+        let stream = PlyStream::open(path)?;
+        if stream.is_streamable() {
+            return Ok(Box::new(WindowedPly(stream)));
+        }
+    }
     Ok(Box::new(reducem::input::read_mesh(path)?))
+}
+
+/// A binary PLY read through windows of [`WINDOW_BYTES`].
+struct WindowedPly(PlyStream);
+
+impl MeshSource for WindowedPly {
+    fn vertex_count(&self) -> u64 {
+        self.0.vertex_count()
+    }
+
+    fn for_each_position_window(
+        &self,
+        visit: &mut dyn FnMut(u64, &[Point]),
+    ) -> Result<(), InputError> {
+        self.0.for_each_position_window(WINDOW_BYTES, visit)
+    }
+
+    fn for_each_triangle(&self, visit: &mut dyn FnMut(u64, [u32; 3])) -> Result<(), InputError> {
+        self.0.for_each_triangle(WINDOW_BYTES, visit)
+    }
+
+    fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError> {
+        self.0.positions_of(sorted_ids, WINDOW_BYTES)
+    }
 }
 
 fn clear_chunks(job: &Job) -> anyhow::Result<()> {
@@ -117,7 +161,9 @@ fn spill(job: &Job, source: &dyn MeshSource, partition: &Partition) -> anyhow::R
     chunking::distribute(source, partition, &mut |chunk, triangle| {
         counts[chunk as usize] += 1;
         if first_error.is_none() {
-            first_error = writers[chunk as usize].write_all(bytemuck::cast_slice(&triangle)).err();
+            first_error = writers[chunk as usize]
+                .write_all(bytemuck::cast_slice(&triangle))
+                .err();
         }
     })?;
     if let Some(error) = first_error {
@@ -138,20 +184,13 @@ fn write_chunk(job: &Job, source: &dyn MeshSource, chunk: usize) -> anyhow::Resu
     drop(bytes);
     let distinct = chunking::distinct_vertices(&triangles);
     let positions = source.positions_of(&distinct)?;
-    let mesh = reducem::input::weld_identical_positions(chunking::local_mesh(&triangles, &distinct, positions));
+    let mesh = reducem::input::weld_identical_positions(chunking::local_mesh(
+        &triangles, &distinct, positions,
+    ));
     let relative = mesh_chunk(chunk);
     let path = job.work.file(&relative);
     reducem::atomic::write_atomically(&path, |out| chunk_io::write_mesh(out, &mesh))
         .with_context(|| format!("writing {}", path.display()))?;
     fs::remove_file(&spill).with_context(|| format!("removing {}", spill.display()))?;
     Ok(relative)
-}
-
-impl Chunked {
-    pub fn bounds(&self) -> Aabb {
-        Aabb {
-            min: self.bounds_min,
-            max: self.bounds_max,
-        }
-    }
 }

@@ -17,8 +17,17 @@ const PLAN: &str = "hierarchy.json";
 /// One step of the final node order (see [`SpliceItem`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Step {
-    Node { min: [f32; 3], max: [f32; 3], payload: u32, kind: u32 },
-    Chunk { index: usize, node_base: u32, strip_base: u32 },
+    Node {
+        min: [f32; 3],
+        max: [f32; 3],
+        payload: u32,
+        kind: u32,
+    },
+    Chunk {
+        index: usize,
+        node_base: u32,
+        strip_base: u32,
+    },
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -46,7 +55,9 @@ pub fn run(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
         job.progress.event(UNIT, "skip", "fresh");
         return Ok(hierarchy);
     }
-    let progress = job.progress.stage(UNIT, merged.chunks.len() as u64, "chunks");
+    let progress = job
+        .progress
+        .stage(UNIT, merged.chunks.len() as u64, "chunks");
     let subtrees: Vec<Subtree> = merged
         .chunks
         .iter()
@@ -59,7 +70,10 @@ pub fn run(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
             strip_count: c.strips,
         })
         .collect();
-    let steps = splice(&subtrees, &TopLevelParams::default()).into_iter().map(step).collect();
+    let steps = splice(&subtrees, &TopLevelParams::default())
+        .into_iter()
+        .map(step)
+        .collect();
     let hierarchy = Hierarchy {
         digest: fingerprint.digest(),
         steps,
@@ -94,7 +108,17 @@ fn step(item: SpliceItem) -> Step {
 impl Step {
     pub fn node(&self) -> Option<TopNode> {
         match *self {
-            Step::Node { min, max, payload, kind } => Some(TopNode { min, max, payload, kind }),
+            Step::Node {
+                min,
+                max,
+                payload,
+                kind,
+            } => Some(TopNode {
+                min,
+                max,
+                payload,
+                kind,
+            }),
             Step::Chunk { .. } => None,
         }
     }

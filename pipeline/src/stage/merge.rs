@@ -55,7 +55,12 @@ impl Merged {
         self.chunks
             .iter()
             .filter(|c| c.strips > 0)
-            .fold(Aabb::EMPTY, |b, c| b.union(&Aabb { min: c.bounds_min, max: c.bounds_max }))
+            .fold(Aabb::EMPTY, |b, c| {
+                b.union(&Aabb {
+                    min: c.bounds_min,
+                    max: c.bounds_max,
+                })
+            })
     }
 }
 
@@ -80,7 +85,9 @@ pub fn run(job: &Job, chunk_count: usize, strip_digest: &str) -> anyhow::Result<
     let mut chunks = Vec::with_capacity(chunk_count);
     for chunk in 0..chunk_count {
         let path = job.work.file(&strip_chunk(chunk));
-        let header = StripChunk::open(&path).with_context(|| format!("reading {}", path.display()))?.header;
+        let header = StripChunk::open(&path)
+            .with_context(|| format!("reading {}", path.display()))?
+            .header;
         chunks.push(ChunkSummary {
             strips: header.strip_count as u32,
             nodes: header.node_count as u32,
@@ -97,6 +104,9 @@ pub fn run(job: &Job, chunk_count: usize, strip_digest: &str) -> anyhow::Result<
     };
     write_json(&job.work.file(TABLE), &merged)?;
     job.complete(UNIT, &fingerprint, &[TABLE.to_string()])?;
-    progress.finish(&format!(", {} strips", merged.chunks.iter().map(|c| c.strips as u64).sum::<u64>()));
+    progress.finish(&format!(
+        ", {} strips",
+        merged.chunks.iter().map(|c| c.strips as u64).sum::<u64>()
+    ));
     Ok(merged)
 }

@@ -40,22 +40,31 @@ impl<'a> Job<'a> {
     }
 
     pub fn freshness(&self, key: &str, fingerprint: &Fingerprint) -> Freshness {
-        self.lock_manifest().freshness(self.work.root(), key, fingerprint)
+        self.lock_manifest()
+            .freshness(self.work.root(), key, fingerprint)
     }
 
     /// Records a unit as complete, after its outputs (paths relative to the work directory, or
     /// absolute) were renamed into place, and saves the manifest atomically.
-    pub fn complete(&self, key: &str, fingerprint: &Fingerprint, outputs: &[String]) -> anyhow::Result<()> {
+    pub fn complete(
+        &self,
+        key: &str,
+        fingerprint: &Fingerprint,
+        outputs: &[String],
+    ) -> anyhow::Result<()> {
         let mut sizes = BTreeMap::new();
         for output in outputs {
             let path = self.work.file(output);
-            let meta = std::fs::metadata(&path).with_context(|| format!("checking {}", path.display()))?;
+            let meta =
+                std::fs::metadata(&path).with_context(|| format!("checking {}", path.display()))?;
             sizes.insert(output.clone(), meta.len());
         }
         let mut manifest = self.lock_manifest();
         manifest.record(key, fingerprint, sizes);
         let path = self.work.manifest();
-        manifest.save(&path).with_context(|| format!("writing {}", path.display()))
+        manifest
+            .save(&path)
+            .with_context(|| format!("writing {}", path.display()))
     }
 
     pub fn manifest(&self) -> std::sync::MutexGuard<'_, Manifest> {
@@ -63,7 +72,9 @@ impl<'a> Job<'a> {
     }
 
     fn lock_manifest(&self) -> std::sync::MutexGuard<'_, Manifest> {
-        self.manifest.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+        self.manifest
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 }
 

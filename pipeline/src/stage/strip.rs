@@ -43,23 +43,36 @@ pub fn digest(job: &Job, chunked: &Chunked) -> String {
 
 pub fn run(job: &Job, chunked: &Chunked) -> anyhow::Result<String> {
     let pending: Vec<usize> = (0..chunked.chunk_count())
-        .filter(|&chunk| job.freshness(&unit(chunk), &fingerprint(job, chunked, chunk)) != Freshness::Fresh)
+        .filter(|&chunk| {
+            job.freshness(&unit(chunk), &fingerprint(job, chunked, chunk)) != Freshness::Fresh
+        })
         .collect();
-    let progress = job.progress.stage("strip", chunked.chunk_count() as u64, "chunks");
+    let progress = job
+        .progress
+        .stage("strip", chunked.chunk_count() as u64, "chunks");
     progress.advance((chunked.chunk_count() - pending.len()) as u64);
     pending.par_iter().try_for_each(|&chunk| {
         strip_one(job, chunk).with_context(|| format!("chunk {chunk}"))?;
-        job.complete(&unit(chunk), &fingerprint(job, chunked, chunk), &[strip_chunk(chunk)])?;
+        job.complete(
+            &unit(chunk),
+            &fingerprint(job, chunked, chunk),
+            &[strip_chunk(chunk)],
+        )?;
         progress.advance(1);
         anyhow::Ok(())
     })?;
-    progress.finish(&format!(", {} chunks converted, {} fresh", pending.len(), chunked.chunk_count() - pending.len()));
+    progress.finish(&format!(
+        ", {} chunks converted, {} fresh",
+        pending.len(),
+        chunked.chunk_count() - pending.len()
+    ));
     Ok(digest(job, chunked))
 }
 
 fn strip_one(job: &Job, chunk: usize) -> anyhow::Result<()> {
     let mesh_path = job.work.file(&mesh_chunk(chunk));
-    let mesh = chunk_io::read_mesh(&mesh_path).with_context(|| format!("reading {}", mesh_path.display()))?;
+    let mesh = chunk_io::read_mesh(&mesh_path)
+        .with_context(|| format!("reading {}", mesh_path.display()))?;
     let encoded = encode_chunk(&mesh, &job.config.build_params());
     drop(mesh);
     let bounds = strip_bounds(&encoded.strips);
@@ -75,10 +88,24 @@ fn strip_one(job: &Job, chunk: usize) -> anyhow::Result<()> {
         });
         word += strip.block.len() as u32 / 4;
     }
-    let blocks: Vec<&[u8]> = top.strip_order.iter().map(|&s| encoded.strips[s as usize].block.as_slice()).collect();
-    let chunk_bounds = bounds.iter().fold(reducem::geometry::Aabb::EMPTY, |a, b| a.union(b));
-    let header = StripChunkHeader::new(&encoded.stats, &chunk_bounds, top.nodes.len(), records.len(), word as usize * 4);
+    let blocks: Vec<&[u8]> = top
+        .strip_order
+        .iter()
+        .map(|&s| encoded.strips[s as usize].block.as_slice())
+        .collect();
+    let chunk_bounds = bounds
+        .iter()
+        .fold(reducem::geometry::Aabb::EMPTY, |a, b| a.union(b));
+    let header = StripChunkHeader::new(
+        &encoded.stats,
+        &chunk_bounds,
+        top.nodes.len(),
+        records.len(),
+        word as usize * 4,
+    );
     let path = job.work.file(&strip_chunk(chunk));
-    reducem::atomic::write_atomically(&path, |out| chunk_io::write_strips(out, &header, &top.nodes, &records, &blocks))
-        .with_context(|| format!("writing {}", path.display()))
+    reducem::atomic::write_atomically(&path, |out| {
+        chunk_io::write_strips(out, &header, &top.nodes, &records, &blocks)
+    })
+    .with_context(|| format!("writing {}", path.display()))
 }

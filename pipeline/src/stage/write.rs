@@ -35,12 +35,14 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
     let fingerprint = fingerprint(job, hierarchy);
     let output = output_path(job);
     if job.freshness(UNIT, &fingerprint) == Freshness::Fresh {
-        job.progress.event(UNIT, "skip", &format!("fresh: {}", output.display()));
+        job.progress
+            .event(UNIT, "skip", &format!("fresh: {}", output.display()));
         return Ok(());
     }
     let progress = job.progress.stage(UNIT, 3, "sections");
     if let Some(parent) = output.parent() {
-        std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating {}", parent.display()))?;
     }
     let info = FileInfo {
         stats: merged.stats(),
@@ -73,12 +75,17 @@ struct Spliced<'a> {
 }
 
 impl<'a> Spliced<'a> {
-    fn new(job: &'a Job<'a>, merged: &'a Merged, hierarchy: &'a Hierarchy) -> anyhow::Result<Spliced<'a>> {
+    fn new(
+        job: &'a Job<'a>,
+        merged: &'a Merged,
+        hierarchy: &'a Hierarchy,
+    ) -> anyhow::Result<Spliced<'a>> {
         let mut data_word_base = vec![0u32; merged.chunks.len()];
         let mut words = 0u64;
         for step in &hierarchy.steps {
             if let Step::Chunk { index, .. } = *step {
-                data_word_base[index] = u32::try_from(words).context("strip data exceeds 16 GiB")?;
+                data_word_base[index] =
+                    u32::try_from(words).context("strip data exceeds 16 GiB")?;
                 words += merged.chunks[index].data_bytes / 4;
             }
         }
@@ -92,7 +99,8 @@ impl<'a> Spliced<'a> {
 
     fn chunk(&self, index: usize) -> io::Result<StripChunk> {
         let path = self.job.work.file(&strip_chunk(index));
-        StripChunk::open(&path).map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", path.display())))
+        StripChunk::open(&path)
+            .map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", path.display())))
     }
 
     fn chunks(&self) -> impl Iterator<Item = (usize, u32, u32)> + '_ {
@@ -115,14 +123,19 @@ impl SectionSource for Spliced<'_> {
     fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()> {
         match kind {
             SectionKind::TopNodes => self.steps.iter().try_for_each(|step| match *step {
-                Step::Node { .. } => out.write_all(bytemuck::bytes_of(&step.node().unwrap_or_default())),
+                Step::Node { .. } => {
+                    out.write_all(bytemuck::bytes_of(&step.node().unwrap_or_default()))
+                }
                 Step::Chunk {
                     index,
                     node_base,
                     strip_base,
                 } => {
                     let nodes = self.chunk(index)?.nodes()?;
-                    let moved: Vec<_> = nodes.iter().map(|n| relocate(n, node_base, strip_base)).collect();
+                    let moved: Vec<_> = nodes
+                        .iter()
+                        .map(|n| relocate(n, node_base, strip_base))
+                        .collect();
                     out.write_all(bytemuck::cast_slice(&moved))
                 }
             }),

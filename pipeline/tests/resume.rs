@@ -1,0 +1,253 @@
+//! The staged runner: lossless across chunks, byte-identical for any thread count and across
+//! kills at random moments, invalidation of exactly the affected stages, and the work-dir lock.
+
+use std::fs::{self, File};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::Instant;
+
+use reducem::format::reader::ReducemFile;
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pipeline-resume-{}-{name}", std::process::id()));
+    let _ = fs::remove_dir_all(&dir);
+    fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
+
+fn pipeline() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_pipeline"))
+}
+
+fn run(args: &[&str]) -> Output {
+    pipeline().args(args).output().expect("run pipeline")
+}
+
+/// A generated `scan` input (shared by the job configs) and a config converting it in chunks.
+fn job(dir: &Path, extra: &str) -> PathBuf {
+    let input = dir.join("input.ply");
+    if !input.exists() {
+        reducem::gen::generate(reducem::gen::Kind::Scan, 60_000, 5, &input).expect("generate");
+    }
+    let config = dir.join("job.toml");
+    let body = format!(
+        "[input]\npath = \"input.ply\"\n\n[output]\npath = \"out.rdm\"\n\n[chunk]\nmax_triangles = 8000\n{extra}"
+    );
+    fs::write(&config, body).expect("config");
+    config
+}
+
+fn run_ok(config: &Path, env_threads: &str) -> Output {
+    let output = pipeline()
+        .args(["run", config.to_str().unwrap(), "--log-format", "plain"])
+        .env("RAYON_NUM_THREADS", env_threads)
+        .output()
+        .expect("run");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    output
+}
+
+fn canonical_sorted(triangles: impl Iterator<Item = [[f32; 3]; 3]>) -> Vec<[[u32; 3]; 3]> {
+    let mut all: Vec<_> = triangles
+        .map(|t| {
+            let bits = t.map(|p| p.map(f32::to_bits));
+            let first = (0..3).min_by_key(|&i| bits[i]).unwrap_or(0);
+            [0, 1, 2].map(|k| bits[(first + k) % 3])
+        })
+        .collect();
+    all.sort_unstable();
+    all
+}
+
+#[test]
+fn chunked_conversion_is_lossless() {
+    let dir = temp_dir("lossless");
+    let config = job(&dir, "");
+    run_ok(&config, "2");
+    let file = ReducemFile::open(&dir.join("out.rdm")).expect("open");
+    let mesh = reducem::input::read_mesh(&dir.join("input.ply")).expect("input");
+    let expected = canonical_sorted(mesh.triangles.iter().map(|t| mesh.triangle_points(t)));
+    assert_eq!(
+        canonical_sorted(reducem::decode::triangles(&file)),
+        expected
+    );
+    assert!(
+        fs::read_dir(dir.join("out.rdm.work/strips"))
+            .unwrap()
+            .count()
+            >= 7,
+        "several chunks"
+    );
+}
+
+#[test]
+fn output_is_identical_for_one_and_two_threads() {
+    let dir = temp_dir("threads");
+    let config = job(&dir, "");
+    run_ok(&config, "1");
+    let one = fs::read(dir.join("out.rdm")).unwrap();
+    fs::remove_dir_all(dir.join("out.rdm.work")).unwrap();
+    run_ok(&config, "2");
+    assert!(
+        one == fs::read(dir.join("out.rdm")).unwrap(),
+        "outputs differ"
+    );
+}
+
+#[test]
+fn runs_killed_at_random_moments_resume_to_identical_bytes() {
+    let dir = temp_dir("kill");
+    let config = job(&dir, "");
+    let started = Instant::now();
+    run_ok(&config, "2");
+    let full = started.elapsed();
+    let reference = fs::read(dir.join("out.rdm")).unwrap();
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    for trial in 0..12 {
+        fs::remove_dir_all(dir.join("out.rdm.work")).unwrap();
+        fs::remove_file(dir.join("out.rdm")).unwrap();
+        for _kill in 0..2 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let delay = full.mul_f64((state % 1000) as f64 / 1000.0);
+            let mut child = pipeline()
+                .args(["run", config.to_str().unwrap(), "--log-format", "plain"])
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("spawn");
+            std::thread::sleep(delay);
+            child.kill().expect("SIGKILL");
+            child.wait().expect("reap");
+        }
+        run_ok(&config, "2");
+        assert!(
+            reference == fs::read(dir.join("out.rdm")).unwrap(),
+            "trial {trial}: output differs after kills"
+        );
+    }
+}
+
+#[test]
+fn a_config_change_reruns_only_the_stages_it_affects() {
+    let dir = temp_dir("invalidate");
+    let config = job(&dir, "");
+    run_ok(&config, "2");
+    let status = run(&["status", config.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&status.stdout);
+    assert!(text.lines().skip(1).all(|l| l.ends_with("done")), "{text}");
+
+    let config = job(&dir, "\n[strip]\nmax_length = 30\n");
+    let text =
+        String::from_utf8_lossy(&run(&["status", config.to_str().unwrap()]).stdout).to_string();
+    assert!(text.contains("chunk                done"), "{text}");
+    assert!(
+        text.contains("strip/chunk-000000   stale: strip.max_length changed from 60 to 30"),
+        "{text}"
+    );
+    assert!(
+        text.contains("merge                pending: waits for strip"),
+        "{text}"
+    );
+    let log = String::from_utf8_lossy(&run_ok(&config, "2").stderr).to_string();
+    assert!(log.contains("chunk: fresh"), "{log}");
+    assert!(
+        !log.contains("strip: done in") || log.contains("0 fresh"),
+        "{log}"
+    );
+
+    fs::write(
+        &config,
+        fs::read_to_string(&config)
+            .unwrap()
+            .replace("out.rdm\"", "other.rdm\"\n[work]\ndir = \"out.rdm.work\""),
+    )
+    .unwrap();
+    let text =
+        String::from_utf8_lossy(&run(&["status", config.to_str().unwrap()]).stdout).to_string();
+    assert!(text.contains("hierarchy            done"), "{text}");
+    assert!(
+        text.contains("write                stale: output.path changed"),
+        "{text}"
+    );
+    let log = String::from_utf8_lossy(&run_ok(&config, "2").stderr).to_string();
+    for stage in [
+        "chunk: fresh",
+        "merge: fresh",
+        "hierarchy: fresh",
+        "0 chunks converted",
+    ] {
+        assert!(log.contains(stage), "{stage} missing in {log}");
+    }
+    assert!(fs::read(dir.join("other.rdm")).unwrap() == fs::read(dir.join("out.rdm")).unwrap());
+}
+
+#[test]
+fn a_held_lock_exits_75_naming_the_holder_or_skips() {
+    let dir = temp_dir("lock");
+    let config = job(&dir, "");
+    fs::create_dir_all(dir.join("out.rdm.work")).unwrap();
+    let mut holder = File::options()
+        .create(true)
+        .truncate(true)
+        .write(true)
+        .open(dir.join("out.rdm.work/lock"))
+        .unwrap();
+    writeln!(holder, "pid 4242 on host testhost since unix time 1").unwrap();
+    holder.try_lock().expect("test takes the lock");
+
+    let output = run(&["run", config.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(75));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("locked by another run") && stderr.contains("pid 4242 on host testhost"),
+        "{stderr}"
+    );
+    assert_eq!(
+        run(&["run", config.to_str().unwrap(), "--if-locked", "skip"])
+            .status
+            .code(),
+        Some(0)
+    );
+    assert!(!dir.join("out.rdm").exists());
+
+    drop(holder);
+    // The file is still there with a dead holder's text: a stale lock never blocks.
+    run_ok(&config, "2");
+    assert!(dir.join("out.rdm").exists());
+}
+
+#[test]
+fn a_run_dying_while_writing_leaves_the_previous_output_untouched() {
+    let dir = temp_dir("file-size-limit");
+    let config = job(&dir, "");
+    run_ok(&config, "2");
+    let before = fs::read(dir.join("out.rdm")).unwrap();
+    // A changed config forces new outputs; a 64-block file-size limit stops the run while it
+    // writes them (like a full disk, but independent of the user's privileges).
+    let config = job(&dir, "\n[strip]\nmax_length = 20\n");
+    let output = Command::new("sh")
+        .args([
+            "-c",
+            "ulimit -f 64; exec \"$0\" run \"$1\"",
+            env!("CARGO_BIN_EXE_pipeline"),
+        ])
+        .arg(&config)
+        .output()
+        .expect("run under a file-size limit");
+    assert!(!output.status.success());
+    assert!(
+        before == fs::read(dir.join("out.rdm")).unwrap(),
+        "the previous output changed"
+    );
+    run_ok(&config, "2");
+    assert!(
+        before != fs::read(dir.join("out.rdm")).unwrap(),
+        "the new run did not replace it"
+    );
+}
