@@ -60,7 +60,31 @@ impl Adjacency {
             dropped_triangles,
         }
     }
+
+    /// Index `i` of the edge `(v_i, v_{i+1})` of `triangle` shared with its neighbour `other`.
+    /// Only the two triangles of a two-sided sliver share more than one edge; they form a
+    /// component of their own, so the first match is as good as any.
+    pub fn edge_towards(&self, triangle: u32, other: u32) -> usize {
+        self.neighbours[triangle as usize]
+            .iter()
+            .position(|&n| n == other)
+            .expect("path links always join adjacent triangles")
+    }
+
+    /// The turn of a path that enters `triangle` from `from` and leaves toward `to`: the exit
+    /// edge index minus the entry edge index, mod 3, in the triangle's input winding. It is
+    /// [`TURN_TO_NEXT_EDGE`] or [`TURN_TO_PREVIOUS_EDGE`]; reversing the path swaps the two.
+    pub fn turn(&self, from: u32, triangle: u32, to: u32) -> u8 {
+        let entry = self.edge_towards(triangle, from);
+        let exit = self.edge_towards(triangle, to);
+        ((exit + 3 - entry) % 3) as u8
+    }
 }
+
+/// A turn that leaves through the edge after the entry edge in input winding.
+pub const TURN_TO_NEXT_EDGE: u8 = 1;
+/// A turn that leaves through the edge before the entry edge in input winding.
+pub const TURN_TO_PREVIOUS_EDGE: u8 = 2;
 
 fn kept_triangles(mesh: &Mesh) -> Vec<u32> {
     mesh.triangles

@@ -12,13 +12,14 @@
 //! sequences first (fewer stranded short sequences, at some cost in score).
 //!
 //! Cost: O(n log n) time, about 1 M triangles/s on one core. Memory beyond the mesh peaks in
-//! the first ordering round at about 115 bytes per triangle (measured on a 4M-triangle torus):
-//! adjacency 16, hierarchy 20, sequence state 28, active ends 4, and the round's candidate list
-//! plus its radix-sort buffer 48 (1.5 candidates of 16 bytes per triangle, twice). Later rounds
-//! need far less. Trading speed for memory is possible: an in-place comparison sort and
-//! recomputing the common ancestor at merge time would save about 30 bytes per triangle for an
-//! estimated 10–20% more time (not measured); chunks are sized to fit memory, so speed was
-//! preferred.
+//! the first ordering round at about 80 bytes per triangle (measured on a 4M-triangle torus
+//! with `examples/strip_stats`): adjacency 16, hierarchy 20, sequence state 28, active ends 4,
+//! and the round's candidate list 12 (1.5 candidates of 8 bytes per triangle, sorted in place).
+//! Later rounds need far less.
+//!
+//! Deviation from the paper in the ordering and output steps: both also minimise swaps
+//! (degenerate "ABA" windows), which cost a bound slot of the strip's implicit kd-tree and a
+//! window test each; see `ordering` and `output`.
 
 pub mod adjacency;
 mod ordering;
