@@ -17,7 +17,7 @@ use crate::mesh::Mesh;
 
 /// A mesh read in passes, so that a model larger than memory can be partitioned: positions in
 /// windows, triangles in input order, and positions of chosen vertices.
-pub trait MeshSource {
+pub trait MeshSource: Sync {
     fn vertex_count(&self) -> u64;
     fn for_each_position_window(
         &self,

@@ -21,7 +21,7 @@ use crate::chunk_io;
 use crate::fingerprint::Fingerprint;
 use crate::input::ResolvedInput;
 use crate::manifest::Freshness;
-use crate::stage::{read_json, write_json, Job};
+use crate::stage::{for_each_unit, read_json, write_json, Job};
 use crate::workdir::mesh_chunk;
 
 pub const UNIT: &str = "chunk";
@@ -73,11 +73,13 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     let progress = job
         .progress
         .stage(UNIT, triangles_per_chunk.len() as u64, "chunks");
-    let mut outputs = Vec::new();
-    for chunk in 0..triangles_per_chunk.len() {
-        outputs.push(write_chunk(job, &*source, chunk)?);
+    let chunks: Vec<usize> = (0..triangles_per_chunk.len()).collect();
+    for_each_unit(&chunks, |chunk| {
+        write_chunk(job, &*source, chunk)?;
         progress.advance(1);
-    }
+        Ok(())
+    })?;
+    let mut outputs: Vec<String> = chunks.iter().map(|&chunk| mesh_chunk(chunk)).collect();
     let chunked = Chunked {
         digest: fingerprint.digest(),
         triangles_per_chunk,
@@ -176,7 +178,7 @@ fn spill(job: &Job, source: &dyn MeshSource, partition: &Partition) -> anyhow::R
 }
 
 /// Turns one spill file into a mesh chunk and removes the spill.
-fn write_chunk(job: &Job, source: &dyn MeshSource, chunk: usize) -> anyhow::Result<String> {
+fn write_chunk(job: &Job, source: &dyn MeshSource, chunk: usize) -> anyhow::Result<()> {
     let spill = spill_path(job, chunk);
     let mut bytes = Vec::new();
     BufReader::new(File::open(&spill)?).read_to_end(&mut bytes)?;
@@ -191,6 +193,5 @@ fn write_chunk(job: &Job, source: &dyn MeshSource, chunk: usize) -> anyhow::Resu
     let path = job.work.file(&relative);
     reducem::atomic::write_atomically(&path, |out| chunk_io::write_mesh(out, &mesh))
         .with_context(|| format!("writing {}", path.display()))?;
-    fs::remove_file(&spill).with_context(|| format!("removing {}", spill.display()))?;
-    Ok(relative)
+    fs::remove_file(&spill).with_context(|| format!("removing {}", spill.display()))
 }

@@ -90,3 +90,52 @@ pub fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<
     reducem::atomic::write_atomically(path, |out| std::io::Write::write_all(out, &json))
         .with_context(|| format!("writing {}", path.display()))
 }
+
+/// Runs `work` for every unit, at most one unit per rayon thread at a time, and returns the
+/// first error.
+///
+/// Memory is what bounds a stage (threads × one chunk), so units must not nest: with a plain
+/// `par_iter`, a thread waiting inside a unit's own parallel loop may steal and start another
+/// unit. Here each worker runs its units on a private one-thread pool, so the library's
+/// parallel loops inside a unit stay on that worker. With fewer units than threads, units run
+/// one after another and use the whole pool inside.
+pub fn for_each_unit(
+    units: &[usize],
+    work: impl Fn(usize) -> anyhow::Result<()> + Sync,
+) -> anyhow::Result<()> {
+    let threads = rayon::current_num_threads();
+    if units.len() < threads {
+        return units.iter().try_for_each(|&unit| work(unit));
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let failure = Mutex::new(None);
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| {
+                let pool = match rayon::ThreadPoolBuilder::new().num_threads(1).build() {
+                    Ok(pool) => pool,
+                    Err(error) => return record_failure(&failure, error.into()),
+                };
+                loop {
+                    let index = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    let Some(&unit) = units.get(index) else {
+                        return;
+                    };
+                    if let Err(error) = pool.install(|| work(unit)) {
+                        next.store(units.len(), std::sync::atomic::Ordering::Relaxed);
+                        return record_failure(&failure, error);
+                    }
+                }
+            });
+        }
+    });
+    match failure.into_inner().unwrap_or_else(|p| p.into_inner()) {
+        Some(error) => Err(error),
+        None => Ok(()),
+    }
+}
+
+fn record_failure(failure: &Mutex<Option<anyhow::Error>>, error: anyhow::Error) {
+    let mut slot = failure.lock().unwrap_or_else(|p| p.into_inner());
+    slot.get_or_insert(error);
+}

@@ -1,10 +1,9 @@
 //! Stage *strip*: adjacency, Strip-RT, strip encoding and the chunk's own top-level hierarchy
 //! (`reducem::build`, `reducem::toplevel`), chunks in parallel on the rayon pool. Each chunk is
 //! a unit of its own in the manifest, so a killed run keeps every chunk it finished. Memory is
-//! about threads × one chunk.
+//! about threads × one chunk ([`for_each_unit`]).
 
 use anyhow::Context;
-use rayon::prelude::*;
 use reducem::build::{encode_chunk, strip_bounds};
 use reducem::format::StripRecord;
 use reducem::toplevel::{self, TopLevelParams};
@@ -13,7 +12,7 @@ use crate::chunk_io::{self, StripChunkHeader};
 use crate::fingerprint::Fingerprint;
 use crate::manifest::Freshness;
 use crate::stage::chunk::Chunked;
-use crate::stage::Job;
+use crate::stage::{for_each_unit, Job};
 use crate::workdir::{mesh_chunk, strip_chunk};
 
 /// The manifest key of one chunk's unit.
@@ -51,7 +50,7 @@ pub fn run(job: &Job, chunked: &Chunked) -> anyhow::Result<String> {
         .progress
         .stage("strip", chunked.chunk_count() as u64, "chunks");
     progress.advance((chunked.chunk_count() - pending.len()) as u64);
-    pending.par_iter().try_for_each(|&chunk| {
+    for_each_unit(&pending, |chunk| {
         strip_one(job, chunk).with_context(|| format!("chunk {chunk}"))?;
         job.complete(
             &unit(chunk),
@@ -59,7 +58,7 @@ pub fn run(job: &Job, chunked: &Chunked) -> anyhow::Result<String> {
             &[strip_chunk(chunk)],
         )?;
         progress.advance(1);
-        anyhow::Ok(())
+        Ok(())
     })?;
     progress.finish(&format!(
         ", {} chunks converted, {} fresh",
