@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Out-of-core pipeline benchmark (issue 4): generate `scan` meshes of the given sizes, convert
+# each with `pipeline run` from a clean work directory, and print wall time per stage, total
+# throughput, peak RSS and output bytes/triangle.
+#
+# Usage: scripts/bench_pipeline.sh [TRIANGLES ...]   (default: 1000000 10000000 100000000 300000000)
+# Needs about 60 bytes of free disk per triangle under $BENCH_DIR (default /tmp/reducem-pipeline).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+sizes=("$@")
+[ ${#sizes[@]} -gt 0 ] || sizes=(1000000 10000000 100000000 300000000)
+work=${BENCH_DIR:-/tmp/reducem-pipeline}
+mkdir -p "$work"
+cargo build --release --workspace --bins -q
+
+printf '%11s %8s %8s %8s %8s %8s %8s %9s %10s %9s %7s\n' triangles gen_s chunk_s strip_s merge_s hier_s write_s total_s Mtri/s peakRSS_MB B/tri
+for n in "${sizes[@]}"; do
+  ply="$work/scan-$n.ply"
+  gen_s=cached
+  if [ ! -f "$ply" ]; then
+    start=$(date +%s.%N)
+    ./target/release/pipeline gen scan --triangles "$n" -o "$ply" 2>/dev/null
+    gen_s=$(echo "$(date +%s.%N) - $start" | bc)
+  fi
+  rm -rf "$work/scan-$n.work" "$work/scan-$n.rdm"
+  printf '[input]\npath = "%s"\n[output]\npath = "%s"\n[work]\ndir = "%s"\n' \
+    "$ply" "$work/scan-$n.rdm" "$work/scan-$n.work" > "$work/scan-$n.toml"
+  /usr/bin/time -f '%e %M' -o "$work/time.txt" \
+    ./target/release/pipeline run "$work/scan-$n.toml" --log-format json 2> "$work/log-$n.jsonl"
+  read -r total rss_kb < "$work/time.txt"
+  ./target/release/reducem inspect "$work/scan-$n.rdm" --json > "$work/inspect-$n.json"
+  python3 - "$n" "$gen_s" "$total" "$rss_kb" "$work/log-$n.jsonl" "$work/inspect-$n.json" <<'PY'
+import json, sys
+n, gen_s, total, rss_kb, log, inspect = sys.argv[1:]
+stage = {}
+for line in open(log):
+    try:
+        event = json.loads(line)
+    except ValueError:
+        continue
+    if event.get("event") == "done" and "elapsed_s" in event:
+        stage[event["stage"]] = event["elapsed_s"]
+s = json.load(open(inspect))
+g = gen_s if gen_s == "cached" else "%.1f" % float(gen_s)
+print("%11d %8s %8.1f %8.1f %8.1f %8.1f %8.1f %9.1f %10.2f %9.0f %7.2f" % (
+    int(n), g, stage.get("chunk", 0), stage.get("strip", 0), stage.get("merge", 0),
+    stage.get("hierarchy", 0), stage.get("write", 0), float(total), s["triangles"] / float(total) / 1e6,
+    int(rss_kb) / 1024, s["bytes_per_triangle"]))
+PY
+done
