@@ -110,14 +110,12 @@ fn content_hash(job: &Job, path: &std::path::Path) -> anyhow::Result<String> {
     job.progress
         .event("input", "start", &format!("hashing {}", path.display()));
     let hash = hash_file(path).with_context(|| format!("reading {}", path.display()))?;
-    let mut manifest = job.manifest();
-    manifest.input = Some(InputIdentity {
-        hash: hash.clone(),
-        ..identity
-    });
-    manifest
-        .save(&job.work.manifest())
-        .context("writing the manifest")?;
+    job.update_manifest(|manifest| {
+        manifest.input = Some(InputIdentity {
+            hash: hash.clone(),
+            ..identity
+        })
+    })?;
     Ok(hash)
 }
 

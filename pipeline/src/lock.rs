@@ -3,7 +3,7 @@
 //! An advisory lock (`File::try_lock`, flock on Unix) on `<work>/lock`: the kernel drops it when
 //! the holding process exits, however it dies, so a lock left by a dead process never blocks. The
 //! holder writes its pid, host and start time into the file so that a second run can name it.
-//! Caveat: flock is per-host on some network filesystems (see README, cluster use).
+//! Caveat: on network filesystems flock may be per host or unsupported (see README, cluster use).
 
 use std::fs::{File, OpenOptions};
 use std::io::{Read, Seek, SeekFrom, Write};
@@ -24,8 +24,9 @@ pub struct WorkLock {
 }
 
 impl WorkLock {
-    /// Takes the lock without waiting.
-    pub fn acquire(dir: &Path) -> anyhow::Result<WorkLock> {
+    /// Takes the lock without waiting: shared (strip tasks of one job array, which coordinate
+    /// per chunk) or exclusive (every other run).
+    pub fn acquire(dir: &Path, shared: bool) -> anyhow::Result<WorkLock> {
         let path = dir.join("lock");
         let mut file = OpenOptions::new()
             .read(true)
@@ -33,7 +34,12 @@ impl WorkLock {
             .create(true)
             .truncate(false)
             .open(&path)?;
-        if let Err(error) = file.try_lock() {
+        let attempt = if shared {
+            file.try_lock_shared()
+        } else {
+            file.try_lock()
+        };
+        if let Err(error) = attempt {
             return Err(match error {
                 std::fs::TryLockError::WouldBlock => LockedError {
                     dir: dir.to_path_buf(),
@@ -48,6 +54,24 @@ impl WorkLock {
         writeln!(file, "{}", holder_description())?;
         file.sync_data()?;
         Ok(WorkLock { _file: file })
+    }
+}
+
+/// An exclusive lock on one chunk's unit, so that tasks sharing a work directory never work on
+/// the same chunk.
+pub struct ChunkLock {
+    _file: File,
+}
+
+impl ChunkLock {
+    /// `None` when another task holds the chunk.
+    pub fn try_acquire(path: &Path) -> anyhow::Result<Option<ChunkLock>> {
+        let file = File::create(path)?;
+        match file.try_lock() {
+            Ok(()) => Ok(Some(ChunkLock { _file: file })),
+            Err(std::fs::TryLockError::WouldBlock) => Ok(None),
+            Err(std::fs::TryLockError::Error(error)) => Err(error.into()),
+        }
     }
 }
 

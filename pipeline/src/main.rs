@@ -5,6 +5,7 @@ mod chunk_io;
 mod config;
 mod fingerprint;
 mod input;
+mod interrupt;
 mod lock;
 mod manifest;
 mod progress;
@@ -25,7 +26,7 @@ mod exit {
     pub const BAD_INPUT: u8 = 65;
     pub const INTERNAL: u8 = 70;
     pub const IO: u8 = 74;
-    pub const LOCKED: u8 = 75;
+    pub const TEMPORARY: u8 = 75;
     pub const CONFIG: u8 = 78;
 }
 
@@ -51,6 +52,13 @@ enum Command {
         /// When another run holds the work directory: fail with exit code 75, or skip with 0.
         #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
         if_locked: run::IfLocked,
+        /// Run only this stage; the stages before it must be done.
+        #[arg(long, value_enum)]
+        stage: Option<run::StageName>,
+        /// With `--stage strip`: process only chunks c with c mod N = I. Defaults to
+        /// SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT when those are set.
+        #[arg(long, value_name = "I/N")]
+        shard: Option<run::Shard>,
     },
     /// List stages and chunks as done, pending or stale, with the reason.
     Status { config: PathBuf },
@@ -92,7 +100,19 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             config,
             log_format,
             if_locked,
-        } => run::run(&config, log_format, if_locked),
+            stage,
+            shard,
+        } => {
+            interrupt::install()?;
+            let shard = shard.map_or_else(run::Shard::from_slurm_env, Ok)?;
+            let options = run::RunOptions {
+                log_format,
+                if_locked,
+                stage,
+                shard,
+            };
+            run::run(&config, &options)
+        }
         Command::Status { config } => status::status(&config),
         Command::Clean { config } => run::clean(&config),
         Command::Gen {
@@ -116,8 +136,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 /// Classifies an error by the typed errors in its chain.
 fn exit_code(error: &anyhow::Error) -> u8 {
     for cause in error.chain() {
-        if cause.is::<lock::LockedError>() {
-            return exit::LOCKED;
+        if cause.is::<lock::LockedError>()
+            || cause.is::<interrupt::Interrupted>()
+            || cause.is::<run::UpstreamPending>()
+        {
+            return exit::TEMPORARY;
         }
         if cause.is::<config::ConfigError>() {
             return exit::CONFIG;

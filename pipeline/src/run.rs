@@ -1,8 +1,14 @@
 //! `pipeline run`: the staged, resumable conversion. Each stage checks its fingerprint against
 //! the manifest, skips fresh work and records new work after its outputs are in place, so a run
 //! killed at any moment resumes where it stopped and ends with the same bytes.
+//!
+//! `--stage` runs one stage whose predecessors are done, and `--shard I/N` splits the strip
+//! stage's chunks over the tasks of a batch job array (see `scripts/slurm/`). Strip tasks share
+//! the work directory (a shared lock, plus an exclusive lock per chunk); every other run holds
+//! it exclusively.
 
 use std::path::Path;
+use std::str::FromStr;
 use std::time::Instant;
 
 use anyhow::Context;
@@ -11,6 +17,9 @@ use crate::config::Config;
 use crate::input;
 use crate::lock::{LockedError, WorkLock};
 use crate::progress::{LogFormat, Progress};
+use crate::stage::chunk::Chunked;
+use crate::stage::hierarchy::Hierarchy;
+use crate::stage::merge::Merged;
 use crate::stage::{chunk, hierarchy, merge, strip, write, Job};
 use crate::workdir::WorkDir;
 
@@ -23,16 +32,89 @@ pub enum IfLocked {
     Skip,
 }
 
-pub fn run(config_path: &Path, log_format: LogFormat, if_locked: IfLocked) -> anyhow::Result<()> {
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
+pub enum StageName {
+    Chunk,
+    Strip,
+    Merge,
+    Hierarchy,
+    Write,
+}
+
+/// Shard `index` of `count`: the strip stage's chunks `c` with `c % count == index`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Shard {
+    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
+
+    /// From `SLURM_ARRAY_TASK_ID` and `SLURM_ARRAY_TASK_COUNT` when both are set.
+    pub fn from_slurm_env() -> anyhow::Result<Shard> {
+        match (
+            std::env::var("SLURM_ARRAY_TASK_ID"),
+            std::env::var("SLURM_ARRAY_TASK_COUNT"),
+        ) {
+            (Ok(index), Ok(count)) => format!("{index}/{count}").parse().map_err(|e: String| {
+                anyhow::anyhow!("SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT: {e}")
+            }),
+            _ => Ok(Shard::WHOLE),
+        }
+    }
+
+    pub fn owns(&self, chunk: usize) -> bool {
+        chunk % self.count == self.index
+    }
+}
+
+impl FromStr for Shard {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Shard, String> {
+        let parsed = text
+            .split_once('/')
+            .and_then(|(i, n)| Some((i.trim().parse().ok()?, n.trim().parse().ok()?)));
+        match parsed {
+            Some((index, count)) if index < count => Ok(Shard { index, count }),
+            _ => Err(format!("shard {text:?} is not I/N with 0 <= I < N")),
+        }
+    }
+}
+
+pub struct RunOptions {
+    pub log_format: LogFormat,
+    pub if_locked: IfLocked,
+    pub stage: Option<StageName>,
+    pub shard: Shard,
+}
+
+/// A stage was asked for before the stages it needs were done.
+#[derive(Debug, thiserror::Error)]
+#[error("stage {needed:?} is not done yet ({reason}); run it first")]
+pub struct UpstreamPending {
+    pub needed: StageName,
+    pub reason: String,
+}
+
+pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
     let started = Instant::now();
     let config = Config::load(config_path)?;
+    if options.shard != Shard::WHOLE && options.stage != Some(StageName::Strip) {
+        anyhow::bail!(crate::config::ConfigError {
+            path: config_path.to_path_buf(),
+            message: "--shard applies to --stage strip only".into(),
+        });
+    }
     let work = WorkDir::new(config.work_dir());
     work.create()
         .with_context(|| format!("creating {}", work.root().display()))?;
-    let progress = Progress::new(log_format);
-    let _lock = match WorkLock::acquire(work.root()) {
+    let progress = Progress::new(options.log_format);
+    let shared = options.stage == Some(StageName::Strip);
+    let _lock = match WorkLock::acquire(work.root(), shared) {
         Ok(lock) => lock,
-        Err(error) if if_locked == IfLocked::Skip && error.is::<LockedError>() => {
+        Err(error) if options.if_locked == IfLocked::Skip && error.is::<LockedError>() => {
             progress.event(
                 "run",
                 "skip",
@@ -43,18 +125,92 @@ pub fn run(config_path: &Path, log_format: LogFormat, if_locked: IfLocked) -> an
         Err(error) => return Err(error),
     };
     let job = Job::new(&config, work, &progress);
-    let input = input::resolve(&job)?;
-    let chunked = chunk::run(&job, &input)?;
-    let strip_digest = strip::run(&job, &chunked)?;
-    let merged = merge::run(&job, chunked.chunk_count(), &strip_digest)?;
-    let hierarchy = hierarchy::run(&job, &merged)?;
-    write::run(&job, &merged, &hierarchy)?;
-    progress.event(
-        "run",
-        "done",
-        &format!("finished in {:.1} s", started.elapsed().as_secs_f64()),
-    );
+    match options.stage {
+        None => run_all(&job)?,
+        Some(stage) => run_stage(&job, stage, options.shard)?,
+    }
+    let elapsed = started.elapsed().as_secs_f64();
+    progress.event("run", "done", &format!("finished in {elapsed:.1} s"));
     Ok(())
+}
+
+fn run_all(job: &Job) -> anyhow::Result<()> {
+    let input = input::resolve(job)?;
+    let chunked = chunk::run(job, &input)?;
+    let strip_digest = strip::run(job, &chunked, Shard::WHOLE)?;
+    let merged = merge::run(job, chunked.chunk_count(), &strip_digest)?;
+    let hierarchy = hierarchy::run(job, &merged)?;
+    write::run(job, &merged, &hierarchy)
+}
+
+fn run_stage(job: &Job, stage: StageName, shard: Shard) -> anyhow::Result<()> {
+    match stage {
+        StageName::Chunk => chunk::run(job, &input::resolve(job)?).map(drop),
+        StageName::Strip => strip::run(job, &chunked(job)?, shard).map(drop),
+        StageName::Merge => {
+            let chunked = chunked(job)?;
+            merge::run(job, chunked.chunk_count(), &stripped(job, &chunked)?).map(drop)
+        }
+        StageName::Hierarchy => hierarchy::run(job, &merged(job)?).map(drop),
+        StageName::Write => {
+            let merged = merged(job)?;
+            write::run(job, &merged, &built_hierarchy(job, &merged)?)
+        }
+    }
+}
+
+fn chunked(job: &Job) -> anyhow::Result<Chunked> {
+    let input = input::peek(job).map_err(|reason| UpstreamPending {
+        needed: StageName::Chunk,
+        reason,
+    })?;
+    chunk::fresh_result(job, &chunk::fingerprint(job, &input)).ok_or_else(|| {
+        UpstreamPending {
+            needed: StageName::Chunk,
+            reason: "not run, or stale".into(),
+        }
+        .into()
+    })
+}
+
+fn stripped(job: &Job, chunked: &Chunked) -> anyhow::Result<String> {
+    let missing = strip::pending_chunks(job, chunked, Shard::WHOLE);
+    if !missing.is_empty() {
+        let reason = format!(
+            "{} of {} chunks pending, first {}",
+            missing.len(),
+            chunked.chunk_count(),
+            missing[0]
+        );
+        return Err(UpstreamPending {
+            needed: StageName::Strip,
+            reason,
+        }
+        .into());
+    }
+    Ok(strip::digest(job, chunked))
+}
+
+fn merged(job: &Job) -> anyhow::Result<Merged> {
+    let chunked = chunked(job)?;
+    let fingerprint = merge::fingerprint(&stripped(job, &chunked)?);
+    merge::fresh_result(job, &fingerprint).ok_or_else(|| {
+        UpstreamPending {
+            needed: StageName::Merge,
+            reason: "not run, or stale".into(),
+        }
+        .into()
+    })
+}
+
+fn built_hierarchy(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
+    hierarchy::fresh_result(job, &hierarchy::fingerprint(merged)).ok_or_else(|| {
+        UpstreamPending {
+            needed: StageName::Hierarchy,
+            reason: "not run, or stale".into(),
+        }
+        .into()
+    })
 }
 
 /// `pipeline clean`: removes the work directory (under its lock, so not from under a run).
@@ -65,7 +221,7 @@ pub fn clean(config_path: &Path) -> anyhow::Result<()> {
         eprintln!("pipeline: nothing to clean at {}", root.display());
         return Ok(());
     }
-    let lock = WorkLock::acquire(&root)?;
+    let lock = WorkLock::acquire(&root, false)?;
     std::fs::remove_dir_all(&root).with_context(|| format!("removing {}", root.display()))?;
     drop(lock);
     eprintln!("pipeline: removed {}", root.display());

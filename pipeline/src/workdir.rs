@@ -31,7 +31,8 @@ impl WorkDir {
 
     pub fn create(&self) -> io::Result<()> {
         fs::create_dir_all(self.root.join("chunks"))?;
-        fs::create_dir_all(self.root.join("strips"))
+        fs::create_dir_all(self.root.join("strips"))?;
+        fs::create_dir_all(self.root.join("locks"))
     }
 }
 

@@ -59,12 +59,32 @@ impl<'a> Job<'a> {
                 std::fs::metadata(&path).with_context(|| format!("checking {}", path.display()))?;
             sizes.insert(output.clone(), meta.len());
         }
-        let mut manifest = self.lock_manifest();
-        manifest.record(key, fingerprint, sizes);
+        self.update_manifest(|manifest| manifest.record(key, fingerprint, sizes))
+    }
+
+    /// Applies `change` to the manifest on disk and saves it, under an exclusive lock on
+    /// `<work>/manifest.lock`: sharded tasks of one job complete units concurrently from several
+    /// processes, so each update rereads the latest manifest instead of overwriting it with a
+    /// stale copy.
+    pub fn update_manifest(&self, change: impl FnOnce(&mut Manifest)) -> anyhow::Result<()> {
+        let lock_path = self.work.file("manifest.lock");
+        let lock = std::fs::File::create(&lock_path)
+            .with_context(|| format!("opening {}", lock_path.display()))?;
+        lock.lock()
+            .with_context(|| format!("locking {}", lock_path.display()))?;
         let path = self.work.manifest();
-        manifest
+        let mut latest = Manifest::load(&path);
+        change(&mut latest);
+        latest
             .save(&path)
-            .with_context(|| format!("writing {}", path.display()))
+            .with_context(|| format!("writing {}", path.display()))?;
+        *self.lock_manifest() = latest;
+        Ok(())
+    }
+
+    /// Rereads the manifest from disk (another process may have completed units since).
+    pub fn reload_manifest(&self) {
+        *self.lock_manifest() = Manifest::load(&self.work.manifest());
     }
 
     pub fn manifest(&self) -> std::sync::MutexGuard<'_, Manifest> {
@@ -105,7 +125,10 @@ pub fn for_each_unit(
 ) -> anyhow::Result<()> {
     let threads = rayon::current_num_threads();
     if units.len() < threads {
-        return units.iter().try_for_each(|&unit| work(unit));
+        return units.iter().try_for_each(|&unit| {
+            crate::interrupt::check()?;
+            work(unit)
+        });
     }
     let next = std::sync::atomic::AtomicUsize::new(0);
     let failure = Mutex::new(None);
@@ -121,7 +144,10 @@ pub fn for_each_unit(
                     let Some(&unit) = units.get(index) else {
                         return;
                     };
-                    if let Err(error) = pool.install(|| work(unit)) {
+                    let result = crate::interrupt::check()
+                        .map_err(anyhow::Error::from)
+                        .and_then(|()| pool.install(|| work(unit)));
+                    if let Err(error) = result {
                         next.store(units.len(), std::sync::atomic::Ordering::Relaxed);
                         return record_failure(&failure, error);
                     }

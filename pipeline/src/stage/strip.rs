@@ -10,7 +10,9 @@ use reducem::toplevel::{self, TopLevelParams};
 
 use crate::chunk_io::{self, StripChunkHeader};
 use crate::fingerprint::Fingerprint;
+use crate::lock::ChunkLock;
 use crate::manifest::Freshness;
+use crate::run::Shard;
 use crate::stage::chunk::Chunked;
 use crate::stage::{for_each_unit, Job};
 use crate::workdir::{mesh_chunk, strip_chunk};
@@ -40,30 +42,43 @@ pub fn digest(job: &Job, chunked: &Chunked) -> String {
     all.digest()
 }
 
-pub fn run(job: &Job, chunked: &Chunked) -> anyhow::Result<String> {
-    let pending: Vec<usize> = (0..chunked.chunk_count())
+/// Chunks of `shard` whose unit is not fresh.
+pub fn pending_chunks(job: &Job, chunked: &Chunked, shard: Shard) -> Vec<usize> {
+    (0..chunked.chunk_count())
+        .filter(|&chunk| shard.owns(chunk))
         .filter(|&chunk| {
             job.freshness(&unit(chunk), &fingerprint(job, chunked, chunk)) != Freshness::Fresh
         })
-        .collect();
-    let progress = job
-        .progress
-        .stage("strip", chunked.chunk_count() as u64, "chunks");
-    progress.advance((chunked.chunk_count() - pending.len()) as u64);
+        .collect()
+}
+
+pub fn run(job: &Job, chunked: &Chunked, shard: Shard) -> anyhow::Result<String> {
+    let pending = pending_chunks(job, chunked, shard);
+    let owned = (0..chunked.chunk_count())
+        .filter(|&c| shard.owns(c))
+        .count();
+    let progress = job.progress.stage("strip", owned as u64, "chunks");
+    progress.advance((owned - pending.len()) as u64);
+    let converted = std::sync::atomic::AtomicUsize::new(0);
     for_each_unit(&pending, |chunk| {
-        strip_one(job, chunk).with_context(|| format!("chunk {chunk}"))?;
-        job.complete(
-            &unit(chunk),
-            &fingerprint(job, chunked, chunk),
-            &[strip_chunk(chunk)],
-        )?;
+        let lock_path = job.work.file(&format!("locks/chunk-{chunk:06}.lock"));
+        let Some(_lock) = ChunkLock::try_acquire(&lock_path)? else {
+            return Ok(());
+        };
+        job.reload_manifest();
+        let fingerprint = fingerprint(job, chunked, chunk);
+        if job.freshness(&unit(chunk), &fingerprint) != Freshness::Fresh {
+            strip_one(job, chunk).with_context(|| format!("chunk {chunk}"))?;
+            job.complete(&unit(chunk), &fingerprint, &[strip_chunk(chunk)])?;
+            converted.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
         progress.advance(1);
         Ok(())
     })?;
+    let converted = converted.into_inner();
     progress.finish(&format!(
-        ", {} chunks converted, {} fresh",
-        pending.len(),
-        chunked.chunk_count() - pending.len()
+        ", {converted} chunks converted, {} fresh or taken by other tasks",
+        owned - converted
     ));
     Ok(digest(job, chunked))
 }
