@@ -25,10 +25,8 @@ impl Aabb {
     }
 
     pub fn grow_point(&mut self, p: &Point) {
-        for axis in 0..3 {
-            self.min[axis] = self.min[axis].min(p[axis]);
-            self.max[axis] = self.max[axis].max(p[axis]);
-        }
+        self.min = [0, 1, 2].map(|axis| self.min[axis].min(p[axis]));
+        self.max = [0, 1, 2].map(|axis| self.max[axis].max(p[axis]));
     }
 
     pub fn grow(&mut self, other: &Aabb) {

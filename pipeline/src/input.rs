@@ -33,21 +33,21 @@ pub fn resolve(job: &Job) -> anyhow::Result<ResolvedInput> {
             triangles,
             seed,
         } => {
-            let (relative, fingerprint) = generated(kind, triangles, seed);
-            let path = job.work.file(&relative);
-            if job.freshness(GENERATE_UNIT, &fingerprint) != Freshness::Fresh {
+            let generated = Generated::new(kind, triangles, seed);
+            if job.freshness(GENERATE_UNIT, &generated.fingerprint) != Freshness::Fresh {
                 job.progress.event(
                     GENERATE_UNIT,
                     "start",
                     &format!("{kind:?} mesh, {triangles} triangles, seed {seed}"),
                 );
-                gen::generate(kind, triangles, seed, &path)?;
-                job.complete(GENERATE_UNIT, &fingerprint, &[relative])?;
+                gen::generate(kind, triangles, seed, &job.work.file(&generated.relative))?;
+                job.complete(
+                    GENERATE_UNIT,
+                    &generated.fingerprint,
+                    std::slice::from_ref(&generated.relative),
+                )?;
             }
-            Ok(ResolvedInput {
-                path,
-                content: format!("generated:{}", fingerprint.digest()),
-            })
+            Ok(generated.resolved(job))
         }
     }
 }
@@ -73,28 +73,40 @@ pub fn peek(job: &Job) -> Result<ResolvedInput, String> {
             triangles,
             seed,
         } => {
-            let (relative, fingerprint) = generated(kind, triangles, seed);
-            match job.freshness(GENERATE_UNIT, &fingerprint) {
-                Freshness::Fresh => Ok(ResolvedInput {
-                    path: job.work.file(&relative),
-                    content: format!("generated:{}", fingerprint.digest()),
-                }),
+            let generated = Generated::new(kind, triangles, seed);
+            match job.freshness(GENERATE_UNIT, &generated.fingerprint) {
+                Freshness::Fresh => Ok(generated.resolved(job)),
                 _ => Err("the generated input is not made yet".into()),
             }
         }
     }
 }
 
-fn generated(kind: gen::Kind, triangles: u64, seed: u64) -> (String, Fingerprint) {
-    let name = format!("{kind:?}").to_lowercase();
-    let fingerprint = Fingerprint::new()
-        .with("input.generate.kind", &name)
-        .with("input.generate.triangles", triangles)
-        .with("input.generate.seed", seed);
-    (
-        format!("generated-{name}-{triangles}-{seed}.ply"),
-        fingerprint,
-    )
+/// A synthetic input: where it goes in the work directory and what it depends on.
+struct Generated {
+    relative: String,
+    fingerprint: Fingerprint,
+}
+
+impl Generated {
+    fn new(kind: gen::Kind, triangles: u64, seed: u64) -> Generated {
+        let name = format!("{kind:?}").to_lowercase();
+        Generated {
+            relative: format!("generated-{name}-{triangles}-{seed}.ply"),
+            fingerprint: Fingerprint::new()
+                .with("input.generate.kind", &name)
+                .with("input.generate.triangles", triangles)
+                .with("input.generate.seed", seed),
+        }
+    }
+
+    /// The generated file's content is fixed by its parameters and the program version.
+    fn resolved(&self, job: &Job) -> ResolvedInput {
+        ResolvedInput {
+            path: job.work.file(&self.relative),
+            content: format!("generated:{}", self.fingerprint.digest()),
+        }
+    }
 }
 
 fn content_hash(job: &Job, path: &std::path::Path) -> anyhow::Result<String> {

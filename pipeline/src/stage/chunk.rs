@@ -20,8 +20,7 @@ use serde::{Deserialize, Serialize};
 use crate::chunk_io;
 use crate::fingerprint::Fingerprint;
 use crate::input::ResolvedInput;
-use crate::manifest::Freshness;
-use crate::stage::{for_each_unit, read_json, write_json, Job};
+use crate::stage::{for_each_unit, fresh_output, write_json, Job, Stamped};
 use crate::workdir::mesh_chunk;
 
 pub const UNIT: &str = "chunk";
@@ -50,10 +49,13 @@ pub fn fingerprint(job: &Job, input: &ResolvedInput) -> Fingerprint {
 
 /// The recorded result, if the stage is fresh.
 pub fn fresh_result(job: &Job, fingerprint: &Fingerprint) -> Option<Chunked> {
-    (job.freshness(UNIT, fingerprint) == Freshness::Fresh)
-        .then(|| read_json(&job.work.file(PLAN)).ok())
-        .flatten()
-        .filter(|chunked: &Chunked| chunked.digest == fingerprint.digest())
+    fresh_output(job, UNIT, PLAN, fingerprint)
+}
+
+impl Stamped for Chunked {
+    fn digest(&self) -> &str {
+        &self.digest
+    }
 }
 
 pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {

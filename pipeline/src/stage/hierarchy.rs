@@ -7,9 +7,8 @@ use reducem::toplevel::{splice, SpliceItem, Subtree, TopLevelParams};
 use serde::{Deserialize, Serialize};
 
 use crate::fingerprint::Fingerprint;
-use crate::manifest::Freshness;
 use crate::stage::merge::Merged;
-use crate::stage::{read_json, write_json, Job};
+use crate::stage::{fresh_output, write_json, Job, Stamped};
 
 pub const UNIT: &str = "hierarchy";
 const PLAN: &str = "hierarchy.json";
@@ -43,10 +42,13 @@ pub fn fingerprint(merged: &Merged) -> Fingerprint {
 }
 
 pub fn fresh_result(job: &Job, fingerprint: &Fingerprint) -> Option<Hierarchy> {
-    (job.freshness(UNIT, fingerprint) == Freshness::Fresh)
-        .then(|| read_json(&job.work.file(PLAN)).ok())
-        .flatten()
-        .filter(|hierarchy: &Hierarchy| hierarchy.digest == fingerprint.digest())
+    fresh_output(job, UNIT, PLAN, fingerprint)
+}
+
+impl Stamped for Hierarchy {
+    fn digest(&self) -> &str {
+        &self.digest
+    }
 }
 
 pub fn run(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {

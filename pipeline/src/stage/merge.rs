@@ -9,8 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::chunk_io::StripChunk;
 use crate::fingerprint::Fingerprint;
-use crate::manifest::Freshness;
-use crate::stage::{read_json, write_json, Job};
+use crate::stage::{fresh_output, write_json, Job, Stamped};
 use crate::workdir::strip_chunk;
 
 pub const UNIT: &str = "merge";
@@ -69,10 +68,13 @@ pub fn fingerprint(strip_digest: &str) -> Fingerprint {
 }
 
 pub fn fresh_result(job: &Job, fingerprint: &Fingerprint) -> Option<Merged> {
-    (job.freshness(UNIT, fingerprint) == Freshness::Fresh)
-        .then(|| read_json(&job.work.file(TABLE)).ok())
-        .flatten()
-        .filter(|merged: &Merged| merged.digest == fingerprint.digest())
+    fresh_output(job, UNIT, TABLE, fingerprint)
+}
+
+impl Stamped for Merged {
+    fn digest(&self) -> &str {
+        &self.digest
+    }
 }
 
 pub fn run(job: &Job, chunk_count: usize, strip_digest: &str) -> anyhow::Result<Merged> {

@@ -98,6 +98,25 @@ impl<'a> Job<'a> {
     }
 }
 
+/// A stage result that carries the digest of the fingerprint that made it.
+pub trait Stamped {
+    fn digest(&self) -> &str;
+}
+
+/// A stage's recorded JSON result, if the unit is fresh and the file was made by `fingerprint`.
+pub fn fresh_output<T: Stamped + serde::de::DeserializeOwned>(
+    job: &Job,
+    unit: &str,
+    file: &str,
+    fingerprint: &Fingerprint,
+) -> Option<T> {
+    if job.freshness(unit, fingerprint) != Freshness::Fresh {
+        return None;
+    }
+    let result: T = read_json(&job.work.file(file)).ok()?;
+    (result.digest() == fingerprint.digest()).then_some(result)
+}
+
 /// Reads a small JSON output of an earlier stage.
 pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<T> {
     let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
