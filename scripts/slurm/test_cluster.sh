@@ -3,7 +3,9 @@
 # localhost, with munged, slurmctld and slurmd run as root from a temporary directory (their own
 # key, socket, config, state and logs; nothing under /etc is changed). It converts a small
 # generated mesh with 4 strip shards and checks that the file is byte-identical to a
-# single-machine `pipeline run` of the same configuration, then prints both wall times.
+# single-machine `pipeline run` of the same configuration, then prints both wall times. Then it
+# stops a strip task with SIGUSR1 (as Slurm does before a time limit), resubmits, and checks
+# that the resubmission did only the rest and wrote the same file.
 # It stops exactly the daemons it started (and cancels its jobs), also when it fails.
 #
 # Usage (as root, on Debian or Ubuntu; installs slurmctld slurmd munge slurm-client with apt):
@@ -15,7 +17,7 @@ set -euo pipefail
 repo=$(cd "$(dirname "$0")/../.." && pwd)
 shards=4
 triangles=200000
-chunk_triangles=20000 # about 10 chunks of the 200k-triangle mesh
+chunk_triangles=2000 # about 100 chunks of the 200k-triangle mesh: a few seconds of strip work
 min_chunks=8
 controller_port=16817 # not Slurm's default ports, so a real cluster on this host is untouched
 node_port=16818
@@ -23,7 +25,9 @@ timeout=${SLURM_TEST_TIMEOUT:-900}
 
 tmp=
 daemon_pids=()
-job_ids=()
+job_ids=()   # every job submitted, for cleanup
+submitted=() # chunk, strip and finish job of the latest submission
+chunks=
 passed=
 
 say() { echo "slurm test: $*"; }
@@ -144,45 +148,77 @@ dir = "$1/work"
 CONF
 }
 
-# Job states of every job (and array task) in job_ids, one per line.
-job_states() {
-    local id
-    for id in "${job_ids[@]}"; do
-        scontrol -o show job "$id" | grep -o 'JobState=[A-Z_]*' | cut -d= -f2 || return 1
+# submit CONFIG SHARDS [EXTRA_SBATCH_OPTS]: submits with submit.sh; sets `submitted` to the
+# chunk, strip and finish job ids (and adds them to job_ids, which cleanup cancels).
+submit() {
+    local output
+    output=$(PIPELINE=$pipeline LOG_DIR=$tmp/log/jobs TIME_LIMIT=30:00 EXTRA_SBATCH_OPTS=${3-} \
+        "$repo/scripts/slurm/submit.sh" "$tmp/data/$1.toml" "$2")
+    echo "$output"
+    mapfile -t submitted < <(awk '{ print $2 }' <<<"$output")
+    ((${#submitted[@]} == 3)) || fail "submit.sh did not print 3 job ids"
+    job_ids+=("${submitted[@]}")
+}
+
+# job_field FIELD JOB...: FIELD (JobState, ExitCode, ...) of each job and array task, one a line.
+job_field() {
+    local field=$1 id
+    shift
+    for id in "$@"; do
+        scontrol -o show job "$id" | grep -o "\b$field=[^ ]*" | cut -d= -f2 || return 1
     done
 }
 
+# jobs_finished JOB...: whether every job (and array task) has ended.
 jobs_finished() {
     local states
-    states=$(job_states) || return 1
+    states=$(job_field JobState "$@") || return 1
     ! grep -qvE '^(COMPLETED|FAILED|CANCELLED|TIMEOUT|NODE_FAIL|OUT_OF_MEMORY|PREEMPTED|BOOT_FAIL|DEADLINE)$' <<<"$states"
 }
 
-show_jobs() {
+wait_for_jobs() {
+    wait_until "$timeout" jobs_finished "$@" || fail "the jobs did not finish within $timeout s"
     local id
-    for id in "${job_ids[@]}"; do
+    for id in "$@"; do
         scontrol -o show job "$id" | awk '{
             line = ""
             for (i = 1; i <= NF; i++)
-                if ($i ~ /^(JobId|ArrayTaskId|JobName|JobState|Reason|ExitCode|RunTime)=/) line = line " " $i
-            print "  " line
+                if ($i ~ /^(JobId|ArrayTaskId|JobName|JobState|Reason|ExitCode|StartTime|EndTime)=/) line = line " " $i
+            print " " line
         }'
     done
 }
 
-run_on_cluster() {
-    local started output
-    started=$EPOCHREALTIME
-    output=$(PIPELINE=$pipeline LOG_DIR=$tmp/log/jobs TIME_LIMIT=30:00 \
-        "$repo/scripts/slurm/submit.sh" "$tmp/data/cluster.toml" "$shards")
-    echo "$output"
-    mapfile -t job_ids < <(awk '{ print $2 }' <<<"$output")
-    ((${#job_ids[@]} == 3)) || fail "submit.sh printed no 3 job ids"
-    wait_until "$timeout" jobs_finished || fail "the jobs did not finish within $timeout s"
-    cluster_seconds=$(elapsed_since "$started")
-    show_jobs
-    job_states | grep -qv '^COMPLETED$' && fail "a job did not complete (logs in $tmp/log/jobs)"
+expect_completed() {
+    job_field JobState "$@" | grep -qv '^COMPLETED$' && fail "a job did not complete (logs in $tmp/log/jobs)"
     return 0
+}
+
+# converted_by ARRAY: chunks the strip tasks of job array ARRAY converted, from their logs.
+converted_by() {
+    cat "$tmp/log/jobs/reducem-strip-$1"_*.out |
+        sed -n 's/.* \([0-9][0-9]*\) chunks converted.*/\1/p' | awk '{ n += $1 } END { print n + 0 }'
+}
+
+done_chunks() {
+    "$pipeline" status "$tmp/data/$1.toml" | grep -c '^strip/chunk-.* done$' || true
+}
+
+elapsed_since() {
+    awk -v start="$1" -v end="$EPOCHREALTIME" 'BEGIN { printf "%.1f", end - start }'
+}
+
+run_on_cluster() {
+    local started
+    started=$EPOCHREALTIME
+    submit cluster "$shards"
+    wait_for_jobs "${submitted[@]}"
+    cluster_seconds=$(elapsed_since "$started")
+    expect_completed "${submitted[@]}"
+    chunks=$(done_chunks cluster)
+    ((chunks >= min_chunks)) || fail "only $chunks chunks; the test needs at least $min_chunks"
+    (($(converted_by "${submitted[1]}") == chunks)) ||
+        fail "the strip tasks converted $(converted_by "${submitted[1]}") chunks, not $chunks"
 }
 
 run_single_machine() {
@@ -193,26 +229,56 @@ run_single_machine() {
     single_seconds=$(elapsed_since "$started")
 }
 
-elapsed_since() {
-    awk -v start="$1" -v end="$EPOCHREALTIME" 'BEGIN { printf "%.1f", end - start }'
+expect_identical() {
+    cmp "$tmp/data/$1/out.rdm" "$tmp/data/single/out.rdm" ||
+        fail "the file of $1 differs from the single-machine file"
 }
 
-check_results() {
-    local chunks
-    chunks=$("$pipeline" status "$tmp/data/cluster.toml" | grep -c '^strip/chunk-.* done$' || true)
-    ((chunks >= min_chunks)) || fail "only $chunks chunks; the test needs at least $min_chunks"
-    cmp "$tmp/data/cluster/out.rdm" "$tmp/data/single/out.rdm" ||
-        fail "the cluster's file differs from the single-machine file"
-    say "$chunks chunks over $shards shards; files identical ($(stat -c %s "$tmp/data/single/out.rdm") bytes)"
+# Stops one single-threaded strip task with SIGUSR1 to its batch shell (what Slurm sends before
+# a time limit) while it works, expects exit 75 and the finishing job cancelled, then resubmits
+# and expects the rest done and the same file. The signal is sent once the task logs its plan;
+# if it lands before the first chunk is recorded or after the last one, it tries again.
+stop_and_resume() {
+    local attempt strip state stopped_after=0
+    for attempt in 1 2 3; do
+        "$pipeline" clean "$tmp/data/resume.toml" 2>/dev/null
+        submit resume 1 --cpus-per-task=1
+        strip=${submitted[1]}
+        wait_until "$timeout" grep -q 'strip: .* chunks to do' "$tmp/log/jobs/reducem-strip-${strip}_0.out" ||
+            fail "the strip task did not start"
+        scancel --batch --signal=USR1 "${strip}_0"
+        wait_for_jobs "${submitted[@]}"
+        state=$(job_field JobState "${strip}_0")/$(job_field ExitCode "${strip}_0")
+        stopped_after=$(done_chunks resume)
+        if [[ $state == FAILED/75:0 ]] && ((stopped_after > 0)); then
+            break
+        fi
+        [[ $state == COMPLETED/0:0 || $state == FAILED/75:0 ]] ||
+            fail "the stopped strip task ended $state, not FAILED/75:0"
+        say "attempt $attempt: the signal came with $stopped_after of $chunks chunks done; again"
+        stopped_after=0
+    done
+    ((stopped_after > 0)) || fail "could not stop the strip task while it worked in 3 attempts"
+    [[ $(job_field JobState "${submitted[2]}") == CANCELLED ]] ||
+        fail "the finishing job was not cancelled after the strip task failed"
+    submit resume 1 --cpus-per-task=1
+    wait_for_jobs "${submitted[@]}"
+    expect_completed "${submitted[@]}"
+    local resumed
+    resumed=$(converted_by "${submitted[1]}")
+    ((stopped_after + resumed == chunks)) ||
+        fail "stopped after $stopped_after chunks, resumed with $resumed; expected $chunks in all"
+    expect_identical resume
+    say "stopped by SIGUSR1 after $stopped_after of $chunks chunks (exit 75, finishing job cancelled); the resubmission converted the other $resumed"
 }
 
 # On exit: cancel our jobs, stop our daemons (newest first), show logs if something failed.
 cleanup() {
     local status=$?
     set +e
-    if ((${#job_ids[@]})) && ! jobs_finished; then
+    if ((${#job_ids[@]})) && ! jobs_finished "${job_ids[@]}"; then
         scancel "${job_ids[@]}"
-        wait_until 30 jobs_finished
+        wait_until 30 jobs_finished "${job_ids[@]}"
     fi
     local i
     for ((i = ${#daemon_pids[@]} - 1; i >= 0; i--)); do
@@ -248,9 +314,12 @@ main() {
     nice "$pipeline" gen scan --triangles "$triangles" -o "$tmp/data/mesh.ply"
     write_config cluster
     write_config single
+    write_config resume
     run_on_cluster
     run_single_machine
-    check_results
+    expect_identical cluster
+    say "$chunks chunks over $shards shards; files identical ($(stat -c %s "$tmp/data/single/out.rdm") bytes)"
+    stop_and_resume
     passed=1
 }
 
