@@ -66,11 +66,11 @@ submit() {
 }
 
 (($# >= 1 && $# <= 2)) || usage
+[[ -f $1 ]] || { echo "submit.sh: no config file $1" >&2; exit 66; }
 config=$(realpath "$1")
 shards=${2:-4}
-[[ -f $config ]] || { echo "submit.sh: no config file $1" >&2; exit 66; }
 [[ $shards =~ ^[1-9][0-9]*$ ]] || { echo "submit.sh: SHARDS must be a positive integer, not $shards" >&2; exit 64; }
-pipeline=$(realpath "${PIPELINE:-$(default_pipeline)}")
+pipeline=$(realpath -m "${PIPELINE:-$(default_pipeline)}")
 [[ -x $pipeline ]] || { echo "submit.sh: pipeline binary $pipeline is not executable" >&2; exit 66; }
 log_dir=$(realpath "${LOG_DIR:-.}")
 mkdir -p "$log_dir"

@@ -36,21 +36,26 @@ fail() {
     exit 1
 }
 
+# Installs the Debian packages that are missing (none: no network needed).
 install_packages() {
-    local packages=(slurmctld slurmd munge slurm-client)
-    if dpkg-query -W -f='${Status}\n' "${packages[@]}" 2>/dev/null | grep -vq 'install ok installed' ||
-        (($(dpkg-query -W "${packages[@]}" 2>/dev/null | wc -l) < ${#packages[@]})); then
-        say "installing ${packages[*]}"
+    local package missing=()
+    for package in slurmctld slurmd munge slurm-client; do
+        dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q 'install ok installed' ||
+            missing+=("$package")
+    done
+    if ((${#missing[@]})); then
+        say "installing ${missing[*]}"
         apt-get update -q
-        DEBIAN_FRONTEND=noninteractive apt-get install -y -q "${packages[@]}"
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -q "${missing[@]}"
     fi
 }
 
-# start NAME COMMAND...: runs a daemon in the foreground of a background job, output to its log.
+# start NAME COMMAND...: runs a daemon in the foreground of a background job, logging to
+# log/NAME.log.
 start() {
     local name=$1
     shift
-    "$@" >"$tmp/log/$name.out" 2>&1 &
+    "$@" >"$tmp/log/$name.log" 2>&1 &
     daemon_pids+=($!)
     say "started $name (pid $!)"
 }
@@ -75,8 +80,11 @@ start_munge() {
     start munged munged --foreground --socket="$tmp/munge-socket/socket" \
         --key-file="$tmp/munge/munge.key" --pid-file="$tmp/munge/munged.pid" \
         --seed-file="$tmp/munge/seed"
-    wait_until 30 bash -c "munge -n -S '$tmp/munge-socket/socket' | unmunge -S '$tmp/munge-socket/socket'" ||
-        fail "munged does not answer"
+    wait_until 30 munge_answers || fail "munged does not answer"
+}
+
+munge_answers() {
+    munge -n -S "$tmp/munge-socket/socket" | unmunge -S "$tmp/munge-socket/socket"
 }
 
 write_slurm_conf() {
@@ -97,8 +105,6 @@ StateSaveLocation=$tmp/state
 SlurmdSpoolDir=$tmp/spool
 SlurmctldPidFile=$tmp/run/slurmctld.pid
 SlurmdPidFile=$tmp/run/slurmd.pid
-SlurmctldLogFile=$tmp/log/slurmctld.log
-SlurmdLogFile=$tmp/log/slurmd.log
 ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
 SelectType=select/cons_tres
@@ -120,9 +126,13 @@ start_slurm() {
     write_slurm_conf
     start slurmctld slurmctld -D -f "$SLURM_CONF"
     start slurmd slurmd -D -f "$SLURM_CONF"
-    wait_until 60 bash -c '[[ $(sinfo -h -N -o %t) == idle ]]' ||
+    wait_until 60 node_idle ||
         fail "the node is not idle after 60 s: $(sinfo -h -N -o '%N %t %E' 2>&1)"
     say "cluster up: $(sinfo -h -N -o '%N %c CPUs %m MB %t')"
+}
+
+node_idle() {
+    [[ $(sinfo -h -N -o %t) == idle ]]
 }
 
 build() {
@@ -244,8 +254,8 @@ stop_and_resume() {
         "$pipeline" clean "$tmp/data/resume.toml" 2>/dev/null
         submit resume 1 --cpus-per-task=1
         strip=${submitted[1]}
-        wait_until "$timeout" grep -q 'strip: .* chunks to do' "$tmp/log/jobs/reducem-strip-${strip}_0.out" ||
-            fail "the strip task did not start"
+        wait_until 120 grep -q 'strip: .* chunks to do' "$tmp/log/jobs/reducem-strip-${strip}_0.out" ||
+            fail "the strip task did not start within 120 s"
         scancel --batch --signal=USR1 "${strip}_0"
         wait_for_jobs "${submitted[@]}"
         state=$(job_field JobState "${strip}_0")/$(job_field ExitCode "${strip}_0")
@@ -292,7 +302,7 @@ cleanup() {
     fi
     if [[ -n $tmp ]]; then
         local log
-        for log in "$tmp"/log/*.log "$tmp"/log/*.out "$tmp"/log/jobs/*.out; do
+        for log in "$tmp"/log/*.log "$tmp"/log/single.out "$tmp"/log/jobs/*.out; do
             [[ -f $log ]] && { echo "--- $log (last lines)"; tail -n 15 "$log"; }
         done
         echo "(kept $tmp)"
@@ -304,6 +314,8 @@ cleanup() {
 main() {
     [[ $EUID -eq 0 ]] || fail "run as root (it installs packages and runs the Slurm daemons)"
     trap cleanup EXIT
+    trap 'exit 130' INT
+    trap 'exit 143' TERM
     install_packages
     tmp=$(mktemp -d /tmp/reducem-slurm-test.XXXXXX)
     chmod 0755 "$tmp"
