@@ -72,8 +72,8 @@ shards=${2:-4}
 [[ $shards =~ ^[1-9][0-9]*$ ]] || { echo "submit.sh: SHARDS must be a positive integer, not $shards" >&2; exit 64; }
 pipeline=$(realpath -m "${PIPELINE:-$(default_pipeline)}")
 [[ -x $pipeline ]] || { echo "submit.sh: pipeline binary $pipeline is not executable" >&2; exit 66; }
+mkdir -p "${LOG_DIR:-.}"
 log_dir=$(realpath "${LOG_DIR:-.}")
-mkdir -p "$log_dir"
 job_name=${JOB_NAME:-reducem}
 mapfile -t common < <(common_options)
 
