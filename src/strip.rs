@@ -16,7 +16,11 @@ pub fn window_triangle<T: Copy + PartialEq>(strip: &[T], k: usize) -> Option<[T;
     if a == b || b == c || a == c {
         return None;
     }
-    Some(if k % 2 == 0 { [a, b, c] } else { [b, a, c] })
+    Some(if k.is_multiple_of(2) {
+        [a, b, c]
+    } else {
+        [b, a, c]
+    })
 }
 
 /// All real triangles of a strip, in strip order and input winding.

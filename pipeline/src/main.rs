@@ -104,7 +104,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             shard,
         } => {
             interrupt::install()?;
-            let shard = shard.map_or_else(run::Shard::from_slurm_env, Ok)?;
+            let shard = match (shard, stage) {
+                (Some(shard), _) => shard,
+                (None, Some(run::StageName::Strip)) => run::Shard::from_slurm_env()?,
+                (None, _) => run::Shard::WHOLE,
+            };
             let options = run::RunOptions {
                 log_format,
                 if_locked,
@@ -136,6 +140,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 /// Classifies an error by the typed errors in its chain.
 fn exit_code(error: &anyhow::Error) -> u8 {
     for cause in error.chain() {
+        if cause.is::<run::UsageError>() {
+            return exit::USAGE;
+        }
         if cause.is::<lock::LockedError>()
             || cause.is::<interrupt::Interrupted>()
             || cause.is::<run::UpstreamPending>()

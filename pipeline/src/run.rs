@@ -90,6 +90,11 @@ pub struct RunOptions {
     pub shard: Shard,
 }
 
+/// A command line (or environment) that cannot be run as given.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct UsageError(pub String);
+
 /// A stage was asked for before the stages it needs were done.
 #[derive(Debug, thiserror::Error)]
 #[error("stage {needed:?} is not done yet ({reason}); run it first")]
@@ -102,10 +107,7 @@ pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
     let started = Instant::now();
     let config = Config::load(config_path)?;
     if options.shard != Shard::WHOLE && options.stage != Some(StageName::Strip) {
-        anyhow::bail!(crate::config::ConfigError {
-            path: config_path.to_path_buf(),
-            message: "--shard applies to --stage strip only".into(),
-        });
+        anyhow::bail!(UsageError("--shard applies to --stage strip only".into()));
     }
     let work = WorkDir::new(config.work_dir());
     work.create()

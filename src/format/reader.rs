@@ -450,7 +450,7 @@ impl Checker<'_> {
                     "section {slot} has kind {}, expected {}",
                     entry.kind, kind as u32
                 ))
-            } else if entry.offset % SECTION_ALIGN != 0 || entry.offset < previous_end {
+            } else if !entry.offset.is_multiple_of(SECTION_ALIGN) || entry.offset < previous_end {
                 Some(format!(
                     "{} offset {} is unaligned or overlaps",
                     kind.name(),
@@ -462,7 +462,7 @@ impl Checker<'_> {
                     kind.name(),
                     self.map.len()
                 ))
-            } else if entry.length % record != 0
+            } else if !entry.length.is_multiple_of(record)
                 || (kind == SectionKind::TopNodes && entry.length == 0)
             {
                 Some(format!(

@@ -75,6 +75,18 @@ pub fn run(job: &Job, chunked: &Chunked, shard: Shard) -> anyhow::Result<String>
         progress.advance(1);
         Ok(())
     })?;
+    job.reload_manifest();
+    let still_pending = pending_chunks(job, chunked, shard);
+    if let Some(&first) = still_pending.first() {
+        return Err(crate::run::UpstreamPending {
+            needed: crate::run::StageName::Strip,
+            reason: format!(
+                "{} chunks of this shard are held by another task, first {first}",
+                still_pending.len()
+            ),
+        }
+        .into());
+    }
     let converted = converted.into_inner();
     progress.finish(&format!(
         ", {converted} chunks converted, {} fresh or taken by other tasks",
