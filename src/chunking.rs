@@ -211,25 +211,34 @@ impl ChunkPlan {
 }
 
 /// Builds a chunk's mesh from its triangles as global vertex indices: the distinct vertices,
-/// ascending, become the chunk's local vertex array (`positions` are theirs, in that order).
-pub fn local_mesh(
+/// ascending, become the chunk's local vertex array, with positions from `positions_of`.
+///
+/// One sort of (vertex, corner) keys finds the distinct vertices and every corner's local
+/// index together, instead of a binary search per corner.
+pub fn local_mesh<E>(
     triangles: &[[u32; 3]],
-    distinct_vertices: &[u32],
-    positions: Vec<Point>,
-) -> Mesh {
-    let local = |v: u32| distinct_vertices.partition_point(|&d| d < v) as u32;
-    Mesh {
-        positions,
-        triangles: triangles.iter().map(|t| t.map(local)).collect(),
+    positions_of: impl FnOnce(&[u32]) -> Result<Vec<Point>, E>,
+) -> Result<Mesh, E> {
+    let corners = triangles.as_flattened();
+    let mut keys: Vec<u64> = corners
+        .iter()
+        .enumerate()
+        .map(|(corner, &vertex)| (vertex as u64) << 32 | corner as u64)
+        .collect();
+    keys.sort_unstable();
+    let mut distinct: Vec<u32> = Vec::new();
+    let mut local = vec![0u32; corners.len()];
+    for key in keys {
+        let vertex = (key >> 32) as u32;
+        if distinct.last() != Some(&vertex) {
+            distinct.push(vertex);
+        }
+        local[key as u32 as usize] = distinct.len() as u32 - 1;
     }
-}
-
-/// The ascending distinct vertex indices used by `triangles`.
-pub fn distinct_vertices(triangles: &[[u32; 3]]) -> Vec<u32> {
-    let mut vertices: Vec<u32> = triangles.iter().flatten().copied().collect();
-    vertices.sort_unstable();
-    vertices.dedup();
-    vertices
+    Ok(Mesh {
+        positions: positions_of(&distinct)?,
+        triangles: local.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+    })
 }
 
 #[cfg(test)]
@@ -268,9 +277,12 @@ mod tests {
     #[test]
     fn local_mesh_renumbers_by_ascending_global_index() {
         let triangles = [[10, 4, 7], [7, 4, 2]];
-        let distinct = distinct_vertices(&triangles);
-        assert_eq!(distinct, vec![2, 4, 7, 10]);
-        let mesh = local_mesh(&triangles, &distinct, vec![[0.0; 3]; 4]);
+        let mesh = local_mesh(&triangles, |distinct| {
+            assert_eq!(distinct, [2, 4, 7, 10]);
+            Ok::<_, ()>(distinct.iter().map(|&v| [v as f32; 3]).collect())
+        })
+        .unwrap();
         assert_eq!(mesh.triangles, vec![[3, 1, 2], [2, 1, 0]]);
+        assert_eq!(mesh.positions[3], [10.0; 3]);
     }
 }

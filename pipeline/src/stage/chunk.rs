@@ -186,11 +186,8 @@ fn write_chunk(job: &Job, source: &dyn MeshSource, chunk: usize) -> anyhow::Resu
     BufReader::new(File::open(&spill)?).read_to_end(&mut bytes)?;
     let triangles: Vec<[u32; 3]> = bytemuck::pod_collect_to_vec(&bytes);
     drop(bytes);
-    let distinct = chunking::distinct_vertices(&triangles);
-    let positions = source.positions_of(&distinct)?;
-    let mesh = reducem::input::weld_identical_positions(chunking::local_mesh(
-        &triangles, &distinct, positions,
-    ));
+    let mesh = chunking::local_mesh(&triangles, |distinct| source.positions_of(distinct))?;
+    let mesh = reducem::input::weld_identical_positions(mesh);
     let relative = mesh_chunk(chunk);
     let path = job.work.file(&relative);
     reducem::atomic::write_atomically(&path, |out| chunk_io::write_mesh(out, &mesh))
