@@ -443,7 +443,7 @@ impl Checker<'_> {
         for (slot, kind) in SectionKind::ALL.into_iter().enumerate() {
             let entry = &header.sections[slot];
             let table_offset = 104 + slot as u64 * 32;
-            let end = entry.offset.checked_add(entry.length).unwrap_or(u64::MAX);
+            let end = entry.offset.saturating_add(entry.length);
             let record = record_size(kind);
             let detail = if entry.kind != kind as u32 {
                 Some(format!(
