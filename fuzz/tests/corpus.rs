@@ -40,3 +40,23 @@ fn every_seed_is_accepted() {
 fn saved_findings_no_longer_panic() {
     run_directory("regressions");
 }
+
+/// Found by the `rays` target (seed 11): a subnormal direction component's reciprocal overflows
+/// to infinity, so the tracer treats the ray as parallel to x = 0 although it crosses that
+/// split plane at t = 0.33, and misses the sphere the reference hits at t = 2.
+#[test]
+#[ignore = "tracer bug in src/trace/prepared.rs (not editable on this branch): 1 / subnormal \
+            direction overflows to inf and bounds tests skip nodes the ray enters"]
+fn subnormal_direction_components_are_traced() {
+    let ray = reducem::trace::Ray {
+        origin: [-8.8e-44, 9e-44, -9e-44],
+        direction: [2.68e-43, -0.0, 0.5000114],
+        tmin: 1.0,
+        tmax: f32::INFINITY,
+    };
+    let scratch =
+        std::env::temp_dir().join(format!("reducem-fuzz-subnormal-{}", std::process::id()));
+    let workspace = Workspace::new(&scratch).expect("scratch workspace");
+    let bytes = reducem::trace::ray_file::encode_rays(&[ray]);
+    assert_eq!(workspace.run(Target::Rays, &bytes), Outcome::Accepted);
+}
