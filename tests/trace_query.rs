@@ -101,7 +101,8 @@ fn query_round_trip_matches_the_library() {
 /// write nothing.
 fn assert_rejected(bytes: &[u8], name: &str, expected: &str) {
     let mesh = grid(3, 3);
-    let model = temp_path("query-grid.rdm");
+    // A model per case: tests run in parallel, and two writers of one path would collide.
+    let model = temp_path(&format!("{name}.rdm"));
     write_strips(&mesh, &long_strips(&mesh, 10), 2, &model);
     let ray_path = temp_path(name);
     std::fs::write(&ray_path, bytes).expect("write rays");
@@ -172,5 +173,32 @@ fn malformed_ray_files_are_rejected_with_position() {
         &negative,
         "negative.rays",
         "ray 0 at byte 24: tmin -1 is negative",
+    );
+}
+
+#[test]
+fn nan_and_infinite_fields_are_rejected_by_name() {
+    let names = ["ox", "oy", "oz", "dx", "dy", "dz", "tmin", "tmax"];
+    for (field, name) in names.iter().enumerate() {
+        let mut bytes = encode_rays(&[good_ray(), good_ray()]);
+        let at = RAY_BYTES + 4 * field;
+        bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        let offset = format!("ray 1 at byte {at}: {name} is NaN");
+        assert_rejected(&bytes, &format!("nan-{name}.rays"), &offset);
+        // tmax may be +inf (an unbounded ray); tmin = +inf is a valid, empty interval.
+        if field < 6 {
+            for infinity in [f32::INFINITY, f32::NEG_INFINITY] {
+                bytes[at..at + 4].copy_from_slice(&infinity.to_le_bytes());
+                let expected = format!("ray 1 at byte {at}: {name} is infinite");
+                assert_rejected(&bytes, &format!("inf-{name}.rays"), &expected);
+            }
+        }
+    }
+    let mut negative_tmax = good_ray();
+    negative_tmax.tmax = f32::NEG_INFINITY;
+    assert_rejected(
+        &encode_rays(&[negative_tmax]),
+        "negative-tmax.rays",
+        "ray 0 at byte 24: tmin 0 is greater than tmax -inf",
     );
 }
