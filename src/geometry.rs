@@ -3,6 +3,11 @@
 /// A point or vector in model space, stored exactly as the file stores it.
 pub type Point = [f32; 3];
 
+/// Largest coordinate magnitude the project accepts from input files. The watertight ray test
+/// multiplies coordinates (edge functions are products of two, the hit distance of three) in
+/// f32; beyond about 1e12 those products overflow, so inputs are held well inside that.
+pub const MAX_COORDINATE: f32 = 1e11;
+
 /// Axis-aligned bounding box. An empty box has `min > max` on every axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {

@@ -242,7 +242,7 @@ fn double_coordinates_are_rounded_to_f32() {
         ..FLOAT_UCHAR_INT
     };
     let positions = vec![
-        [0.1, -2.5e-7, 1.0e20],
+        [0.1, -2.5e-7, 1.0e10],
         [1.0 / 3.0, 7.0, -0.3],
         [2.0, 2.0, 2.0],
     ];
@@ -780,6 +780,20 @@ fn non_finite_coordinates_are_rejected() {
 }
 
 #[test]
+fn float_beyond_the_supported_range_is_rejected() {
+    let mut positions = sample_positions();
+    positions[2][1] = -274_877_906_944.0; // -2^38, exact in f32
+    let bytes = plain_ply(Format::Little, FLOAT_UCHAR_INT, &positions, &sample_faces());
+    let header_length = plain_header(Format::Little, FLOAT_UCHAR_INT, 5, 3).len();
+    let (error, path) = read_error(&bytes);
+    let offset = header_length + 2 * 12 + 4;
+    assert_eq!(
+        error.to_string(),
+        format!("{path}: element 'vertex' #2 at byte {offset}: coordinate y = -2.74877906944e11 is outside the supported range ±1e11")
+    );
+}
+
+#[test]
 fn double_beyond_f32_range_is_rejected() {
     let types = Types {
         coordinate: "double",
@@ -793,7 +807,7 @@ fn double_beyond_f32_range_is_rejected() {
     let offset = header_length + 24;
     assert_eq!(
         error.to_string(),
-        format!("{path}: element 'vertex' #1 at byte {offset}: coordinate x = 1e300 is too large for a 32-bit float")
+        format!("{path}: element 'vertex' #1 at byte {offset}: coordinate x = 1e300 is outside the supported range ±1e11")
     );
 }
 
@@ -1091,7 +1105,7 @@ fn large_binary_files_report_the_first_defect() {
 fn polygon_mesh() -> impl Strategy<Value = (Vec<[f32; 3]>, Vec<Vec<i64>>)> {
     let coordinate = prop_oneof![
         -1.0e6f32..1.0e6f32,
-        any::<f32>().prop_filter("finite", |c| c.is_finite()),
+        any::<f32>().prop_filter("in range", |c| c.abs() <= reducem::geometry::MAX_COORDINATE),
     ];
     prop::collection::vec([coordinate.clone(), coordinate.clone(), coordinate], 1..40)
         .prop_flat_map(|positions| {

@@ -458,9 +458,9 @@ fn large_coordinates_convert_and_agree() {
 }
 
 #[test]
-#[ignore = "src/trace/watertight.rs (not editable on this branch) overflows f32 for coordinates \
-            beyond about 1e12: edge functions are products of two coordinates and t of three, so \
-            tracer and reference alike report hits at t = inf or miss"]
+#[ignore = "the f32 watertight test overflows beyond about 1e12 (edge functions are products of \
+            two coordinates, t of three); the readers reject inputs beyond geometry::MAX_COORDINATE \
+            = 1e11 with a clear error, meshes built in code are not checked yet"]
 fn coordinates_near_the_f32_limits_convert_and_agree() {
     for scale in [1e13f32, 1e20, 1e30, 1e38] {
         check_scaled_sphere(scale);

@@ -118,8 +118,8 @@ pub enum InputErrorKind {
     TooFewFaceVertices(u64),
     #[error("coordinate {axis} is {value}, not a finite number")]
     NonFiniteCoordinate { axis: char, value: f64 },
-    #[error("coordinate {axis} = {value:e} is too large for a 32-bit float")]
-    CoordinateOverflowsF32 { axis: char, value: f64 },
+    #[error("coordinate {axis} = {value:e} is outside the supported range ±{max:e}", max = crate::geometry::MAX_COORDINATE)]
+    CoordinateOutOfRange { axis: char, value: f64 },
     #[error("OBJ: {0}")]
     Obj(String),
 }

@@ -57,13 +57,17 @@ fn append_model(path: &Path, mesh: &mut Mesh, model: &tobj::Mesh) -> Result<(), 
     Ok(())
 }
 
+/// Rejects NaN, infinities and coordinates beyond [`crate::geometry::MAX_COORDINATE`].
 fn check_finite(path: &Path, point: [f32; 3]) -> Result<(), InputError> {
-    match point.iter().position(|coordinate| !coordinate.is_finite()) {
+    let bad = |c: &f32| !c.is_finite() || c.abs() > crate::geometry::MAX_COORDINATE;
+    match point.iter().position(bad) {
         None => Ok(()),
-        Some(axis) => {
-            let kind = InputErrorKind::NonFiniteCoordinate {
-                axis: ['x', 'y', 'z'][axis],
-                value: point[axis].into(),
+        Some(index) => {
+            let (axis, value) = (['x', 'y', 'z'][index], point[index].into());
+            let kind = if point[index].is_finite() {
+                InputErrorKind::CoordinateOutOfRange { axis, value }
+            } else {
+                InputErrorKind::NonFiniteCoordinate { axis, value }
             };
             Err(InputError::new(path, Location::File, kind))
         }

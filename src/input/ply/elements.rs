@@ -27,8 +27,9 @@ pub fn read_vertex<R: ValueReader>(reader: &mut R, layout: &VertexLayout) -> Res
     Ok(point)
 }
 
-/// Converts a coordinate to f32, rejecting NaN, infinities and doubles beyond the f32 range
-/// (which would otherwise silently become infinities).
+/// Converts a coordinate to f32, rejecting NaN, infinities and magnitudes beyond
+/// [`crate::geometry::MAX_COORDINATE`] (which the tracer's single-precision arithmetic cannot
+/// take, and which doubles would otherwise turn into silent infinities).
 pub fn narrow_coordinate<R: ValueReader>(
     reader: &R,
     axis: usize,
@@ -43,8 +44,8 @@ pub fn narrow_coordinate<R: ValueReader>(
         return Err(reader.defect_at_last_value(kind));
     }
     let narrowed = value as f32;
-    if !narrowed.is_finite() {
-        let kind = InputErrorKind::CoordinateOverflowsF32 {
+    if narrowed.abs() > crate::geometry::MAX_COORDINATE {
+        let kind = InputErrorKind::CoordinateOutOfRange {
             axis: axis_letter,
             value,
         };
