@@ -9,8 +9,8 @@
 //! Zero direction components: `1 / ±0` is `±inf`, so a plane distance is `±inf` (the ray never
 //! crosses the plane, it is entirely on one side) or NaN when the origin lies exactly on the
 //! plane (`0 * inf`). A ray in a bounding plane is inside the closed slab, so a NaN must never
-//! narrow an interval: all clipping goes through `f32::max`/`f32::min`, which return the other
-//! operand when one is NaN, and every clip starts from a non-NaN value.
+//! narrow an interval: every clip starts from a non-NaN value and goes through [`max_not_nan`] /
+//! [`min_not_nan`], which keep that value when the other operand is NaN.
 
 use super::watertight::RaySpace;
 use super::Ray;
@@ -60,18 +60,44 @@ impl PreparedRay {
         t_near: f32,
         t_far: f32,
     ) -> Option<(f32, f32)> {
-        let mut near = t_near;
-        let mut far = t_far;
-        for axis in 0..3 {
-            let (entry, exit) = if self.negative[axis] {
-                (max[axis], min[axis])
-            } else {
-                (min[axis], max[axis])
-            };
-            near = near.max(self.plane_distance(axis, entry));
-            far = far.min(self.plane_distance(axis, exit) * FAR_INFLATION);
-        }
+        let [x, y, z] = [0, 1, 2].map(|axis| self.slab(axis, min[axis], max[axis]));
+        let near = max_not_nan(max_not_nan(max_not_nan(t_near, x.0), y.0), z.0);
+        let far = min_not_nan(min_not_nan(min_not_nan(t_far, x.1), y.1), z.1);
         (near <= far).then_some((near, far))
+    }
+
+    /// Entry and (inflated) exit distance of the slab `min <= coordinate[axis] <= max`. Both
+    /// planes are computed and then picked by the direction's sign, which is branch-free.
+    #[inline(always)]
+    fn slab(&self, axis: usize, min: f32, max: f32) -> (f32, f32) {
+        let to_min = self.plane_distance(axis, min);
+        let to_max = self.plane_distance(axis, max);
+        if self.negative[axis] {
+            (to_max, to_min * FAR_INFLATION)
+        } else {
+            (to_min, to_max * FAR_INFLATION)
+        }
+    }
+}
+
+/// `a.max(b)` for a non-NaN `a`: `a` when `b` is NaN, like `f32::max`, but one instruction
+/// instead of `f32::max`'s NaN fix-up of both operands.
+#[inline(always)]
+pub fn max_not_nan(a: f32, b: f32) -> f32 {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
+/// `a.min(b)` for a non-NaN `a`; see [`max_not_nan`].
+#[inline(always)]
+pub fn min_not_nan(a: f32, b: f32) -> f32 {
+    if b < a {
+        b
+    } else {
+        a
     }
 }
 

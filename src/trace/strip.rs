@@ -11,22 +11,24 @@
 //! hit found since is nearer than its entry.
 //!
 //! An interval of at most [`TraceOptions::subtree_windows`](super::TraceOptions) windows, or a
-//! leaf, is intersected at once (the paper's "external parameter"). The intersector transforms
-//! each strip position of the interval to ray space once and evaluates every strip edge once:
-//! window `k` uses the short edges `(s[k], s[k+1])`, `(s[k+1], s[k+2])` and the long edge
-//! `(s[k], s[k+2])`, and shares its second short edge with window `k + 1`, so a strip costs about
-//! two edge functions per triangle instead of three.
+//! leaf, is intersected at once (the paper's "external parameter"). The intersector streams over
+//! the interval's strip positions, transforming each to ray space once, and evaluates every strip
+//! edge once: window `k` uses the short edges `(s[k], s[k+1])`, `(s[k+1], s[k+2])` and the long
+//! edge `(s[k], s[k+2])`, and shares its second short edge with window `k + 1`. The long edge is
+//! only computed when the two short edges do not already separate the ray from the triangle, so
+//! a strip costs between one and two edge functions per window.
+//!
+//! Cost: the traversal is a flat loop over a fixed stack, with nodes numbered in buckets of
+//! `leaf_windows` windows (see [`crate::format::implicit_tree`]) so that splitting a node and
+//! finding its right child take a shift and an add rather than divisions by the leaf size, and
+//! nothing is allocated or zeroed per strip or per window.
 //!
 //! Determinism: among hits at the same parameter the one with the smallest (strip, window) wins,
 //! and culling compares inclusively, so ties resolve the same way whatever the visiting order.
 
-use super::prepared::{PreparedRay, FAR_INFLATION};
-use super::watertight::{edge, resolve, RayPoint};
-use crate::format::implicit_tree::{is_leaf, right_child, split_point};
+use super::prepared::{max_not_nan, min_not_nan, PreparedRay, FAR_INFLATION};
+use super::watertight::{edge, resolve};
 use crate::format::reader::StripView;
-
-/// Most windows intersected in one batch; bounds the per-batch stack arrays.
-pub const MAX_BATCH_WINDOWS: usize = 32;
 
 /// Deepest strip kd-tree: intervals halve, and a strip has fewer than 2^16 windows.
 const STRIP_STACK: usize = 20;
@@ -69,12 +71,6 @@ impl Closest {
     }
 }
 
-/// `node` if the ray's interval in it is non-empty and not beyond the closest hit.
-#[inline(always)]
-fn enters(node: Pending, closest_t: f32) -> Option<Pending> {
-    (node.t_near <= node.t_far && node.t_near <= closest_t).then_some(node)
-}
-
 /// What one strip traversal looks for.
 pub struct StripQuery<'a> {
     pub ray: &'a PreparedRay,
@@ -85,11 +81,13 @@ pub struct StripQuery<'a> {
     pub any_hit: bool,
 }
 
+/// A subtree of the strip's kd-tree and the ray's parameter interval in it. The subtree covers
+/// buckets `[first, end)`, bucket `b` being windows `b * leaf_windows ..` (the last one shorter).
 #[derive(Clone, Copy, Default)]
 struct Pending {
     node: u32,
-    lo: u32,
-    hi: u32,
+    first: u32,
+    end: u32,
     t_near: f32,
     t_far: f32,
 }
@@ -105,35 +103,81 @@ impl StripQuery<'_> {
         t_far: f32,
         closest: &mut Closest,
     ) -> bool {
+        let args = (view, index, t_near, t_far, closest);
+        match self.ray.space.axes() {
+            [1, 2, 0] => self.trace_as::<1, 2, 0>(args),
+            [2, 1, 0] => self.trace_as::<2, 1, 0>(args),
+            [2, 0, 1] => self.trace_as::<2, 0, 1>(args),
+            [0, 2, 1] => self.trace_as::<0, 2, 1>(args),
+            [0, 1, 2] => self.trace_as::<0, 1, 2>(args),
+            _ => self.trace_as::<1, 0, 2>(args),
+        }
+    }
+
+    /// [`StripQuery::trace`] for a ray whose ray-space axes are `[KX, KY, KZ]`.
+    fn trace_as<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        (view, index, t_near, t_far, closest): (&StripView, u32, f32, f32, &mut Closest),
+    ) -> bool {
+        let windows = view.window_count();
+        let leaf = self.leaf_windows;
+        let ray = self.ray;
         let mut stack = [Pending::default(); STRIP_STACK];
         let mut depth = 0;
         let mut current = Pending {
             node: 0,
-            lo: 0,
-            hi: view.window_count() as u32,
+            first: 0,
+            end: windows.div_ceil(leaf) as u32,
             t_near,
             t_far,
         };
         loop {
-            let (lo, hi) = (current.lo as usize, current.hi as usize);
-            if hi - lo <= self.subtree_windows || is_leaf(lo, hi, self.leaf_windows) {
-                if self.intersect(view, index, lo, hi, closest) && self.any_hit {
+            // Invariant: `current` is entered, i.e. `t_near <= t_far` and `t_near <= closest.t`.
+            let (first, end) = (current.first as usize, current.end as usize);
+            let lo = first * leaf;
+            let hi = (end * leaf).min(windows);
+            if end - first == 1 || hi - lo <= self.subtree_windows {
+                if self.intersect::<KX, KY, KZ>(view, index, lo, hi, closest) && self.any_hit {
                     return true;
                 }
             } else {
-                let (near, far) = self.children(view, &current, closest.t);
-                match (near, far) {
-                    (Some(near), Some(far)) => {
+                // The left child takes the larger half of the buckets (left-balanced tree).
+                let mid = first + (end - first).div_ceil(2);
+                let node = current.node as usize;
+                // Validated axes are at most 2; saying so lets the compiler drop the bounds
+                // checks of the indexing below.
+                let axis = view.axis(node).min(2);
+                let left_max = ray.plane_distance(axis, view.vertices[2 * node][axis]);
+                let right_min = ray.plane_distance(axis, view.vertices[2 * node + 1][axis]);
+                let left = Pending {
+                    node: current.node + 1,
+                    end: mid as u32,
+                    ..current
+                };
+                let right = Pending {
+                    node: (node + (mid - first)) as u32,
+                    first: mid as u32,
+                    ..current
+                };
+                let (mut near, near_exit, mut far, far_entry) = if ray.negative[axis] {
+                    (right, right_min, left, left_max)
+                } else {
+                    (left, left_max, right, right_min)
+                };
+                near.t_far = min_not_nan(near.t_far, near_exit * FAR_INFLATION);
+                far.t_near = max_not_nan(far.t_near, far_entry);
+                let far_entered = far.t_near <= far.t_far && far.t_near <= closest.t;
+                if near.t_near <= near.t_far {
+                    if far_entered {
                         stack[depth] = far;
                         depth += 1;
-                        current = near;
-                        continue;
                     }
-                    (Some(only), None) | (None, Some(only)) => {
-                        current = only;
-                        continue;
-                    }
-                    (None, None) => {}
+                    current = near;
+                    continue;
+                }
+                if far_entered {
+                    current = far;
+                    continue;
                 }
             }
             loop {
@@ -149,50 +193,10 @@ impl StripQuery<'_> {
         }
     }
 
-    /// The children of an internal node the ray enters, near one first.
+    /// Intersects windows `[lo, hi)`, streaming over their positions: each position is moved to
+    /// ray space once and each edge shared by two windows is evaluated once.
     #[inline(always)]
-    fn children(
-        &self,
-        view: &StripView,
-        node: &Pending,
-        closest_t: f32,
-    ) -> (Option<Pending>, Option<Pending>) {
-        let (index, lo, hi) = (node.node as usize, node.lo as usize, node.hi as usize);
-        let mid = split_point(lo, hi, self.leaf_windows);
-        let axis = view.axis(index);
-        let ray = self.ray;
-        let left_max = ray.plane_distance(axis, view.vertices[2 * index][axis]);
-        let right_min = ray.plane_distance(axis, view.vertices[2 * index + 1][axis]);
-        let left = Pending {
-            node: node.node + 1,
-            lo: node.lo,
-            hi: mid as u32,
-            ..*node
-        };
-        let right = Pending {
-            node: right_child(index, lo, mid, self.leaf_windows) as u32,
-            lo: mid as u32,
-            hi: node.hi,
-            ..*node
-        };
-        let (near, near_exit, far, far_entry) = if ray.negative[axis] {
-            (right, right_min, left, left_max)
-        } else {
-            (left, left_max, right, right_min)
-        };
-        let near = Pending {
-            t_far: near.t_far.min(near_exit * FAR_INFLATION),
-            ..near
-        };
-        let far = Pending {
-            t_near: far.t_near.max(far_entry),
-            ..far
-        };
-        (enters(near, closest_t), enters(far, closest_t))
-    }
-
-    /// Intersects windows `[lo, hi)` in batches of at most [`MAX_BATCH_WINDOWS`].
-    fn intersect(
+    fn intersect<const KX: usize, const KY: usize, const KZ: usize>(
         &self,
         view: &StripView,
         index: u32,
@@ -200,45 +204,25 @@ impl StripQuery<'_> {
         hi: usize,
         closest: &mut Closest,
     ) -> bool {
-        let mut start = lo;
-        while start < hi {
-            let end = hi.min(start + MAX_BATCH_WINDOWS);
-            if self.intersect_batch(view, index, start, end, closest) && self.any_hit {
-                return true;
-            }
-            start = end;
-        }
-        false
-    }
-
-    /// Transforms positions `lo .. hi + 2` once, then tests each window with the shared edges.
-    #[inline(always)]
-    fn intersect_batch(
-        &self,
-        view: &StripView,
-        index: u32,
-        lo: usize,
-        hi: usize,
-        closest: &mut Closest,
-    ) -> bool {
+        let space = &self.ray.space;
         let references = &view.references[lo..hi + 2];
-        let mut points = [RayPoint::default(); MAX_BATCH_WINDOWS + 2];
-        for (point, &reference) in points.iter_mut().zip(references) {
-            *point = self.ray.space.transform(&view.vertices[reference as usize]);
-        }
-        let mut leading_edge = edge(&points[0], &points[1]);
+        let point = |position: usize| {
+            space.transform_as::<KX, KY, KZ>(&view.vertices[references[position] as usize])
+        };
+        let (mut p0, mut p1) = (point(0), point(1));
+        let mut leading_edge = edge(&p0, &p1);
         let mut found = false;
         for k in 0..hi - lo {
-            let trailing_edge = edge(&points[k + 1], &points[k + 2]);
+            let p2 = point(k + 2);
+            let trailing_edge = edge(&p1, &p2);
             let [a, b, c] = [references[k], references[k + 1], references[k + 2]];
-            if a != b && b != c && a != c {
-                let corners = [points[k], points[k + 1], points[k + 2]];
-                let weights = [
-                    trailing_edge,
-                    edge(&points[k + 2], &points[k]),
-                    leading_edge,
-                ];
-                if let Some(hit) = resolve(&corners, weights, self.ray.tmin, closest.t) {
+            // Short edges of strictly opposite signs put the ray outside the triangle; f32 edge
+            // signs never contradict the exact ones (rounding is monotone), so this rejects
+            // exactly what `resolve` would, without the long edge.
+            let separated = leading_edge * trailing_edge < 0.0;
+            if !separated && a != b && b != c && a != c {
+                let weights = [trailing_edge, edge(&p2, &p0), leading_edge];
+                if let Some(hit) = resolve(&[p0, p1, p2], weights, self.ray.tmin, closest.t) {
                     closest.offer(hit.t, index, (lo + k) as u16, hit.weights);
                     found = true;
                     if self.any_hit {
@@ -246,7 +230,7 @@ impl StripQuery<'_> {
                     }
                 }
             }
-            leading_edge = trailing_edge;
+            (p0, p1, leading_edge) = (p1, p2, trailing_edge);
         }
         found
     }

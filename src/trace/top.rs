@@ -39,7 +39,7 @@ pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) 
         let node = &nodes[current.node as usize];
         if node.is_internal() {
             let (first, second) = ordered_children(ray, current.node, node);
-            let entered = [first, second].map(|child| {
+            let enter = |child: u32| {
                 clip(ray, &nodes[child as usize], ray.tmin, closest.t).map(|(t_near, t_far)| {
                     Deferred {
                         node: child,
@@ -47,19 +47,19 @@ pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) 
                         t_far,
                     }
                 })
-            });
-            match entered {
-                [Some(near), Some(far)] => {
+            };
+            match (enter(first), enter(second)) {
+                (Some(near), Some(far)) => {
                     stack[depth] = far;
                     depth += 1;
                     current = near;
                     continue;
                 }
-                [Some(only), None] | [None, Some(only)] => {
+                (Some(only), None) | (None, Some(only)) => {
                     current = only;
                     continue;
                 }
-                [None, None] => {}
+                (None, None) => {}
             }
         } else if trace_leaf(file, query, node, &current, closest) {
             return true;

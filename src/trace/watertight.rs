@@ -78,10 +78,33 @@ impl RaySpace {
         }
     }
 
+    /// Ray-space x, y and z axes as model axes (one of six permutations).
+    #[inline(always)]
+    pub fn axes(&self) -> [usize; 3] {
+        self.axes
+    }
+
     /// The model-space vertex `p` in ray space.
     #[inline(always)]
     pub fn transform(&self, p: &Point) -> RayPoint {
         let [kx, ky, kz] = self.axes;
+        self.transform_on(p, kx, ky, kz)
+    }
+
+    /// [`RaySpace::transform`] for a ray whose [`RaySpace::axes`] are `[KX, KY, KZ]`. The same
+    /// arithmetic, but with the axes known at compile time the components are plain loads
+    /// instead of indexing by a runtime axis, which matters in the strip intersector's loop.
+    #[inline(always)]
+    pub fn transform_as<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        p: &Point,
+    ) -> RayPoint {
+        debug_assert_eq!(self.axes, [KX, KY, KZ]);
+        self.transform_on(p, KX, KY, KZ)
+    }
+
+    #[inline(always)]
+    fn transform_on(&self, p: &Point, kx: usize, ky: usize, kz: usize) -> RayPoint {
         let a = [
             p[0] - self.origin[0],
             p[1] - self.origin[1],
