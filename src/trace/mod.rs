@@ -68,7 +68,7 @@ pub struct TraceOptions {
 impl Default for TraceOptions {
     fn default() -> Self {
         TraceOptions {
-            subtree_windows: 4,
+            subtree_windows: 8,
             packets: true,
         }
     }
