@@ -75,7 +75,7 @@ pub fn collect(
     let tracer = Tracer::new(&file, TraceOptions::default());
     let size = sizes.accuracy_image;
     let (reference, _) = render(&tracer, &scene(size, REFERENCE_SAMPLES));
-    let mut images = vec![write_image(&reference, out_dir, REFERENCE_SAMPLES)?];
+    let mut images = Vec::new();
     let mut rows = Vec::new();
     for samples in SAMPLE_COUNTS {
         let scene = scene(size, samples);
@@ -91,6 +91,7 @@ pub fn collect(
             rmse: rmse(&frame, &reference),
         });
     }
+    images.push(write_image(&reference, out_dir, REFERENCE_SAMPLES)?);
     Ok((rows, images))
 }
 

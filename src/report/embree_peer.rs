@@ -20,6 +20,7 @@ use embree::{
 use super::engines::{self, Engine, Speed};
 use super::memory::MemoryParts;
 use super::workload::RaySet;
+use super::Sizes;
 use crate::mesh::Mesh;
 use crate::trace::Ray;
 
@@ -35,7 +36,7 @@ pub struct Measured {
 }
 
 /// Builds the scene over `mesh` and traces `rays` with it.
-pub fn measure(mesh: &Mesh, rays: &RaySet, runs: usize, compact: bool) -> Measured {
+pub fn measure(mesh: &Mesh, rays: &RaySet, sizes: &Sizes, compact: bool) -> Measured {
     // Declared first so that it outlives the device that reports into it.
     let allocated = Box::new(AtomicI64::new(0));
     let device = Device::new();
@@ -74,7 +75,7 @@ pub fn measure(mesh: &Mesh, rays: &RaySet, runs: usize, compact: bool) -> Measur
             other: 0,
         },
         build_seconds,
-        speed: engines::measure(&committed, rays, runs),
+        speed: engines::measure(&committed, rays, sizes.runs, sizes.min_trace_seconds),
     }
 }
 

@@ -3,9 +3,11 @@
 //! Each engine counts hits (primary) and occluded rays (AO) so that the report can show that the
 //! engines answered the same queries, not only how fast.
 
+use std::time::Instant;
+
 use rayon::prelude::*;
 
-use super::workload::{median_timed, RaySet};
+use super::workload::RaySet;
 use crate::baseline::TriangleBvh;
 use crate::trace::{Ray, Tracer};
 
@@ -55,28 +57,45 @@ pub struct Speed {
     pub ao_occluded: usize,
 }
 
-/// Traces both ray sets `runs` times on all cores.
-pub fn measure(engine: &dyn Engine, rays: &RaySet, runs: usize) -> Speed {
-    let (primary_seconds, primary_hits) = median_timed(runs, || {
-        rays.primary
-            .par_chunks(CHUNK)
-            .map(|chunk| engine.count_hits(chunk))
-            .sum::<usize>()
+/// Traces both ray sets on all cores: the median over `runs` runs, each repeating the set until
+/// at least `min_seconds` have passed (short runs are at the mercy of the scheduler).
+pub fn measure(engine: &dyn Engine, rays: &RaySet, runs: usize, min_seconds: f64) -> Speed {
+    let (primary_mrays, primary_hits) = median_rate(&rays.primary, runs, min_seconds, |chunk| {
+        engine.count_hits(chunk)
     });
-    let (ao_seconds, ao_occluded) = median_timed(runs, || {
-        rays.ambient_occlusion
-            .par_chunks(CHUNK)
-            .map(|chunk| engine.count_occluded(chunk))
-            .sum::<usize>()
-    });
+    let (ao_mrays, ao_occluded) =
+        median_rate(&rays.ambient_occlusion, runs, min_seconds, |chunk| {
+            engine.count_occluded(chunk)
+        });
     Speed {
-        primary_mrays: mrays(rays.primary.len(), primary_seconds),
-        ao_mrays: mrays(rays.ambient_occlusion.len(), ao_seconds),
+        primary_mrays,
+        ao_mrays,
         primary_hits,
         ao_occluded,
     }
 }
 
-fn mrays(rays: usize, seconds: f64) -> f64 {
-    rays as f64 / seconds.max(1e-9) / 1e6
+/// Median Mrays/s of `trace` over `rays`, and what one pass over them answered.
+fn median_rate(
+    rays: &[Ray],
+    runs: usize,
+    min_seconds: f64,
+    trace: impl Fn(&[Ray]) -> usize + Sync,
+) -> (f64, usize) {
+    let pass = || rays.par_chunks(CHUNK).map(&trace).sum::<usize>();
+    let mut answer = 0;
+    let mut rates: Vec<f64> = (0..runs.max(1))
+        .map(|_| {
+            let started = Instant::now();
+            let mut passes = 0;
+            while passes == 0 || started.elapsed().as_secs_f64() < min_seconds {
+                answer = pass();
+                passes += 1;
+            }
+            let seconds = started.elapsed().as_secs_f64().max(1e-9);
+            (rays.len() * passes) as f64 / seconds / 1e6
+        })
+        .collect();
+    rates.sort_by(f64::total_cmp);
+    (rates[rates.len() / 2], answer)
 }

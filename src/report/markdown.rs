@@ -116,8 +116,9 @@ pub fn preamble(machine: &MachineFacts, sizes: &Sizes) -> String {
     let _ = writeln!(
         text,
         "| timing | median of {} runs for every trace, render and build time (Embree builds \
-         and the leaf-size files: one run); Mrays/s = rays / median seconds, all cores |\n",
-        sizes.runs
+         and the leaf-size files: one run); a trace run repeats its ray set for at least {} s; \
+         Mrays/s over all cores |\n",
+        sizes.runs, sizes.min_trace_seconds
     );
     text
 }

@@ -60,6 +60,8 @@ pub struct Sizes {
     pub accuracy_image: u32,
     /// Runs per timing; the median is reported.
     pub runs: usize,
+    /// Shortest trace run: a ray set is traced repeatedly until this many seconds have passed.
+    pub min_trace_seconds: f64,
 }
 
 impl Scale {
@@ -71,20 +73,23 @@ impl Scale {
                 ao_rays_per_hit: 4,
                 accuracy_image: 24,
                 runs: 3,
+                min_trace_seconds: 0.0,
             },
             Scale::Medium => Sizes {
                 triangles: 300_000,
                 image: 256,
                 ao_rays_per_hit: 8,
                 accuracy_image: 128,
-                runs: 3,
+                runs: 5,
+                min_trace_seconds: 0.2,
             },
             Scale::Full => Sizes {
-                triangles: 2_000_000,
+                triangles: 4_000_000,
                 image: 512,
                 ao_rays_per_hit: 8,
                 accuracy_image: 256,
-                runs: 3,
+                runs: 5,
+                min_trace_seconds: 0.3,
             },
         }
     }

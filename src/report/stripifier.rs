@@ -135,7 +135,7 @@ pub fn collect(work: &Path, sizes: &Sizes) -> anyhow::Result<Vec<StripifierRow>>
                 stripifier,
                 stats,
                 build_seconds,
-                speed: engines::measure(&engine, &rays, sizes.runs),
+                speed: engines::measure(&engine, &rays, sizes.runs, sizes.min_trace_seconds),
             });
         }
     }

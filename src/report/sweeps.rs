@@ -61,7 +61,12 @@ impl Subject {
     fn speed(&self, file: &Path, options: TraceOptions, sizes: &Sizes) -> anyhow::Result<Speed> {
         let file = ReducemFile::open(file)?;
         let engine = ReduceM(Tracer::new(&file, options));
-        Ok(engines::measure(&engine, &self.rays, sizes.runs))
+        Ok(engines::measure(
+            &engine,
+            &self.rays,
+            sizes.runs,
+            sizes.min_trace_seconds,
+        ))
     }
 }
 
