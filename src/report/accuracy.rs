@@ -146,7 +146,8 @@ pub fn section(
         series: vec![Series::line(
             "1, 2, 4, …, 256 samples per pixel",
             rows.iter().map(|r| (r.render_seconds, r.rmse)).collect(),
-        )],
+        )
+        .with_point_labels(rows.iter().map(|r| format!("{} spp", r.samples)).collect())],
     };
     let cost_path = plot::draw(&cost, plots_dir)?;
     let image_links: String = images
@@ -167,7 +168,7 @@ pub fn section(
         table.to_markdown(),
         figure(
             &cost_path,
-            "Ambient occlusion: image RMSE against the 1024-sample reference (y, log scale) against render time (x, log scale), one point per sample count.",
+            "Ambient occlusion: image RMSE against the 1024-sample reference (y, log scale) against render time (x, log scale), one point per sample count (labelled in samples per pixel).",
             "Each doubling of samples doubles the AO rays and so roughly the time, and divides the error by about √2: the slope is the price of accuracy.",
         ),
     );

@@ -16,8 +16,19 @@ const SIZE: (u32, u32) = (820, 520);
 const MARGIN_FRACTION: f64 = 0.06;
 /// Fraction of the y range left free above the data, where the legend goes.
 const LEGEND_ROOM_FRACTION: f64 = 0.3;
-/// Most tick labels on a logarithmic axis (one per power when there are fewer powers).
-const MAX_LOG_TICKS: usize = 12;
+/// Where a point's label starts relative to the point, in pixels (right and up).
+const POINT_LABEL_OFFSET: (i32, i32) = (7, -16);
+/// Series colours: saturated and distinct on white.
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+];
+/// Fewest and most tick labels on a logarithmic axis (one per power when there are fewer powers).
+const LOG_TICKS: std::ops::RangeInclusive<usize> = 5..=12;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum AxisScale {
@@ -72,12 +83,14 @@ impl Axis {
     }
 }
 
-/// One named set of points; joined by a line when `joined`.
+/// One named set of points; joined by a line when `joined`; each point annotated with its
+/// entry of `point_labels` when given (for parameters that are not on an axis).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Series {
     pub label: String,
     pub points: Vec<(f64, f64)>,
     pub joined: bool,
+    pub point_labels: Vec<String>,
 }
 
 impl Series {
@@ -86,6 +99,7 @@ impl Series {
             label: label.into(),
             points,
             joined: true,
+            point_labels: Vec::new(),
         }
     }
     pub fn points(label: &str, points: Vec<(f64, f64)>) -> Series {
@@ -93,7 +107,13 @@ impl Series {
             label: label.into(),
             points,
             joined: false,
+            point_labels: Vec::new(),
         }
+    }
+
+    pub fn with_point_labels(mut self, labels: Vec<String>) -> Series {
+        self.point_labels = labels;
+        self
     }
 }
 
@@ -147,7 +167,7 @@ fn render(plot: &Plot, path: &Path) -> Result<(), Box<dyn std::error::Error>> {
         .y_label_formatter(&|v| tick_label(y_scale.inverse(*v)))
         .draw()?;
     for (index, (meta, points)) in plot.series.iter().zip(&series).enumerate() {
-        let color = Palette99::pick(index).to_rgba();
+        let color = PALETTE[index % PALETTE.len()];
         if meta.joined {
             chart.draw_series(LineSeries::new(
                 points.iter().copied(),
@@ -158,6 +178,9 @@ fn render(plot: &Plot, path: &Path) -> Result<(), Box<dyn std::error::Error>> {
             .draw_series(points.iter().map(|&p| Circle::new(p, 4, color.filled())))?
             .label(meta.label.as_str())
             .legend(move |(x, y)| Circle::new((x + 8, y), 4, color.filled()));
+        chart.draw_series(points.iter().zip(&meta.point_labels).map(|(&p, text)| {
+            EmptyElement::at(p) + Text::new(text.clone(), POINT_LABEL_OFFSET, ("sans-serif", 13))
+        }))?;
     }
     chart
         .configure_series_labels()
@@ -169,12 +192,14 @@ fn render(plot: &Plot, path: &Path) -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-/// Tick labels for an axis: one per power on a logarithmic one, so that labels are round.
+/// Tick labels for an axis: on a logarithmic one, one per power (round labels) unless the
+/// range spans too few powers to read values off.
 fn tick_count(axis: &Axis, range: &Range<f64>) -> usize {
     match axis.scale {
         AxisScale::Linear => 10,
         AxisScale::Log2 | AxisScale::Log10 => {
-            ((range.end.floor() - range.start.ceil()) as usize + 1).clamp(2, MAX_LOG_TICKS)
+            let powers = (range.end.floor() - range.start.ceil()).max(0.0) as usize + 1;
+            powers.clamp(*LOG_TICKS.start(), *LOG_TICKS.end())
         }
     }
 }

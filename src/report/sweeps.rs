@@ -349,12 +349,13 @@ pub fn sah_section(rows: &[SahRow], plots_dir: &Path) -> anyhow::Result<Section>
     }
     let series = [PARTITION_BINS, TOP_LEVEL_BINS]
         .map(|hierarchy| {
+            let rows: Vec<&SahRow> = rows.iter().filter(|r| r.hierarchy == hierarchy).collect();
             let points = rows
                 .iter()
-                .filter(|r| r.hierarchy == hierarchy)
                 .map(|r| (r.build_seconds, r.speed.primary_mrays))
                 .collect();
-            Series::line(hierarchy, points)
+            let labels = rows.iter().map(|r| format!("{} bins", r.bins)).collect();
+            Series::line(hierarchy, points).with_point_labels(labels)
         })
         .to_vec();
     let plot = Plot {
@@ -373,8 +374,8 @@ pub fn sah_section(rows: &[SahRow], plots_dir: &Path) -> anyhow::Result<Section>
         table.to_markdown(),
         figure(
             &plot_path,
-            "SAH bins: build time (x, log scale) against primary-ray Mrays/s (y); each point is one bin count (2 to 64, see the table).",
-            "A point up and to the left is a better trade; where a line turns flat, more bins only cost build time.",
+            "SAH bins: build time (x, log scale) against primary-ray Mrays/s (y); each point is labelled with its bin count.",
+            "A point up and to the left is a better trade; lines join the bin counts in order, so where a line stops rising, more bins only cost build time.",
         )
     );
     Ok(Section {
