@@ -13,7 +13,7 @@ use crate::format::writer::{write_file, FileInfo, WriteError};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 use crate::strip;
-use crate::stripify::{stripify, StripifyParams};
+use crate::stripify::{stripify, Stripification, StripifyParams};
 use crate::toplevel::{self, TopLevelParams};
 
 /// Build parameters, with the paper's values as defaults.
@@ -92,11 +92,19 @@ impl ChunkStats {
 
 /// Runs Strip-RT and strip encoding over one chunk.
 pub fn encode_chunk(mesh: &Mesh, params: &BuildParams) -> EncodedChunk {
-    let stripification = stripify(mesh, &params.stripify);
+    encode_stripification(mesh, &stripify(mesh, &params.stripify), params.leaf_windows)
+}
+
+/// Encodes strips from any stripifier (Strip-RT, or another one for comparison) over `mesh`.
+pub fn encode_stripification(
+    mesh: &Mesh,
+    stripification: &Stripification,
+    leaf_windows: usize,
+) -> EncodedChunk {
     let strips: Vec<EncodedStrip> = stripification
         .strips
         .par_iter()
-        .flat_map_iter(|references| encode_fitting(references, mesh, params.leaf_windows))
+        .flat_map_iter(|references| encode_fitting(references, mesh, leaf_windows))
         .collect();
     let mut stats = ChunkStats {
         dropped_triangles: stripification.dropped_triangles,
@@ -147,7 +155,15 @@ pub fn convert_mesh(
     params: &BuildParams,
     out: &Path,
 ) -> Result<ChunkStats, WriteError> {
-    let chunk = encode_chunk(mesh, params);
+    write_chunk(&encode_chunk(mesh, params), params, out)
+}
+
+/// Builds the top level over one encoded chunk and writes the file at `out`.
+pub fn write_chunk(
+    chunk: &EncodedChunk,
+    params: &BuildParams,
+    out: &Path,
+) -> Result<ChunkStats, WriteError> {
     let bounds = strip_bounds(&chunk.strips);
     let top = toplevel::build(&bounds, &params.top_level);
     let info = FileInfo {

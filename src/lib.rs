@@ -22,6 +22,8 @@ pub mod inspect;
 pub mod mapping;
 pub mod mesh;
 pub mod render;
+#[cfg(feature = "report")]
+pub mod report;
 pub mod strip;
 pub mod stripify;
 pub mod toplevel;

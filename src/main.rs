@@ -61,6 +61,18 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Measure the trade-offs report: OUT/REPORT.md with its tables, plots and images.
+    #[cfg(feature = "report")]
+    Report {
+        /// Mesh and image sizes: tiny (seconds), medium (minutes), full (about 30 minutes).
+        #[arg(long, value_enum, default_value = "full")]
+        scale: reducem::report::Scale,
+        #[arg(long, default_value = "report")]
+        out: PathBuf,
+        /// Generated meshes (kept between runs) and converted files.
+        #[arg(long, default_value = "target/report-work")]
+        work: PathBuf,
+    },
 }
 
 fn main() -> ExitCode {
@@ -93,7 +105,25 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             output,
             json,
         } => render(&file, &scene, &output, json),
+        #[cfg(feature = "report")]
+        Command::Report { scale, out, work } => report(scale, out, work),
     }
+}
+
+#[cfg(feature = "report")]
+fn report(
+    scale: reducem::report::Scale,
+    out_dir: PathBuf,
+    work_dir: PathBuf,
+) -> anyhow::Result<()> {
+    let config = reducem::report::ReportConfig {
+        scale,
+        out_dir,
+        work_dir,
+    };
+    let (_, written) = reducem::report::run(&config)?;
+    println!("wrote {}", written.report.display());
+    Ok(())
 }
 
 fn query(path: &Path, rays: &Path, output: &Path, occluded: bool) -> anyhow::Result<()> {
