@@ -20,6 +20,11 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use reducem::gen;
 
+/// mimalloc returns freed chunk memory to the system promptly; with glibc's per-thread arenas
+/// the resident set of a long run crept up chunk after chunk (see README, memory).
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 /// Exit codes (sysexits.h values, as batch schedulers expect).
 mod exit {
     pub const USAGE: u8 = 64;
