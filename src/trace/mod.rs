@@ -7,7 +7,11 @@
 //!
 //! Guarantees:
 //! * Watertight: a ray through a shared edge or vertex of a closed mesh always hits (see
-//!   [`watertight`]); bounds tests are conservative under rounding (see [`prepared`]).
+//!   [`watertight`]); bounds tests are conservative under rounding (see [`prepared`]), also
+//!   for subnormal direction components.
+//! * Closed interval: a hit is reported when its `t` lies in `[tmin, tmax]`, ends included, e.g.
+//!   with `tmin = tmax` at the hit (traversal culls a little beyond `tmax`, see
+//!   [`strip::Closest::reach`]). A zero `t` is `+0.0`.
 //! * Deterministic: the closest hit is the smallest `(t, strip, window)` among the hits, so the
 //!   result does not depend on visiting order, packet width or thread count. Packets run the
 //!   same per-ray arithmetic as single rays and give bit-identical hits.
