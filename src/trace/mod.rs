@@ -174,7 +174,11 @@ impl<'f> Tracer<'f> {
         let corners = view.window_points(window)?;
         let [w0, w1, w2] = closest.weights;
         // Odd windows list their first two corners in the opposite order of the input winding.
-        let (u, v) = if window % 2 == 0 { (w1, w2) } else { (w0, w2) };
+        let (u, v) = if window.is_multiple_of(2) {
+            (w1, w2)
+        } else {
+            (w0, w2)
+        };
         Some(Hit {
             t: closest.t,
             u,
