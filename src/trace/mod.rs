@@ -7,7 +7,11 @@
 //!
 //! Guarantees:
 //! * Watertight: a ray through a shared edge or vertex of a closed mesh always hits (see
-//!   [`watertight`]); bounds tests are conservative under rounding (see [`prepared`]).
+//!   [`watertight`]); bounds tests are conservative under rounding (see [`prepared`]), also
+//!   for subnormal direction components.
+//! * Closed interval: a hit is reported when its `t` lies in `[tmin, tmax]`, ends included, e.g.
+//!   with `tmin = tmax` at the hit (traversal culls a little beyond `tmax`, see
+//!   [`strip::Closest::reach`]). A zero `t` is `+0.0`.
 //! * Deterministic: the closest hit is the smallest `(t, strip, window)` among the hits, so the
 //!   result does not depend on visiting order, packet width or thread count. Packets run the
 //!   same per-ray arithmetic as single rays and give bit-identical hits.
@@ -170,7 +174,11 @@ impl<'f> Tracer<'f> {
         let corners = view.window_points(window)?;
         let [w0, w1, w2] = closest.weights;
         // Odd windows list their first two corners in the opposite order of the input winding.
-        let (u, v) = if window % 2 == 0 { (w1, w2) } else { (w0, w2) };
+        let (u, v) = if window.is_multiple_of(2) {
+            (w1, w2)
+        } else {
+            (w0, w2)
+        };
         Some(Hit {
             t: closest.t,
             u,

@@ -37,7 +37,8 @@ struct PacketDeferred {
 struct Lanes {
     rays: [PreparedRay; PACKET_WIDTH],
     origin: [f32x8; 3],
-    reciprocal: [f32x8; 3],
+    entry_reciprocal: [f32x8; 3],
+    exit_reciprocal: [f32x8; 3],
     tmin: f32x8,
 }
 
@@ -77,7 +78,8 @@ impl Lanes {
         let gather = |f: &dyn Fn(&PreparedRay) -> f32| f32x8::from(prepared.map(|r| f(&r)));
         Lanes {
             origin: [0, 1, 2].map(|axis| gather(&|r| r.origin[axis])),
-            reciprocal: [0, 1, 2].map(|axis| gather(&|r| r.reciprocal[axis])),
+            entry_reciprocal: [0, 1, 2].map(|axis| gather(&|r| r.entry_reciprocal[axis])),
+            exit_reciprocal: [0, 1, 2].map(|axis| gather(&|r| r.exit_reciprocal[axis])),
             tmin: gather(&|r| r.tmin),
             rays: prepared,
         }
@@ -94,8 +96,8 @@ impl Lanes {
             } else {
                 (node.min[axis], node.max[axis])
             };
-            let entry = (f32x8::splat(entry) - self.origin[axis]) * self.reciprocal[axis];
-            let exit = (f32x8::splat(exit) - self.origin[axis]) * self.reciprocal[axis];
+            let entry = (f32x8::splat(entry) - self.origin[axis]) * self.entry_reciprocal[axis];
+            let exit = (f32x8::splat(exit) - self.origin[axis]) * self.exit_reciprocal[axis];
             near = near.max(entry);
             far = far.min(exit * f32x8::splat(FAR_INFLATION));
         }
@@ -103,14 +105,14 @@ impl Lanes {
     }
 }
 
-/// The closest-hit bound of every lane; finished lanes (occlusion found) get `-inf` so that
-/// nothing is entered for them any more.
+/// The culling bound ([`Closest::reach`]) of every lane; finished lanes (occlusion found) get
+/// `-inf` so that nothing is entered for them any more.
 fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> f32x8 {
     f32x8::from(std::array::from_fn::<f32, PACKET_WIDTH, _>(|lane| {
         if finished & (1 << lane) != 0 {
             f32::NEG_INFINITY
         } else {
-            closest[lane].t
+            closest[lane].reach
         }
     }))
 }

@@ -1,9 +1,9 @@
 //! A ray prepared for traversal, and the conservative slab arithmetic every bounds test uses.
 //!
 //! Robustness follows Ize, "Robust BVH Ray Traversal" (JCGT 2013): a plane distance
-//! `(plane - origin) * (1 / d)` carries at most three roundings, so scaling every *far* distance
+//! `(plane - origin) * (1 / d)` carries at most three roundings, so scaling every *exit* distance
 //! by [`FAR_INFLATION`] (a little more than `1 + 2γ₃`) makes the computed interval contain the
-//! exact one; near distances are left as computed. A bounds test may thus visit a node it need
+//! exact one; entry distances are left as computed. A bounds test may thus visit a node it need
 //! not, but never skips one the exact ray enters.
 //!
 //! Zero direction components: `1 / ±0` is `±inf`, so a plane distance is `±inf` (the ray never
@@ -11,7 +11,12 @@
 //! plane (`0 * inf`). A ray in a bounding plane is inside the closed slab, so a NaN must never
 //! narrow an interval: every clip starts from a non-NaN value and goes through [`max_not_nan`] /
 //! [`min_not_nan`], which keep that value when the other operand is NaN.
-
+//!
+//! Tiny non-zero components: for subnormal `|d|` below about `2.9e-39`, `1 / d` overflows to
+//! `±inf` although the ray does cross every plane it moves towards, at a finite parameter when
+//! the origin is within about `|d| * f32::MAX` of the plane. Exit
+//! distances keep the infinite reciprocal, entry distances use it clamped to `±f32::MAX`; see
+//! [`PreparedRay::new`] for why both stay conservative.
 use super::watertight::RaySpace;
 use super::Ray;
 use crate::geometry::Point;
@@ -23,7 +28,10 @@ pub const FAR_INFLATION: f32 = 1.0 + 1.0 / 1_048_576.0;
 #[derive(Clone, Copy, Debug)]
 pub struct PreparedRay {
     pub origin: Point,
-    pub reciprocal: Point,
+    /// `1 / d` per axis, for exit distances.
+    pub exit_reciprocal: Point,
+    /// `1 / d` per axis clamped to `±f32::MAX` when `d` is non-zero, for entry distances.
+    pub entry_reciprocal: Point,
     /// Per axis, whether the direction points down that axis (`-0.0` counts as negative, so the
     /// near/far order on an axis the ray does not move along is still well defined).
     pub negative: [bool; 3],
@@ -33,10 +41,32 @@ pub struct PreparedRay {
 }
 
 impl PreparedRay {
+    /// Why the two reciprocals keep every bounds test conservative when `1 / d` overflows for a
+    /// non-zero `d` (the exact reciprocal then exceeds `f32::MAX` in magnitude):
+    /// * An exit distance `(p - o) * ±inf` is `+inf` when the exact exit is positive (above it),
+    ///   `-inf` when it is negative (the ray left the slab before `t = 0 <= tmin`, so the slab
+    ///   is rightly empty), and NaN when it is zero, which never narrows an interval.
+    /// * An entry distance `(p - o) * ±f32::MAX` has the exact distance's sign and, rounding
+    ///   being monotone, is at most what `(p - o)` times the exact reciprocal would round to:
+    ///   positive entries are underestimated (the node is entered early, which only costs
+    ///   time) and negative ones stay below `tmin >= 0`, where they do not clip.
+    ///
+    /// A zero component keeps `1 / ±0 = ±inf` for both, as described in the module
+    /// documentation: clamping it would turn "never enters" into a huge finite entry.
     pub fn new(ray: &Ray) -> PreparedRay {
+        let exit_reciprocal = ray.direction.map(|d| 1.0 / d);
+        let entry_reciprocal = std::array::from_fn(|axis| {
+            let r = exit_reciprocal[axis];
+            if ray.direction[axis] == 0.0 {
+                r
+            } else {
+                r.clamp(-f32::MAX, f32::MAX)
+            }
+        });
         PreparedRay {
             origin: ray.origin,
-            reciprocal: ray.direction.map(|d| 1.0 / d),
+            exit_reciprocal,
+            entry_reciprocal,
             negative: ray.direction.map(|d| d.is_sign_negative()),
             space: RaySpace::new(ray.origin, ray.direction),
             tmin: ray.tmin,
@@ -44,11 +74,20 @@ impl PreparedRay {
         }
     }
 
-    /// Parameter at which the ray crosses the plane `coordinate[axis] = plane` (±inf or NaN when
-    /// the ray is parallel to it; see the module documentation).
+    /// Parameter at which the ray enters the half-space beyond the plane
+    /// `coordinate[axis] = plane`, rounded as computed (±inf or NaN when the ray is parallel
+    /// to it; see the module documentation).
     #[inline(always)]
-    pub fn plane_distance(&self, axis: usize, plane: f32) -> f32 {
-        (plane - self.origin[axis]) * self.reciprocal[axis]
+    pub fn entry_distance(&self, axis: usize, plane: f32) -> f32 {
+        (plane - self.origin[axis]) * self.entry_reciprocal[axis]
+    }
+
+    /// Parameter at which the ray leaves the half-space before the plane
+    /// `coordinate[axis] = plane`, inflated by [`FAR_INFLATION`] so that it is never below the
+    /// exact one.
+    #[inline(always)]
+    pub fn exit_distance(&self, axis: usize, plane: f32) -> f32 {
+        (plane - self.origin[axis]) * self.exit_reciprocal[axis] * FAR_INFLATION
     }
 
     /// The part of `[t_near, t_far]` inside the box, conservatively, or `None`.
@@ -66,17 +105,19 @@ impl PreparedRay {
         (near <= far).then_some((near, far))
     }
 
-    /// Entry and (inflated) exit distance of the slab `min <= coordinate[axis] <= max`. Both
-    /// planes are computed and then picked by the direction's sign, which is branch-free.
+    /// Entry and (inflated) exit distance of the slab `min <= coordinate[axis] <= max`: the
+    /// planes are picked by the direction's sign, then both distances computed.
     #[inline(always)]
     fn slab(&self, axis: usize, min: f32, max: f32) -> (f32, f32) {
-        let to_min = self.plane_distance(axis, min);
-        let to_max = self.plane_distance(axis, max);
-        if self.negative[axis] {
-            (to_max, to_min * FAR_INFLATION)
+        let (entry, exit) = if self.negative[axis] {
+            (max, min)
         } else {
-            (to_min, to_max * FAR_INFLATION)
-        }
+            (min, max)
+        };
+        (
+            self.entry_distance(axis, entry),
+            self.exit_distance(axis, exit),
+        )
     }
 }
 
@@ -129,6 +170,22 @@ mod tests {
     fn parallel_ray_outside_the_slab_misses() {
         let r = ray([-1.0, 2.0, 0.5], [1.0, 0.0, -0.0]);
         assert_eq!(r.clip_box(&[0.0; 3], &[1.0; 3], 0.0, f32::INFINITY), None);
+    }
+
+    #[test]
+    fn subnormal_direction_enters_the_slab_it_crosses() {
+        // The ray crosses x = 0 at t = 0.33 although 1 / 2.68e-43 overflows.
+        let r = ray([-8.8e-44, 0.5, 0.5], [2.68e-43, 0.0, 0.5]);
+        let (near, far) = r
+            .clip_box(&[0.0; 3], &[1.0; 3], 0.0, f32::INFINITY)
+            .expect("entered");
+        assert!(near <= 0.33 && far >= 1.0, "{near} {far}");
+        // Going away from the slab it is still missed.
+        let away = ray([-8.8e-44, 0.5, 0.5], [-2.68e-43, 0.0, 0.5]);
+        assert_eq!(
+            away.clip_box(&[0.0; 3], &[1.0; 3], 0.0, f32::INFINITY),
+            None
+        );
     }
 
     #[test]

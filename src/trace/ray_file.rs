@@ -58,7 +58,7 @@ pub fn read_rays(path: &Path) -> Result<Vec<Ray>, RayFileError> {
 
 /// Validates `bytes` as a ray file (`path` is only for messages).
 pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>, RayFileError> {
-    if bytes.len() % RAY_BYTES != 0 {
+    if !bytes.len().is_multiple_of(RAY_BYTES) {
         let ray = bytes.len() / RAY_BYTES;
         return Err(RayFileError::Truncated {
             path: path.to_path_buf(),

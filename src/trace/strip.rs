@@ -24,7 +24,8 @@
 //! nothing is allocated or zeroed per strip or per window.
 //!
 //! Determinism: among hits at the same parameter the one with the smallest (strip, window) wins,
-//! and culling compares inclusively, so ties resolve the same way whatever the visiting order.
+//! and culling compares inclusively against [`Closest::reach`], a little beyond the closest hit,
+//! so ties resolve the same way whatever the visiting order.
 
 use super::prepared::{max_not_nan, min_not_nan, PreparedRay, FAR_INFLATION};
 use super::watertight::{edge, resolve};
@@ -36,7 +37,14 @@ const STRIP_STACK: usize = 20;
 /// The closest hit so far, with its weights in strip order (corners `s[k], s[k+1], s[k+2]`).
 #[derive(Clone, Copy, Debug)]
 pub struct Closest {
+    /// Hits are accepted in `[tmin, t]`: `tmax` until one is found, then the closest one's `t`.
     pub t: f32,
+    /// `t * FAR_INFLATION`: traversal enters nodes whose entry distance is at most this. A
+    /// triangle's `t` is rounded on its own and may lie a few ulps before the computed entry
+    /// distance of the boxes around it (say, on a vertex in a box's entry face); culling with
+    /// `t` itself would then miss a hit at the very end of the closed interval, e.g. with
+    /// `tmin = tmax` at the hit. Exit distances carry the same inflation for the `tmin` end.
+    pub reach: f32,
     pub strip: u32,
     pub window: u16,
     pub weights: [f32; 3],
@@ -47,6 +55,7 @@ impl Closest {
     pub fn none(tmax: f32) -> Closest {
         Closest {
             t: tmax,
+            reach: tmax * FAR_INFLATION,
             strip: u32::MAX,
             window: u16::MAX,
             weights: [0.0; 3],
@@ -63,6 +72,7 @@ impl Closest {
         if t < self.t || (strip, window) < (self.strip, self.window) {
             *self = Closest {
                 t,
+                reach: t * FAR_INFLATION,
                 strip,
                 window,
                 weights,
@@ -132,7 +142,7 @@ impl StripQuery<'_> {
             t_far,
         };
         loop {
-            // Invariant: `current` is entered, i.e. `t_near <= t_far` and `t_near <= closest.t`.
+            // Invariant: `current` is entered: `t_near <= t_far` and `t_near <= closest.reach`.
             let (first, end) = (current.first as usize, current.end as usize);
             let lo = first * leaf;
             let hi = (end * leaf).min(windows);
@@ -147,8 +157,8 @@ impl StripQuery<'_> {
                 // Validated axes are at most 2; saying so lets the compiler drop the bounds
                 // checks of the indexing below.
                 let axis = view.axis(node).min(2);
-                let left_max = ray.plane_distance(axis, view.vertices[2 * node][axis]);
-                let right_min = ray.plane_distance(axis, view.vertices[2 * node + 1][axis]);
+                let left_max = view.vertices[2 * node][axis];
+                let right_min = view.vertices[2 * node + 1][axis];
                 let left = Pending {
                     node: current.node + 1,
                     end: mid as u32,
@@ -159,14 +169,14 @@ impl StripQuery<'_> {
                     first: mid as u32,
                     ..current
                 };
-                let (mut near, near_exit, mut far, far_entry) = if ray.negative[axis] {
+                let (mut near, exit_plane, mut far, entry_plane) = if ray.negative[axis] {
                     (right, right_min, left, left_max)
                 } else {
                     (left, left_max, right, right_min)
                 };
-                near.t_far = min_not_nan(near.t_far, near_exit * FAR_INFLATION);
-                far.t_near = max_not_nan(far.t_near, far_entry);
-                let far_entered = far.t_near <= far.t_far && far.t_near <= closest.t;
+                near.t_far = min_not_nan(near.t_far, ray.exit_distance(axis, exit_plane));
+                far.t_near = max_not_nan(far.t_near, ray.entry_distance(axis, entry_plane));
+                let far_entered = far.t_near <= far.t_far && far.t_near <= closest.reach;
                 if near.t_near <= near.t_far {
                     if far_entered {
                         stack[depth] = far;
@@ -185,7 +195,7 @@ impl StripQuery<'_> {
                     return false;
                 }
                 depth -= 1;
-                if stack[depth].t_near <= closest.t {
+                if stack[depth].t_near <= closest.reach {
                     current = stack[depth];
                     break;
                 }

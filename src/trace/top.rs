@@ -25,7 +25,7 @@ pub struct Deferred {
 pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) -> bool {
     let nodes = file.top_nodes();
     let ray = query.ray;
-    let Some((t_near, t_far)) = clip(ray, &nodes[0], ray.tmin, closest.t) else {
+    let Some((t_near, t_far)) = clip(ray, &nodes[0], ray.tmin, closest.reach) else {
         return false;
     };
     let mut stack = [Deferred::default(); MAX_TOP_DEPTH + 1];
@@ -40,7 +40,7 @@ pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) 
         if node.is_internal() {
             let (first, second) = ordered_children(ray, current.node, node);
             let enter = |child: u32| {
-                clip(ray, &nodes[child as usize], ray.tmin, closest.t).map(|(t_near, t_far)| {
+                clip(ray, &nodes[child as usize], ray.tmin, closest.reach).map(|(t_near, t_far)| {
                     Deferred {
                         node: child,
                         t_near,
@@ -69,7 +69,7 @@ pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) 
                 return false;
             }
             depth -= 1;
-            if stack[depth].t_near <= closest.t {
+            if stack[depth].t_near <= closest.reach {
                 current = stack[depth];
                 break;
             }
@@ -104,7 +104,7 @@ pub fn trace_leaf(
 ) -> bool {
     let first = leaf.payload;
     for strip in first..first + leaf.strip_count() {
-        let t_far = interval.t_far.min(closest.t);
+        let t_far = interval.t_far.min(closest.reach);
         if interval.t_near > t_far {
             break;
         }

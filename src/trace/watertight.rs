@@ -24,6 +24,9 @@
 //!   the sign is the exact sign; the paper's fallback.
 //! * A zero determinant (the ray lies in the triangle's plane, or the triangle has zero area)
 //!   never hits.
+//! * A zero `t` is always `+0.0`. Negation is exact except at zero: an exactly cancelling sum is
+//!   `+0.0` in both windings, and dividing it by the determinant, whose sign the winding sets,
+//!   would give `+0.0` for one winding and `-0.0` for the other (a ray starting on a vertex).
 
 use crate::geometry::Point;
 
@@ -137,7 +140,8 @@ fn exact_edge(p: &RayPoint, q: &RayPoint) -> f64 {
 ///
 /// The sums are formed as `(w0 + w1) + w2`; a triangle passed with its first two corners swapped
 /// (the other winding, as odd strip windows are) gives negated weights in swapped order, and
-/// addition commutes, so `t` is bit-identical either way.
+/// addition commutes, so `t` is bit-identical either way, zero aside (see the module
+/// documentation).
 #[inline(always)]
 pub fn resolve(c: &[RayPoint; 3], w: [f32; 3], tmin: f32, tmax: f32) -> Option<TriangleHit> {
     if w[0] == 0.0 || w[1] == 0.0 || w[2] == 0.0 {
@@ -149,7 +153,8 @@ pub fn resolve(c: &[RayPoint; 3], w: [f32; 3], tmin: f32, tmax: f32) -> Option<T
         return None;
     }
     let det = w[0] + w[1] + w[2];
-    let t = (w[0] * c[0].z + w[1] * c[1].z + w[2] * c[2].z) / det;
+    // `+ 0.0` turns `-0.0` into `+0.0` and changes nothing else; see the module documentation.
+    let t = (w[0] * c[0].z + w[1] * c[1].z + w[2] * c[2].z) / det + 0.0;
     in_range(t, tmin, tmax).then(|| TriangleHit {
         t,
         weights: w.map(|x| x / det),
@@ -171,7 +176,7 @@ fn resolve_exact(c: &[RayPoint; 3], tmin: f32, tmax: f32) -> Option<TriangleHit>
         return None;
     }
     let z = c.map(|p| p.z as f64);
-    let t = ((w[0] * z[0] + w[1] * z[1] + w[2] * z[2]) / det) as f32;
+    let t = ((w[0] * z[0] + w[1] * z[1] + w[2] * z[2]) / det) as f32 + 0.0;
     in_range(t, tmin, tmax).then(|| TriangleHit {
         t,
         weights: w.map(|x| (x / det) as f32),
@@ -221,6 +226,25 @@ mod tests {
         let a = intersect_triangle(&space, &triangle, 0.0, f32::INFINITY).expect("hit");
         let b = intersect_triangle(&space, &reversed, 0.0, f32::INFINITY).expect("hit");
         assert_eq!(a.t.to_bits(), b.t.to_bits());
+    }
+
+    #[test]
+    fn zero_t_is_positive_in_both_windings() {
+        let triangle = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.2], [0.0, 1.0, 0.4]];
+        let reversed = [triangle[1], triangle[0], triangle[2]];
+        let mut hits = 0;
+        for corner in 0..3 {
+            for direction in [[0.3, 0.2, -1.0], [-0.3, 0.2, 1.0], [1.0, -0.1, 0.05]] {
+                let space = RaySpace::new(triangle[corner], direction);
+                for t in [triangle, reversed] {
+                    if let Some(hit) = intersect_triangle(&space, &t, 0.0, f32::INFINITY) {
+                        assert_eq!(hit.t.to_bits(), 0.0f32.to_bits(), "{corner} {direction:?}");
+                        hits += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(hits, 18);
     }
 
     #[test]

@@ -248,7 +248,7 @@ fn continuation(strip: &[u32], t: [u32; 3]) -> Option<u32> {
     let n = strip.len();
     let k = n - 2;
     let (p, q) = (strip[n - 2], strip[n - 1]);
-    let (first, second) = if k % 2 == 0 { (p, q) } else { (q, p) };
+    let (first, second) = if k.is_multiple_of(2) { (p, q) } else { (q, p) };
     (0..3).find_map(|r| {
         let rotated = [t[r], t[(r + 1) % 3], t[(r + 2) % 3]];
         (rotated[0] == first && rotated[1] == second).then_some(rotated[2])
