@@ -21,7 +21,8 @@ use clap::{Parser, Subcommand};
 use reducem::gen;
 
 /// mimalloc returns freed chunk memory to the system promptly; with glibc's per-thread arenas
-/// the resident set of a long run crept up chunk after chunk (see README, memory).
+/// the resident set of a long run crept up chunk after chunk (6.3 GB peak over 76 chunks
+/// against 2.4 GB over 26, for the same chunk size).
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
