@@ -24,7 +24,7 @@ use super::{
     VERSION_MAJOR,
 };
 use crate::geometry::Point;
-use crate::mapping::map_file;
+use crate::mapping::{map_file, map_range};
 
 /// Why a file could not be opened, with the file and the byte offset of the defect.
 #[derive(Debug, thiserror::Error)]
@@ -82,36 +82,47 @@ impl StripView<'_> {
 }
 
 impl ReducemFile {
-    /// Maps and validates the file at `path`.
+    /// Validates the file at `path` and maps it.
+    ///
+    /// Validation reads the file through bounded windows ([`VALIDATION_WINDOW`]) that are
+    /// unmapped as it goes, and traversal gets a fresh mapping of the same (never modified in
+    /// place) file: opening a 6 GB model costs tens of megabytes of resident memory, and the
+    /// resident set after a frame is only the pages rays really reached.
     pub fn open(path: &Path) -> Result<ReducemFile, FormatError> {
         let io_error = |source| FormatError::Io {
             path: path.to_path_buf(),
             source,
         };
         let file = File::open(path).map_err(io_error)?;
-        let validated = Self::validate(path, map_file(&file).map_err(io_error)?)?;
-        // Validation paged in the whole file. Serving traversal from a fresh mapping of the same
-        // (never modified in place) file keeps the resident set to the pages rays really reach.
-        let map = map_file(&file).map_err(io_error)?;
-        if map.len() != validated.map.len() {
-            let detail = "the file changed size while it was being opened".to_string();
-            return Err(validated.invalid("file", 0, detail));
-        }
-        Ok(ReducemFile { map, ..validated })
-    }
-
-    fn validate(path: &Path, map: Mmap) -> Result<ReducemFile, FormatError> {
-        let checker = Checker { path, map: &map };
+        let file_len = file.metadata().map_err(io_error)?.len();
+        let head = match file_len >= HEADER_PAGE {
+            true => Some(map_range(&file, 0, HEADER_PAGE as usize).map_err(io_error)?),
+            false => None,
+        };
+        let checker = Checker {
+            path,
+            head: head.as_deref().unwrap_or_default(),
+            file_len,
+        };
         let header = checker.header()?;
         let sections = checker.sections(&header)?;
+        let map = map_file(&file).map_err(io_error)?;
+        if map.len() as u64 != file_len {
+            let detail = "the file changed size while it was being opened".to_string();
+            return Err(checker.invalid("file", 0, detail));
+        }
         let opened = ReducemFile {
             path: path.to_path_buf(),
             map,
             header,
             sections,
         };
-        opened.validate_strips()?;
-        opened.validate_nodes()?;
+        let windows = Windows {
+            file: &file,
+            opened: &opened,
+        };
+        windows.validate_strips()?;
+        windows.validate_nodes()?;
         Ok(opened)
     }
 
@@ -189,103 +200,200 @@ impl ReducemFile {
     fn section_offset(&self, kind: SectionKind) -> u64 {
         self.header.sections[section_slot(kind)].offset
     }
+}
+
+/// Bytes of the file mapped at a time while validating.
+pub const VALIDATION_WINDOW: usize = 64 << 20;
+
+/// Validation of the sections through bounded windows of the file.
+struct Windows<'a> {
+    file: &'a File,
+    opened: &'a ReducemFile,
+}
+
+impl Windows<'_> {
+    fn map(&self, offset: u64, length: usize) -> Result<Mmap, FormatError> {
+        map_range(self.file, offset, length).map_err(|source| FormatError::Io {
+            path: self.opened.path.clone(),
+            source,
+        })
+    }
+
+    fn section(&self, kind: SectionKind) -> Range<u64> {
+        let range = &self.opened.sections[section_slot(kind)];
+        range.start as u64..range.end as u64
+    }
 
     /// Checks every strip record, its block bounds, reference indices and split axes, and that
     /// the real triangles add up to the header's count.
     fn validate_strips(&self) -> Result<(), FormatError> {
-        let records = self.strip_records();
-        if records.len() as u64 != self.header.strip_count {
-            return Err(self.invalid(
+        let opened = self.opened;
+        let records = self.section(SectionKind::StripRecords);
+        let count = (records.end - records.start) / RECORD_BYTES;
+        if count != opened.header.strip_count {
+            return Err(opened.invalid(
                 "strip_records",
-                self.section_offset(SectionKind::StripRecords),
+                records.start,
                 format!(
-                    "{} records, header says {} strips",
-                    records.len(),
-                    self.header.strip_count
+                    "{count} records, header says {} strips",
+                    opened.header.strip_count
                 ),
             ));
         }
-        let data = self.section_bytes(SectionKind::StripData);
-        let triangles = records
-            .par_iter()
-            .enumerate()
-            .map(|(index, record)| {
-                check_strip(data, record, self.leaf_windows()).map_err(|(offset, detail)| {
-                    let offset = offset.map_or(
-                        self.section_offset(SectionKind::StripRecords) + index as u64 * 8,
-                        |o| self.section_offset(SectionKind::StripData) + o,
-                    );
-                    self.invalid("strip_data", offset, format!("strip {index}: {detail}"))
-                })
-            })
-            .try_reduce(|| 0u64, |a, b| Ok(a + b))?;
-        if triangles != self.header.triangle_count {
-            return Err(self.invalid(
+        let batch = (VALIDATION_WINDOW as u64 / RECORD_BYTES).max(1);
+        let mut triangles = 0;
+        for first in (0..count).step_by(batch as usize) {
+            let length = batch.min(count - first) * RECORD_BYTES;
+            let window = self.map(records.start + first * RECORD_BYTES, length as usize)?;
+            let records: &[StripRecord] = bytemuck::try_cast_slice(&window)
+                .map_err(|_| opened.invalid("strip_records", records.start, "misaligned".into()))?;
+            triangles += self.validate_record_batch(first as usize, records)?;
+        }
+        if triangles != opened.header.triangle_count {
+            return Err(opened.invalid(
                 "header",
                 32,
                 format!(
                     "{triangles} triangles in strips, header says {}",
-                    self.header.triangle_count
+                    opened.header.triangle_count
                 ),
             ));
         }
         Ok(())
     }
 
-    /// Checks that the nodes form one tree in preorder within the depth limit, with strip ranges
-    /// inside the record array; every node has exactly one parent, so traversal terminates.
+    /// Validates consecutive records, mapping their blocks in spans of at most one window.
+    fn validate_record_batch(
+        &self,
+        first: usize,
+        records: &[StripRecord],
+    ) -> Result<u64, FormatError> {
+        let data = self.section(SectionKind::StripData);
+        let leaf = self.opened.leaf_windows();
+        let mut triangles = 0;
+        let mut start = 0;
+        while start < records.len() {
+            let mut span = block_range(&records[start], leaf, data.end - data.start)
+                .map_err(|defect| self.strip_error(first + start, defect))?;
+            let mut end = start + 1;
+            while let Some(next) = records.get(end) {
+                let Ok(block) = block_range(next, leaf, data.end - data.start) else {
+                    break;
+                };
+                let joined = span.start.min(block.start)..span.end.max(block.end);
+                if joined.end - joined.start > VALIDATION_WINDOW as u64 {
+                    break;
+                }
+                span = joined;
+                end += 1;
+            }
+            let window = self.map(data.start + span.start, (span.end - span.start) as usize)?;
+            triangles += records[start..end]
+                .par_iter()
+                .enumerate()
+                .map(|(i, record)| {
+                    check_block(&window, span.start, record, leaf)
+                        .map_err(|defect| self.strip_error(first + start + i, defect))
+                })
+                .try_reduce(|| 0u64, |a, b| Ok(a + b))?;
+            start = end;
+        }
+        Ok(triangles)
+    }
+
+    fn strip_error(&self, index: usize, (offset, detail): StripDefect) -> FormatError {
+        let opened = self.opened;
+        let offset = offset.map_or(
+            opened.section_offset(SectionKind::StripRecords) + index as u64 * RECORD_BYTES,
+            |o| opened.section_offset(SectionKind::StripData) + o,
+        );
+        opened.invalid("strip_data", offset, format!("strip {index}: {detail}"))
+    }
+
+    /// Checks that the nodes form one tree in preorder within the depth limit, with strip
+    /// ranges inside the record array; every node has exactly one parent, so traversal
+    /// terminates.
     fn validate_nodes(&self) -> Result<(), FormatError> {
-        let nodes = self.top_nodes();
-        let base = self.section_offset(SectionKind::TopNodes);
-        let strips = self.strip_count() as u64;
-        let mut depth = vec![u8::MAX; nodes.len()];
-        depth[0] = 0;
-        for (index, node) in nodes.iter().enumerate() {
-            let fail = |detail: String| {
-                self.invalid(
-                    "top_nodes",
-                    base + index as u64 * 32,
-                    format!("node {index}: {detail}"),
-                )
-            };
-            if depth[index] == u8::MAX {
-                return Err(fail("has no parent".into()));
+        let section = self.section(SectionKind::TopNodes);
+        let count = ((section.end - section.start) / NODE_BYTES) as usize;
+        let mut tree = TreeCheck {
+            opened: self.opened,
+            depth: vec![u8::MAX; count],
+        };
+        tree.depth[0] = 0;
+        let batch = (VALIDATION_WINDOW as u64 / NODE_BYTES).max(1) as usize;
+        for first in (0..count).step_by(batch) {
+            let length = batch.min(count - first) as u64 * NODE_BYTES;
+            let window = self.map(section.start + first as u64 * NODE_BYTES, length as usize)?;
+            let nodes: &[TopNode] = bytemuck::try_cast_slice(&window).map_err(|_| {
+                self.opened
+                    .invalid("top_nodes", section.start, "misaligned".into())
+            })?;
+            for (i, node) in nodes.iter().enumerate() {
+                tree.check(first + i, node)?;
             }
-            if !node.is_internal() {
-                let end = node.payload as u64 + node.strip_count() as u64;
-                let empty_model = strips == 0 && nodes.len() == 1;
-                if (node.strip_count() == 0 && !empty_model) || end > strips {
-                    return Err(fail(format!(
-                        "strips {}..{end} outside 0..{strips}",
-                        node.payload
-                    )));
-                }
-                continue;
-            }
-            if node.kind & !(1 << 31) > 2 {
+        }
+        Ok(())
+    }
+}
+
+const RECORD_BYTES: u64 = std::mem::size_of::<StripRecord>() as u64;
+const NODE_BYTES: u64 = std::mem::size_of::<TopNode>() as u64;
+
+/// The one-parent and depth bookkeeping of [`Windows::validate_nodes`].
+struct TreeCheck<'a> {
+    opened: &'a ReducemFile,
+    depth: Vec<u8>,
+}
+
+impl TreeCheck<'_> {
+    fn check(&mut self, index: usize, node: &TopNode) -> Result<(), FormatError> {
+        let base = self.opened.section_offset(SectionKind::TopNodes);
+        let strips = self.opened.header.strip_count;
+        let nodes = self.depth.len();
+        let fail = |detail: String| {
+            self.opened.invalid(
+                "top_nodes",
+                base + index as u64 * NODE_BYTES,
+                format!("node {index}: {detail}"),
+            )
+        };
+        if self.depth[index] == u8::MAX {
+            return Err(fail("has no parent".into()));
+        }
+        if !node.is_internal() {
+            let end = node.payload as u64 + node.strip_count() as u64;
+            let empty_model = strips == 0 && nodes == 1;
+            if (node.strip_count() == 0 && !empty_model) || end > strips {
                 return Err(fail(format!(
-                    "split axis {} is not 0, 1 or 2",
-                    node.kind & !(1 << 31)
+                    "strips {}..{end} outside 0..{strips}",
+                    node.payload
                 )));
             }
-            let right = node.payload as usize;
-            if right <= index + 1 || right >= nodes.len() {
-                return Err(fail(format!(
-                    "right child {right} outside {}..{}",
-                    index + 2,
-                    nodes.len()
-                )));
+            return Ok(());
+        }
+        if node.kind & !(1 << 31) > 2 {
+            return Err(fail(format!(
+                "split axis {} is not 0, 1 or 2",
+                node.kind & !(1 << 31)
+            )));
+        }
+        let right = node.payload as usize;
+        if right <= index + 1 || right >= nodes {
+            return Err(fail(format!(
+                "right child {right} outside {}..{nodes}",
+                index + 2
+            )));
+        }
+        let child_depth = self.depth[index] + 1;
+        if child_depth as usize > MAX_TOP_DEPTH {
+            return Err(fail(format!("deeper than {MAX_TOP_DEPTH} levels")));
+        }
+        for child in [index + 1, right] {
+            if self.depth[child] != u8::MAX {
+                return Err(fail(format!("child {child} has a second parent")));
             }
-            let child_depth = depth[index] + 1;
-            if child_depth as usize > MAX_TOP_DEPTH {
-                return Err(fail(format!("deeper than {MAX_TOP_DEPTH} levels")));
-            }
-            for child in [index + 1, right] {
-                if depth[child] != u8::MAX {
-                    return Err(fail(format!("child {child} has a second parent")));
-                }
-                depth[child] = child_depth;
-            }
+            self.depth[child] = child_depth;
         }
         Ok(())
     }
@@ -313,13 +421,15 @@ pub(crate) fn strip_view<'a>(
     }
 }
 
-/// Validates one record; returns its real-triangle count, or the data offset (if known) and
-/// what is wrong.
-fn check_strip(
-    data: &[u8],
+/// A defect in a strip: the data-section offset where it is (if known) and what is wrong.
+type StripDefect = (Option<u64>, String);
+
+/// Checks a record's counts and returns its block's byte range within the strip-data section.
+fn block_range(
     record: &StripRecord,
     leaf_windows: usize,
-) -> Result<u64, (Option<u64>, String)> {
+    data_len: u64,
+) -> Result<Range<u64>, StripDefect> {
     let vertices = record.vertex_count as usize;
     let references = record.reference_count as usize;
     if !(3..=MAX_STRIP_VERTICES).contains(&vertices) || references < 3 {
@@ -330,39 +440,49 @@ fn check_strip(
     }
     let nodes = internal_nodes(references - 2, leaf_windows);
     if 2 * nodes > vertices {
-        return Err((
-            None,
-            format!(
-                "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
-                2 * nodes
-            ),
-        ));
+        let detail = format!(
+            "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
+            2 * nodes
+        );
+        return Err((None, detail));
     }
     let start = record.data_word as u64 * 4;
     let length =
         (vertices * VertexEncoding::F32.bytes_per_vertex() + axis_bytes(nodes) + references) as u64;
-    if start + length > data.len() as u64 {
-        return Err((
-            Some(start),
-            format!(
-                "block of {length} bytes runs past the section end {}",
-                data.len()
-            ),
-        ));
+    if start + length > data_len {
+        let detail = format!("block of {length} bytes runs past the section end {data_len}");
+        return Err((Some(start), detail));
     }
-    let view = strip_view(data, record, leaf_windows);
+    Ok(start..start + length)
+}
+
+/// Validates a strip's block inside `window` (which starts at `window_start` in the section,
+/// and holds the block: see [`block_range`]); returns its real-triangle count.
+fn check_block(
+    window: &[u8],
+    window_start: u64,
+    record: &StripRecord,
+    leaf_windows: usize,
+) -> Result<u64, StripDefect> {
+    let vertices = record.vertex_count as usize;
+    let block = block_range(record, leaf_windows, u64::MAX)?;
+    let local = StripRecord {
+        data_word: 0,
+        ..*record
+    };
+    let bytes = &window[(block.start - window_start) as usize..(block.end - window_start) as usize];
+    let view = strip_view(bytes, &local, leaf_windows);
     if let Some(position) = view.references.iter().position(|&r| r as usize >= vertices) {
-        let offset = start + length - references as u64 + position as u64;
-        return Err((
-            Some(offset),
-            format!(
-                "reference {} out of range ({vertices} vertices)",
-                view.references[position]
-            ),
-        ));
+        let offset = block.end - view.references.len() as u64 + position as u64;
+        let detail = format!(
+            "reference {} out of range ({vertices} vertices)",
+            view.references[position]
+        );
+        return Err((Some(offset), detail));
     }
+    let nodes = internal_nodes(view.window_count(), leaf_windows);
     if let Some(node) = (0..nodes).find(|&n| view.axis(n) > 2) {
-        return Err((Some(start), format!("node {node} has split axis 3")));
+        return Err((Some(block.start), format!("node {node} has split axis 3")));
     }
     Ok(crate::strip::triangles(view.references).count() as u64)
 }
@@ -370,7 +490,9 @@ fn check_strip(
 /// Header and section-table checks, before anything else is trusted.
 struct Checker<'a> {
     path: &'a Path,
-    map: &'a [u8],
+    /// The first page of the file (all of it when shorter).
+    head: &'a [u8],
+    file_len: u64,
 }
 
 impl Checker<'_> {
@@ -384,15 +506,15 @@ impl Checker<'_> {
     }
 
     fn header(&self) -> Result<Header, FormatError> {
-        if (self.map.len() as u64) < HEADER_PAGE {
+        if self.file_len < HEADER_PAGE {
             let detail = format!(
                 "file is {} bytes, the header page alone is {HEADER_PAGE}",
-                self.map.len()
+                self.file_len
             );
             return Err(self.invalid("header", 0, detail));
         }
         let header: Header =
-            bytemuck::pod_read_unaligned(&self.map[..std::mem::size_of::<Header>()]);
+            bytemuck::pod_read_unaligned(&self.head[..std::mem::size_of::<Header>()]);
         if header.magic != MAGIC {
             return Err(self.invalid("header", 0, "not a ReduceM file (bad magic)".into()));
         }
@@ -410,7 +532,7 @@ impl Checker<'_> {
             );
             return Err(self.invalid("header", 8, detail));
         }
-        let checksum = xxhash_rust::xxh3::xxh3_64(&self.map[..HEADER_CHECKSUMMED_BYTES]);
+        let checksum = xxhash_rust::xxh3::xxh3_64(&self.head[..HEADER_CHECKSUMMED_BYTES]);
         if checksum != header.header_checksum
             || header.header_bytes as usize != std::mem::size_of::<Header>()
         {
@@ -456,11 +578,11 @@ impl Checker<'_> {
                     kind.name(),
                     entry.offset
                 ))
-            } else if end > self.map.len() as u64 {
+            } else if end > self.file_len {
                 Some(format!(
                     "{} ends at {end}, past the file end {}",
                     kind.name(),
-                    self.map.len()
+                    self.file_len
                 ))
             } else if !entry.length.is_multiple_of(record)
                 || (kind == SectionKind::TopNodes && entry.length == 0)
