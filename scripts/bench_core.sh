@@ -32,6 +32,7 @@ dir = "$work/$kind-$n.work"
 TOML
   times=()
   for _ in $(seq "$runs"); do
+    rm -rf "$work/$kind-$n.work"
     /usr/bin/time -f '%e %M' -o "$work/time.txt" ./target/release/pipeline run "$work/$kind-$n.toml" 2>/dev/null
     times+=("$(cat "$work/time.txt")")
   done
