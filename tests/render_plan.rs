@@ -1,15 +1,15 @@
 //! The renderer traces exactly what the scene plans, reproducibly, without self-intersection.
 
-mod trace_support;
+mod common;
 
 use std::path::Path;
 
+use common::*;
 use reducem::format::reader::ReducemFile;
 use reducem::mesh::Mesh;
 use reducem::render::scene::Scene;
 use reducem::render::{render, Frame, RenderReport};
 use reducem::trace::{TraceOptions, Tracer};
-use trace_support::*;
 
 const CAMERA: &str = "[image]\nwidth = 48\nheight = 40\n\
     [camera]\nauto = true\ndirection = [0.3, -0.5, 1.0]\nup = [0.0, 0.0, 1.0]\n";

@@ -5,15 +5,15 @@
 //! at numerically the same point, where either may win), and the reported triangle must be the
 //! reference's or share a vertex with it.
 
-mod trace_support;
+mod common;
 
+use common::*;
 use reducem::build::{convert_mesh, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
 use reducem::trace::{Ray, TraceOptions, Tracer};
-use trace_support::*;
 
 /// Checks one ray against the reference; returns whether it hit.
 fn check_ray(tracer: &Tracer, ray: &Ray) -> bool {

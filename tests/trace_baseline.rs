@@ -1,10 +1,10 @@
 //! The benchmark's baseline BVH finds the same closest hits as the brute-force reference.
 
-mod trace_support;
+mod common;
 
+use common::*;
 use reducem::baseline::TriangleBvh;
 use reducem::geometry::Point;
-use trace_support::*;
 
 #[test]
 fn baseline_agrees_with_brute_force() {

@@ -1,14 +1,14 @@
 //! Rays from inside closed meshes never escape, even through vertices and edge midpoints, far
 //! from the origin and at small scale; packets give bit-identical results to single rays.
 
-mod trace_support;
+mod common;
 
+use common::*;
 use reducem::build::{convert_mesh, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;
 use reducem::trace::{Ray, TraceOptions, Tracer};
-use trace_support::*;
 
 /// Interior points of a mesh that is a sphere of `radius` around `center`.
 fn interior_points(center: Point, radius: f32) -> Vec<Point> {

@@ -10,15 +10,15 @@
 //! The escape sweep here traces about 250,000 rays; `escape_campaign` (ignored, run by
 //! `scripts/hostile.sh`) traces `REDUCEM_ESCAPE_RAYS` (default 10 million) over the same configs.
 
-mod trace_support;
+mod common;
 
+use common::*;
 use reducem::build::{convert_mesh, BuildParams, ChunkStats};
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
 use reducem::trace::{Ray, TraceOptions, Tracer};
-use trace_support::*;
 
 /// The mesh converted by the real build and, as a second layout, written as long strips.
 fn both_layouts(mesh: &Mesh, name: &str) -> (ChunkStats, [ReducemFile; 2]) {

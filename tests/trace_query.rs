@@ -1,13 +1,13 @@
 //! `reducem query`: ray files against the library, and malformed ray files rejected.
 
-mod trace_support;
+mod common;
 
 use std::path::Path;
 use std::process::Command;
 
+use common::*;
 use reducem::trace::ray_file::{encode_rays, RAY_BYTES};
 use reducem::trace::{Ray, TraceOptions, Tracer};
-use trace_support::*;
 
 fn run_query(model: &Path, rays: &Path, out: &Path, occluded: bool) -> std::process::Output {
     let mut command = Command::new(env!("CARGO_BIN_EXE_reducem"));

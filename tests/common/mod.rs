@@ -1,10 +1,20 @@
-//! Mesh builders and comparison helpers shared by the integration tests.
+//! Shared test support: meshes, files with long strips, rays, the brute-force reference and
+//! canonical triangle multisets for exact round-trip comparisons.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use reducem::geometry::{is_degenerate, Point};
+use reducem::build::ChunkStats;
+use reducem::decode;
+use reducem::encode::{encode_strip, split_strip, EncodedStrip};
+use reducem::format::reader::ReducemFile;
+use reducem::format::writer::{write_file, FileInfo};
+use reducem::geometry::{is_degenerate, Aabb, Point};
 use reducem::mesh::Mesh;
+use reducem::strip;
+use reducem::toplevel::{self, TopLevelParams};
+use reducem::trace::watertight::{intersect_triangle, RaySpace};
+use reducem::trace::{Hit, Ray};
 
 /// A fresh path in the system temp dir, unique per test and process.
 pub fn temp_path(name: &str) -> PathBuf {
@@ -13,7 +23,37 @@ pub fn temp_path(name: &str) -> PathBuf {
     dir.join(name)
 }
 
-/// A `w` × `h` quad grid in the z = f(x, y) plane, two triangles per quad, consistent winding.
+/// SplitMix64: a tiny deterministic generator, so tests need no extra dependency.
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed)
+    }
+
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)`.
+    pub fn unit(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.unit()
+    }
+
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+}
+
+/// A `w` × `h` quad grid with bumps, two triangles per quad, consistent winding.
 pub fn grid(w: u32, h: u32) -> Mesh {
     let mut mesh = Mesh::default();
     for y in 0..=h {
@@ -34,7 +74,7 @@ pub fn grid(w: u32, h: u32) -> Mesh {
     mesh
 }
 
-/// A closed torus with `n` × `m` quads: every edge shared by two consistently wound triangles.
+/// A closed torus with `n` × `m` quads.
 pub fn torus(n: u32, m: u32) -> Mesh {
     let mut mesh = Mesh::default();
     for i in 0..n {
@@ -57,6 +97,283 @@ pub fn torus(n: u32, m: u32) -> Mesh {
         }
     }
     mesh
+}
+
+/// A closed icosphere of unit radius: an icosahedron with each face split `levels` times,
+/// midpoints shared between neighbouring faces so the surface stays closed.
+pub fn icosphere(levels: u32) -> Mesh {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut positions: Vec<[f32; 3]> = vec![
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ];
+    let mut triangles: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut midpoints = std::collections::HashMap::new();
+        let mut midpoint = |a: u32, b: u32, positions: &mut Vec<[f32; 3]>| {
+            *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let (p, q) = (positions[a as usize], positions[b as usize]);
+                positions.push([0, 1, 2].map(|i| (p[i] + q[i]) / 2.0));
+                positions.len() as u32 - 1
+            })
+        };
+        let mut finer = Vec::with_capacity(triangles.len() * 4);
+        for [a, b, c] in triangles {
+            let ab = midpoint(a, b, &mut positions);
+            let bc = midpoint(b, c, &mut positions);
+            let ca = midpoint(c, a, &mut positions);
+            finer.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        triangles = finer;
+    }
+    for p in &mut positions {
+        let length = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        *p = p.map(|x| x / length);
+    }
+    Mesh {
+        positions,
+        triangles,
+    }
+}
+
+/// `count` random triangles in the unit cube, sizes from tiny to large.
+pub fn soup(count: usize, seed: u64) -> Mesh {
+    let mut rng = Rng::new(seed);
+    let mut mesh = Mesh::default();
+    for i in 0..count {
+        let center = [rng.unit(), rng.unit(), rng.unit()];
+        let size = 0.3 * rng.unit().powi(2);
+        for _ in 0..3 {
+            mesh.positions
+                .push(center.map(|c| c + size * rng.range(-1.0, 1.0)));
+        }
+        let base = 3 * i as u32;
+        mesh.triangles.push([base, base + 1, base + 2]);
+    }
+    mesh
+}
+
+/// A fan of needle triangles around a hub plus a row of near-degenerate caps.
+pub fn slivers(count: u32) -> Mesh {
+    let mut mesh = Mesh::default();
+    mesh.positions.push([0.0, 0.0, 0.0]);
+    for i in 0..=count {
+        let angle = i as f32 / count as f32 * 0.01;
+        mesh.positions
+            .push([10.0 * angle.cos(), 10.0 * angle.sin(), 0.0]);
+    }
+    for i in 1..=count {
+        mesh.triangles.push([0, i, i + 1]);
+    }
+    let base = mesh.positions.len() as u32;
+    for i in 0..=count {
+        let x = i as f32 * 0.1;
+        mesh.positions.push([x, -1.0, 0.5]);
+        mesh.positions.push([x + 0.05, -1.0 + 1e-5, 0.5 + 1e-6]);
+    }
+    for i in 0..count {
+        let (a, b) = (base + 2 * i, base + 2 * i + 1);
+        mesh.triangles.push([a, b, a + 2]);
+        mesh.triangles.push([b, b + 2, a + 2]);
+    }
+    mesh
+}
+
+/// The mesh with every position mapped by `f`.
+pub fn transformed(mesh: &Mesh, f: impl Fn(f32) -> f32) -> Mesh {
+    Mesh {
+        positions: mesh.positions.iter().map(|p| p.map(&f)).collect(),
+        triangles: mesh.triangles.clone(),
+    }
+}
+
+/// Long strips over the mesh's triangles in mesh order: a triangle that continues the strip's
+/// last edge with the right parity extends it, any other is joined through swap windows. Strips
+/// end after `max_windows` windows. Exercises deep strip kd-trees and swaps whatever the real
+/// stripifier does.
+pub fn long_strips(mesh: &Mesh, max_windows: usize) -> Vec<Vec<u32>> {
+    let mut strips = Vec::new();
+    let mut current: Vec<u32> = Vec::new();
+    for &[a, b, c] in &mesh.triangles {
+        if current.len() >= max_windows + 2 {
+            strips.push(std::mem::take(&mut current));
+        }
+        if current.is_empty() {
+            current.extend([a, b, c]);
+        } else if let Some(next) = continuation(&current, [a, b, c]) {
+            current.push(next);
+        } else {
+            join(&mut current, [a, b, c]);
+        }
+    }
+    if !current.is_empty() {
+        strips.push(current);
+    }
+    strips
+}
+
+/// The reference that appends triangle `t` as the next window, if it shares the last edge in
+/// the winding the window's parity gives.
+fn continuation(strip: &[u32], t: [u32; 3]) -> Option<u32> {
+    let n = strip.len();
+    let k = n - 2;
+    let (p, q) = (strip[n - 2], strip[n - 1]);
+    let (first, second) = if k.is_multiple_of(2) { (p, q) } else { (q, p) };
+    (0..3).find_map(|r| {
+        let rotated = [t[r], t[(r + 1) % 3], t[(r + 2) % 3]];
+        (rotated[0] == first && rotated[1] == second).then_some(rotated[2])
+    })
+}
+
+/// Appends triangle `t` after swap windows, with one more repeated reference when needed so
+/// that it lands on an even window and keeps its winding.
+fn join(strip: &mut Vec<u32>, [a, b, c]: [u32; 3]) {
+    let last = *strip.last().expect("non-empty strip");
+    strip.extend([last, a, a]);
+    if (strip.len() - 1) % 2 == 1 {
+        strip.push(a);
+    }
+    strip.extend([b, c]);
+}
+
+/// Writes `strips` over `mesh` as a ReduceM file: the build side's encoder, top level and
+/// writer, without the stripifier.
+pub fn write_strips(mesh: &Mesh, strips: &[Vec<u32>], leaf_windows: usize, path: &Path) {
+    let mut encoded: Vec<EncodedStrip> = Vec::new();
+    let mut stack: Vec<&[u32]> = strips.iter().rev().map(|s| s.as_slice()).collect();
+    while let Some(references) = stack.pop() {
+        match encode_strip(references, &mesh.positions, leaf_windows) {
+            Ok(strip) => encoded.push(strip),
+            Err(_) => {
+                let (first, second) = split_strip(references);
+                stack.push(second);
+                stack.push(first);
+            }
+        }
+    }
+    let stats = ChunkStats {
+        stored_vertices: encoded.iter().map(|s| s.vertex_count as u64).sum(),
+        triangles: strips
+            .iter()
+            .map(|s| strip::triangles(s).count() as u64)
+            .sum(),
+        ..ChunkStats::default()
+    };
+    let bounds: Vec<Aabb> = encoded.iter().map(|s| s.bounds).collect();
+    let top = toplevel::build(&bounds, &TopLevelParams::default());
+    let info = FileInfo {
+        stats,
+        leaf_windows,
+        max_strip_length: 1000,
+        bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
+    };
+    write_file(path, &info, &top, &encoded).expect("write file");
+}
+
+/// A mesh written with long strips and opened.
+pub fn open_with_long_strips(mesh: &Mesh, name: &str, max_windows: usize) -> ReducemFile {
+    let path = temp_path(name);
+    write_strips(mesh, &long_strips(mesh, max_windows), 2, &path);
+    ReducemFile::open(&path).expect("open")
+}
+
+/// The brute-force closest hit over every decoded triangle: `(t, triangle)`.
+pub fn brute_force(file: &ReducemFile, ray: &Ray) -> Option<(f32, [Point; 3])> {
+    let space = RaySpace::new(ray.origin, ray.direction);
+    let mut best: Option<(f32, [Point; 3])> = None;
+    for triangle in decode::triangles(file) {
+        let limit = best.map_or(ray.tmax, |(t, _)| t);
+        if let Some(hit) = intersect_triangle(&space, &triangle, ray.tmin, limit) {
+            if best.is_none_or(|(t, _)| hit.t < t) {
+                best = Some((hit.t, triangle));
+            }
+        }
+    }
+    best
+}
+
+/// The triangle a hit reports, in input winding.
+pub fn hit_triangle(file: &ReducemFile, hit: &Hit) -> [Point; 3] {
+    file.strip(hit.strip as usize)
+        .window_points(hit.window as usize)
+        .expect("a hit is never a swap window")
+}
+
+pub fn shares_vertex(a: &[Point; 3], b: &[Point; 3]) -> bool {
+    a.iter()
+        .any(|p| b.iter().any(|q| p.map(f32::to_bits) == q.map(f32::to_bits)))
+}
+
+/// Bit patterns of every field, so hits compare exactly.
+pub fn hit_bits(hit: &Option<Hit>) -> Option<[u32; 8]> {
+    hit.map(|h| {
+        [
+            h.t.to_bits(),
+            h.u.to_bits(),
+            h.v.to_bits(),
+            h.normal[0].to_bits(),
+            h.normal[1].to_bits(),
+            h.normal[2].to_bits(),
+            h.strip,
+            h.window as u32,
+        ]
+    })
+}
+
+/// A ray from `origin` through `target`, unbounded.
+pub fn ray_towards(origin: Point, target: Point) -> Ray {
+    Ray {
+        origin,
+        direction: [0, 1, 2].map(|i| target[i] - origin[i]),
+        tmin: 0.0,
+        tmax: f32::INFINITY,
+    }
+}
+
+/// Every mesh vertex and every edge midpoint: the points rays are aimed at exactly.
+pub fn vertex_and_edge_targets(mesh: &Mesh) -> Vec<Point> {
+    let mut targets = mesh.positions.clone();
+    for t in &mesh.triangles {
+        for i in 0..3 {
+            let (p, q) = (
+                mesh.positions[t[i] as usize],
+                mesh.positions[t[(i + 1) % 3] as usize],
+            );
+            targets.push([0, 1, 2].map(|k| p[k] * 0.5 + q[k] * 0.5));
+        }
+    }
+    targets
 }
 
 /// Corner positions rotated so the lexicographically smallest bit pattern comes first: equal
