@@ -8,7 +8,7 @@ use reducem::build::{convert_mesh, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;
-use reducem::trace::{Ray, TraceOptions, Tracer};
+use reducem::trace::{TraceOptions, Tracer};
 
 /// Interior points of a mesh that is a sphere of `radius` around `center`.
 fn interior_points(center: Point, radius: f32) -> Vec<Point> {
@@ -20,36 +20,14 @@ fn interior_points(center: Point, radius: f32) -> Vec<Point> {
     points
 }
 
-fn assert_no_escape(file: &ReducemFile, mesh: &Mesh, inside: &[Point], what: &str) {
-    let targets = vertex_and_edge_targets(mesh);
-    for packets in [false, true] {
-        let tracer = Tracer::new(
-            file,
-            TraceOptions {
-                packets,
-                ..TraceOptions::default()
-            },
-        );
-        for &origin in inside {
-            let rays: Vec<Ray> = targets.iter().map(|&t| ray_towards(origin, t)).collect();
-            let hits = tracer.intersect_batch(&rays);
-            let occluded = tracer.occluded_batch(&rays);
-            for ((ray, hit), occluded) in rays.iter().zip(&hits).zip(&occluded) {
-                assert!(hit.is_some(), "{what}: {ray:?} escaped");
-                assert!(occluded, "{what}: {ray:?} not occluded");
-            }
-        }
-    }
-}
-
 fn check_sphere(mesh: &Mesh, center: Point, radius: f32, what: &str) {
     let inside = interior_points(center, radius);
     let long = open_with_long_strips(mesh, &format!("{what}-long.rdm"), 100);
-    assert_no_escape(&long, mesh, &inside, what);
+    assert_closed(&long, mesh, &inside, what);
     let path = temp_path(&format!("{what}-build.rdm"));
     convert_mesh(mesh, &BuildParams::default(), &path).expect("convert");
     let built = ReducemFile::open(&path).expect("open");
-    assert_no_escape(&built, mesh, &inside, what);
+    assert_closed(&built, mesh, &inside, what);
 }
 
 #[test]

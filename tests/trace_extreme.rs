@@ -476,31 +476,6 @@ fn interior_points(center: Point, radius: f32, count: usize, seed: u64) -> Vec<P
     points
 }
 
-/// Rays from every `inside` point at every vertex and edge midpoint all hit; returns the count.
-fn assert_closed(file: &ReducemFile, mesh: &Mesh, inside: &[Point], what: &str) -> usize {
-    let targets = vertex_and_edge_targets(mesh);
-    let mut traced = 0;
-    for packets in [false, true] {
-        let tracer = Tracer::new(
-            file,
-            TraceOptions {
-                packets,
-                ..TraceOptions::default()
-            },
-        );
-        for &origin in inside {
-            let rays: Vec<Ray> = targets.iter().map(|&t| ray_towards(origin, t)).collect();
-            let hits = tracer.intersect_batch(&rays);
-            let occluded = tracer.occluded_batch(&rays);
-            for ((ray, hit), occluded) in rays.iter().zip(&hits).zip(&occluded) {
-                assert!(hit.is_some() && *occluded, "{what}: {ray:?} escaped");
-            }
-            traced += 2 * rays.len();
-        }
-    }
-    traced
-}
-
 /// Scale and offset of the unit sphere in the escape sweep: every scale from 1e-6 to 1e6, and
 /// offsets of 1e6 where the sphere is large enough to keep its shape in f32 at that offset.
 const ESCAPE_CONFIGS: [(f32, f32); 9] = [

@@ -14,7 +14,7 @@ use reducem::mesh::Mesh;
 use reducem::strip;
 use reducem::toplevel::{self, TopLevelParams};
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
-use reducem::trace::{Hit, Ray};
+use reducem::trace::{Hit, Ray, TraceOptions, Tracer};
 
 /// A fresh path in the system temp dir, unique per test and process.
 pub fn temp_path(name: &str) -> PathBuf {
@@ -402,4 +402,29 @@ pub fn canonical_sorted(triangles: impl Iterator<Item = [Point; 3]>) -> Vec<[[u3
     let mut all: Vec<_> = triangles.map(canonical).collect();
     all.sort_unstable();
     all
+}
+
+/// Rays from every `inside` point at every vertex and edge midpoint all hit; returns the count.
+pub fn assert_closed(file: &ReducemFile, mesh: &Mesh, inside: &[Point], what: &str) -> usize {
+    let targets = vertex_and_edge_targets(mesh);
+    let mut traced = 0;
+    for packets in [false, true] {
+        let tracer = Tracer::new(
+            file,
+            TraceOptions {
+                packets,
+                ..TraceOptions::default()
+            },
+        );
+        for &origin in inside {
+            let rays: Vec<Ray> = targets.iter().map(|&t| ray_towards(origin, t)).collect();
+            let hits = tracer.intersect_batch(&rays);
+            let occluded = tracer.occluded_batch(&rays);
+            for ((ray, hit), occluded) in rays.iter().zip(&hits).zip(&occluded) {
+                assert!(hit.is_some() && *occluded, "{what}: {ray:?} escaped");
+            }
+            traced += 2 * rays.len();
+        }
+    }
+    traced
 }
