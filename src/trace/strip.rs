@@ -11,12 +11,15 @@
 //! hit found since is nearer than its entry.
 //!
 //! An interval of at most [`TraceOptions::subtree_windows`](super::TraceOptions) windows, or a
-//! leaf, is intersected at once (the paper's "external parameter"). The intersector streams over
-//! the interval's strip positions, transforming each to ray space once, and evaluates every strip
-//! edge once: window `k` uses the short edges `(s[k], s[k+1])`, `(s[k+1], s[k+2])` and the long
-//! edge `(s[k], s[k+2])`, and shares its second short edge with window `k + 1`. The long edge is
-//! only computed when the two short edges do not already separate the ray from the triangle, so
-//! a strip costs between one and two edge functions per window.
+//! leaf, is intersected at once (the paper's "external parameter"), eight windows at a time in
+//! SIMD lanes: the block's strip positions are moved to ray space once each, and every strip edge
+//! is evaluated once: window `k` uses the short edges `(s[k], s[k+1])`, `(s[k+1], s[k+2])` and the
+//! long edge `(s[k], s[k+2])`, and shares its second short edge with window `k + 1`. So a strip
+//! costs two edge functions per window, with no branch on the geometry until a window's three
+//! edges agree, which is rare; those windows finish in the scalar [`resolve`], bit-identical to
+//! the single-triangle test. (The SIMD block replaced a scalar loop that skipped the long edge
+//! when the short ones already separated the ray: fewer operations, but the skip was a
+//! data-dependent branch mispredicted about half the time.)
 //!
 //! Cost: the traversal is a flat loop over a fixed stack, with nodes numbered in buckets of
 //! `leaf_windows` windows (see [`crate::format::implicit_tree`]) so that splitting a node and
@@ -28,7 +31,9 @@
 //! so ties resolve the same way whatever the visiting order.
 
 use super::prepared::{max_not_nan, min_not_nan, PreparedRay, FAR_INFLATION};
-use super::watertight::{edge, resolve};
+use wide::f32x8;
+
+use super::watertight::{candidate_lanes, edge, edge_lanes, resolve, RayPoints};
 use crate::format::reader::StripView;
 
 /// Deepest strip kd-tree: intervals halve, and a strip has fewer than 2^16 windows.
@@ -203,8 +208,7 @@ impl StripQuery<'_> {
         }
     }
 
-    /// Intersects windows `[lo, hi)`, streaming over their positions: each position is moved to
-    /// ray space once and each edge shared by two windows is evaluated once.
+    /// Intersects windows `[lo, hi)` in blocks of [`BLOCK`] windows.
     #[inline(always)]
     fn intersect<const KX: usize, const KY: usize, const KZ: usize>(
         &self,
@@ -214,34 +218,125 @@ impl StripQuery<'_> {
         hi: usize,
         closest: &mut Closest,
     ) -> bool {
-        let space = &self.ray.space;
-        let references = &view.references[lo..hi + 2];
-        let point = |position: usize| {
-            space.transform_as::<KX, KY, KZ>(&view.vertices[references[position] as usize])
-        };
-        let (mut p0, mut p1) = (point(0), point(1));
-        let mut leading_edge = edge(&p0, &p1);
         let mut found = false;
-        for k in 0..hi - lo {
-            let p2 = point(k + 2);
-            let trailing_edge = edge(&p1, &p2);
-            let [a, b, c] = [references[k], references[k + 1], references[k + 2]];
-            // Short edges of strictly opposite signs put the ray outside the triangle; f32 edge
-            // signs never contradict the exact ones (rounding is monotone), so this rejects
-            // exactly what `resolve` would, without the long edge.
-            let separated = leading_edge * trailing_edge < 0.0;
-            if !separated && a != b && b != c && a != c {
-                let weights = [trailing_edge, edge(&p2, &p0), leading_edge];
-                if let Some(hit) = resolve(&[p0, p1, p2], weights, self.ray.tmin, closest.t) {
-                    closest.offer(hit.t, index, (lo + k) as u16, hit.weights);
-                    found = true;
-                    if self.any_hit {
-                        return true;
-                    }
+        for first in (lo..hi).step_by(BLOCK) {
+            let count = BLOCK.min(hi - first);
+            if self.intersect_block::<KX, KY, KZ>(view, index, first, count, closest) {
+                found = true;
+                if self.any_hit {
+                    return true;
                 }
             }
-            (p0, p1, leading_edge) = (p1, p2, trailing_edge);
         }
         found
     }
+
+    /// The ray-space x, y and z of the block's positions (`references`, at most `BLOCK + 2`),
+    /// each vertex transformed once; lanes past the block's end hold the transform of zero.
+    #[inline(always)]
+    fn ray_space_points<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        view: &StripView,
+        references: &[u8],
+    ) -> [[f32; 2 * BLOCK]; 3] {
+        let mut model = [[0.0f32; 2 * BLOCK]; 3];
+        for (position, &reference) in references.iter().enumerate() {
+            let vertex = &view.vertices[reference as usize];
+            model[0][position] = vertex[KX];
+            model[1][position] = vertex[KY];
+            model[2][position] = vertex[KZ];
+        }
+        let mut points = [[0.0f32; 2 * BLOCK]; 3];
+        for half in [0, BLOCK] {
+            let transformed = self.ray.space.transform_lanes::<KX, KY, KZ>(
+                lanes_from(&model[0], half),
+                lanes_from(&model[1], half),
+                lanes_from(&model[2], half),
+            );
+            let lanes = [transformed.x, transformed.y, transformed.z];
+            for (axis, values) in lanes.iter().enumerate() {
+                points[axis][half..half + BLOCK].copy_from_slice(values.as_array());
+            }
+        }
+        points
+    }
+
+    /// Intersects the `count <= BLOCK` windows from `first`, lane `k` being window
+    /// `first + k`: the block's `count + 2` positions are moved to ray space once per corner
+    /// role (lanes shifted by 0, 1 and 2 positions) and the three edge functions of every window
+    /// are evaluated together, so shared strip edges cost one SIMD lane each and no branch
+    /// depends on the geometry. The rare lanes whose edges all agree go through the scalar
+    /// [`resolve`], which sees bit-identical inputs to the single-triangle test.
+    #[inline(always)]
+    fn intersect_block<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        view: &StripView,
+        index: u32,
+        first: usize,
+        count: usize,
+        closest: &mut Closest,
+    ) -> bool {
+        let references = &view.references[first..first + count + 2];
+        let points = self.ray_space_points::<KX, KY, KZ>(view, references);
+        let corner = |shift: usize| RayPoints {
+            x: lanes_from(&points[0], shift),
+            y: lanes_from(&points[1], shift),
+            z: lanes_from(&points[2], shift),
+        };
+        let corners = [corner(0), corner(1), corner(2)];
+        // Short edge `j` joins positions `j` and `j + 1`: window `k` leads with short edge `k`
+        // and trails with `k + 1`, which leads window `k + 1`.
+        let mut short_edges = [0.0f32; BLOCK + 1];
+        short_edges[..BLOCK].copy_from_slice(edge_lanes(&corners[0], &corners[1]).as_array());
+        short_edges[BLOCK] = edge(&corners[1].lane(BLOCK - 1), &corners[2].lane(BLOCK - 1));
+        let weights = [
+            lanes_from(&short_edges, 1),
+            edge_lanes(&corners[2], &corners[0]),
+            lanes_from(&short_edges, 0),
+        ];
+        let mut candidates = candidate_lanes(weights) & ((1 << count) - 1);
+        if candidates == 0 {
+            return false;
+        }
+        let weights = weights.map(f32x8::to_array);
+        let mut found = false;
+        while candidates != 0 {
+            let lane = candidates.trailing_zeros() as usize;
+            candidates &= candidates - 1;
+            if !is_real_window(&references[lane..lane + 3]) {
+                continue;
+            }
+            let c = corners.map(|points| points.lane(lane));
+            let w = weights.map(|w| w[lane]);
+            if let Some(hit) = resolve(&c, w, self.ray.tmin, closest.t) {
+                closest.offer(hit.t, index, (first + lane) as u16, hit.weights);
+                found = true;
+                if self.any_hit {
+                    return true;
+                }
+            }
+        }
+        found
+    }
+}
+
+/// Windows intersected together: one `f32x8` lane each.
+const BLOCK: usize = 8;
+
+/// Lanes `shift..shift + BLOCK` of `values`.
+#[inline(always)]
+fn lanes_from(values: &[f32], shift: usize) -> f32x8 {
+    let lanes: [f32; BLOCK] = values[shift..shift + BLOCK]
+        .try_into()
+        .expect("BLOCK lanes");
+    f32x8::from(lanes)
+}
+
+/// Whether the window with these three corner references is a real triangle rather than a
+/// swap. Only candidate lanes are checked: a swap repeats a corner, so one of its edge functions
+/// is exactly zero and it would reach [`resolve`], which rejects it (zero determinant), but
+/// slowly.
+#[inline(always)]
+fn is_real_window(corners: &[u8]) -> bool {
+    corners[0] != corners[1] && corners[1] != corners[2] && corners[0] != corners[2]
 }

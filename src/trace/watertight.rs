@@ -28,6 +28,8 @@
 //!   `+0.0` in both windings, and dividing it by the determinant, whose sign the winding sets,
 //!   would give `+0.0` for one winding and `-0.0` for the other (a ray starting on a vertex).
 
+use wide::f32x8;
+
 use crate::geometry::Point;
 
 /// A ray's precomputed shear into ray space.
@@ -119,6 +121,69 @@ impl RaySpace {
             z: self.scale_z * a[kz],
         }
     }
+}
+
+/// Eight ray-space points in structure-of-arrays form, lane `i` being what
+/// [`RaySpace::transform`] gives for the `i`-th model point.
+#[derive(Clone, Copy, Debug)]
+pub struct RayPoints {
+    pub x: f32x8,
+    pub y: f32x8,
+    pub z: f32x8,
+}
+
+impl RayPoints {
+    /// Lane `lane` as a single point.
+    #[inline(always)]
+    pub fn lane(&self, lane: usize) -> RayPoint {
+        RayPoint {
+            x: self.x.as_array()[lane],
+            y: self.y.as_array()[lane],
+            z: self.z.as_array()[lane],
+        }
+    }
+}
+
+impl RaySpace {
+    /// [`RaySpace::transform_as`] of eight points at once, given their coordinates on the
+    /// ray-space axes `[KX, KY, KZ]` (`along_x[i]` is point `i`'s model coordinate `KX`). The
+    /// same operations in the same order, lanewise, so every lane is bit-identical to the scalar
+    /// transform (IEEE multiplication and subtraction, no fused multiply-add).
+    #[inline(always)]
+    pub fn transform_lanes<const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        along_x: f32x8,
+        along_y: f32x8,
+        along_z: f32x8,
+    ) -> RayPoints {
+        debug_assert_eq!(self.axes, [KX, KY, KZ]);
+        let ax = along_x - f32x8::splat(self.origin[KX]);
+        let ay = along_y - f32x8::splat(self.origin[KY]);
+        let az = along_z - f32x8::splat(self.origin[KZ]);
+        RayPoints {
+            x: ax - f32x8::splat(self.shear_x) * az,
+            y: ay - f32x8::splat(self.shear_y) * az,
+            z: f32x8::splat(self.scale_z) * az,
+        }
+    }
+}
+
+/// [`edge`] lanewise, bit-identical per lane.
+#[inline(always)]
+pub fn edge_lanes(p: &RayPoints, q: &RayPoints) -> f32x8 {
+    q.x * p.y - q.y * p.x
+}
+
+/// Lanes whose three edge weights could make a hit: all of one sign, or one exactly zero (which
+/// [`resolve`] settles in f64). Every lane [`resolve`] accepts is among them; a lane with a NaN
+/// weight is not, and [`resolve`] would reject it too.
+#[inline(always)]
+pub fn candidate_lanes(w: [f32x8; 3]) -> u32 {
+    let zero = f32x8::ZERO;
+    let positive = w[0].simd_gt(zero) & w[1].simd_gt(zero) & w[2].simd_gt(zero);
+    let negative = w[0].simd_lt(zero) & w[1].simd_lt(zero) & w[2].simd_lt(zero);
+    let on_edge = w[0].simd_eq(zero) | w[1].simd_eq(zero) | w[2].simd_eq(zero);
+    (positive | negative | on_edge).to_bitmask()
 }
 
 /// Edge function of the directed edge `p → q`: positive when the ray passes on one side,
