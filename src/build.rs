@@ -150,11 +150,24 @@ pub fn strip_bounds(strips: &[EncodedStrip]) -> Vec<Aabb> {
 }
 
 /// Converts a mesh that fits in memory (the one-chunk case) and writes the file at `out`.
+/// A coordinate beyond [`crate::geometry::MAX_COORDINATE`] (where the tracer's f32 arithmetic
+/// would overflow) is refused with an `InvalidInput` error before anything is written.
 pub fn convert_mesh(
     mesh: &Mesh,
     params: &BuildParams,
     out: &Path,
 ) -> Result<ChunkStats, WriteError> {
+    if let Some((vertex, axis, value)) = mesh.out_of_range_coordinate() {
+        let detail = format!(
+            "vertex {vertex}: coordinate {} = {value:e} is outside the supported range ±{:e}",
+            ["x", "y", "z"][axis],
+            crate::geometry::MAX_COORDINATE
+        );
+        return Err(WriteError {
+            path: out.to_path_buf(),
+            source: std::io::Error::new(std::io::ErrorKind::InvalidInput, detail),
+        });
+    }
     write_chunk(&encode_chunk(mesh, params), params, out)
 }
 

@@ -14,6 +14,17 @@ impl Mesh {
         Aabb::from_points(&self.positions)
     }
 
+    /// The first coordinate that is not finite or lies beyond
+    /// [`crate::geometry::MAX_COORDINATE`], as `(vertex, axis, value)`. The readers reject such
+    /// inputs; meshes built in code are checked by [`crate::build::convert_mesh`].
+    pub fn out_of_range_coordinate(&self) -> Option<(usize, usize, f32)> {
+        self.positions.iter().enumerate().find_map(|(vertex, p)| {
+            (0..3)
+                .find(|&axis| !(p[axis].abs() <= crate::geometry::MAX_COORDINATE))
+                .map(|axis| (vertex, axis, p[axis]))
+        })
+    }
+
     pub fn triangle_points(&self, triangle: &[u32; 3]) -> [Point; 3] {
         triangle.map(|v| self.positions[v as usize])
     }
