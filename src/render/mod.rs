@@ -32,6 +32,7 @@ use crate::trace::{Ray, TraceOptions, Tracer};
 use camera::Camera;
 use plan::{AoPlan, Light, LightSource, Plan};
 use residency::Residency;
+use sampling::Surface;
 use scene::Scene;
 
 /// Tile edge in pixels: 64 rays, eight packets of one row each.
@@ -75,15 +76,6 @@ impl RenderReport {
             .map(|e| e.rays)
             .sum()
     }
-}
-
-/// The geometry of a primary hit that the later passes need.
-#[derive(Clone, Copy, Debug, Default)]
-struct Surface {
-    /// Origin for secondary rays: the hit point pushed off the surface towards the viewer.
-    origin: Vec3,
-    /// Unit normal facing the viewer.
-    normal: Vec3,
 }
 
 /// Renders `scene` with `tracer`; also measures residency of the file afterwards.
@@ -165,8 +157,8 @@ pub fn render_to_png(
     Ok(report)
 }
 
-/// Pixel indices of each 8×8 tile, tiles in row-major order.
-fn tiles(width: u32, height: u32) -> Vec<Vec<u32>> {
+/// Pixel indices of each 8×8 tile, tiles in row-major order: the order passes trace pixels in.
+pub fn tiles(width: u32, height: u32) -> Vec<Vec<u32>> {
     let mut tiles = Vec::new();
     for tile_y in (0..height).step_by(TILE as usize) {
         for tile_x in (0..width).step_by(TILE as usize) {
@@ -217,22 +209,7 @@ fn primary_pass(
         let hits = tracer.intersect_chunk(&rays);
         rays.iter()
             .zip(hits)
-            .map(|(ray, hit)| {
-                hit.map(|hit| {
-                    let direction = Vec3::from(ray.direction);
-                    let normal = Vec3::from(hit.normal);
-                    let facing = if normal.dot(direction) > 0.0 {
-                        -normal
-                    } else {
-                        normal
-                    };
-                    let point = Vec3::from(ray.origin) + direction * hit.t;
-                    Surface {
-                        origin: sampling::offset_origin(point, facing),
-                        normal: facing,
-                    }
-                })
-            })
+            .map(|(ray, hit)| hit.and_then(|hit| Surface::at_hit(tracer.file(), ray, &hit)))
             .collect()
     })
 }
@@ -306,17 +283,7 @@ fn ao_pass(
 
 fn ao_at(tracer: &Tracer, ao: &AoPlan, seed: u32, pixel: u32, surface: &Surface) -> f32 {
     let open = (0..ao.samples)
-        .filter(|&s| {
-            let u1 = sampling::sample(seed, pixel, s, 0);
-            let u2 = sampling::sample(seed, pixel, s, 1);
-            let direction = sampling::cosine_hemisphere(surface.normal, u1, u2);
-            !tracer.occluded(&Ray {
-                origin: surface.origin.into(),
-                direction: direction.into(),
-                tmin: 0.0,
-                tmax: ao.max_distance,
-            })
-        })
+        .filter(|&s| !tracer.occluded(&surface.ao_ray(seed, pixel, s, ao.max_distance)))
         .count();
     open as f32 / ao.samples as f32
 }
