@@ -28,3 +28,4 @@ pub mod strip;
 pub mod stripify;
 pub mod toplevel;
 pub mod trace;
+pub mod workload;

@@ -103,23 +103,23 @@ fn memory_parts_sum_to_the_totals_and_reducem_total_is_the_file_size() {
 fn engines_answer_the_same_rays_alike() {
     let (data, _) = tiny_report();
     for kind in report::MEMORY_KINDS.map(|k| format!("{k:?}").to_lowercase()) {
-        let speed_of = |representation: &str| {
-            data.memory
-                .iter()
-                .find(|r| r.kind == kind && r.representation == representation)
-                .and_then(|r| r.speed)
-                .expect("measured")
-        };
-        let reducem = speed_of(memory::REDUCEM);
-        let baseline = speed_of(memory::BASELINE);
+        let speeds: Vec<_> = data
+            .memory
+            .iter()
+            .filter(|r| r.kind == kind)
+            .filter_map(|r| r.speed)
+            .collect();
+        // ReduceM and the baseline, and Embree's two scenes when built with it.
+        assert!(speeds.len() >= 2, "{kind}");
+        let reducem = speeds[0];
         assert!(reducem.primary_hits > 0, "{kind}: the camera sees the mesh");
-        assert_eq!(reducem.primary_hits, baseline.primary_hits, "{kind}");
-        // AO rays start next to the surface; the two tracers may disagree on a grazing contact.
-        let disagreement = reducem.ao_occluded.abs_diff(baseline.ao_occluded);
-        assert!(
-            disagreement * 100 <= reducem.ao_occluded.max(100),
-            "{kind}: {reducem:?} {baseline:?}"
-        );
+        for other in &speeds[1..] {
+            assert_eq!(
+                (other.primary_hits, other.ao_occluded),
+                (reducem.primary_hits, reducem.ao_occluded),
+                "{kind}"
+            );
+        }
         assert!(reducem.primary_mrays > 0.0 && reducem.ao_mrays > 0.0);
     }
 }

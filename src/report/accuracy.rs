@@ -11,15 +11,14 @@ use std::path::{Path, PathBuf};
 
 use super::markdown::{figure, Section, Table};
 use super::plot::{self, Axis, Plot, Series};
-use super::workload::{camera_settings, convert_timed, load_mesh, median_timed};
 use super::Sizes;
 use crate::build::BuildParams;
 use crate::format::reader::ReducemFile;
 use crate::gen::Kind;
 use crate::render::image::write_png;
-use crate::render::scene::{AmbientOcclusion, DirectionalLight, ImageSettings, Scene, Shading};
 use crate::render::{render, Frame};
 use crate::trace::{TraceOptions, Tracer};
+use crate::workload::{ao_scene, convert_timed, load_mesh, median_timed};
 
 /// A heightfield: valleys and ridges give ambient occlusion something to estimate.
 pub const ACCURACY_KIND: Kind = Kind::Terrain;
@@ -37,31 +36,6 @@ pub struct AoRow {
     pub rmse: f64,
 }
 
-/// The scene of `configs/scenes/ao16.toml` at `size`² pixels and `samples` AO samples.
-pub fn scene(size: u32, samples: u32) -> Scene {
-    Scene {
-        image: ImageSettings {
-            width: size,
-            height: size,
-        },
-        camera: camera_settings(),
-        shading: Shading {
-            ambient: 0.8,
-            ..Shading::default()
-        },
-        directional_light: vec![DirectionalLight {
-            direction: [-0.4, -0.3, -1.0],
-            intensity: 0.3,
-            cast_shadows: false,
-        }],
-        point_light: Vec::new(),
-        ambient_occlusion: Some(AmbientOcclusion {
-            samples,
-            max_distance: None,
-        }),
-    }
-}
-
 /// Renders the reference and every sample count of the [`ACCURACY_KIND`] mesh; writes a few
 /// images into `out_dir`.
 pub fn collect(
@@ -74,11 +48,11 @@ pub fn collect(
     let file = ReducemFile::open(&converted.path)?;
     let tracer = Tracer::new(&file, TraceOptions::default());
     let size = sizes.accuracy_image;
-    let (reference, _) = render(&tracer, &scene(size, REFERENCE_SAMPLES));
+    let (reference, _) = render(&tracer, &ao_scene(size, REFERENCE_SAMPLES));
     let mut images = Vec::new();
     let mut rows = Vec::new();
     for samples in SAMPLE_COUNTS {
-        let scene = scene(size, samples);
+        let scene = ao_scene(size, samples);
         let (render_seconds, (frame, report)) =
             median_timed(sizes.runs, || render(&tracer, &scene));
         if SHOWN_SAMPLES.contains(&samples) {

@@ -1,6 +1,6 @@
 //! Intel Embree 3 as a peer in section 1 (feature `embree`, needs libembree-dev): memory of a
 //! scene built with the default flags or `RTC_SCENE_FLAG_COMPACT`, and its speed on the report's
-//! rays with single-ray queries.
+//! rays with single-ray queries ([`Embree`]).
 //!
 //! Memory is counted by Embree itself: a device memory monitor callback adds every allocation
 //! and subtracts every release, so the figure is exact where process RSS growth would include
@@ -12,17 +12,14 @@ use std::ffi::c_void;
 use std::sync::atomic::{AtomicI64, Ordering};
 use std::time::Instant;
 
-use embree::{
-    sys, CommittedScene, Device, Geometry, IntersectContext, RayHit, Scene, SceneFlags,
-    TriangleMesh,
-};
+use embree::{sys, Device, Scene, SceneFlags};
 
-use super::engines::{self, Engine, Speed};
 use super::memory::MemoryParts;
-use super::workload::RaySet;
+use super::speed::{self, Speed};
 use super::Sizes;
 use crate::mesh::Mesh;
-use crate::trace::Ray;
+use crate::workload::engines::{triangle_geometry, Embree};
+use crate::workload::RaySet;
 
 /// Bytes per vertex of the `embree` crate's vertex buffer (four f32, the fourth unused).
 const EMBREE_VERTEX_BYTES: u64 = 16;
@@ -75,7 +72,7 @@ pub fn measure(mesh: &Mesh, rays: &RaySet, sizes: &Sizes, compact: bool) -> Meas
             other: 0,
         },
         build_seconds,
-        speed: engines::measure(&committed, rays, sizes.runs, sizes.min_trace_seconds),
+        speed: speed::measure(&committed, rays, sizes.runs, sizes.min_trace_seconds),
     }
 }
 
@@ -89,72 +86,4 @@ unsafe extern "C" fn count_allocation(
     let counter = unsafe { &*(counter as *const AtomicI64) };
     counter.fetch_add(bytes as i64, Ordering::Relaxed);
     true
-}
-
-fn triangle_geometry<'a>(device: &'a Device, mesh: &Mesh) -> Geometry<'a> {
-    let mut triangles =
-        TriangleMesh::unanimated(device, mesh.triangles.len(), mesh.positions.len());
-    {
-        let mut vertices = triangles.vertex_buffer.map();
-        for (i, p) in mesh.positions.iter().enumerate() {
-            let vertex = &mut vertices[i];
-            (vertex.x, vertex.y, vertex.z, vertex.w) = (p[0], p[1], p[2], 0.0);
-        }
-    }
-    {
-        let mut indices = triangles.index_buffer.map();
-        for (i, t) in mesh.triangles.iter().enumerate() {
-            let index = &mut indices[i];
-            (index.x, index.y, index.z) = (t[0], t[1], t[2]);
-        }
-    }
-    let mut geometry = Geometry::Triangle(triangles);
-    geometry.commit();
-    geometry
-}
-
-struct Embree<'a>(CommittedScene<'a>);
-
-impl Engine for Embree<'_> {
-    fn count_hits(&self, rays: &[Ray]) -> usize {
-        let mut context = IntersectContext::coherent();
-        rays.iter()
-            .filter(|ray| {
-                let mut query = RayHit::new(embree_ray(ray));
-                self.0.intersect(&mut context, &mut query);
-                query.hit.hit()
-            })
-            .count()
-    }
-
-    fn count_occluded(&self, rays: &[Ray]) -> usize {
-        let mut context = IntersectContext::incoherent();
-        rays.iter()
-            .filter(|ray| {
-                let mut query = embree_ray(ray);
-                self.0.occluded(&mut context, &mut query);
-                // Embree marks an occluded ray by setting its tfar to -inf.
-                query.tfar == f32::NEG_INFINITY
-            })
-            .count()
-    }
-}
-
-fn embree_ray(ray: &Ray) -> embree::Ray {
-    let [org_x, org_y, org_z] = ray.origin;
-    let [dir_x, dir_y, dir_z] = ray.direction;
-    embree::Ray {
-        org_x,
-        org_y,
-        org_z,
-        tnear: ray.tmin,
-        dir_x,
-        dir_y,
-        dir_z,
-        time: 0.0,
-        tfar: ray.tmax,
-        mask: u32::MAX,
-        id: 0,
-        flags: 0,
-    }
 }

@@ -10,12 +10,12 @@
 //! triangles and vertices by the precomputed 40-byte intersection format the paper measured
 //! against (a computed figure: nothing traces that format here).
 
+use std::collections::BTreeSet;
 use std::path::Path;
 
-use super::engines::{self, Baseline, ReduceM, Speed};
 use super::markdown::{figure, mib, number, Section, Table};
 use super::plot::{self, Axis, Plot, Series};
-use super::workload::{convert_timed, kind_name, load_mesh, median_timed, RaySet};
+use super::speed::{self, Speed};
 use super::{Sizes, MEMORY_KINDS};
 use crate::baseline::TriangleBvh;
 use crate::build::BuildParams;
@@ -23,6 +23,8 @@ use crate::format::reader::ReducemFile;
 use crate::inspect::FileStats;
 use crate::mesh::Mesh;
 use crate::trace::{TraceOptions, Tracer};
+use crate::workload::engines::{Baseline, ReduceM};
+use crate::workload::{convert_timed, kind_name, load_mesh, median_timed, RaySet};
 
 /// Bytes per triangle of the paper's precomputed intersection format (Wald 2004).
 pub const PAPER_TRIANGLE_BYTES: u64 = 40;
@@ -94,7 +96,7 @@ pub fn collect(work: &Path, sizes: &Sizes) -> anyhow::Result<Vec<MemoryRow>> {
         rows.push(MemoryRow {
             total_bytes: converted.stats.file_bytes,
             build_seconds: Some(converted.build_seconds),
-            speed: Some(engines::measure(
+            speed: Some(speed::measure(
                 &reducem,
                 &rays,
                 sizes.runs,
@@ -108,7 +110,7 @@ pub fn collect(work: &Path, sizes: &Sizes) -> anyhow::Result<Vec<MemoryRow>> {
             - INDEXED_TRIANGLE_BYTES * mesh.triangles.len() as u64;
         rows.push(MemoryRow {
             build_seconds: Some(build_seconds),
-            speed: Some(engines::measure(
+            speed: Some(speed::measure(
                 &Baseline(&bvh),
                 &rays,
                 sizes.runs,
@@ -232,11 +234,13 @@ pub fn section(rows: &[MemoryRow], plots_dir: &Path) -> anyhow::Result<Section> 
          B/tri divides by the mesh's input triangles for every row. ReduceM's parts sum to the \
          file size. The `{PAPER_FORMAT}` row is computed, not traced: the baseline's tree plus \
          {PAPER_TRIANGLE_BYTES} bytes per triangle, the format the paper compared against. \
-         The last two columns say what each engine answered on the same rays; counts are shown \
-         as measured, and where they differ (AO rays start a few ULPs off the surface, so \
-         grazing contacts between touching parts decide) this report does not judge which \
-         engine is right.\n\
+         The last two columns say what each engine answered on the same rays, and they should \
+         be equal: ReduceM and the baseline accept a hit at `t` in `[tmin, tmax]`, Embree in \
+         `(tnear, tfar]`, so only a ray starting exactly on a surface could tell them apart, \
+         and AO rays start off the surface they leave (the hit point interpolated on its \
+         triangle, pushed along the normal by a few ULPs). {}\n\
          {embree_note}\n\n{}{}",
+        agreement(rows),
         table.to_markdown(),
         figure(
             &plot_path,
@@ -248,6 +252,40 @@ pub fn section(rows: &[MemoryRow], plots_dir: &Path) -> anyhow::Result<Section> 
         markdown,
         plots: vec![plot_path],
     })
+}
+
+/// Whether every traced representation of a kind counted the same hits and occluded rays, and
+/// where not, the counts.
+fn agreement(rows: &[MemoryRow]) -> String {
+    let mut differing = Vec::new();
+    for kind in rows.iter().map(|r| &r.kind).collect::<BTreeSet<_>>() {
+        let traced: Vec<(&str, Speed)> = rows
+            .iter()
+            .filter(|r| &r.kind == kind)
+            .filter_map(|r| Some((r.representation.as_str(), r.speed?)))
+            .collect();
+        let alike = |count: fn(&Speed) -> usize| {
+            traced
+                .windows(2)
+                .all(|pair| count(&pair[0].1) == count(&pair[1].1))
+        };
+        if !alike(|s| s.primary_hits) || !alike(|s| s.ao_occluded) {
+            let counts: Vec<String> = traced
+                .iter()
+                .map(|(name, s)| format!("{name} {}/{}", s.primary_hits, s.ao_occluded))
+                .collect();
+            differing.push(format!("{kind} ({})", counts.join(", ")));
+        }
+    }
+    if differing.is_empty() {
+        return "In this run every engine answered alike on every mesh kind.".into();
+    }
+    format!(
+        "In this run they differ on {} (primary hits/AO occluded), so an engine or the ray \
+         setup is wrong there: `examples/bench_trace.rs --check-ao` checks the rays the engines \
+         disagree on against the brute force.",
+        differing.join("; ")
+    )
 }
 
 fn speed_plot(rows: &[MemoryRow]) -> Plot {

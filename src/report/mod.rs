@@ -19,14 +19,13 @@
 pub mod accuracy;
 #[cfg(feature = "embree")]
 mod embree_peer;
-pub mod engines;
 pub mod machine;
 pub mod markdown;
 pub mod memory;
 pub mod plot;
+pub mod speed;
 pub mod stripifier;
 pub mod sweeps;
-pub mod workload;
 
 use std::path::{Path, PathBuf};
 
@@ -144,7 +143,7 @@ pub fn run(config: &ReportConfig) -> anyhow::Result<(ReportData, Written)> {
     let memory = memory::collect(work, &sizes)?;
     let stripifiers = stripifier::collect(work, &sizes)?;
     let subject = sweeps::Subject::new(
-        workload::load_mesh(SWEEP_KIND, sizes.triangles, work)?,
+        crate::workload::load_mesh(SWEEP_KIND, sizes.triangles, work)?,
         work,
         &sizes,
     )?;

@@ -15,10 +15,9 @@
 use std::path::Path;
 use std::time::Instant;
 
-use super::engines::{self, ReduceM, Speed};
 use super::markdown::{figure, number, Section, Table};
 use super::plot::{self, Axis, Plot, Series};
-use super::workload::{convert_timed, kind_name, load_mesh, RaySet};
+use super::speed::{self, Speed};
 use super::{Sizes, MEMORY_KINDS};
 use crate::build::{encode_stripification, write_chunk, BuildParams};
 use crate::format::reader::ReducemFile;
@@ -28,6 +27,8 @@ use crate::strip::{window_count, window_triangle};
 use crate::stripify::adjacency::is_dropped;
 use crate::stripify::Stripification;
 use crate::trace::{TraceOptions, Tracer};
+use crate::workload::engines::ReduceM;
+use crate::workload::{convert_timed, kind_name, load_mesh, RaySet};
 
 /// meshoptimizer's restart index for 32-bit indices.
 const RESTART: u32 = u32::MAX;
@@ -135,7 +136,7 @@ pub fn collect(work: &Path, sizes: &Sizes) -> anyhow::Result<Vec<StripifierRow>>
                 stripifier,
                 stats,
                 build_seconds,
-                speed: engines::measure(&engine, &rays, sizes.runs, sizes.min_trace_seconds),
+                speed: speed::measure(&engine, &rays, sizes.runs, sizes.min_trace_seconds),
             });
         }
     }

@@ -10,10 +10,9 @@
 
 use std::path::Path;
 
-use super::engines::{self, ReduceM, Speed};
 use super::markdown::{figure, Section, Table};
 use super::plot::{self, Axis, Plot, Series};
-use super::workload::{convert_timed, median_timed, Converted, RaySet};
+use super::speed::{self, Speed};
 use super::Sizes;
 use crate::build::{encode_chunk, strip_bounds, write_chunk, BuildParams};
 use crate::format::reader::ReducemFile;
@@ -21,6 +20,8 @@ use crate::inspect::{file_stats, FileStats};
 use crate::mesh::Mesh;
 use crate::toplevel;
 use crate::trace::{TraceOptions, Tracer};
+use crate::workload::engines::ReduceM;
+use crate::workload::{convert_timed, median_timed, Converted, RaySet};
 
 pub const STRIP_LENGTHS: [usize; 7] = [4, 8, 16, 32, 60, 64, 128];
 pub const LEAF_SIZES: [usize; 5] = [1, 2, 4, 8, 16];
@@ -61,7 +62,7 @@ impl Subject {
     fn speed(&self, file: &Path, options: TraceOptions, sizes: &Sizes) -> anyhow::Result<Speed> {
         let file = ReducemFile::open(file)?;
         let engine = ReduceM(Tracer::new(&file, options));
-        Ok(engines::measure(
+        Ok(speed::measure(
             &engine,
             &self.rays,
             sizes.runs,

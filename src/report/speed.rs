@@ -1,52 +1,16 @@
-//! The ray tracers under comparison behind one interface, and their speed on a [`RaySet`].
-//!
-//! Each engine counts hits (primary) and occluded rays (AO) so that the report can show that the
-//! engines answered the same queries, not only how fast.
+//! The speed of the engines under comparison ([`crate::workload::engines`]) on a [`RaySet`],
+//! with what they answered.
 
 use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::workload::RaySet;
-use crate::baseline::TriangleBvh;
-use crate::trace::{Ray, Tracer};
+use crate::trace::Ray;
+use crate::workload::engines::Engine;
+use crate::workload::RaySet;
 
 /// Rays handed to one rayon task: eight 8-ray packets of one 8×8 tile.
 const CHUNK: usize = 64;
-
-pub trait Engine: Sync {
-    /// How many of `rays` hit something (closest-hit queries).
-    fn count_hits(&self, rays: &[Ray]) -> usize;
-    /// How many of `rays` are occluded (any-hit queries).
-    fn count_occluded(&self, rays: &[Ray]) -> usize;
-}
-
-/// ReduceM: primary rays as packets when the options say so, AO rays one by one as the
-/// renderer traces them.
-pub struct ReduceM<'f>(pub Tracer<'f>);
-
-impl Engine for ReduceM<'_> {
-    fn count_hits(&self, rays: &[Ray]) -> usize {
-        self.0.intersect_chunk(rays).iter().flatten().count()
-    }
-    fn count_occluded(&self, rays: &[Ray]) -> usize {
-        rays.iter().filter(|ray| self.0.occluded(ray)).count()
-    }
-}
-
-/// The in-project SAH BVH over indexed triangles, single rays.
-pub struct Baseline<'b>(pub &'b TriangleBvh);
-
-impl Engine for Baseline<'_> {
-    fn count_hits(&self, rays: &[Ray]) -> usize {
-        rays.iter()
-            .filter(|r| self.0.intersect(r).is_some())
-            .count()
-    }
-    fn count_occluded(&self, rays: &[Ray]) -> usize {
-        rays.iter().filter(|r| self.0.occluded(r)).count()
-    }
-}
 
 /// Median speed of one engine on one ray set, with what it answered.
 #[derive(Clone, Copy, Debug, PartialEq)]
