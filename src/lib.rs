@@ -24,6 +24,7 @@ pub mod mesh;
 pub mod render;
 #[cfg(feature = "report")]
 pub mod report;
+pub mod splitmix;
 pub mod strip;
 pub mod stripify;
 pub mod toplevel;

@@ -12,31 +12,16 @@ use std::time::Instant;
 
 use reducem::geometry::Point;
 use reducem::input::{InputError, InputErrorKind, Location, PlyFile, PlyStream};
+use reducem::splitmix::SplitMix64;
 
 const WINDOW_SIZES: [usize; 8] = [1, 7, 13, 100, 1000, 4096, 65_536, 1 << 26];
 
 // ---------------------------------------------------------------------------------------------
 // Fixtures
 
-/// Deterministic pseudo-random numbers (SplitMix64), so failures reproduce.
-struct Random(u64);
-
-impl Random {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    fn below(&mut self, bound: u64) -> u64 {
-        self.next() % bound
-    }
-
-    fn coordinate(&mut self) -> f64 {
-        (self.below(2_000_001) as f64 - 1_000_000.0) / 1024.0
-    }
+/// A coordinate on a grid of 2^-10 within ±977.
+fn coordinate(random: &mut SplitMix64) -> f64 {
+    (random.below(2_000_001) as f64 - 1_000_000.0) / 1024.0
 }
 
 /// Binary body values in one byte order.
@@ -190,31 +175,23 @@ fn build(
     }
 }
 
-fn random_positions(random: &mut Random, count: usize) -> Vec<[f64; 3]> {
+fn random_positions(random: &mut SplitMix64, count: usize) -> Vec<[f64; 3]> {
     (0..count)
-        .map(|_| {
-            [
-                random.coordinate(),
-                random.coordinate(),
-                random.coordinate(),
-            ]
-        })
+        .map(|_| [coordinate(random), coordinate(random), coordinate(random)])
         .collect()
 }
 
 /// Face lengths drawn from `lengths`, indices uniform over the vertices.
 fn random_faces(
-    random: &mut Random,
+    random: &mut SplitMix64,
     count: usize,
     vertices: usize,
     lengths: &[usize],
 ) -> Vec<Vec<i64>> {
     (0..count)
         .map(|_| {
-            let length = lengths[random.below(lengths.len() as u64) as usize];
-            (0..length)
-                .map(|_| random.below(vertices as u64) as i64)
-                .collect()
+            let length = lengths[random.below(lengths.len())];
+            (0..length).map(|_| random.below(vertices) as i64).collect()
         })
         .collect()
 }
@@ -272,10 +249,8 @@ fn assert_same_error(streamed: &InputError, whole: &InputError, context: &str) {
     assert_eq!(streamed.to_string(), whole.to_string(), "{context}");
 }
 
-fn random_sorted_ids(random: &mut Random, vertices: usize, wanted: usize) -> Vec<u32> {
-    let mut ids: Vec<u32> = (0..wanted)
-        .map(|_| random.below(vertices as u64) as u32)
-        .collect();
+fn random_sorted_ids(random: &mut SplitMix64, vertices: usize, wanted: usize) -> Vec<u32> {
+    let mut ids: Vec<u32> = (0..wanted).map(|_| random.below(vertices) as u32).collect();
     ids.sort_unstable();
     ids.dedup();
     ids
@@ -286,7 +261,7 @@ fn random_sorted_ids(random: &mut Random, vertices: usize, wanted: usize) -> Vec
 
 #[test]
 fn streaming_matches_the_whole_file_reader() {
-    let mut random = Random(7);
+    let mut random = SplitMix64::new(7);
     for big_endian in [false, true] {
         for decoration in DECORATIONS {
             for lengths in [TRIANGLES, MIXED] {
@@ -301,7 +276,7 @@ fn streaming_matches_the_whole_file_reader() {
     }
 }
 
-fn check_agreement(path: &std::path::Path, random: &mut Random, context: &str) {
+fn check_agreement(path: &std::path::Path, random: &mut SplitMix64, context: &str) {
     let whole = PlyFile::open(path).unwrap_or_else(|e| panic!("{context}: {e}"));
     let stream = PlyStream::open(path).unwrap_or_else(|e| panic!("{context}: {e}"));
     assert!(stream.is_streamable(), "{context}");
@@ -332,7 +307,7 @@ fn generated_file_streams_like_the_whole_file_reader() {
     let directory = tempfile::tempdir().unwrap();
     let path = directory.path().join("scan.ply");
     reducem::gen::generate(reducem::gen::Kind::Scan, 20_000, 1, &path).unwrap();
-    check_agreement(&path, &mut Random(3), "generated scan");
+    check_agreement(&path, &mut SplitMix64::new(3), "generated scan");
 }
 
 #[test]
@@ -349,7 +324,7 @@ fn empty_elements_stream_nothing() {
 
 #[test]
 fn unsorted_and_repeated_ids_are_still_answered() {
-    let mut random = Random(11);
+    let mut random = SplitMix64::new(11);
     let positions = random_positions(&mut random, 50);
     let fixture = build(true, Decoration::Extras, &positions, &[vec![0, 1, 2]]);
     let file = write_temp(&fixture.bytes);
@@ -367,7 +342,7 @@ fn unsorted_and_repeated_ids_are_still_answered() {
 
 #[test]
 fn ids_beyond_the_vertex_count_are_rejected() {
-    let positions = random_positions(&mut Random(5), 10);
+    let positions = random_positions(&mut SplitMix64::new(5), 10);
     let fixture = build(false, Decoration::Plain, &positions, &[vec![0, 1, 2]]);
     let file = write_temp(&fixture.bytes);
     let stream = PlyStream::open(file.path()).unwrap();
@@ -413,7 +388,7 @@ fn check_same_triangle_error(
 /// A valid file's positions and faces, and a face index deep enough into the file that the
 /// defect is in a later window for all but the largest windows.
 fn defect_base(lengths: &[usize]) -> (Vec<[f64; 3]>, Vec<Vec<i64>>, usize) {
-    let mut random = Random(13);
+    let mut random = SplitMix64::new(13);
     let positions = random_positions(&mut random, 200);
     let faces = random_faces(&mut random, 300, positions.len(), lengths);
     (positions, faces, 211)

@@ -74,7 +74,7 @@ fn check_hit_point(ray: &Ray, hit: &reducem::trace::Hit, corners: &[Point; 3]) {
 
 fn random_rays(mesh: &Mesh, count: usize, seed: u64) -> Vec<Ray> {
     let bounds = mesh.bounds();
-    let mut rng = Rng::new(seed);
+    let mut rng = SplitMix64::new(seed);
     let mut rays = Vec::with_capacity(count);
     for _ in 0..count {
         let origin: Point = std::array::from_fn(|i| {
@@ -89,7 +89,7 @@ fn random_rays(mesh: &Mesh, count: usize, seed: u64) -> Vec<Ray> {
 
 fn aimed_rays(mesh: &Mesh, seed: u64) -> Vec<Ray> {
     let bounds = mesh.bounds();
-    let mut rng = Rng::new(seed);
+    let mut rng = SplitMix64::new(seed);
     vertex_and_edge_targets(mesh)
         .into_iter()
         .map(|target| {

@@ -12,7 +12,7 @@ fn baseline_agrees_with_brute_force() {
     let file = open_with_long_strips(&mesh, "baseline-torus.rdm", 60);
     let bvh = TriangleBvh::build(&mesh);
     assert!(bvh.memory_bytes() > 0);
-    let mut rng = Rng::new(5);
+    let mut rng = SplitMix64::new(5);
     let mut hits = 0;
     for _ in 0..2000 {
         let origin: Point = [

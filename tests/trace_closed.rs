@@ -12,7 +12,7 @@ use reducem::trace::{TraceOptions, Tracer};
 
 /// Interior points of a mesh that is a sphere of `radius` around `center`.
 fn interior_points(center: Point, radius: f32) -> Vec<Point> {
-    let mut rng = Rng::new(3);
+    let mut rng = SplitMix64::new(3);
     let mut points = vec![center];
     for _ in 0..4 {
         points.push(center.map(|c| c + rng.range(-0.4, 0.4) * radius));
@@ -72,7 +72,7 @@ fn rays_from_inside_a_torus_never_escape() {
 fn packets_match_single_rays_bit_for_bit() {
     let mesh = torus(30, 14);
     let file = open_with_long_strips(&mesh, "torus-packets.rdm", 80);
-    let mut rng = Rng::new(99);
+    let mut rng = SplitMix64::new(99);
     // Camera-like coherent rays, then incoherent ones with mixed direction signs.
     let mut rays = Vec::new();
     for y in 0..40 {

@@ -94,8 +94,8 @@ fn check_rays_on(file: &ReducemFile, rays: &[Ray], name: &str) -> usize {
 /// from origins up to one extent outside the bounds.
 fn probing_rays(mesh: &Mesh, random: usize, seed: u64) -> Vec<Ray> {
     let bounds = mesh.bounds();
-    let mut rng = Rng::new(seed);
-    let outside = |rng: &mut Rng| -> Point {
+    let mut rng = SplitMix64::new(seed);
+    let outside = |rng: &mut SplitMix64| -> Point {
         std::array::from_fn(|i| {
             let extent = bounds.max[i] - bounds.min[i];
             rng.range(bounds.min[i] - extent, bounds.max[i] + extent)
@@ -145,7 +145,7 @@ fn offsets_and_scales_from_1e_minus_6_to_1e6_agree() {
 /// Needles: triangles 1 long and 1e-6 wide (aspect ratio 1e6) in several orientations, side by
 /// side and crossing each other.
 fn needles(count: u32) -> Mesh {
-    let mut rng = Rng::new(17);
+    let mut rng = SplitMix64::new(17);
     let mut mesh = Mesh::default();
     for i in 0..count {
         let base: Point = [rng.unit(), rng.unit(), rng.unit()];
@@ -209,7 +209,7 @@ fn coplanar_stack() -> Mesh {
 #[test]
 fn nearly_coplanar_overlapping_triangles_agree() {
     let mesh = coplanar_stack();
-    let mut rng = Rng::new(4);
+    let mut rng = SplitMix64::new(4);
     let mut rays = probing_rays(&mesh, 500, 3);
     for _ in 0..500 {
         let target = [rng.range(-2.0, 2.0), rng.range(-2.0, 2.0), 0.0];
@@ -283,7 +283,7 @@ fn rays_along_edges_agree() {
 #[test]
 fn rays_starting_on_the_surface_agree() {
     let mesh = icosphere(2);
-    let mut rng = Rng::new(6);
+    let mut rng = SplitMix64::new(6);
     let mut rays = Vec::new();
     for t in &mesh.triangles {
         let [a, b, c] = mesh.triangle_points(t);
@@ -484,7 +484,7 @@ fn coordinates_near_the_f32_limits_are_refused_with_a_clear_error() {
 
 /// Interior points of a sphere of `radius` around `center`.
 fn interior_points(center: Point, radius: f32, count: usize, seed: u64) -> Vec<Point> {
-    let mut rng = Rng::new(seed);
+    let mut rng = SplitMix64::new(seed);
     let mut points = vec![center];
     while points.len() < count {
         points.push(center.map(|c| c + rng.range(-0.5, 0.5) * radius));

@@ -32,7 +32,7 @@ fn f32s(bytes: &[u8]) -> Vec<f32> {
 }
 
 fn sample_rays() -> Vec<Ray> {
-    let mut rng = Rng::new(17);
+    let mut rng = SplitMix64::new(17);
     (0..500)
         .map(|_| {
             let origin = [

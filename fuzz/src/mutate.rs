@@ -9,36 +9,7 @@
 //! float writes for ray files. Everything derives from one seed, so a run is reproducible.
 
 use reducem::format::{HEADER_CHECKSUMMED_BYTES, SECTION_ALIGN};
-
-/// SplitMix64: small, fast and good enough to drive mutation choices.
-pub struct Rng(u64);
-
-impl Rng {
-    pub fn new(seed: u64) -> Rng {
-        Rng(seed)
-    }
-
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `0..n` (`n > 0`).
-    pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
-    }
-
-    pub fn chance(&mut self, one_in: usize) -> bool {
-        self.below(one_in) == 0
-    }
-
-    pub fn pick<'a, T>(&mut self, items: &'a [T]) -> &'a T {
-        &items[self.below(items.len())]
-    }
-}
+use reducem::splitmix::SplitMix64;
 
 /// Which format-aware edits apply on top of the generic ones.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -195,14 +166,14 @@ impl Corruption {
 }
 
 pub struct Mutator {
-    rng: Rng,
+    rng: SplitMix64,
     structure: Structure,
 }
 
 impl Mutator {
     pub fn new(seed: u64, structure: Structure) -> Mutator {
         Mutator {
-            rng: Rng::new(seed),
+            rng: SplitMix64::new(seed),
             structure,
         }
     }
@@ -481,7 +452,7 @@ fn overwrite(data: &mut [u8], at: usize, bytes: &[u8]) {
     data[at..at + length].copy_from_slice(&bytes[..length]);
 }
 
-fn flip_bit(rng: &mut Rng, data: &mut [u8]) {
+fn flip_bit(rng: &mut SplitMix64, data: &mut [u8]) {
     if !data.is_empty() {
         let at = rng.below(data.len());
         data[at] ^= 1 << rng.below(8);

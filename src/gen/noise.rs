@@ -9,20 +9,12 @@
 //! hashes each octave once per row (`Fbm2::row`) and leaves a cheap 1D blend
 //! per vertex: hashing per vertex would dominate the generation time.
 
-/// Mixes a 64-bit value into a well-distributed one (an avalanche finalizer
-/// in the style of SplitMix64).
-fn mix(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
+use crate::splitmix::{mix, SplitMix64, GAMMA};
 
 /// A 64-bit hash of a seed and a sequence of integer keys.
 pub fn hash(seed: u64, keys: &[i64]) -> u64 {
     keys.iter()
-        .fold(mix(seed ^ 0x9E37_79B9_7F4A_7C15), |h, &key| {
-            mix(h ^ key as u64)
-        })
+        .fold(mix(seed ^ GAMMA), |h, &key| mix(h ^ key as u64))
 }
 
 /// A uniform value in [-1, 1) for a lattice node.
@@ -36,20 +28,15 @@ pub fn fade(t: f64) -> f64 {
 }
 
 /// A small deterministic random stream for sequential decisions.
-pub struct Rng {
-    state: u64,
-}
+pub struct Rng(SplitMix64);
 
 impl Rng {
     pub fn new(seed: u64, stream: u64) -> Self {
-        Rng {
-            state: hash(seed, &[stream as i64]),
-        }
+        Rng(SplitMix64::new(hash(seed, &[stream as i64])))
     }
 
     pub fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        mix(self.state)
+        self.0.next_u64()
     }
 
     /// Uniform in [0, 1).

@@ -11,6 +11,7 @@ use reducem::format::reader::ReducemFile;
 use reducem::format::writer::{write_file, FileInfo};
 use reducem::geometry::{is_degenerate, Aabb, Point};
 use reducem::mesh::Mesh;
+pub use reducem::splitmix::SplitMix64;
 use reducem::strip;
 use reducem::toplevel::{self, TopLevelParams};
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
@@ -21,36 +22,6 @@ pub fn temp_path(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("reducem-tests-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("create temp dir");
     dir.join(name)
-}
-
-/// SplitMix64: a tiny deterministic generator, so tests need no extra dependency.
-pub struct Rng(u64);
-
-impl Rng {
-    pub fn new(seed: u64) -> Rng {
-        Rng(seed)
-    }
-
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    pub fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-
-    pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.unit()
-    }
-
-    pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
-    }
 }
 
 /// A `w` × `h` quad grid with bumps, two triangles per quad, consistent winding.
@@ -169,7 +140,7 @@ pub fn icosphere(levels: u32) -> Mesh {
 
 /// `count` random triangles in the unit cube, sizes from tiny to large.
 pub fn soup(count: usize, seed: u64) -> Mesh {
-    let mut rng = Rng::new(seed);
+    let mut rng = SplitMix64::new(seed);
     let mut mesh = Mesh::default();
     for i in 0..count {
         let center = [rng.unit(), rng.unit(), rng.unit()];
