@@ -2,9 +2,11 @@
 //! strips respect the length limit, degenerate triangles are counted, output is deterministic,
 //! and the hierarchy is structurally sound.
 
-use std::collections::HashMap;
+mod common;
+
 use std::time::Instant;
 
+use common::{grid, icosphere, torus};
 use proptest::prelude::*;
 use reducem::geometry::is_degenerate;
 use reducem::mesh::Mesh;
@@ -14,134 +16,7 @@ use reducem::stripify::partition::Hierarchy;
 use reducem::stripify::{stripify, Stripification, StripifyParams};
 
 // ---------------------------------------------------------------------------------------------
-// Mesh builders
-
-/// A `width` × `height` quad grid over a gentle heightfield, two triangles per quad, all wound
-/// counter-clockwise seen from +z.
-fn grid(width: u32, height: u32) -> Mesh {
-    let mut positions = Vec::new();
-    for y in 0..=height {
-        for x in 0..=width {
-            let z = ((x as f32) * 0.3).sin() * ((y as f32) * 0.2).cos();
-            positions.push([x as f32, y as f32, z]);
-        }
-    }
-    let vertex = |x: u32, y: u32| y * (width + 1) + x;
-    let mut triangles = Vec::new();
-    for y in 0..height {
-        for x in 0..width {
-            let (a, b, c, d) = (
-                vertex(x, y),
-                vertex(x + 1, y),
-                vertex(x + 1, y + 1),
-                vertex(x, y + 1),
-            );
-            triangles.push([a, b, c]);
-            triangles.push([a, c, d]);
-        }
-    }
-    Mesh {
-        positions,
-        triangles,
-    }
-}
-
-/// A closed torus with `major` × `minor` quads, consistently wound.
-fn torus(major: u32, minor: u32) -> Mesh {
-    let mut positions = Vec::new();
-    for i in 0..major {
-        let theta = i as f32 / major as f32 * std::f32::consts::TAU;
-        for j in 0..minor {
-            let phi = j as f32 / minor as f32 * std::f32::consts::TAU;
-            let ring = 3.0 + phi.cos();
-            positions.push([ring * theta.cos(), ring * theta.sin(), phi.sin()]);
-        }
-    }
-    let vertex = |i: u32, j: u32| (i % major) * minor + (j % minor);
-    let mut triangles = Vec::new();
-    for i in 0..major {
-        for j in 0..minor {
-            let (a, b, c, d) = (
-                vertex(i, j),
-                vertex(i + 1, j),
-                vertex(i + 1, j + 1),
-                vertex(i, j + 1),
-            );
-            triangles.push([a, b, c]);
-            triangles.push([a, c, d]);
-        }
-    }
-    Mesh {
-        positions,
-        triangles,
-    }
-}
-
-/// A closed icosphere: an icosahedron whose faces are split into four `subdivisions` times,
-/// with midpoints welded so the surface stays connected.
-fn icosphere(subdivisions: u32) -> Mesh {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let mut positions: Vec<[f32; 3]> = vec![
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ];
-    let mut triangles: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..subdivisions {
-        let mut midpoints: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut midpoint = |a: u32, b: u32, positions: &mut Vec<[f32; 3]>| {
-            *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                let (pa, pb) = (positions[a as usize], positions[b as usize]);
-                let m = [0, 1, 2].map(|i| (pa[i] + pb[i]) * 0.5);
-                let norm = (m[0] * m[0] + m[1] * m[1] + m[2] * m[2]).sqrt();
-                positions.push(m.map(|c| c / norm));
-                positions.len() as u32 - 1
-            })
-        };
-        let mut finer = Vec::new();
-        for [a, b, c] in triangles {
-            let ab = midpoint(a, b, &mut positions);
-            let bc = midpoint(b, c, &mut positions);
-            let ca = midpoint(c, a, &mut positions);
-            finer.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        triangles = finer;
-    }
-    Mesh {
-        positions,
-        triangles,
-    }
-}
+// Mesh builders (grids, tori and icospheres come from `common`)
 
 /// Deterministic xorshift generator, so the soups are reproducible without extra crates.
 struct XorShift(u64);
@@ -247,9 +122,9 @@ fn with_threads<T: Send>(threads: usize, work: impl FnOnce() -> T + Send) -> T {
 
 /// Lower bound for the average strip length on regular meshes with the paper's limit of 60.
 ///
-/// Observed averages: 15.0 to 36.5 on grids depending on their dimensions (64×64: 31.5,
-/// 120×90: 15.0, 177×101: 18.9, 500×500: 36.5), 20 to 24 on tori. Sequences grow inside the
-/// block-shaped subtrees of the SAH hierarchy, and on some dimensions their ends end up
+/// Observed averages: 16.0 to 37.0 on grids depending on their dimensions (64×64: 32.0,
+/// 120×90: 16.0, 177×101: 20.4, 500×500: 37.0), 27.4 on the 48×24 torus. Sequences grow inside
+/// the block-shaped subtrees of the SAH hierarchy, and on some dimensions their ends end up
 /// enclosed by the interiors of neighbouring blocks' sequences, which stops growth at 8 or 16
 /// triangles; the paper likewise notes averages far below the limit. 12 sits safely below every
 /// observed value and still fails if merging across subtrees breaks down (averages of 4 to 8).
@@ -578,9 +453,11 @@ fn swaps_per_triangle(result: &Stripification) -> f64 {
 }
 
 /// Swap-aware ordering keeps swaps rare. Measured swaps per triangle with the paper's limit of
-/// 60, without → with swap awareness: 64×64 grid 0.036 → 0.036 (rows and columns of a regular
-/// grid alternate turns by themselves), 48×24 torus 0.188 → 0.134, level-4 icosphere 0.485 →
-/// 0.329. Each bound sits between the two, so it fails if the swap criterion stops working.
+/// 60, without → with swap awareness (`SWAP_WEIGHT` 0 → 1 in `stripify::ordering`): 64×64 grid
+/// 0.031 → 0.031 (rows and columns of a regular grid alternate turns by themselves, so its
+/// bound only catches swaps appearing where none are needed), 48×24 torus 0.172 → 0.134,
+/// level-4 icosphere 0.474 → 0.290. The torus and icosphere bounds sit between the two, so they
+/// fail if the swap criterion stops working.
 #[test]
 fn swaps_are_rare_on_regular_meshes() {
     for (name, mesh, bound) in [
