@@ -20,7 +20,9 @@ impl Mesh {
     pub fn out_of_range_coordinate(&self) -> Option<(usize, usize, f32)> {
         self.positions.iter().enumerate().find_map(|(vertex, p)| {
             (0..3)
-                .find(|&axis| !p[axis].is_finite() || p[axis].abs() > crate::geometry::MAX_COORDINATE)
+                .find(|&axis| {
+                    !p[axis].is_finite() || p[axis].abs() > crate::geometry::MAX_COORDINATE
+                })
                 .map(|axis| (vertex, axis, p[axis]))
         })
     }
