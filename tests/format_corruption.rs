@@ -109,22 +109,154 @@ fn header_errors_name_the_byte() {
     );
 }
 
-#[test]
-fn crafted_node_and_record_links_are_rejected() {
-    let bytes = valid_file_bytes("crafted-source.rdm");
-    let nodes = section_offset(&bytes, SectionKind::TopNodes);
-    // The root's right child pointing at itself would loop forever.
-    let mut self_loop = bytes.clone();
-    self_loop[nodes + 24..nodes + 28].copy_from_slice(&0u32.to_le_bytes());
-    let message = open_bytes("loop.rdm", &self_loop)
+/// Byte offsets within a 128-byte top-level node (see `docs/FORMAT.md`).
+const NODE_BYTES: usize = 128;
+const MIN_FIELD: usize = 0;
+const CHILD_FIELD: usize = 96;
+const KIND_FIELD: usize = 112;
+
+fn node_word(bytes: &[u8], node: usize, field: usize) -> u32 {
+    let at = section_offset(bytes, SectionKind::TopNodes) + node * NODE_BYTES + field;
+    u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap())
+}
+
+/// A copy of `bytes` with one 4-byte word of node `node` replaced; returns it and the word's
+/// file offset.
+fn with_node_word(bytes: &[u8], node: usize, field: usize, value: u32) -> (Vec<u8>, usize) {
+    let at = section_offset(bytes, SectionKind::TopNodes) + node * NODE_BYTES + field;
+    let mut changed = bytes.to_vec();
+    changed[at..at + 4].copy_from_slice(&value.to_le_bytes());
+    (changed, at)
+}
+
+/// The first (node, slot) whose kind satisfies `wanted`, in file order.
+fn find_slot(bytes: &[u8], wanted: impl Fn(u32) -> bool) -> (usize, usize) {
+    let nodes = section_range(bytes, SectionKind::TopNodes).1 / NODE_BYTES;
+    (0..nodes)
+        .flat_map(|node| (0..4).map(move |slot| (node, slot)))
+        .find(|&(node, slot)| wanted(node_word(bytes, node, KIND_FIELD + 4 * slot)))
+        .expect("a slot of the wanted kind")
+}
+
+fn rejection(name: &str, bytes: &[u8]) -> String {
+    open_bytes(name, bytes)
         .err()
-        .expect("self loop")
-        .to_string();
+        .unwrap_or_else(|| panic!("{name} opened"))
+        .to_string()
+}
+
+#[test]
+fn crafted_node_links_are_rejected_naming_node_and_byte() {
+    const INTERNAL: u32 = 1 << 31;
+    let bytes = valid_file_bytes("crafted-nodes-source.rdm");
+    let (node, slot) = find_slot(&bytes, |kind| kind == INTERNAL);
+    let child_field = CHILD_FIELD + 4 * slot;
+    let named = |message: &str, at: usize| {
+        message.contains("top_nodes")
+            && message.contains(&format!("node {node}:"))
+            && message.contains(&format!("at byte {at}"))
+    };
+
+    // A child pointing at its own node would loop forever.
+    let (self_loop, at) = with_node_word(&bytes, node, child_field, node as u32);
+    let message = rejection("loop.rdm", &self_loop);
+    assert!(named(&message, at) && message.contains("outside"), "{message}");
+
+    // A child beyond the node array.
+    let (far, at) = with_node_word(&bytes, node, child_field, u32::MAX);
+    let message = rejection("far-child.rdm", &far);
+    assert!(named(&message, at) && message.contains("outside"), "{message}");
+
+    // Two slots with the same child: a DAG, whose traversal could repeat work exponentially.
+    let (other, other_slot) = (0..section_range(&bytes, SectionKind::TopNodes).1 / NODE_BYTES)
+        .find_map(|n| {
+            let internal: Vec<usize> = (0..4)
+                .filter(|&s| node_word(&bytes, n, KIND_FIELD + 4 * s) == INTERNAL)
+                .collect();
+            (internal.len() >= 2).then(|| (n, internal[1]))
+        })
+        .expect("a node with two internal children");
+    let first_internal = (0..4)
+        .find(|&s| node_word(&bytes, other, KIND_FIELD + 4 * s) == INTERNAL)
+        .unwrap();
+    let sibling = node_word(&bytes, other, CHILD_FIELD + 4 * first_internal);
+    let (shared, at) = with_node_word(&bytes, other, CHILD_FIELD + 4 * other_slot, sibling);
+    let message = rejection("shared.rdm", &shared);
     assert!(
-        message.contains("top_nodes") && message.contains("node 0"),
+        message.contains(&format!("node {other}:"))
+            && message.contains(&format!("at byte {at}"))
+            && message.contains("second parent"),
         "{message}"
     );
 
+    // A kind with the internal bit and a count.
+    let (bad_kind, at) = with_node_word(&bytes, node, KIND_FIELD + 4 * slot, INTERNAL | 3);
+    let message = rejection("kind.rdm", &bad_kind);
+    assert!(
+        named(&message, at) && message.contains("neither internal nor a strip count"),
+        "{message}"
+    );
+}
+
+#[test]
+fn crafted_leaves_and_empty_slots_are_rejected() {
+    const INTERNAL: u32 = 1 << 31;
+    let bytes = valid_file_bytes("crafted-leaves-source.rdm");
+    let strips = u64::from_le_bytes(bytes[40..48].try_into().unwrap()) as u32;
+
+    // A leaf running past the strip records.
+    let (node, slot) = find_slot(&bytes, |kind| kind != 0 && kind != INTERNAL);
+    let (long_leaf, _) = with_node_word(&bytes, node, KIND_FIELD + 4 * slot, strips + 1);
+    let message = rejection("long-leaf.rdm", &long_leaf);
+    assert!(
+        message.contains(&format!("node {node}:"))
+            && message.contains(&format!("outside 0..{strips}")),
+        "{message}"
+    );
+
+    // A leaf covering fewer strips than before: some strip is unreachable.
+    let kind = node_word(&bytes, node, KIND_FIELD + 4 * slot);
+    if kind > 1 {
+        let (short_leaf, _) = with_node_word(&bytes, node, KIND_FIELD + 4 * slot, kind - 1);
+        let message = rejection("short-leaf.rdm", &short_leaf);
+        assert!(message.contains("leaves hold"), "{message}");
+    }
+
+    // An empty slot whose box is not exactly the empty box: a ray could enter it.
+    let (node, slot) = find_slot(&bytes, |kind| kind == 0);
+    let (loose_empty, _) = with_node_word(&bytes, node, MIN_FIELD + 4 * slot, 0);
+    let kind_at =
+        section_offset(&bytes, SectionKind::TopNodes) + node * NODE_BYTES + KIND_FIELD + 4 * slot;
+    let message = rejection("loose-empty.rdm", &loose_empty);
+    assert!(
+        message.contains(&format!("node {node}:"))
+            && message.contains(&format!("at byte {kind_at}"))
+            && message.contains("exact empty slot"),
+        "{message}"
+    );
+
+    // An occupied slot after an empty one.
+    let (root_gap, _) = with_node_word(&bytes, 0, KIND_FIELD, 0);
+    let message = rejection("gap.rdm", &root_gap);
+    assert!(message.contains("node 0:"), "{message}");
+}
+
+#[test]
+fn version_1_files_are_rejected_with_advice() {
+    let mut old = valid_file_bytes("version-source.rdm");
+    old[8..10].copy_from_slice(&1u16.to_le_bytes());
+    let message = rejection("version1.rdm", &old);
+    assert!(
+        message.contains("at byte 8")
+            && message.contains("format version 1.0")
+            && message.contains("convert the mesh again"),
+        "{message}"
+    );
+}
+
+#[test]
+fn crafted_record_links_are_rejected() {
+    let bytes = valid_file_bytes("crafted-source.rdm");
     // A strip block pointing past the section end.
     let records = section_offset(&bytes, SectionKind::StripRecords);
     let mut far_block = bytes.clone();

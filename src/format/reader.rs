@@ -19,9 +19,9 @@ use rayon::prelude::*;
 
 use super::implicit_tree::internal_nodes;
 use super::{
-    axis_bytes, Header, SectionKind, StripRecord, TopNode, VertexEncoding, ENDIAN_MARKER,
+    axis_bytes, Header, SectionKind, StripRecord, TopNode, TopSlot, VertexEncoding, ENDIAN_MARKER,
     HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH, SECTION_ALIGN,
-    VERSION_MAJOR,
+    TOP_WIDTH, VERSION_MAJOR,
 };
 use crate::geometry::Point;
 use crate::mapping::{map_file, map_range};
@@ -310,15 +310,17 @@ impl Windows<'_> {
         opened.invalid("strip_data", offset, format!("strip {index}: {detail}"))
     }
 
-    /// Checks that the nodes form one tree in preorder within the depth limit, with strip
-    /// ranges inside the record array; every node has exactly one parent, so traversal
-    /// terminates.
+    /// Checks that the nodes form one tree in preorder within the depth limit, with every slot
+    /// well formed and leaf strip ranges inside the record array; every node but the root has
+    /// exactly one parent, before it in the array, so traversal terminates and indexes nothing
+    /// out of bounds.
     fn validate_nodes(&self) -> Result<(), FormatError> {
         let section = self.section(SectionKind::TopNodes);
         let count = ((section.end - section.start) / NODE_BYTES) as usize;
         let mut tree = TreeCheck {
             opened: self.opened,
             depth: vec![u8::MAX; count],
+            leaf_strips: 0,
         };
         tree.depth[0] = 0;
         let batch = (VALIDATION_WINDOW as u64 / NODE_BYTES).max(1) as usize;
@@ -333,67 +335,117 @@ impl Windows<'_> {
                 tree.check(first + i, node)?;
             }
         }
-        Ok(())
+        tree.finish()
     }
 }
 
 const RECORD_BYTES: u64 = std::mem::size_of::<StripRecord>() as u64;
 const NODE_BYTES: u64 = std::mem::size_of::<TopNode>() as u64;
 
-/// The one-parent and depth bookkeeping of [`Windows::validate_nodes`].
+/// The one-parent, depth and strip-count bookkeeping of [`Windows::validate_nodes`].
 struct TreeCheck<'a> {
     opened: &'a ReducemFile,
     depth: Vec<u8>,
+    /// Strips over all leaves so far.
+    leaf_strips: u64,
 }
 
+/// Byte offsets of a slot's fields within a [`TopNode`].
+const CHILD_FIELD: u64 = 96;
+const KIND_FIELD: u64 = 112;
+
 impl TreeCheck<'_> {
+    fn fail(&self, index: usize, field: u64, detail: String) -> FormatError {
+        self.opened.invalid(
+            "top_nodes",
+            self.opened.section_offset(SectionKind::TopNodes) + index as u64 * NODE_BYTES + field,
+            format!("node {index}: {detail}"),
+        )
+    }
+
     fn check(&mut self, index: usize, node: &TopNode) -> Result<(), FormatError> {
-        let base = self.opened.section_offset(SectionKind::TopNodes);
-        let strips = self.opened.header.strip_count;
-        let nodes = self.depth.len();
-        let fail = |detail: String| {
-            self.opened.invalid(
-                "top_nodes",
-                base + index as u64 * NODE_BYTES,
-                format!("node {index}: {detail}"),
-            )
-        };
         if self.depth[index] == u8::MAX {
-            return Err(fail("has no parent".into()));
+            return Err(self.fail(index, 0, "has no parent".into()));
         }
-        if !node.is_internal() {
-            let end = node.payload as u64 + node.strip_count() as u64;
-            let empty_model = strips == 0 && nodes == 1;
-            if (node.strip_count() == 0 && !empty_model) || end > strips {
-                return Err(fail(format!(
-                    "strips {}..{end} outside 0..{strips}",
-                    node.payload
-                )));
+        let occupied = node.occupied();
+        let empty_model = index == 0 && self.opened.header.strip_count == 0;
+        if occupied == 0 && !empty_model {
+            return Err(self.fail(index, KIND_FIELD, "has no children".into()));
+        }
+        for slot in 0..TOP_WIDTH {
+            self.check_slot(index, node, slot, slot >= occupied)?;
+        }
+        Ok(())
+    }
+
+    fn check_slot(
+        &mut self,
+        index: usize,
+        node: &TopNode,
+        slot: usize,
+        empty: bool,
+    ) -> Result<(), FormatError> {
+        let child_field = CHILD_FIELD + 4 * slot as u64;
+        let kind_field = KIND_FIELD + 4 * slot as u64;
+        if empty {
+            if !node.is_exactly_empty(slot) {
+                let detail = format!(
+                    "slot {slot} follows an empty slot but is not the exact empty slot \
+                     (min +inf, max -inf, child 0, kind 0)"
+                );
+                return Err(self.fail(index, kind_field, detail));
             }
             return Ok(());
         }
-        if node.kind & !(1 << 31) > 2 {
-            return Err(fail(format!(
-                "split axis {} is not 0, 1 or 2",
-                node.kind & !(1 << 31)
-            )));
+        match node.slot(slot) {
+            TopSlot::Internal(child) => self.adopt(index, slot, child as usize),
+            TopSlot::Leaf { first, count } => {
+                let strips = self.opened.header.strip_count;
+                let end = first as u64 + count as u64;
+                if end > strips {
+                    let detail = format!("slot {slot}: strips {first}..{end} outside 0..{strips}");
+                    return Err(self.fail(index, child_field, detail));
+                }
+                self.leaf_strips += count as u64;
+                Ok(())
+            }
+            TopSlot::Invalid(_) | TopSlot::Empty => Err(self.fail(
+                index,
+                kind_field,
+                format!(
+                    "slot {slot}: kind {:#x} is neither internal nor a strip count",
+                    node.kind[slot]
+                ),
+            )),
         }
-        let right = node.payload as usize;
-        if right <= index + 1 || right >= nodes {
-            return Err(fail(format!(
-                "right child {right} outside {}..{nodes}",
-                index + 2
-            )));
+    }
+
+    /// Records node `child` as the child of node `index` in `slot`.
+    fn adopt(&mut self, index: usize, slot: usize, child: usize) -> Result<(), FormatError> {
+        let field = CHILD_FIELD + 4 * slot as u64;
+        let nodes = self.depth.len();
+        if child <= index || child >= nodes {
+            let detail = format!("slot {slot}: child {child} outside {}..{nodes}", index + 1);
+            return Err(self.fail(index, field, detail));
         }
         let child_depth = self.depth[index] + 1;
         if child_depth as usize > MAX_TOP_DEPTH {
-            return Err(fail(format!("deeper than {MAX_TOP_DEPTH} levels")));
+            return Err(self.fail(index, field, format!("deeper than {MAX_TOP_DEPTH} levels")));
         }
-        for child in [index + 1, right] {
-            if self.depth[child] != u8::MAX {
-                return Err(fail(format!("child {child} has a second parent")));
-            }
-            self.depth[child] = child_depth;
+        if self.depth[child] != u8::MAX {
+            let detail = format!("slot {slot}: child {child} has a second parent");
+            return Err(self.fail(index, field, detail));
+        }
+        self.depth[child] = child_depth;
+        Ok(())
+    }
+
+    /// The leaves must hold as many strips as the file has: every strip is reachable.
+    fn finish(&self) -> Result<(), FormatError> {
+        let strips = self.opened.header.strip_count;
+        if self.leaf_strips != strips {
+            let detail = format!("leaves hold {} strips, the file has {strips}", self.leaf_strips);
+            return Err(self.fail(0, 0, detail));
         }
         Ok(())
     }
@@ -526,8 +578,12 @@ impl Checker<'_> {
             return Err(self.invalid("header", 12, detail));
         }
         if header.version_major != VERSION_MAJOR {
+            let advice = match header.version_major < VERSION_MAJOR {
+                true => "an older format (version 1 had binary top-level nodes): convert the mesh again",
+                false => "a newer format: use a newer reducem",
+            };
             let detail = format!(
-                "format version {}.{}, this reader reads {VERSION_MAJOR}.x",
+                "format version {}.{}, this reader reads {VERSION_MAJOR}.x; {advice}",
                 header.version_major, header.version_minor
             );
             return Err(self.invalid("header", 8, detail));

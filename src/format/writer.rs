@@ -137,7 +137,7 @@ fn strip_records(top: &TopLevel, strips: &[EncodedStrip]) -> io::Result<Vec<Stri
 fn too_large(what: &str) -> io::Error {
     io::Error::new(
         io::ErrorKind::FileTooLarge,
-        format!("{what}: too large for format version 1"),
+        format!("{what}: too large for format version {VERSION_MAJOR}"),
     )
 }
 

@@ -2,32 +2,37 @@
 //! traversing the high-level hierarchy ... smaller packets for the low-level hierarchy").
 //!
 //! A packet of [`PACKET_WIDTH`] rays walks the global hierarchy together, clipping all its rays
-//! against a node box at once in SIMD (`wide::f32x8`) and carrying an active mask; at a leaf each
-//! active ray traverses the strips alone. Deviation from the paper: the low-level packet width is
+//! against each child box of a node at once in SIMD (`wide::f32x8`, one child after the other)
+//! and carrying an active mask; the children entered are visited in the order of their entry
+//! distance for the first ray that enters them. At a leaf each active ray traverses the strips
+//! alone. Deviation from the paper: the low-level packet width is
 //! one ray, since strip kd-trees are small and per-ray culling there pays more than SIMD width.
 //!
 //! Bit-identical to single rays: a packet is formed only from rays whose direction signs match
-//! the first ray's (the others are traced alone), so every internal node orders its children the
-//! same way for all lanes as [`super::top`] does for each ray; the lanewise box arithmetic is the
-//! scalar arithmetic of [`PreparedRay::clip_box`] operation for operation; and a lane that is
-//! inactive in a subtree tests nothing there. Each ray therefore tests the same triangles in the
-//! same order, with the same closest-hit bound, as it would alone.
+//! the first ray's (the others are traced alone), so all lanes pick the same entry and exit
+//! planes; the lanewise box arithmetic is the scalar arithmetic of [`PreparedRay::clip_box`]
+//! operation for operation, so a lane enters exactly the boxes its ray enters alone, with the
+//! same interval for the same closest-hit bound; and a lane that is inactive in a subtree tests
+//! nothing there. The visiting order may differ from the single ray's, which the closest-hit
+//! rule (smallest `(t, strip, window)`, see [`super`]) makes irrelevant to the result.
 
 use wide::f32x8;
 
-use super::prepared::{PreparedRay, FAR_INFLATION};
+use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION};
 use super::strip::Closest;
-use super::top::{ordered_children, trace_leaf, trace_ray, Deferred};
+use super::top::{for_each_bit, sort_nearest_first, trace_leaf, trace_ray, DeferStack, Deferred};
 use super::{Ray, Tracer};
-use crate::format::{TopNode, MAX_TOP_DEPTH};
+use crate::format::{TopNode, INTERNAL_CHILD, TOP_WIDTH};
 
 /// Rays per packet at the top level.
 pub const PACKET_WIDTH: usize = 8;
 
-/// A subtree deferred for some lanes of the packet.
-#[derive(Clone, Copy)]
+/// A child deferred for some lanes of the packet.
+#[derive(Clone, Copy, Default)]
 struct PacketDeferred {
-    node: u32,
+    /// As in [`Deferred`]: node index or first strip, and [`INTERNAL_CHILD`] or strip count.
+    child: u32,
+    kind: u32,
     mask: u32,
     t_near: f32x8,
     t_far: f32x8,
@@ -85,23 +90,62 @@ impl Lanes {
         }
     }
 
-    /// Lanewise [`PreparedRay::clip_box`]: the same operations in the same order.
+    /// Lanewise [`PreparedRay::clip_box`] against child `slot` of `node`: the same operations
+    /// in the same order.
     #[inline(always)]
-    fn clip_box(&self, node: &TopNode, t_far: f32x8) -> (f32x8, f32x8, u32) {
+    fn clip_slot(&self, node: &TopNode, slot: usize, t_far: f32x8) -> (f32x8, f32x8, u32) {
         let mut near = self.tmin;
         let mut far = t_far;
-        for (axis, &negative) in self.rays[0].negative.iter().enumerate() {
-            let (entry, exit) = if negative {
-                (node.max[axis], node.min[axis])
+        for axis in 0..3 {
+            let (min, max) = (node.min[axis][slot], node.max[axis][slot]);
+            let (entry, exit) = if self.rays[0].negative[axis] {
+                (max, min)
             } else {
-                (node.min[axis], node.max[axis])
+                (min, max)
             };
             let entry = (f32x8::splat(entry) - self.origin[axis]) * self.entry_reciprocal[axis];
-            let exit = (f32x8::splat(exit) - self.origin[axis]) * self.exit_reciprocal[axis];
-            near = near.max(entry);
-            far = far.min(exit * f32x8::splat(FAR_INFLATION));
+            let exit = (f32x8::splat(exit) - self.origin[axis])
+                * self.exit_reciprocal[axis]
+                * f32x8::splat(FAR_INFLATION);
+            near = max_not_nan_x8(near, entry);
+            far = min_not_nan_x8(far, exit);
         }
         (near, far, near.simd_le(far).to_bitmask())
+    }
+
+    /// Clips the `active` lanes against `node`'s occupied slots; returns the child entered
+    /// nearest (by the entry distance of the first lane entering it) and defers the others,
+    /// farthest first. Empty slots are skipped: no ray enters them (see [`TopNode`]).
+    #[inline(always)]
+    fn enter_children(
+        &self,
+        node: &TopNode,
+        active: u32,
+        limit: f32x8,
+        stack: &mut DeferStack<PacketDeferred>,
+    ) -> Option<PacketDeferred> {
+        let mut entered = [(0.0, PacketDeferred::default()); TOP_WIDTH];
+        let mut count = 0;
+        for slot in (0..TOP_WIDTH).take_while(|&slot| node.kind[slot] != 0) {
+            let (t_near, t_far, mask) = self.clip_slot(node, slot, limit);
+            let mask = mask & active;
+            if mask != 0 {
+                let key = t_near.to_array()[mask.trailing_zeros() as usize];
+                let child = PacketDeferred {
+                    child: node.child[slot],
+                    kind: node.kind[slot],
+                    mask,
+                    t_near,
+                    t_far,
+                };
+                entered[count] = (key, child);
+                count += 1;
+            }
+        }
+        let entered = &mut entered[..count];
+        sort_nearest_first(entered, |e| e.0);
+        entered.iter().skip(1).rev().for_each(|e| stack.push(e.1));
+        entered.first().map(|e| e.1)
     }
 }
 
@@ -126,50 +170,33 @@ fn traverse(
 ) {
     let nodes = tracer.file().top_nodes();
     let mut finished = 0u32;
-    let (t_near, t_far, entered) = lanes.clip_box(&nodes[0], bounds(closest, finished));
-    let mut stack = [PacketDeferred {
-        node: 0,
-        mask: 0,
-        t_near,
-        t_far,
-    }; MAX_TOP_DEPTH + 1];
-    let mut depth = 0;
+    let mut stack = DeferStack::new();
+    // The root has no box: every lane starts with its own interval.
     let mut current = PacketDeferred {
-        node: 0,
-        mask: entered & packet_mask,
-        t_near,
-        t_far,
+        child: 0,
+        kind: INTERNAL_CHILD,
+        mask: packet_mask,
+        t_near: lanes.tmin,
+        t_far: bounds(closest, finished),
     };
     loop {
         if current.mask != 0 {
-            let node = &nodes[current.node as usize];
-            if node.is_internal() {
+            if current.kind == INTERNAL_CHILD {
+                let node = &nodes[current.child as usize];
                 let limit = bounds(closest, finished);
-                let (first, second) = ordered_children(&lanes.rays[0], current.node, node);
-                let [near, far] = [first, second].map(|child| {
-                    let (t_near, t_far, entered) = lanes.clip_box(&nodes[child as usize], limit);
-                    PacketDeferred {
-                        node: child,
-                        mask: entered & current.mask,
-                        t_near,
-                        t_far,
-                    }
-                });
-                if far.mask != 0 {
-                    stack[depth] = far;
-                    depth += 1;
+                if let Some(nearest) = lanes.enter_children(node, current.mask, limit, &mut stack)
+                {
+                    current = nearest;
+                    continue;
                 }
-                current = near;
-                continue;
+            } else {
+                finished |= trace_leaf_lanes(tracer, lanes, &current, any_hit, closest);
             }
-            finished |= trace_leaf_lanes(tracer, lanes, node, &current, any_hit, closest);
         }
         loop {
-            if depth == 0 {
+            let Some(deferred) = stack.pop() else {
                 return;
-            }
-            depth -= 1;
-            let deferred = stack[depth];
+            };
             let alive = deferred
                 .t_near
                 .simd_le(bounds(closest, finished))
@@ -188,27 +215,24 @@ fn traverse(
 fn trace_leaf_lanes(
     tracer: &Tracer,
     lanes: &Lanes,
-    leaf: &TopNode,
-    interval: &PacketDeferred,
+    leaf: &PacketDeferred,
     any_hit: bool,
     closest: &mut [Closest; PACKET_WIDTH],
 ) -> u32 {
-    let t_near = interval.t_near.to_array();
-    let t_far = interval.t_far.to_array();
+    let t_near = leaf.t_near.to_array();
+    let t_far = leaf.t_far.to_array();
     let mut finished = 0;
-    for lane in 0..PACKET_WIDTH {
-        if interval.mask & (1 << lane) == 0 {
-            continue;
-        }
+    for_each_bit(leaf.mask, |lane| {
         let deferred = Deferred {
-            node: interval.node,
+            child: leaf.child,
+            kind: leaf.kind,
             t_near: t_near[lane],
             t_far: t_far[lane],
         };
         let query = tracer.query(&lanes.rays[lane], any_hit);
-        if trace_leaf(tracer.file(), &query, leaf, &deferred, &mut closest[lane]) {
+        if trace_leaf(tracer.file(), &query, &deferred, &mut closest[lane]) {
             finished |= 1 << lane;
         }
-    }
+    });
     finished
 }

@@ -16,17 +16,23 @@ const PLAN: &str = "hierarchy.json";
 /// One step of the final node order (see [`SpliceItem`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Step {
-    Node {
-        min: [f32; 3],
-        max: [f32; 3],
-        payload: u32,
-        kind: u32,
-    },
+    /// An upper node's occupied slots in order; the others are empty. (Only these: JSON has no
+    /// infinities for the empty slots' boxes.)
+    Node { slots: Vec<Slot> },
     Chunk {
         index: usize,
         node_base: u32,
         strip_base: u32,
     },
+}
+
+/// One occupied slot of an upper node, fields as in [`TopNode`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Slot {
+    pub min: [f32; 3],
+    pub max: [f32; 3],
+    pub child: u32,
+    pub kind: u32,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -90,10 +96,17 @@ pub fn run(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
 fn step(item: SpliceItem) -> Step {
     match item {
         SpliceItem::Node(node) => Step::Node {
-            min: node.min,
-            max: node.max,
-            payload: node.payload,
-            kind: node.kind,
+            slots: (0..node.occupied())
+                .map(|slot| {
+                    let (min, max) = node.slot_box(slot);
+                    Slot {
+                        min,
+                        max,
+                        child: node.child[slot],
+                        kind: node.kind[slot],
+                    }
+                })
+                .collect(),
         },
         SpliceItem::Subtree {
             index,
@@ -107,21 +120,11 @@ fn step(item: SpliceItem) -> Step {
     }
 }
 
-impl Step {
-    pub fn node(&self) -> Option<TopNode> {
-        match *self {
-            Step::Node {
-                min,
-                max,
-                payload,
-                kind,
-            } => Some(TopNode {
-                min,
-                max,
-                payload,
-                kind,
-            }),
-            Step::Chunk { .. } => None,
-        }
+/// The node an upper step stands for.
+pub fn node(slots: &[Slot]) -> TopNode {
+    let mut node = TopNode::EMPTY;
+    for (index, slot) in slots.iter().enumerate() {
+        node.set(index, &slot.min, &slot.max, slot.child, slot.kind);
     }
+    node
 }

@@ -14,7 +14,7 @@ use reducem::toplevel::relocate;
 use crate::chunk_io::StripChunk;
 use crate::fingerprint::Fingerprint;
 use crate::manifest::Freshness;
-use crate::stage::hierarchy::{Hierarchy, Step};
+use crate::stage::hierarchy::{node, Hierarchy, Step};
 use crate::stage::merge::Merged;
 use crate::stage::Job;
 use crate::workdir::strip_chunk;
@@ -123,9 +123,7 @@ impl SectionSource for Spliced<'_> {
     fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()> {
         match kind {
             SectionKind::TopNodes => self.steps.iter().try_for_each(|step| match *step {
-                Step::Node { .. } => {
-                    out.write_all(bytemuck::bytes_of(&step.node().unwrap_or_default()))
-                }
+                Step::Node { ref slots } => out.write_all(bytemuck::bytes_of(&node(slots))),
                 Step::Chunk {
                     index,
                     node_base,
