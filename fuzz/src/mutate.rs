@@ -353,7 +353,7 @@ impl Mutator {
                 self.write_integer(data, 104 + 32 * slot + field, size);
             }
             2 => self.edit_record(data, 1, 8, &[(0, 4), (4, 2), (6, 2)]),
-            3 => self.edit_record(data, 0, 32, &[(0, 4), (12, 4), (24, 4), (28, 4)]),
+            3 => self.edit_record(data, 0, 128, TOP_NODE_FIELDS),
             _ => self.swap_sections(data),
         }
     }
@@ -432,6 +432,23 @@ pub fn seal_header(data: &mut [u8]) {
             .copy_from_slice(&checksum.to_le_bytes());
     }
 }
+
+/// Fields of a 128-byte top-level node worth corrupting: box planes of the first and last slot
+/// (the last is usually empty, and must stay exactly so), every child link and every kind.
+const TOP_NODE_FIELDS: &[(usize, usize)] = &[
+    (0, 4),
+    (12, 4),
+    (48, 4),
+    (60, 4),
+    (96, 4),
+    (100, 4),
+    (104, 4),
+    (108, 4),
+    (112, 4),
+    (116, 4),
+    (120, 4),
+    (124, 4),
+];
 
 /// Offset and length of section table entry `slot`.
 fn section_entry(data: &[u8], slot: usize) -> (u64, u64) {
