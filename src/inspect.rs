@@ -20,6 +20,7 @@ pub struct FileStats {
     pub stored_vertices: u64,
     /// Stored copies that exist only to encode the strip hierarchies.
     pub hierarchy_vertices: u64,
+    /// Top-level nodes (4-wide, 128 bytes each since format 2).
     pub top_nodes: u64,
     pub leaf_triangles: u32,
     pub file_bytes: u64,

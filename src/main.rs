@@ -178,6 +178,11 @@ fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<(
         stats.hierarchy_overhead_pct
     );
     println!(
+        "  top level          {} nodes of {} children",
+        stats.top_nodes,
+        reducem::format::TOP_WIDTH
+    );
+    println!(
         "  file               {} bytes, {:.2} bytes/triangle",
         stats.file_bytes, stats.bytes_per_triangle
     );

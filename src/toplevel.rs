@@ -73,8 +73,14 @@ struct BinaryNode {
 #[derive(Clone, Copy, Debug)]
 enum BinaryKind {
     /// Strips `first .. first + count` in leaf order.
-    Leaf { first: u32, count: u32 },
-    Internal { left: usize, right: usize },
+    Leaf {
+        first: u32,
+        count: u32,
+    },
+    Internal {
+        left: usize,
+        right: usize,
+    },
 }
 
 /// The binary hierarchy in preorder (empty without strips) and the strips in leaf order.
@@ -391,7 +397,9 @@ impl ValidateWalk<'_> {
             let (min, max) = node.slot_box(slot);
             let slot_box = Aabb { min, max };
             if parent_box.is_some_and(|parent| !parent.contains_box(&slot_box)) {
-                return Err(format!("node {index} slot {slot} is outside its parent's box"));
+                return Err(format!(
+                    "node {index} slot {slot} is outside its parent's box"
+                ));
             }
             match node.slot(slot) {
                 TopSlot::Internal(child) => self.node(child as usize, Some(slot_box), depth + 1)?,
@@ -402,7 +410,13 @@ impl ValidateWalk<'_> {
         Ok(())
     }
 
-    fn leaf(&mut self, index: usize, slot_box: &Aabb, first: u32, count: u32) -> Result<(), String> {
+    fn leaf(
+        &mut self,
+        index: usize,
+        slot_box: &Aabb,
+        first: u32,
+        count: u32,
+    ) -> Result<(), String> {
         if first as usize != self.next_strip {
             return Err(format!(
                 "node {index}: leaf at strip {first}, expected {}",
@@ -577,7 +591,10 @@ mod tests {
 
     #[test]
     fn empty_and_single_strip_roots() {
-        assert_eq!(build(&[], &TopLevelParams::default()).nodes, [TopNode::EMPTY]);
+        assert_eq!(
+            build(&[], &TopLevelParams::default()).nodes,
+            [TopNode::EMPTY]
+        );
         let one = build(&boxes(1), &TopLevelParams::default());
         assert_eq!(one.nodes.len(), 1);
         assert_eq!(one.nodes[0].slot(0), TopSlot::Leaf { first: 0, count: 1 });
@@ -631,9 +648,12 @@ mod tests {
                     assert_eq!(node_base as usize, spliced.nodes.len());
                     assert_eq!(strip_base as usize, spliced.strip_order.len());
                     let chunk = &built[index];
-                    spliced
-                        .nodes
-                        .extend(chunk.nodes.iter().map(|n| relocate(n, node_base, strip_base)));
+                    spliced.nodes.extend(
+                        chunk
+                            .nodes
+                            .iter()
+                            .map(|n| relocate(n, node_base, strip_base)),
+                    );
                     for &s in &chunk.strip_order {
                         spliced.strip_order.push(spliced_bounds.len() as u32);
                         spliced_bounds.push(chunks[index][s as usize]);

@@ -160,12 +160,18 @@ fn crafted_node_links_are_rejected_naming_node_and_byte() {
     // A child pointing at its own node would loop forever.
     let (self_loop, at) = with_node_word(&bytes, node, child_field, node as u32);
     let message = rejection("loop.rdm", &self_loop);
-    assert!(named(&message, at) && message.contains("outside"), "{message}");
+    assert!(
+        named(&message, at) && message.contains("outside"),
+        "{message}"
+    );
 
     // A child beyond the node array.
     let (far, at) = with_node_word(&bytes, node, child_field, u32::MAX);
     let message = rejection("far-child.rdm", &far);
-    assert!(named(&message, at) && message.contains("outside"), "{message}");
+    assert!(
+        named(&message, at) && message.contains("outside"),
+        "{message}"
+    );
 
     // Two slots with the same child: a DAG, whose traversal could repeat work exponentially.
     let (other, other_slot) = (0..section_range(&bytes, SectionKind::TopNodes).1 / NODE_BYTES)

@@ -39,7 +39,11 @@ fn chain(levels: usize, bounds: &[Aabb]) -> TopLevel {
     let nodes = (0..=levels)
         .map(|i| {
             let mut node = TopNode::EMPTY;
-            let count = if i == levels { bounds.len() - levels } else { 1 };
+            let count = if i == levels {
+                bounds.len() - levels
+            } else {
+                1
+            };
             node.set(0, &all.min, &all.max, i as u32, count as u32);
             if i < levels {
                 let inner = grown(0.01 * (levels - i) as f32);
@@ -91,13 +95,20 @@ fn a_tree_of_full_depth_traces_like_brute_force() {
         .collect();
     let hits = single.intersect_chunk(&rays);
     assert_eq!(
-        packets.intersect_chunk(&rays).iter().map(hit_bits).collect::<Vec<_>>(),
+        packets
+            .intersect_chunk(&rays)
+            .iter()
+            .map(hit_bits)
+            .collect::<Vec<_>>(),
         hits.iter().map(hit_bits).collect::<Vec<_>>()
     );
     let mut found = 0;
     for (ray, hit) in rays.iter().zip(&hits) {
         let expected = brute_force(&file, ray);
-        assert_eq!(hit.map(|h| h.t.to_bits()), expected.map(|(t, _)| t.to_bits()));
+        assert_eq!(
+            hit.map(|h| h.t.to_bits()),
+            expected.map(|(t, _)| t.to_bits())
+        );
         assert_eq!(single.occluded(ray), expected.is_some());
         found += hit.is_some() as usize;
     }

@@ -187,7 +187,10 @@ pub enum TopSlot {
     /// The child node's index.
     Internal(u32),
     /// Strips `first .. first + count` in file order.
-    Leaf { first: u32, count: u32 },
+    Leaf {
+        first: u32,
+        count: u32,
+    },
     /// A kind above [`INTERNAL_CHILD`]: never written, rejected by the reader.
     Invalid(u32),
 }

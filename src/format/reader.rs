@@ -444,7 +444,10 @@ impl TreeCheck<'_> {
     fn finish(&self) -> Result<(), FormatError> {
         let strips = self.opened.header.strip_count;
         if self.leaf_strips != strips {
-            let detail = format!("leaves hold {} strips, the file has {strips}", self.leaf_strips);
+            let detail = format!(
+                "leaves hold {} strips, the file has {strips}",
+                self.leaf_strips
+            );
             return Err(self.fail(0, 0, detail));
         }
         Ok(())
@@ -578,9 +581,10 @@ impl Checker<'_> {
             return Err(self.invalid("header", 12, detail));
         }
         if header.version_major != VERSION_MAJOR {
-            let advice = match header.version_major < VERSION_MAJOR {
-                true => "an older format (version 1 had binary top-level nodes): convert the mesh again",
-                false => "a newer format: use a newer reducem",
+            let advice = if header.version_major < VERSION_MAJOR {
+                "an older format (version 1 had binary top-level nodes): convert the mesh again"
+            } else {
+                "a newer format: use a newer reducem"
             };
             let detail = format!(
                 "format version {}.{}, this reader reads {VERSION_MAJOR}.x; {advice}",

@@ -4,11 +4,11 @@
 //! ReduceM's parts come from the file's sections ([`crate::inspect::file_stats`]): vertices are
 //! the stored vertices that are not hierarchy copies; strips + strip hierarchies are the rest of
 //! the strip data (hierarchy copies, split axes, 1-byte references) plus the strip records; the
-//! top level is the node section; header and inter-section padding make up the rest, so the
-//! parts sum to the file size. The baseline's parts are its vertex array, its triangle index
-//! array and its nodes. The paper's 40-byte row keeps the baseline's tree and replaces indexed
-//! triangles and vertices by the precomputed 40-byte intersection format the paper measured
-//! against (a computed figure: nothing traces that format here).
+//! top level is the node section (4-wide nodes of 128 bytes); header and inter-section padding
+//! make up the rest, so the parts sum to the file size. The baseline's parts are its vertex
+//! array, its triangle index array and its nodes. The paper's 40-byte row keeps the baseline's
+//! tree and replaces indexed triangles and vertices by the precomputed 40-byte intersection
+//! format the paper measured against (a computed figure: nothing traces that format here).
 
 use std::collections::BTreeSet;
 use std::path::Path;

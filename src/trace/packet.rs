@@ -170,7 +170,7 @@ fn traverse(
 ) {
     let nodes = tracer.file().top_nodes();
     let mut finished = 0u32;
-    let mut stack = DeferStack::new();
+    let mut stack = DeferStack::default();
     // The root has no box: every lane starts with its own interval.
     let mut current = PacketDeferred {
         child: 0,
@@ -184,8 +184,7 @@ fn traverse(
             if current.kind == INTERNAL_CHILD {
                 let node = &nodes[current.child as usize];
                 let limit = bounds(closest, finished);
-                if let Some(nearest) = lanes.enter_children(node, current.mask, limit, &mut stack)
-                {
+                if let Some(nearest) = lanes.enter_children(node, current.mask, limit, &mut stack) {
                     current = nearest;
                     continue;
                 }

@@ -347,16 +347,20 @@ mod tests {
             [-2.68e-43, -0.0, -0.5],
             [0.3, -0.7, 0.2],
         ];
-        let origins = [[-1.0, 0.0, 0.5], [0.0, 0.0, 1.0], [0.5, 0.5, 0.5], [-8.8e-44, 0.5, 0.5]];
+        let origins = [
+            [-1.0, 0.0, 0.5],
+            [0.0, 0.0, 1.0],
+            [0.5, 0.5, 0.5],
+            [-8.8e-44, 0.5, 0.5],
+        ];
         for direction in directions {
             for origin in origins {
                 let r = ray(origin, direction);
                 let (near, far, mask) = WideRay::new(&r).clip_boxes(&min, &max, 0.0, 1e30);
                 for (slot, (lo, hi)) in boxes.iter().enumerate() {
                     let scalar = r.clip_box(lo, hi, 0.0, 1e30);
-                    let lane = (mask >> slot & 1 == 1).then(|| {
-                        (near.to_array()[slot], far.to_array()[slot])
-                    });
+                    let lane = (mask >> slot & 1 == 1)
+                        .then(|| (near.to_array()[slot], far.to_array()[slot]));
                     assert_eq!(
                         lane.map(|(n, f)| (n.to_bits(), f.to_bits())),
                         scalar.map(|(n, f)| (n.to_bits(), f.to_bits())),

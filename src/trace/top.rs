@@ -52,16 +52,18 @@ pub struct DeferStack<T> {
     spill: Vec<T>,
 }
 
-impl<T: Copy + Default> DeferStack<T> {
+impl<T: Copy + Default> Default for DeferStack<T> {
     #[inline(always)]
-    pub fn new() -> DeferStack<T> {
+    fn default() -> DeferStack<T> {
         DeferStack {
             inline: [T::default(); INLINE_DEFERRED],
             len: 0,
             spill: Vec::new(),
         }
     }
+}
 
+impl<T: Copy> DeferStack<T> {
     #[inline(always)]
     pub fn push(&mut self, entry: T) {
         match self.inline.get_mut(self.len) {
@@ -74,7 +76,10 @@ impl<T: Copy + Default> DeferStack<T> {
     #[inline(always)]
     pub fn pop(&mut self) -> Option<T> {
         self.len = self.len.checked_sub(1)?;
-        self.inline.get(self.len).copied().or_else(|| self.spill.pop())
+        self.inline
+            .get(self.len)
+            .copied()
+            .or_else(|| self.spill.pop())
     }
 }
 
@@ -82,13 +87,12 @@ impl<T: Copy + Default> DeferStack<T> {
 pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) -> bool {
     let nodes = file.top_nodes();
     let ray = WideRay::new(query.ray);
-    let mut stack = DeferStack::new();
+    let mut stack = DeferStack::default();
     let mut current = Deferred::root(query.ray);
     loop {
         if current.kind == INTERNAL_CHILD {
             let node = &nodes[current.child as usize];
-            if let Some(nearest) = enter_children(&ray, node, query.ray.tmin, closest, &mut stack)
-            {
+            if let Some(nearest) = enter_children(&ray, node, query.ray.tmin, closest, &mut stack) {
                 current = nearest;
                 continue;
             }
