@@ -3,24 +3,29 @@
 //!
 //! A packet of [`PACKET_WIDTH`] rays walks the global hierarchy together, clipping all its rays
 //! against each child box of a node at once in SIMD (`wide::f32x8`, one child after the other)
-//! and carrying an active mask; the children entered are visited in the order of their entry
-//! distance for the first ray that enters them. At a leaf each active ray traverses the strips
-//! alone. Deviation from the paper: the low-level packet width is
+//! and carrying an active mask; the children entered are visited in [`order_keys`] order. At a
+//! leaf each active ray traverses the strips alone. Deviation from the paper: the low-level packet width is
 //! one ray, since strip kd-trees are small and per-ray culling there pays more than SIMD width.
 //!
 //! Bit-identical to single rays: a packet is formed only from rays whose direction signs match
 //! the first ray's (the others are traced alone), so all lanes pick the same entry and exit
 //! planes; the lanewise box arithmetic is the scalar arithmetic of [`PreparedRay::clip_box`]
 //! operation for operation, so a lane enters exactly the boxes its ray enters alone, with the
-//! same interval for the same closest-hit bound; and a lane that is inactive in a subtree tests
-//! nothing there. The visiting order may differ from the single ray's, which the closest-hit
-//! rule (smallest `(t, strip, window)`, see [`super`]) makes irrelevant to the result.
+//! same interval for the same closest-hit bound; children are visited in an order that depends
+//! on the direction signs alone, as closest-hit single rays visit them; and a lane that is
+//! inactive in a subtree tests nothing there. Each lane thus visits the same leaves in the same
+//! order with the same bounds as its ray alone, so the results agree bit for bit even on a
+//! corrupt file whose boxes do not bound their strips (on a valid file the closest-hit rule
+//! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
+//! not depend on the order (see [`super::top`]).
 
 use wide::f32x8;
 
 use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION};
 use super::strip::Closest;
-use super::top::{for_each_bit, sort_nearest_first, trace_leaf, trace_ray, DeferStack, Deferred};
+use super::top::{
+    for_each_bit, order_keys, sort_by_key, trace_leaf, trace_ray, DeferStack, Deferred,
+};
 use super::{Ray, Tracer};
 use crate::format::{TopNode, INTERNAL_CHILD, TOP_WIDTH};
 
@@ -124,13 +129,14 @@ impl Lanes {
         limit: f32x8,
         stack: &mut DeferStack<PacketDeferred>,
     ) -> Option<PacketDeferred> {
+        let keys = order_keys(node, &self.rays[0].negative);
         let mut entered = [(0.0, PacketDeferred::default()); TOP_WIDTH];
         let mut count = 0;
         for slot in (0..TOP_WIDTH).take_while(|&slot| node.kind[slot] != 0) {
             let (t_near, t_far, mask) = self.clip_slot(node, slot, limit);
             let mask = mask & active;
             if mask != 0 {
-                let key = t_near.to_array()[mask.trailing_zeros() as usize];
+                let key = keys[slot];
                 let child = PacketDeferred {
                     child: node.child[slot],
                     kind: node.kind[slot],
@@ -143,7 +149,7 @@ impl Lanes {
             }
         }
         let entered = &mut entered[..count];
-        sort_nearest_first(entered, |e| e.0);
+        sort_by_key(entered);
         entered.iter().skip(1).rev().for_each(|e| stack.push(e.1));
         entered.first().map(|e| e.1)
     }

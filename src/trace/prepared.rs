@@ -158,7 +158,7 @@ pub struct WideRay {
     origin: [f32x4; 3],
     entry_reciprocal: [f32x4; 3],
     exit_reciprocal: [f32x4; 3],
-    negative: [bool; 3],
+    pub negative: [bool; 3],
 }
 
 impl WideRay {

@@ -1,14 +1,19 @@
 //! Single-ray traversal of the global hierarchy over strips (paper 3.2, first level).
 //!
 //! Depth-first over the mapped [`TopNode`] array. At a node the ray is clipped against all four
-//! child boxes at once ([`WideRay::clip_boxes`], SIMD); the children it enters are visited
-//! nearest entry first: the nearest at once, the others deferred on a stack with their entry
-//! distance, so that each is dropped if a nearer hit is found meanwhile. At a leaf each strip's
-//! kd-tree is traversed within the leaf box's parameter interval.
+//! child boxes at once ([`WideRay::clip_boxes`], SIMD); of the children it enters, the first in
+//! visiting order is entered at once and the others deferred on a stack with their entry
+//! distance, so that each is dropped if a nearer hit is found meanwhile. The visiting order is
+//! near to far: along the octant's diagonal for closest-hit queries (the same for every ray of
+//! a packet, see [`order_keys`]), by entry distance for occlusion queries (see
+//! `enter_children`). At a leaf each strip's kd-tree is traversed within the leaf box's
+//! parameter interval.
 //!
 //! Every child is clipped over `[tmin, reach]`, not over its parent's interval: the interval of
 //! a leaf is then a function of the leaf's box and the closest hit so far alone, as it was with
 //! the binary hierarchy, whatever the path to it.
+
+use wide::f32x4;
 
 use super::prepared::{PreparedRay, WideRay};
 use super::strip::{Closest, StripQuery};
@@ -92,7 +97,7 @@ pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) 
     loop {
         if current.kind == INTERNAL_CHILD {
             let node = &nodes[current.child as usize];
-            if let Some(nearest) = enter_children(&ray, node, query.ray.tmin, closest, &mut stack) {
+            if let Some(nearest) = enter_children(&ray, node, query, closest, &mut stack) {
                 current = nearest;
                 continue;
             }
@@ -111,17 +116,22 @@ pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) 
     }
 }
 
-/// Clips the ray against `node`'s children; returns the nearest one entered and defers the
-/// others, farthest first, so that they come off the stack nearest first.
+/// Clips the ray against `node`'s children; returns the first one entered in visiting order
+/// and defers the others, last first, so that they come off the stack in order.
+///
+/// Closest-hit queries visit in [`order_keys`] order, which packets reproduce lane by lane.
+/// Occlusion queries visit nearest entry first, which finds an occluder soonest: their answer
+/// does not depend on the order, since the culling bound stays `tmax` until the first hit ends
+/// the traversal.
 #[inline(always)]
 fn enter_children(
     ray: &WideRay,
     node: &TopNode,
-    tmin: f32,
+    query: &StripQuery,
     closest: &Closest,
     stack: &mut DeferStack<Deferred>,
 ) -> Option<Deferred> {
-    let (near, far, mask) = ray.clip_boxes(&node.min, &node.max, tmin, closest.reach);
+    let (near, far, mask) = ray.clip_boxes(&node.min, &node.max, query.ray.tmin, closest.reach);
     let (near, far) = (near.to_array(), far.to_array());
     let entry = |slot: usize| Deferred {
         child: node.child[slot],
@@ -132,16 +142,42 @@ fn enter_children(
     if mask.is_power_of_two() {
         return Some(entry(mask.trailing_zeros() as usize));
     }
-    let mut entered = [Deferred::default(); TOP_WIDTH];
+    let keys = if query.any_hit {
+        near
+    } else {
+        order_keys(node, &ray.negative)
+    };
+    let mut entered = [(0.0, Deferred::default()); TOP_WIDTH];
     let mut count = 0;
     for_each_bit(mask, |slot| {
-        entered[count] = entry(slot);
+        entered[count] = (keys[slot], entry(slot));
         count += 1;
     });
     let entered = &mut entered[..count];
-    sort_nearest_first(entered, |e| e.t_near);
-    entered.iter().skip(1).rev().for_each(|&e| stack.push(e));
-    entered.first().copied()
+    sort_by_key(entered);
+    entered.iter().skip(1).rev().for_each(|e| stack.push(e.1));
+    entered.first().map(|e| e.1)
+}
+
+/// The order in which a node's children are visited, as sort keys: each box's centre (doubled)
+/// projected on the diagonal of the ray's octant, so that nearer children along the direction
+/// come first. It depends on the direction's signs alone, not on the origin or the entry
+/// distances: the rays of a packet share their signs, so each lane visits a node's children in
+/// the order it would alone, and packets give the single rays' results bit for bit on any file
+/// that opens, even on a corrupt one whose boxes no longer bound their strips (where the order
+/// decides which hits are culled).
+#[inline(always)]
+pub fn order_keys(node: &TopNode, negative: &[bool; 3]) -> [f32; TOP_WIDTH] {
+    let mut key = f32x4::ZERO;
+    for axis in 0..3 {
+        let centre = f32x4::from(node.min[axis]) + f32x4::from(node.max[axis]);
+        key = if negative[axis] {
+            key - centre
+        } else {
+            key + centre
+        };
+    }
+    key.to_array()
 }
 
 /// Calls `f` with the index of every set bit of `mask`, lowest first.
@@ -153,13 +189,13 @@ pub fn for_each_bit(mut mask: u32, mut f: impl FnMut(usize)) {
     }
 }
 
-/// Insertion sort by entry distance for the at most four children entered; stable, so equal
-/// distances keep slot order.
+/// Insertion sort of the at most four children entered by their [`order_keys`]; stable, so
+/// equal keys keep slot order.
 #[inline(always)]
-pub fn sort_nearest_first<T: Copy>(entries: &mut [T], t_near: impl Fn(&T) -> f32) {
+pub fn sort_by_key<T: Copy>(entries: &mut [(f32, T)]) {
     for i in 1..entries.len() {
         let mut j = i;
-        while j > 0 && t_near(&entries[j]) < t_near(&entries[j - 1]) {
+        while j > 0 && entries[j].0 < entries[j - 1].0 {
             entries.swap(j, j - 1);
             j -= 1;
         }
