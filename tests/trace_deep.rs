@@ -86,7 +86,7 @@ fn a_tree_of_full_depth_traces_like_brute_force() {
         },
     );
     let packets = Tracer::new(&file, TraceOptions::default());
-    let mut rng = Rng::new(5);
+    let mut rng = SplitMix64::new(5);
     let rays: Vec<_> = (0..64)
         .map(|_| {
             let origin = [rng.range(-6.0, 6.0), rng.range(-6.0, 6.0), 4.0];

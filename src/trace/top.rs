@@ -171,11 +171,7 @@ pub fn order_keys(node: &TopNode, negative: &[bool; 3]) -> [f32; TOP_WIDTH] {
     let mut key = f32x4::ZERO;
     for (axis, &negative) in negative.iter().enumerate() {
         let centre = f32x4::from(node.min[axis]) + f32x4::from(node.max[axis]);
-        key = if negative {
-            key - centre
-        } else {
-            key + centre
-        };
+        key = if negative { key - centre } else { key + centre };
     }
     key.to_array()
 }
