@@ -8,10 +8,13 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use crate::encode::{encode_strip, split_strip, EncodedStrip};
+use crate::encode::{encode_strip, split_strip, EncodedStrip, Positions};
+use crate::format::grid::{Grid, MAX_GRID_BITS};
 use crate::format::writer::{write_file, FileInfo, WriteError};
-use crate::geometry::Aabb;
+use crate::geometry::{Aabb, Displacement};
+use crate::input::WeldStats;
 use crate::mesh::Mesh;
+use crate::quantize::quantize_mesh;
 use crate::strip;
 use crate::stripify::{stripify, Stripification, StripifyParams};
 use crate::toplevel::{self, TopLevelParams};
@@ -23,6 +26,9 @@ pub struct BuildParams {
     /// Strip kd-tree leaf size in windows (paper: 2 triangles).
     pub leaf_windows: usize,
     pub top_level: TopLevelParams,
+    /// Bits per axis of the model grid vertices are snapped to; `None` stores f32 copies
+    /// (lossless, the default).
+    pub grid_bits: Option<u32>,
 }
 
 impl Default for BuildParams {
@@ -31,6 +37,7 @@ impl Default for BuildParams {
             stripify: StripifyParams::default(),
             leaf_windows: 2,
             top_level: TopLevelParams::default(),
+            grid_bits: None,
         }
     }
 }
@@ -56,7 +63,18 @@ impl BuildParams {
                 self.stripify.sah_bins
             ));
         }
+        if let Some(bits) = self.grid_bits.filter(|b| !(1..=MAX_GRID_BITS).contains(b)) {
+            return Err(format!(
+                "vertex grid_bits {bits} is outside 1..={MAX_GRID_BITS}"
+            ));
+        }
         Ok(())
+    }
+
+    /// The grid over a whole model's bounds, when vertices are quantized. Every chunk of the
+    /// model must be encoded on this one grid.
+    pub fn grid(&self, model_bounds: &Aabb) -> Option<Grid> {
+        self.grid_bits.map(|bits| Grid::over(model_bounds, bits))
     }
 }
 
@@ -65,18 +83,23 @@ impl BuildParams {
 pub struct EncodedChunk {
     pub strips: Vec<EncodedStrip>,
     pub stats: ChunkStats,
+    /// The grid the vertices were snapped to; `None` for f32 vertices.
+    pub grid: Option<Grid>,
 }
 
 /// Counts over one chunk; they add up over chunks.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ChunkStats {
     pub triangles: u64,
     pub dropped_triangles: u64,
-    /// Distinct mesh vertices referenced by the chunk's strips.
+    /// Distinct mesh vertices referenced by the chunk's strips (after welding, and for grid
+    /// vertices after merging those that snap to one grid point).
     pub input_vertices: u64,
     pub stored_vertices: u64,
     pub hierarchy_vertices: u64,
     pub max_strip_length: u64,
+    /// Input vertex → stored position; empty for f32 vertices, which do not move.
+    pub quantization: Displacement,
 }
 
 impl ChunkStats {
@@ -87,28 +110,65 @@ impl ChunkStats {
         self.stored_vertices += other.stored_vertices;
         self.hierarchy_vertices += other.hierarchy_vertices;
         self.max_strip_length = self.max_strip_length.max(other.max_strip_length);
+        self.quantization.add(&other.quantization);
     }
 }
 
-/// Runs Strip-RT and strip encoding over one chunk.
+/// Runs Strip-RT and strip encoding over a chunk that is the whole model.
 pub fn encode_chunk(mesh: &Mesh, params: &BuildParams) -> EncodedChunk {
-    encode_stripification(mesh, &stripify(mesh, &params.stripify), params.leaf_windows)
+    encode_chunk_on(mesh, params, params.grid(&mesh.bounds()).as_ref())
 }
 
-/// Encodes strips from any stripifier (Strip-RT, or another one for comparison) over `mesh`.
+/// Runs Strip-RT and strip encoding over one chunk of a model, with vertices on the model's
+/// `grid` ([`BuildParams::grid`]) or, without one, as f32 copies.
+pub fn encode_chunk_on(mesh: &Mesh, params: &BuildParams, grid: Option<&Grid>) -> EncodedChunk {
+    let Some(grid) = grid else {
+        return encode_stripification(mesh, &stripify(mesh, &params.stripify), params.leaf_windows);
+    };
+    let quantized = quantize_mesh(mesh, grid);
+    let positions = Positions::Grid {
+        points: &quantized.points,
+        decoded: &quantized.mesh.positions,
+        bits: grid.bits,
+    };
+    let stripification = stripify(&quantized.mesh, &params.stripify);
+    let mut chunk = encode_strips(&stripification, positions, params.leaf_windows);
+    chunk.stats.quantization = quantized.error;
+    chunk.grid = Some(*grid);
+    chunk
+}
+
+/// Encodes strips from any stripifier (Strip-RT, or another one for comparison) over `mesh`,
+/// with f32 vertices.
 pub fn encode_stripification(
     mesh: &Mesh,
     stripification: &Stripification,
     leaf_windows: usize,
 ) -> EncodedChunk {
+    encode_strips(
+        stripification,
+        Positions::F32(&mesh.positions),
+        leaf_windows,
+    )
+}
+
+fn encode_strips(
+    stripification: &Stripification,
+    positions: Positions,
+    leaf_windows: usize,
+) -> EncodedChunk {
     let strips: Vec<EncodedStrip> = stripification
         .strips
         .par_iter()
-        .flat_map_iter(|references| encode_fitting(references, mesh, leaf_windows))
+        .flat_map_iter(|references| encode_fitting(references, positions, leaf_windows))
         .collect();
+    let vertex_count = match positions {
+        Positions::F32(points) => points.len(),
+        Positions::Grid { points, .. } => points.len(),
+    };
     let mut stats = ChunkStats {
         dropped_triangles: stripification.dropped_triangles,
-        input_vertices: count_referenced_vertices(&stripification.strips, mesh.positions.len()),
+        input_vertices: count_referenced_vertices(&stripification.strips, vertex_count),
         ..ChunkStats::default()
     };
     for s in &strips {
@@ -120,17 +180,25 @@ pub fn encode_stripification(
         stats.triangles += length;
         stats.max_strip_length = stats.max_strip_length.max(length);
     }
-    EncodedChunk { strips, stats }
+    EncodedChunk {
+        strips,
+        stats,
+        grid: None,
+    }
 }
 
 /// Encodes a strip, halving it until every piece fits 1-byte local indices.
-fn encode_fitting(references: &[u32], mesh: &Mesh, leaf_windows: usize) -> Vec<EncodedStrip> {
-    match encode_strip(references, &mesh.positions, leaf_windows) {
+fn encode_fitting(
+    references: &[u32],
+    positions: Positions,
+    leaf_windows: usize,
+) -> Vec<EncodedStrip> {
+    match encode_strip(references, positions, leaf_windows) {
         Ok(encoded) => vec![encoded],
         Err(_) => {
             let (first, second) = split_strip(references);
-            let mut pieces = encode_fitting(first, mesh, leaf_windows);
-            pieces.extend(encode_fitting(second, mesh, leaf_windows));
+            let mut pieces = encode_fitting(first, positions, leaf_windows);
+            pieces.extend(encode_fitting(second, positions, leaf_windows));
             pieces
         }
     }
@@ -184,6 +252,8 @@ pub fn write_chunk(
         leaf_windows: params.leaf_windows,
         max_strip_length: params.stripify.max_length,
         bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
+        grid: chunk.grid,
+        weld: WeldStats::default(),
     };
     write_file(out, &info, &top, &chunk.strips)?;
     Ok(chunk.stats)

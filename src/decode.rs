@@ -1,4 +1,6 @@
-//! Decoding a ReduceM file back to triangles: the proof that the representation is lossless.
+//! Decoding a ReduceM file back to triangles: the proof that the representation is lossless,
+//! or, for grid vertices, that it stores exactly the quantized input (positions decoded by
+//! [`crate::format::grid::Grid::decode_axis`], as the tracer sees them).
 
 use std::io::{self, Write};
 use std::path::Path;
@@ -34,8 +36,8 @@ fn write_ply_body(file: &ReducemFile, out: &mut impl Write) -> io::Result<()> {
         header.triangle_count
     )?;
     for s in 0..file.strip_count() {
-        for vertex in file.strip(s).vertices {
-            out.write_all(bytemuck::cast_slice(vertex))?;
+        for vertex in file.strip(s).vertices.iter() {
+            out.write_all(bytemuck::cast_slice(&vertex))?;
         }
     }
     let mut first_vertex = 0u64;

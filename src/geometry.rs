@@ -102,3 +102,42 @@ pub fn is_degenerate(a: &Point, b: &Point, c: &Point) -> bool {
     ];
     cross == [0.0; 3]
 }
+
+/// Euclidean distance in f64.
+pub fn distance(a: &Point, b: &Point) -> f64 {
+    let squared: f64 = (0..3).map(|i| (a[i] as f64 - b[i] as f64).powi(2)).sum();
+    squared.sqrt()
+}
+
+/// How far a set of points moved (from the input to where they are stored, or to the vertex
+/// they were welded into): count, largest distance and sum of squares, which add up over
+/// chunks in a fixed order, so the totals do not depend on the thread count.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Displacement {
+    pub count: u64,
+    pub max: f64,
+    pub squared_sum: f64,
+}
+
+impl Displacement {
+    pub fn record(&mut self, distance: f64) {
+        self.count += 1;
+        self.max = self.max.max(distance);
+        self.squared_sum += distance * distance;
+    }
+
+    pub fn add(&mut self, other: &Displacement) {
+        self.count += other.count;
+        self.max = self.max.max(other.max);
+        self.squared_sum += other.squared_sum;
+    }
+
+    /// Root mean square distance; 0 for no points.
+    pub fn rms(&self) -> f64 {
+        if self.count == 0 {
+            0.0
+        } else {
+            (self.squared_sum / self.count as f64).sqrt()
+        }
+    }
+}

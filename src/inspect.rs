@@ -5,7 +5,8 @@ use std::collections::BTreeMap;
 use serde::Serialize;
 
 use crate::format::reader::ReducemFile;
-use crate::format::{SectionKind, HEADER_PAGE};
+use crate::format::{SectionKind, VertexEncoding, HEADER_PAGE};
+use crate::geometry::distance;
 use crate::strip;
 
 /// What `reducem inspect --json` prints. Field names are a contract with other tools.
@@ -34,6 +35,24 @@ pub struct FileStats {
     pub max_strip_length: u64,
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
+    /// Length of the bounds' diagonal: what the relative errors are relative to.
+    pub bounds_diagonal: f64,
+    /// Bits per axis of the vertex grid; 0 for f32 vertices.
+    pub grid_bits: u32,
+    /// Grid step (the same on every axis); 0 for f32 vertices.
+    pub grid_cell: f32,
+    /// Largest and root mean square distance from an input vertex (after welding) to where the
+    /// file stores it, absolute and over [`FileStats::bounds_diagonal`]; 0 for f32 vertices.
+    pub position_error_max: f64,
+    pub position_error_rms: f64,
+    pub position_error_max_relative: f64,
+    pub position_error_rms_relative: f64,
+    /// Input vertices closer than this were merged before conversion; 0: bit-identical only.
+    pub weld_tolerance: f32,
+    /// Input vertices merged into another by the tolerance, and how far they moved.
+    pub welded_vertices: u64,
+    pub weld_displacement_max: f64,
+    pub weld_displacement_rms: f64,
 }
 
 /// Gathers the statistics; walks every strip once for the length figures.
@@ -51,9 +70,15 @@ pub fn file_stats(file: &ReducemFile) -> FileStats {
         section_total += bytes;
     }
     bytes_by_section.insert("padding".to_string(), file.file_bytes() - section_total);
+    let precision = file.precision();
+    let diagonal = match header.triangle_count {
+        0 => 0.0,
+        _ => distance(&header.bounds_min, &header.bounds_max),
+    };
+    let encoding = VertexEncoding::from_u32(header.vertex_encoding).unwrap_or(VertexEncoding::F32);
     FileStats {
         format_version: format!("{}.{}", header.version_major, header.version_minor),
-        vertex_encoding: "f32".into(),
+        vertex_encoding: encoding.name().into(),
         triangles: header.triangle_count,
         dropped_triangles: header.dropped_triangle_count,
         strips: header.strip_count,
@@ -71,6 +96,25 @@ pub fn file_stats(file: &ReducemFile) -> FileStats {
         max_strip_length,
         bounds_min: header.bounds_min,
         bounds_max: header.bounds_max,
+        bounds_diagonal: diagonal,
+        grid_bits: precision.grid_bits,
+        grid_cell: precision.grid_cell,
+        position_error_max: precision.error_max,
+        position_error_rms: precision.error_rms,
+        position_error_max_relative: relative(precision.error_max, diagonal),
+        position_error_rms_relative: relative(precision.error_rms, diagonal),
+        weld_tolerance: precision.weld_tolerance,
+        welded_vertices: precision.welded_vertex_count,
+        weld_displacement_max: precision.weld_displacement_max,
+        weld_displacement_rms: precision.weld_displacement_rms,
+    }
+}
+
+fn relative(error: f64, diagonal: f64) -> f64 {
+    if diagonal > 0.0 {
+        error / diagonal
+    } else {
+        0.0
     }
 }
 

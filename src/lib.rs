@@ -21,6 +21,7 @@ pub mod input;
 pub mod inspect;
 pub mod mapping;
 pub mod mesh;
+pub mod quantize;
 pub mod render;
 #[cfg(feature = "report")]
 pub mod report;

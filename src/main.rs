@@ -31,7 +31,8 @@ enum Command {
         #[arg(long)]
         verify: bool,
     },
-    /// Write every encoded triangle, in input winding, as binary little-endian PLY.
+    /// Write every encoded triangle, in input winding, as binary little-endian PLY (positions as
+    /// stored: the quantized ones for a grid file).
     Decode {
         file: PathBuf,
         #[arg(short, long)]
@@ -182,6 +183,29 @@ fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<(
         stats.top_nodes,
         reducem::format::TOP_WIDTH
     );
+    println!(
+        "  vertices stored as {}",
+        match stats.grid_bits {
+            0 => "f32 (lossless)".to_string(),
+            bits => format!("points of a {bits}-bit grid, cell {:e}", stats.grid_cell),
+        }
+    );
+    println!(
+        "  position error     max {:.3e} ({:.3e} of the diagonal), rms {:.3e} ({:.3e})",
+        stats.position_error_max,
+        stats.position_error_max_relative,
+        stats.position_error_rms,
+        stats.position_error_rms_relative
+    );
+    if stats.weld_tolerance > 0.0 {
+        println!(
+            "  weld               {} vertices merged within {:e}: moved max {:.3e}, rms {:.3e}",
+            stats.welded_vertices,
+            stats.weld_tolerance,
+            stats.weld_displacement_max,
+            stats.weld_displacement_rms
+        );
+    }
     println!(
         "  file               {} bytes, {:.2} bytes/triangle",
         stats.file_bytes, stats.bytes_per_triangle

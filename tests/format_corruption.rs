@@ -1,5 +1,5 @@
 //! The opener rejects truncated, bit-flipped and crafted files with an error and never panics;
-//! whatever it accepts decodes without panicking.
+//! whatever it accepts decodes without panicking. Lossless and grid (quantized) files alike.
 
 mod common;
 
@@ -7,11 +7,24 @@ use common::{temp_path, torus};
 use reducem::build::{convert_mesh, BuildParams};
 use reducem::decode;
 use reducem::format::reader::{FormatError, ReducemFile};
-use reducem::format::{SectionKind, HEADER_PAGE};
+use reducem::format::{PrecisionRecord, SectionKind, HEADER_PAGE, PRECISION_OFFSET};
 
 fn valid_file_bytes(name: &str) -> Vec<u8> {
+    file_bytes(name, &BuildParams::default())
+}
+
+/// A torus with vertices on a 16-bit grid.
+fn grid_file_bytes(name: &str) -> Vec<u8> {
+    let params = BuildParams {
+        grid_bits: Some(16),
+        ..BuildParams::default()
+    };
+    file_bytes(name, &params)
+}
+
+fn file_bytes(name: &str, params: &BuildParams) -> Vec<u8> {
     let path = temp_path(name);
-    convert_mesh(&torus(24, 12), &BuildParams::default(), &path).expect("convert");
+    convert_mesh(&torus(24, 12), params, &path).expect("convert");
     std::fs::read(&path).expect("read back")
 }
 
@@ -33,7 +46,11 @@ fn section_offset(bytes: &[u8], kind: SectionKind) -> usize {
 
 #[test]
 fn every_truncation_is_an_error() {
-    let bytes = valid_file_bytes("truncate-source.rdm");
+    assert_truncations_fail(&valid_file_bytes("truncate-source.rdm"));
+    assert_truncations_fail(&grid_file_bytes("truncate-grid-source.rdm"));
+}
+
+fn assert_truncations_fail(bytes: &[u8]) {
     let step = (bytes.len() / 300).max(1);
     for length in (0..bytes.len()).step_by(step).chain([bytes.len() - 1]) {
         assert!(
@@ -46,16 +63,20 @@ fn every_truncation_is_an_error() {
 
 #[test]
 fn every_bit_flip_fails_verification_and_never_panics() {
-    let bytes = valid_file_bytes("flip-source.rdm");
+    assert_bit_flips_caught(&valid_file_bytes("flip-source.rdm"));
+    assert_bit_flips_caught(&grid_file_bytes("flip-grid-source.rdm"));
+}
+
+fn assert_bit_flips_caught(bytes: &[u8]) {
     let mut accepted_structurally = 0;
     let in_section = |p: usize| {
         SectionKind::ALL.iter().any(|&kind| {
-            let (offset, length) = section_range(&bytes, kind);
+            let (offset, length) = section_range(bytes, kind);
             (offset..offset + length).contains(&p)
         })
     };
     // Zero padding between sections carries no meaning and no checksum.
-    let positions: Vec<usize> = (0..208)
+    let positions: Vec<usize> = (0..PRECISION_OFFSET + size_of::<PrecisionRecord>())
         .chain(
             (HEADER_PAGE as usize..bytes.len())
                 .step_by(7)
@@ -63,7 +84,7 @@ fn every_bit_flip_fails_verification_and_never_panics() {
         )
         .collect();
     for &position in &positions {
-        let mut corrupted = bytes.clone();
+        let mut corrupted = bytes.to_vec();
         corrupted[position] ^= 1 << (position % 8);
         if let Ok(file) = open_bytes("flipped.rdm", &corrupted) {
             accepted_structurally += 1;
@@ -251,6 +272,7 @@ fn crafted_leaves_and_empty_slots_are_rejected() {
 fn version_1_files_are_rejected_with_advice() {
     let mut old = valid_file_bytes("version-source.rdm");
     old[8..10].copy_from_slice(&1u16.to_le_bytes());
+    old[10..12].copy_from_slice(&0u16.to_le_bytes());
     let message = rejection("version1.rdm", &old);
     assert!(
         message.contains("at byte 8")
@@ -295,4 +317,100 @@ fn crafted_record_links_are_rejected() {
             && message.contains(&format!("at byte {first_reference}")),
         "{message}"
     );
+}
+
+/// `bytes` with the precision record changed by `edit` and its checksum recomputed.
+fn with_precision(bytes: &[u8], edit: impl FnOnce(&mut PrecisionRecord)) -> Vec<u8> {
+    let range = PRECISION_OFFSET..PRECISION_OFFSET + size_of::<PrecisionRecord>();
+    let mut record: PrecisionRecord = bytemuck::pod_read_unaligned(&bytes[range.clone()]);
+    edit(&mut record);
+    let mut edited = bytes.to_vec();
+    edited[range].copy_from_slice(bytemuck::bytes_of(&record.sealed()));
+    edited
+}
+
+fn open_error(name: &str, bytes: &[u8]) -> String {
+    open_bytes(name, bytes)
+        .err()
+        .unwrap_or_else(|| panic!("{name} opened"))
+        .to_string()
+}
+
+#[test]
+fn crafted_grid_headers_are_rejected_naming_the_byte() {
+    let bytes = grid_file_bytes("crafted-grid-header-source.rdm");
+    let fine = with_precision(&bytes, |r| r.grid_bits = 25);
+    let message = open_error("bits.rdm", &fine);
+    assert!(
+        message.contains("at byte 208") && message.contains("25 bits"),
+        "{message}"
+    );
+    let uneven = with_precision(&bytes, |r| r.grid_cell = 3.0);
+    let message = open_error("cell.rdm", &uneven);
+    assert!(
+        message.contains("at byte 228") && message.contains("power of two"),
+        "{message}"
+    );
+    // Finite origin and cell, but the far grid points overflow.
+    let endless = with_precision(&bytes, |r| {
+        r.grid_origin[1] = f32::MAX;
+        r.grid_cell = 2f32.powi(110);
+    });
+    let message = open_error("origin.rdm", &endless);
+    assert!(
+        message.contains("at byte 216") && message.contains("not finite"),
+        "{message}"
+    );
+    let mut unsealed = bytes.clone();
+    unsealed[PRECISION_OFFSET + 24] ^= 1;
+    let message = open_error("unsealed.rdm", &unsealed);
+    assert!(
+        message.contains("at byte 280") && message.contains("precision record checksum"),
+        "{message}"
+    );
+    let lossless = valid_file_bytes("crafted-f32-source.rdm");
+    let claimed = with_precision(&lossless, |r| r.grid_bits = 16);
+    let message = open_error("claimed.rdm", &claimed);
+    assert!(
+        message.contains("at byte 208") && message.contains("f32 vertices"),
+        "{message}"
+    );
+}
+
+#[test]
+fn crafted_grid_blocks_are_rejected_naming_strip_and_byte() {
+    let bytes = grid_file_bytes("crafted-grid-block-source.rdm");
+    // Record 0's block starts the strip-data section.
+    let block = section_offset(&bytes, SectionKind::StripData);
+    let word = |anchor: u32, width: u32| (anchor | width << 24).to_le_bytes();
+    let mut wide = bytes.clone();
+    wide[block..block + 4].copy_from_slice(&word(0, 17));
+    let message = open_error("wide.rdm", &wide);
+    assert!(
+        message.contains("strip 0")
+            && message.contains("offset width 17 exceeds the grid's 16 bits")
+            && message.contains(&format!("at byte {block}")),
+        "{message}"
+    );
+    let mut off_grid = bytes.clone();
+    off_grid[block + 4..block + 8].copy_from_slice(&word(65_535, 4));
+    let message = open_error("off-grid.rdm", &off_grid);
+    assert!(
+        message.contains("strip 0")
+            && message.contains("leaves the 16-bit grid")
+            && message.contains(&format!("at byte {}", block + 4)),
+        "{message}"
+    );
+    // Offsets this wide make the block run past the end of the last strip's data.
+    let records = section_range(&bytes, SectionKind::StripRecords);
+    let last_record = records.0 + records.1 - 8;
+    let last_word = u32::from_le_bytes(bytes[last_record..last_record + 4].try_into().unwrap());
+    let last_block = block + 4 * last_word as usize;
+    let mut long = bytes.clone();
+    for axis in 0..3 {
+        let at = last_block + 4 * axis;
+        long[at..at + 4].copy_from_slice(&word(0, 16));
+    }
+    let message = open_error("long.rdm", &long);
+    assert!(message.contains("past the section end"), "{message}");
 }

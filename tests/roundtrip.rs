@@ -12,7 +12,7 @@ use reducem::{decode, encode, toplevel};
 fn assert_round_trip(name: &str, mesh: &Mesh, params: &BuildParams) {
     let chunk = encode_chunk(mesh, params);
     for (i, strip) in chunk.strips.iter().enumerate() {
-        encode::validate(strip, params.leaf_windows)
+        encode::validate(strip, params.leaf_windows, &chunk.grid.into())
             .unwrap_or_else(|e| panic!("{name}: strip {i}: {e}"));
     }
     let bounds = strip_bounds(&chunk.strips);

@@ -17,7 +17,7 @@ fn round_trip(kind: Kind, triangles: u64, params: &BuildParams) {
     let mesh = read_mesh(&ply).expect("read");
     let chunk = encode_chunk(&mesh, params);
     for (i, strip) in chunk.strips.iter().enumerate() {
-        encode::validate(strip, params.leaf_windows)
+        encode::validate(strip, params.leaf_windows, &chunk.grid.into())
             .unwrap_or_else(|e| panic!("{name}: strip {i}: {e}"));
     }
     let bounds = strip_bounds(&chunk.strips);

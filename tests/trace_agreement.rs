@@ -107,7 +107,25 @@ fn check_mesh(mesh: &Mesh, name: &str) {
     let path = temp_path(&format!("{name}-build.rdm"));
     convert_mesh(mesh, &BuildParams::default(), &path).expect("convert");
     let built = ReducemFile::open(&path).expect("open");
-    for file in [&long, &built] {
+    check_files(mesh, name, &[&long, &built]);
+}
+
+/// [`check_mesh`] for files with vertices on a `bits`-bit grid: the reference intersects the
+/// decoded (quantized) triangles.
+fn check_mesh_on_grid(mesh: &Mesh, name: &str, bits: u32) {
+    let long = open_with_long_strips_on_grid(mesh, &format!("{name}-long-{bits}.rdm"), 120, bits);
+    let path = temp_path(&format!("{name}-build-{bits}.rdm"));
+    let params = BuildParams {
+        grid_bits: Some(bits),
+        ..BuildParams::default()
+    };
+    convert_mesh(mesh, &params, &path).expect("convert");
+    let built = ReducemFile::open(&path).expect("open");
+    check_files(mesh, &format!("{name} at {bits} bits"), &[&long, &built]);
+}
+
+fn check_files(mesh: &Mesh, name: &str, files: &[&ReducemFile]) {
+    for &file in files {
         for subtree_windows in [1, 4, 64] {
             let options = TraceOptions {
                 subtree_windows,
@@ -149,6 +167,16 @@ fn soup_agrees_with_brute_force() {
 #[test]
 fn slivers_agree_with_brute_force() {
     check_mesh(&slivers(60), "slivers");
+}
+
+#[test]
+fn quantized_files_agree_with_brute_force_on_their_triangles() {
+    for bits in [12, 20] {
+        check_mesh_on_grid(&grid(12, 9), "grid", bits);
+        check_mesh_on_grid(&torus(16, 10), "torus", bits);
+        check_mesh_on_grid(&soup(300, 5), "soup", bits);
+        check_mesh_on_grid(&slivers(60), "slivers", bits);
+    }
 }
 
 #[test]

@@ -30,6 +30,36 @@ fn check_sphere(mesh: &Mesh, center: Point, radius: f32, what: &str) {
     assert_closed(&built, mesh, &inside, what);
 }
 
+/// [`check_sphere`] with vertices on grids from coarse (but with no triangle collapsing) to the
+/// finest: the targets are the quantized vertices and edge midpoints.
+fn check_sphere_on_grids(mesh: &Mesh, center: Point, radius: f32, what: &str) {
+    let inside = interior_points(center, radius);
+    for bits in [10, 16, 20, 24] {
+        let (quantized, _) = quantized_input(mesh, bits);
+        let name = format!("{what}-{bits}");
+        let long = open_with_long_strips_on_grid(mesh, &format!("{name}-long.rdm"), 100, bits);
+        assert_closed(&long, &quantized, &inside, &name);
+        let path = temp_path(&format!("{name}-build.rdm"));
+        let params = BuildParams {
+            grid_bits: Some(bits),
+            ..BuildParams::default()
+        };
+        convert_mesh(mesh, &params, &path).expect("convert");
+        let built = ReducemFile::open(&path).expect("open");
+        assert_eq!(built.header().dropped_triangle_count, 0, "{name}");
+        assert_closed(&built, &quantized, &inside, &name);
+    }
+}
+
+#[test]
+fn rays_from_inside_quantized_spheres_never_escape() {
+    check_sphere_on_grids(&icosphere(3), [0.0; 3], 1.0, "sphere-grid");
+    let offset = transformed(&icosphere(3), |x| x + 1e5);
+    check_sphere_on_grids(&offset, [1e5; 3], 1.0, "sphere-grid-offset");
+    let tiny = transformed(&icosphere(3), |x| x * 1e-3);
+    check_sphere_on_grids(&tiny, [0.0; 3], 1e-3, "sphere-grid-tiny");
+}
+
 #[test]
 fn rays_from_inside_a_sphere_never_escape() {
     check_sphere(&icosphere(3), [0.0; 3], 1.0, "sphere");

@@ -66,6 +66,8 @@ fn write_chain(chunk: &EncodedChunk, levels: usize, name: &str) -> std::path::Pa
         leaf_windows: 2,
         max_strip_length: 1,
         bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
+        grid: chunk.grid,
+        weld: Default::default(),
     };
     let path = temp_path(name);
     write_file(&path, &info, &top, &chunk.strips).expect("write");

@@ -8,7 +8,10 @@
 //! field writes, section swaps and a re-sealed header checksum for ReduceM files, whole-field
 //! float writes for ray files. Everything derives from one seed, so a run is reproducible.
 
-use reducem::format::{HEADER_CHECKSUMMED_BYTES, SECTION_ALIGN};
+use reducem::format::{
+    PrecisionRecord, HEADER_CHECKSUMMED_BYTES, PRECISION_CHECKSUMMED_BYTES, PRECISION_OFFSET,
+    SECTION_ALIGN,
+};
 use reducem::splitmix::SplitMix64;
 
 /// Which format-aware edits apply on top of the generic ones.
@@ -147,6 +150,11 @@ const HEADER_FIELDS: &[(usize, usize)] = &[
     (48, 8),
     (80, 4),
     (92, 4),
+    // The precision record: grid bits, origin, cell.
+    (208, 4),
+    (216, 4),
+    (224, 4),
+    (228, 4),
 ];
 
 /// One way of corrupting a ReduceM file, as the corruption campaign counts them.
@@ -424,12 +432,18 @@ impl Mutator {
     }
 }
 
-/// Recomputes the header checksum so the header's own check passes.
+/// Recomputes the header and precision record checksums so their own checks pass.
 pub fn seal_header(data: &mut [u8]) {
     if data.len() >= HEADER_CHECKSUMMED_BYTES + 8 {
         let checksum = xxhash_rust::xxh3::xxh3_64(&data[..HEADER_CHECKSUMMED_BYTES]);
         data[HEADER_CHECKSUMMED_BYTES..HEADER_CHECKSUMMED_BYTES + 8]
             .copy_from_slice(&checksum.to_le_bytes());
+    }
+    let record_end = PRECISION_OFFSET + size_of::<PrecisionRecord>();
+    if data.len() >= record_end {
+        let checksummed = PRECISION_OFFSET..PRECISION_OFFSET + PRECISION_CHECKSUMMED_BYTES;
+        let checksum = xxhash_rust::xxh3::xxh3_64(&data[checksummed.clone()]);
+        data[checksummed.end..record_end].copy_from_slice(&checksum.to_le_bytes());
     }
 }
 

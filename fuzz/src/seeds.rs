@@ -38,6 +38,12 @@ pub fn write_seeds(corpus: &Path) -> std::io::Result<()> {
         &reducem.join("empty.rdm"),
     )
     .map_err(std::io::Error::other)?;
+    let quantized = BuildParams {
+        grid_bits: Some(12),
+        ..BuildParams::default()
+    };
+    convert_mesh(&octahedron_sphere(2), &quantized, &reducem.join("grid.rdm"))
+        .map_err(std::io::Error::other)?;
 
     let rays = corpus.join("rays");
     std::fs::create_dir_all(&rays)?;

@@ -11,7 +11,7 @@ use std::path::Path;
 use bytemuck::{Pod, Zeroable};
 use reducem::build::ChunkStats;
 use reducem::format::{StripRecord, TopNode};
-use reducem::geometry::{Aabb, Point};
+use reducem::geometry::{Aabb, Displacement, Point};
 use reducem::mesh::Mesh;
 
 const MESH_MAGIC: [u8; 8] = *b"RDMMESH1";
@@ -56,7 +56,7 @@ pub fn read_mesh(path: &Path) -> io::Result<Mesh> {
     })
 }
 
-/// Header of a strip chunk. 104 bytes, followed by `node_count` [`TopNode`]s (chunk-local
+/// Header of a strip chunk. 128 bytes, followed by `node_count` [`TopNode`]s (chunk-local
 /// links), `strip_count` [`StripRecord`]s (chunk-local data words) and `data_bytes` strip blocks.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 #[repr(C)]
@@ -69,8 +69,11 @@ pub struct StripChunkHeader {
     pub stats: [u64; 6],
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
+    /// Quantization error of the chunk's vertices: count, then max and sum of squares as f64.
+    pub error_count: u64,
+    pub error: [f64; 2],
 }
-const _: () = assert!(std::mem::size_of::<StripChunkHeader>() == 104);
+const _: () = assert!(std::mem::size_of::<StripChunkHeader>() == 128);
 
 impl StripChunkHeader {
     pub fn new(
@@ -95,6 +98,16 @@ impl StripChunkHeader {
             ],
             bounds_min: bounds.min,
             bounds_max: bounds.max,
+            error_count: stats.quantization.count,
+            error: [stats.quantization.max, stats.quantization.squared_sum],
+        }
+    }
+
+    pub fn quantization(&self) -> Displacement {
+        Displacement {
+            count: self.error_count,
+            max: self.error[0],
+            squared_sum: self.error[1],
         }
     }
 

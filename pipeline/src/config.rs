@@ -25,6 +25,8 @@ pub struct Config {
     #[serde(default)]
     pub strip: StripConfig,
     #[serde(default)]
+    pub vertices: VerticesConfig,
+    #[serde(default)]
     pub work: WorkConfig,
 }
 
@@ -87,6 +89,38 @@ impl Default for StripConfig {
     }
 }
 
+/// How vertex positions are stored, and which input vertices are merged first.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct VerticesConfig {
+    pub encoding: VertexEncodingName,
+    /// Bits per axis of the model grid, for `encoding = "grid"`.
+    pub grid_bits: u32,
+    /// Input vertices closer than this (model units) are merged before anything else; 0 merges
+    /// bit-identical positions only.
+    pub weld_tolerance: f32,
+}
+
+impl Default for VerticesConfig {
+    fn default() -> Self {
+        VerticesConfig {
+            encoding: VertexEncodingName::F32,
+            grid_bits: 20,
+            weld_tolerance: 0.0,
+        }
+    }
+}
+
+/// `[vertices] encoding`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum VertexEncodingName {
+    /// Lossless f32 copies of the input positions.
+    F32,
+    /// Points of one global grid over the model, `grid_bits` bits per axis.
+    Grid,
+}
+
 /// Where intermediate files go; defaults to `<output>.work` next to the output.
 #[derive(Clone, Debug, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -124,6 +158,12 @@ impl Config {
         config.build_params().check().map_err(error)?;
         if config.chunk.max_triangles == 0 {
             return Err(error("[chunk] max_triangles must be at least 1".into()));
+        }
+        let tolerance = config.vertices.weld_tolerance;
+        if !(tolerance.is_finite() && tolerance >= 0.0) {
+            return Err(error(format!(
+                "[vertices] weld_tolerance = {tolerance} must be a finite number >= 0"
+            )));
         }
         Ok(config)
     }
@@ -177,6 +217,8 @@ impl Config {
         };
         params.stripify.max_length = self.strip.max_length;
         params.stripify.sah_bins = self.strip.sah_bins;
+        params.grid_bits =
+            (self.vertices.encoding == VertexEncodingName::Grid).then_some(self.vertices.grid_bits);
         params
     }
 }

@@ -140,7 +140,7 @@ fn run_all(job: &Job) -> anyhow::Result<()> {
     let input = input::resolve(job)?;
     let chunked = chunk::run(job, &input)?;
     let strip_digest = strip::run(job, &chunked, Shard::WHOLE)?;
-    let merged = merge::run(job, chunked.chunk_count(), &strip_digest)?;
+    let merged = merge::run(job, &chunked, &strip_digest)?;
     let hierarchy = hierarchy::run(job, &merged)?;
     write::run(job, &merged, &hierarchy)
 }
@@ -151,7 +151,7 @@ fn run_stage(job: &Job, stage: StageName, shard: Shard) -> anyhow::Result<()> {
         StageName::Strip => strip::run(job, &chunked(job)?, shard).map(drop),
         StageName::Merge => {
             let chunked = chunked(job)?;
-            merge::run(job, chunked.chunk_count(), &stripped(job, &chunked)?).map(drop)
+            merge::run(job, &chunked, &stripped(job, &chunked)?).map(drop)
         }
         StageName::Hierarchy => hierarchy::run(job, &merged(job)?).map(drop),
         StageName::Write => {

@@ -1,5 +1,6 @@
 //! The staged runner: lossless across chunks, byte-identical for any thread count and across
-//! kills at random moments, invalidation of exactly the affected stages, and the work-dir lock.
+//! kills at random moments, invalidation of exactly the affected stages, and the work-dir lock;
+//! grid vertices on one model grid across chunks, and the model-wide tolerance weld.
 
 use std::fs::{self, File};
 use std::io::Write;
@@ -7,6 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::Instant;
 
+use reducem::format::grid::Grid;
 use reducem::format::reader::ReducemFile;
 
 fn temp_dir(name: &str) -> PathBuf {
@@ -249,5 +251,159 @@ fn a_run_dying_while_writing_leaves_the_previous_output_untouched() {
     assert!(
         before != fs::read(dir.join("out.rdm")).unwrap(),
         "the new run did not replace it"
+    );
+}
+
+/// The input's triangles with every corner on `grid`, without the ones that collapse.
+fn quantized_triangles(mesh: &reducem::mesh::Mesh, grid: &Grid) -> Vec<[[u32; 3]; 3]> {
+    canonical_sorted(
+        mesh.triangles
+            .iter()
+            .map(|t| {
+                mesh.triangle_points(t)
+                    .map(|p| grid.decode(&grid.quantize(&p)))
+            })
+            .filter(|[a, b, c]| !reducem::geometry::is_degenerate(a, b, c)),
+    )
+}
+
+#[test]
+fn a_quantized_chunked_conversion_decodes_to_the_quantized_input_for_any_thread_count() {
+    let dir = temp_dir("grid");
+    let config = job(&dir, "\n[vertices]\nencoding = \"grid\"\ngrid_bits = 16\n");
+    run_ok(&config, "2");
+    let file = ReducemFile::open(&dir.join("out.rdm")).expect("open");
+    let mesh = reducem::input::read_mesh(&dir.join("input.ply")).expect("input");
+    let grid = Grid::over(&mesh.bounds(), 16);
+    assert_eq!(file.precision().grid(), grid);
+    assert_eq!(
+        canonical_sorted(reducem::decode::triangles(&file)),
+        quantized_triangles(&mesh, &grid)
+    );
+    assert!(file.precision().error_max <= grid.cell as f64);
+    let two = fs::read(dir.join("out.rdm")).unwrap();
+    fs::remove_dir_all(dir.join("out.rdm.work")).unwrap();
+    run_ok(&config, "1");
+    assert!(
+        two == fs::read(dir.join("out.rdm")).unwrap(),
+        "outputs differ"
+    );
+}
+
+#[test]
+fn vertex_options_rerun_only_the_stages_they_affect() {
+    let dir = temp_dir("vertex-options");
+    run_ok(&job(&dir, ""), "2");
+    let config = job(&dir, "\n[vertices]\nencoding = \"grid\"\ngrid_bits = 18\n");
+    let text =
+        String::from_utf8_lossy(&run(&["status", config.to_str().unwrap()]).stdout).to_string();
+    assert!(text.contains("chunk                done"), "{text}");
+    assert!(
+        text.contains("strip/chunk-000000   stale: vertices.grid_bits changed from none to 18"),
+        "{text}"
+    );
+    let log = String::from_utf8_lossy(&run_ok(&config, "2").stderr).to_string();
+    assert!(log.contains("chunk: fresh"), "{log}");
+
+    let config = job(
+        &dir,
+        "\n[vertices]\nencoding = \"grid\"\ngrid_bits = 18\nweld_tolerance = 0.001\n",
+    );
+    let text =
+        String::from_utf8_lossy(&run(&["status", config.to_str().unwrap()]).stdout).to_string();
+    assert!(
+        text.contains(
+            "chunk                stale: vertices.weld_tolerance changed from 0 to 0.001"
+        ),
+        "{text}"
+    );
+}
+
+/// A binary little-endian PLY of `mesh`.
+fn write_ply(mesh: &reducem::mesh::Mesh, path: &Path) {
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\n\
+         property float y\nproperty float z\nelement face {}\n\
+         property list uchar int vertex_indices\nend_header\n",
+        mesh.positions.len(),
+        mesh.triangles.len()
+    )
+    .into_bytes();
+    bytes.extend(
+        mesh.positions
+            .iter()
+            .flatten()
+            .flat_map(|c| c.to_le_bytes()),
+    );
+    for triangle in &mesh.triangles {
+        bytes.push(3);
+        bytes.extend(triangle.iter().flat_map(|&v| (v as i32).to_le_bytes()));
+    }
+    fs::write(path, bytes).expect("write PLY");
+}
+
+/// A 60 × 50 quad grid whose every triangle has its own copies of its corners, each moved by
+/// up to 1e-5 per axis: shared vertices perturbed as in separately exported parts.
+fn perturbed_grid() -> reducem::mesh::Mesh {
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut jitter = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 2e-5
+    };
+    let mut mesh = reducem::mesh::Mesh::default();
+    for y in 0..50 {
+        for x in 0..60 {
+            let corner = |dx: u32, dy: u32| [(x + dx) as f32, (y + dy) as f32, 0.0];
+            for triangle in [
+                [corner(0, 0), corner(1, 0), corner(1, 1)],
+                [corner(0, 0), corner(1, 1), corner(0, 1)],
+            ] {
+                let base = mesh.positions.len() as u32;
+                for p in triangle {
+                    mesh.positions.push(p.map(|c| c + jitter()));
+                }
+                mesh.triangles.push([base, base + 1, base + 2]);
+            }
+        }
+    }
+    mesh
+}
+
+#[test]
+fn a_weld_tolerance_reconnects_a_perturbed_model_across_chunks() {
+    let dir = temp_dir("weld");
+    let perturbed = perturbed_grid();
+    write_ply(&perturbed, &dir.join("perturbed.ply"));
+    let config = dir.join("weld.toml");
+    let body = |tolerance: &str| {
+        format!(
+            "[input]\npath = \"perturbed.ply\"\n[output]\npath = \"out.rdm\"\n[chunk]\n\
+             max_triangles = 1500\n[vertices]\nweld_tolerance = {tolerance}\n"
+        )
+    };
+    fs::write(&config, body("0")).unwrap();
+    run_ok(&config, "2");
+    let apart = ReducemFile::open(&dir.join("out.rdm")).expect("open");
+    assert_eq!(apart.header().strip_count, 6000);
+
+    fs::write(&config, body("1e-4")).unwrap();
+    run_ok(&config, "2");
+    let file = ReducemFile::open(&dir.join("out.rdm")).expect("open");
+    let (welded, stats) = reducem::input::weld_within_tolerance(perturbed, 1e-4);
+    assert_eq!(welded.positions.len(), 61 * 51);
+    assert_eq!(
+        canonical_sorted(reducem::decode::triangles(&file)),
+        canonical_sorted(welded.triangles.iter().map(|t| welded.triangle_points(t)))
+    );
+    let precision = file.precision();
+    assert_eq!(precision.weld_tolerance, 1e-4);
+    assert_eq!(precision.welded_vertex_count, stats.displacement.count);
+    assert_eq!(precision.weld_displacement_max, stats.displacement.max);
+    assert!(
+        file.header().strip_count < 6000 / 5,
+        "{} strips",
+        file.header().strip_count
     );
 }

@@ -17,13 +17,43 @@
 //! of in the sign bits of box-relative coordinates, because box-relative f32 coordinates would
 //! round and the representation must stay lossless (bit-exact decoding is what makes tracing
 //! watertight across strips).
+//!
+//! Quantized strips ([`Positions::Grid`]) are laid out on their decoded positions, exactly as
+//! lossless strips on theirs, and store the grid points instead of f32 copies
+//! ([`crate::format::quantized`]). Decoding is monotone in the grid point, so every bound holds
+//! on what the reader decodes, bit for bit.
 
 use std::fmt;
 
 use crate::format::implicit_tree::{internal_nodes, is_leaf, split_point};
-use crate::format::{align_up, axis_bytes, VertexEncoding, MAX_STRIP_VERTICES};
+use crate::format::reader::VertexLayout;
+use crate::format::{align_up, axis_bytes, quantized, MAX_STRIP_VERTICES};
 use crate::geometry::{Aabb, Point};
 use crate::strip::window_count;
+
+/// The vertices strips are encoded from.
+#[derive(Clone, Copy, Debug)]
+pub enum Positions<'a> {
+    /// Stored as bit-exact f32 copies.
+    F32(&'a [Point]),
+    /// Stored as grid points of `bits` bits; `decoded` are their positions
+    /// ([`crate::format::grid::Grid::decode`]), on which the bounds are chosen.
+    Grid {
+        points: &'a [[u32; 3]],
+        decoded: &'a [Point],
+        bits: u32,
+    },
+}
+
+impl<'a> Positions<'a> {
+    /// Where the reader will see the vertices.
+    fn decoded(&self) -> &'a [Point] {
+        match *self {
+            Positions::F32(points) => points,
+            Positions::Grid { decoded, .. } => decoded,
+        }
+    }
+}
 
 /// How far beyond its exact extreme a split bound may lie, as a fraction of the node's extent on
 /// the split axis, to use a vertex not stored yet instead of a copy.
@@ -59,7 +89,7 @@ impl fmt::Display for TooManyVertices {
 /// Encodes one strip given as mesh vertex indices (swaps included, see [`crate::strip`]).
 pub fn encode_strip(
     references: &[u32],
-    positions: &[Point],
+    positions: Positions,
     leaf_windows: usize,
 ) -> Result<EncodedStrip, TooManyVertices> {
     let mut layout = StripLayout::new(references, positions);
@@ -91,7 +121,9 @@ pub fn split_strip(references: &[u32]) -> (&[u32], &[u32]) {
 
 /// Mutable state of one strip's encoding: distinct vertices and their stored slots.
 struct StripLayout<'a> {
-    positions: &'a [Point],
+    positions: Positions<'a>,
+    /// The positions the reader will decode.
+    decoded: &'a [Point],
     /// Sorted distinct mesh vertex indices of the strip.
     distinct: Vec<u32>,
     /// Each reference as an index into `distinct`.
@@ -104,7 +136,7 @@ struct StripLayout<'a> {
 }
 
 impl<'a> StripLayout<'a> {
-    fn new(references: &[u32], positions: &'a [Point]) -> StripLayout<'a> {
+    fn new(references: &[u32], positions: Positions<'a>) -> StripLayout<'a> {
         let mut distinct = references.to_vec();
         distinct.sort_unstable();
         distinct.dedup();
@@ -114,6 +146,7 @@ impl<'a> StripLayout<'a> {
             .collect();
         StripLayout {
             positions,
+            decoded: positions.decoded(),
             home: vec![None; distinct.len()],
             distinct,
             local,
@@ -123,7 +156,7 @@ impl<'a> StripLayout<'a> {
     }
 
     fn point(&self, local: u16) -> &Point {
-        &self.positions[self.distinct[local as usize] as usize]
+        &self.decoded[self.distinct[local as usize] as usize]
     }
 
     /// Bounds of the vertices referenced by `local[start..end]`.
@@ -268,17 +301,27 @@ impl<'a> StripLayout<'a> {
         }
     }
 
-    fn into_encoded(self, axes: &[u8], bounds: Aabb) -> EncodedStrip {
-        let encoding = VertexEncoding::F32;
-        let unpadded = self.slots.len() * encoding.bytes_per_vertex()
-            + axis_bytes(axes.len())
-            + self.local.len();
-        let mut block = Vec::with_capacity(align_up(unpadded as u64, 4) as usize);
-        for &vertex in &self.slots {
-            for coordinate in self.point(vertex) {
-                block.extend_from_slice(&coordinate.to_le_bytes());
+    /// The stored vertices in the file's encoding.
+    fn vertex_bytes(&self) -> Vec<u8> {
+        let mesh_vertex = |slot: &u16| self.distinct[*slot as usize] as usize;
+        match self.positions {
+            Positions::F32(points) => self
+                .slots
+                .iter()
+                .flat_map(|slot| points[mesh_vertex(slot)])
+                .flat_map(f32::to_le_bytes)
+                .collect(),
+            Positions::Grid { points, bits, .. } => {
+                let stored: Vec<[u32; 3]> =
+                    self.slots.iter().map(|s| points[mesh_vertex(s)]).collect();
+                quantized::pack(&stored, bits)
             }
         }
+    }
+
+    fn into_encoded(self, axes: &[u8], bounds: Aabb) -> EncodedStrip {
+        let mut block = self.vertex_bytes();
+        block.reserve(axis_bytes(axes.len()) + self.local.len() + 3);
         block.extend(axes.chunks(4).map(pack_axes));
         block.extend(
             self.local
@@ -321,16 +364,21 @@ fn pack_axes(group: &[u8]) -> u8 {
         .fold(0, |byte, (i, &axis)| byte | (axis << (2 * i)))
 }
 
-/// Checks an encoded strip's hierarchy: every node's stored bounds contain the vertices of the
-/// windows on their side, along the node's axis, and every reference is in range.
-pub fn validate(strip: &EncodedStrip, leaf_windows: usize) -> Result<(), String> {
+/// Checks an encoded strip's hierarchy as the reader decodes it (`layout`): every node's stored
+/// bounds contain the vertices of the windows on their side, along the node's axis, and every
+/// reference is in range.
+pub fn validate(
+    strip: &EncodedStrip,
+    leaf_windows: usize,
+    layout: &VertexLayout,
+) -> Result<(), String> {
     let record = crate::format::StripRecord {
         data_word: 0,
         vertex_count: strip.vertex_count,
         reference_count: strip.reference_count,
     };
     let windows = window_count(strip.reference_count as usize);
-    let view = crate::format::reader::strip_view(&strip.block, &record, leaf_windows);
+    let view = crate::format::reader::strip_view(&strip.block, &record, leaf_windows, layout);
     if let Some(r) = view
         .references
         .iter()
@@ -340,7 +388,12 @@ pub fn validate(strip: &EncodedStrip, leaf_windows: usize) -> Result<(), String>
     }
     let mut next_node = 0;
     validate_node(&view, 0, windows, leaf_windows, &mut next_node)?;
-    let all = Aabb::from_points(view.references.iter().map(|&r| &view.vertices[r as usize]));
+    let referenced: Vec<Point> = view
+        .references
+        .iter()
+        .map(|&r| view.vertices.point(r as usize))
+        .collect();
+    let all = Aabb::from_points(&referenced);
     if all != strip.bounds {
         return Err(format!(
             "strip bounds {:?} differ from its vertices' {all:?}",
@@ -364,10 +417,13 @@ fn validate_node(
     *next_node += 1;
     let mid = split_point(lo, hi, leaf_windows);
     let axis = view.axis(node);
-    let coordinate = |position: usize| view.vertices[view.references[position] as usize][axis];
+    let coordinate = |position: usize| {
+        view.vertices
+            .coordinate(view.references[position] as usize, axis)
+    };
     let (upper, lower) = (
-        view.vertices[2 * node][axis],
-        view.vertices[2 * node + 1][axis],
+        view.vertices.coordinate(2 * node, axis),
+        view.vertices.coordinate(2 * node + 1, axis),
     );
     if (lo..mid + 2).any(|p| coordinate(p) > upper) {
         return Err(format!(

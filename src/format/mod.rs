@@ -6,8 +6,11 @@
 //! `#[repr(C)]`, little-endian, `Pod`, and has its size asserted at compile time, so the reader
 //! views the mapping in place with no pointer fix-up.
 
+pub mod grid;
 pub mod implicit_tree;
+pub mod quantized;
 pub mod reader;
+pub mod vertices;
 pub mod writer;
 
 use bytemuck::{Pod, Zeroable};
@@ -17,8 +20,9 @@ pub const MAGIC: [u8; 8] = *b"REDUCEM\0";
 /// Incremented on any incompatible layout change; readers reject other majors. Version 2
 /// replaced version 1's binary top-level nodes (32 bytes) with 4-wide ones ([`TopNode`]).
 pub const VERSION_MAJOR: u16 = 2;
-/// Incremented on compatible additions; readers accept any minor of their major.
-pub const VERSION_MINOR: u16 = 0;
+/// Incremented on compatible additions; readers accept any minor of their major. Minor 1 added
+/// the [`PrecisionRecord`] and the grid vertex encoding.
+pub const VERSION_MINOR: u16 = 1;
 /// Written as a little-endian u32; a reader on a big-endian host sees `0x0403_0201`.
 pub const ENDIAN_MARKER: u32 = 0x0102_0304;
 /// Sections start at multiples of this, so each can be mapped and paged on its own.
@@ -30,24 +34,36 @@ pub const MAX_TOP_DEPTH: usize = 128;
 /// The most vertices one strip can address with 1-byte local indices (paper 3.2).
 pub const MAX_STRIP_VERTICES: usize = 256;
 
-/// How vertex positions are stored in a strip block. The header names it so that a quantized
-/// encoding can be added without a new file family.
+/// How vertex positions are stored in a strip block.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u32)]
 pub enum VertexEncoding {
     /// Three little-endian f32 per vertex, bit-exact copies of the input (lossless).
     F32 = 0,
+    /// Points of the global grid of the [`PrecisionRecord`], per strip an anchor plus
+    /// fixed-width offsets ([`quantized`]). Since format 2.1.
+    Grid = 1,
 }
 
 impl VertexEncoding {
     pub fn from_u32(value: u32) -> Option<VertexEncoding> {
-        (value == VertexEncoding::F32 as u32).then_some(VertexEncoding::F32)
+        match value {
+            0 => Some(VertexEncoding::F32),
+            1 => Some(VertexEncoding::Grid),
+            _ => None,
+        }
     }
 
-    pub fn bytes_per_vertex(self) -> usize {
-        12
+    pub fn name(self) -> &'static str {
+        match self {
+            VertexEncoding::F32 => "f32",
+            VertexEncoding::Grid => "grid",
+        }
     }
 }
+
+/// Bytes of one lossless vertex.
+pub const F32_VERTEX_BYTES: usize = 12;
 
 /// The sections of a version-2 file, in file order. The discriminant is the on-disk kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -108,7 +124,7 @@ pub const SECTION_COUNT: usize = SectionKind::ALL.len();
 /// | 8..10 | `version_major`, 10..12 `version_minor` |
 /// | 12..16 | `endian_marker` = 0x01020304 |
 /// | 16..20 | `header_bytes` = 208 |
-/// | 20..24 | `vertex_encoding` ([`VertexEncoding`]) |
+/// | 20..24 | `vertex_encoding` ([`VertexEncoding`]): 0 f32, 1 grid |
 /// | 24..28 | `leaf_windows`: strip kd-tree leaf size in windows (1..=255) |
 /// | 28..32 | `max_strip_length` used by the build (informational) |
 /// | 32..40 | `triangle_count`: real (non-swap) triangles |
@@ -146,6 +162,70 @@ const _: () = assert!(std::mem::size_of::<Header>() == 208);
 
 /// Byte length of the header prefix covered by `header_checksum`.
 pub const HEADER_CHECKSUMMED_BYTES: usize = 200;
+
+/// Where the [`PrecisionRecord`] starts in the header page: right after the [`Header`].
+pub const PRECISION_OFFSET: usize = 208;
+
+/// How positions were stored and how far they moved from the input. 80 bytes at byte 208 of
+/// the header page, since format 2.1; a 2.0 file has zeros there (lossless, nothing moved), and
+/// 2.0 readers ignore it, so they still read lossless 2.1 files (and reject grid files through
+/// `vertex_encoding`).
+///
+/// | bytes | field |
+/// |---|---|
+/// | 208..212 | `grid_bits`: bits per axis of the grid (1..=24); 0 for f32 vertices |
+/// | 212..216 | reserved, zero |
+/// | 216..228 | `grid_origin` f32×3: the position of grid point (0, 0, 0) |
+/// | 228..232 | `grid_cell` f32: grid step on every axis, a power of two; 0 for f32 vertices |
+/// | 232..240 | `error_max` f64: largest distance from an input vertex (after welding) to its stored position |
+/// | 240..248 | `error_rms` f64: root mean square of the same distances |
+/// | 248..252 | `weld_tolerance` f32: input vertices closer than this were merged; 0 = bit-identical only |
+/// | 252..256 | reserved, zero |
+/// | 256..264 | `welded_vertex_count`: input vertices merged into another by the tolerance |
+/// | 264..272 | `weld_displacement_max` f64: largest distance a welded vertex moved |
+/// | 272..280 | `weld_displacement_rms` f64: root mean square over the welded vertices |
+/// | 280..288 | `checksum`: XXH3-64 of bytes 208..280 |
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct PrecisionRecord {
+    pub grid_bits: u32,
+    pub reserved: u32,
+    pub grid_origin: [f32; 3],
+    pub grid_cell: f32,
+    pub error_max: f64,
+    pub error_rms: f64,
+    pub weld_tolerance: f32,
+    pub reserved2: u32,
+    pub welded_vertex_count: u64,
+    pub weld_displacement_max: f64,
+    pub weld_displacement_rms: f64,
+    pub checksum: u64,
+}
+const _: () = assert!(std::mem::size_of::<PrecisionRecord>() == 80);
+
+/// Byte length of the precision record prefix covered by its `checksum`.
+pub const PRECISION_CHECKSUMMED_BYTES: usize = 72;
+
+impl PrecisionRecord {
+    /// The record with its checksum set.
+    pub fn sealed(mut self) -> PrecisionRecord {
+        self.checksum = self.computed_checksum();
+        self
+    }
+
+    pub fn computed_checksum(&self) -> u64 {
+        xxhash_rust::xxh3::xxh3_64(&bytemuck::bytes_of(self)[..PRECISION_CHECKSUMMED_BYTES])
+    }
+
+    /// The grid of a grid-encoded file.
+    pub fn grid(&self) -> grid::Grid {
+        grid::Grid {
+            bits: self.grid_bits,
+            origin: self.grid_origin,
+            cell: self.grid_cell,
+        }
+    }
+}
 
 /// Child slots of a [`TopNode`].
 pub const TOP_WIDTH: usize = 4;
@@ -259,9 +339,10 @@ impl TopNode {
 /// | 4..6 | `vertex_count`: stored vertices (3..=256) |
 /// | 6..8 | `reference_count`: 1-byte vertex references (≥ 3) |
 ///
-/// A block is `vertex_count` vertices, then the split axes of the strip's kd-tree at 2 bits per
-/// node (4 per byte, node `i` in bits `2*(i%4)..`), then `reference_count` references, padded
-/// with zeros to a multiple of 4 bytes.
+/// A block is `vertex_count` vertices (12 bytes each, or packed grid offsets: see
+/// [`quantized`]), then the split axes of the strip's kd-tree at 2 bits per node (4 per byte,
+/// node `i` in bits `2*(i%4)..`), then `reference_count` references, padded with zeros to a
+/// multiple of 4 bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 #[repr(C)]
 pub struct StripRecord {
@@ -274,16 +355,6 @@ const _: () = assert!(std::mem::size_of::<StripRecord>() == 8);
 /// Bytes of packed 2-bit split axes for `nodes` kd-tree nodes.
 pub fn axis_bytes(nodes: usize) -> usize {
     nodes.div_ceil(4)
-}
-
-/// Unpadded byte length of a strip block.
-pub fn strip_block_bytes(
-    encoding: VertexEncoding,
-    vertices: usize,
-    nodes: usize,
-    references: usize,
-) -> usize {
-    vertices * encoding.bytes_per_vertex() + axis_bytes(nodes) + references
 }
 
 /// Rounds a byte count up to the next multiple of `align`.

@@ -11,17 +11,22 @@
 //! side, the pipeline, PLY input, progress or channel code.
 
 use std::fs::File;
+use std::mem::size_of;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use memmap2::Mmap;
 use rayon::prelude::*;
 
+use super::grid::{Grid, MAX_GRID_BITS};
 use super::implicit_tree::internal_nodes;
+use super::quantized::{vertex_part_bytes, AxisWord, GridVertices, AXIS_WORDS_BYTES};
+use super::vertices::StripVertices;
 use super::{
-    axis_bytes, Header, SectionKind, StripRecord, TopNode, TopSlot, VertexEncoding, ENDIAN_MARKER,
-    HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH, SECTION_ALIGN,
-    TOP_WIDTH, VERSION_MAJOR,
+    axis_bytes, Header, PrecisionRecord, SectionKind, StripRecord, TopNode, TopSlot,
+    VertexEncoding, ENDIAN_MARKER, F32_VERTEX_BYTES, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC,
+    MAX_STRIP_VERTICES, MAX_TOP_DEPTH, PRECISION_CHECKSUMMED_BYTES, PRECISION_OFFSET,
+    SECTION_ALIGN, TOP_WIDTH, VERSION_MAJOR,
 };
 use crate::geometry::Point;
 use crate::mapping::{map_file, map_range};
@@ -49,13 +54,28 @@ pub struct ReducemFile {
     path: PathBuf,
     map: Mmap,
     header: Header,
+    precision: PrecisionRecord,
+    layout: VertexLayout,
     sections: [Range<usize>; 3],
+}
+
+/// How a file's strip blocks store vertices: what viewing a block needs besides the block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum VertexLayout {
+    F32,
+    Grid(Grid),
+}
+
+impl From<Option<Grid>> for VertexLayout {
+    fn from(grid: Option<Grid>) -> VertexLayout {
+        grid.map_or(VertexLayout::F32, VertexLayout::Grid)
+    }
 }
 
 /// One strip's block, viewed in place.
 #[derive(Clone, Copy, Debug)]
 pub struct StripView<'a> {
-    pub vertices: &'a [Point],
+    pub vertices: StripVertices<'a>,
     /// Split axes, 2 bits per internal node.
     pub axes: &'a [u8],
     /// 1-byte references into `vertices`, swaps included.
@@ -77,7 +97,7 @@ impl StripView<'_> {
     #[inline]
     pub fn window_points(&self, k: usize) -> Option<[Point; 3]> {
         crate::strip::window_triangle(self.references, k)
-            .map(|t| t.map(|r| self.vertices[r as usize]))
+            .map(|t| t.map(|r| self.vertices.point(r as usize)))
     }
 }
 
@@ -105,6 +125,8 @@ impl ReducemFile {
             file_len,
         };
         let header = checker.header()?;
+        let precision = checker.precision(&header)?;
+        let layout = checker.layout(&header, &precision)?;
         let sections = checker.sections(&header)?;
         let map = map_file(&file).map_err(io_error)?;
         if map.len() as u64 != file_len {
@@ -115,6 +137,8 @@ impl ReducemFile {
             path: path.to_path_buf(),
             map,
             header,
+            precision,
+            layout,
             sections,
         };
         let windows = Windows {
@@ -132,6 +156,15 @@ impl ReducemFile {
 
     pub fn header(&self) -> &Header {
         &self.header
+    }
+
+    /// The precision record (zeros for a format 2.0 file: lossless, nothing welded).
+    pub fn precision(&self) -> &PrecisionRecord {
+        &self.precision
+    }
+
+    pub fn vertex_layout(&self) -> &VertexLayout {
+        &self.layout
     }
 
     pub fn file_bytes(&self) -> u64 {
@@ -166,6 +199,7 @@ impl ReducemFile {
             self.section_bytes(SectionKind::StripData),
             &self.strip_records()[index],
             self.leaf_windows(),
+            &self.layout,
         )
     }
 
@@ -269,15 +303,20 @@ impl Windows<'_> {
         records: &[StripRecord],
     ) -> Result<u64, FormatError> {
         let data = self.section(SectionKind::StripData);
-        let leaf = self.opened.leaf_windows();
+        let data_len = data.end - data.start;
+        let shape = BlockShape {
+            leaf_windows: self.opened.leaf_windows(),
+            layout: self.opened.layout,
+        };
         let mut triangles = 0;
         let mut start = 0;
         while start < records.len() {
-            let mut span = block_range(&records[start], leaf, data.end - data.start)
+            let mut span = shape
+                .extent(&records[start], data_len)
                 .map_err(|defect| self.strip_error(first + start, defect))?;
             let mut end = start + 1;
             while let Some(next) = records.get(end) {
-                let Ok(block) = block_range(next, leaf, data.end - data.start) else {
+                let Ok(block) = shape.extent(next, data_len) else {
                     break;
                 };
                 let joined = span.start.min(block.start)..span.end.max(block.end);
@@ -292,7 +331,8 @@ impl Windows<'_> {
                 .par_iter()
                 .enumerate()
                 .map(|(i, record)| {
-                    check_block(&window, span.start, record, leaf)
+                    shape
+                        .check(&window, span.start, record, data_len)
                         .map_err(|defect| self.strip_error(first + start + i, defect))
                 })
                 .try_reduce(|| 0u64, |a, b| Ok(a + b))?;
@@ -458,86 +498,169 @@ fn section_slot(kind: SectionKind) -> usize {
     kind as usize - 1
 }
 
-/// Views a strip's block; the record has been validated by [`check_strip`].
+/// Views a strip's block; the record has been validated by [`BlockShape::check`].
 #[inline]
 pub(crate) fn strip_view<'a>(
     data: &'a [u8],
     record: &StripRecord,
     leaf_windows: usize,
+    layout: &VertexLayout,
 ) -> StripView<'a> {
     let start = record.data_word as usize * 4;
-    let vertex_end = start + record.vertex_count as usize * VertexEncoding::F32.bytes_per_vertex();
-    let windows = record.reference_count as usize - 2;
-    let axes_end = vertex_end + axis_bytes(internal_nodes(windows, leaf_windows));
+    let count = record.vertex_count as usize;
+    let references = record.reference_count as usize;
+    let axes_length = axis_bytes(internal_nodes(references - 2, leaf_windows));
+    let (vertices, vertex_end) = match layout {
+        VertexLayout::F32 => {
+            let end = start + count * F32_VERTEX_BYTES;
+            (
+                StripVertices::F32(bytemuck::cast_slice(&data[start..end])),
+                end,
+            )
+        }
+        VertexLayout::Grid(grid) => {
+            let words = AxisWord::read_all(&data[start..start + AXIS_WORDS_BYTES]);
+            let end = start + vertex_part_bytes(count, &words);
+            let block_end = end + axes_length + references;
+            let offsets = &data[start + AXIS_WORDS_BYTES..block_end];
+            let vertices = GridVertices::new(offsets, &words, count, grid);
+            (StripVertices::Grid(vertices), end)
+        }
+    };
+    let axes_end = vertex_end + axes_length;
     StripView {
-        vertices: bytemuck::cast_slice(&data[start..vertex_end]),
+        vertices,
         axes: &data[vertex_end..axes_end],
-        references: &data[axes_end..axes_end + record.reference_count as usize],
+        references: &data[axes_end..axes_end + references],
     }
 }
 
 /// A defect in a strip: the data-section offset where it is (if known) and what is wrong.
 type StripDefect = (Option<u64>, String);
 
-/// Checks a record's counts and returns its block's byte range within the strip-data section.
-fn block_range(
-    record: &StripRecord,
+/// What a strip block's length depends on besides its record.
+struct BlockShape {
     leaf_windows: usize,
-    data_len: u64,
-) -> Result<Range<u64>, StripDefect> {
-    let vertices = record.vertex_count as usize;
-    let references = record.reference_count as usize;
-    if !(3..=MAX_STRIP_VERTICES).contains(&vertices) || references < 3 {
-        return Err((
-            None,
-            format!("{vertices} vertices and {references} references"),
-        ));
-    }
-    let nodes = internal_nodes(references - 2, leaf_windows);
-    if 2 * nodes > vertices {
-        let detail = format!(
-            "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
-            2 * nodes
-        );
-        return Err((None, detail));
-    }
-    let start = record.data_word as u64 * 4;
-    let length =
-        (vertices * VertexEncoding::F32.bytes_per_vertex() + axis_bytes(nodes) + references) as u64;
-    if start + length > data_len {
-        let detail = format!("block of {length} bytes runs past the section end {data_len}");
-        return Err((Some(start), detail));
-    }
-    Ok(start..start + length)
+    layout: VertexLayout,
 }
 
-/// Validates a strip's block inside `window` (which starts at `window_start` in the section,
-/// and holds the block: see [`block_range`]); returns its real-triangle count.
-fn check_block(
-    window: &[u8],
-    window_start: u64,
-    record: &StripRecord,
-    leaf_windows: usize,
-) -> Result<u64, StripDefect> {
-    let vertices = record.vertex_count as usize;
-    let block = block_range(record, leaf_windows, u64::MAX)?;
-    let local = StripRecord {
-        data_word: 0,
-        ..*record
-    };
-    let bytes = &window[(block.start - window_start) as usize..(block.end - window_start) as usize];
-    let view = strip_view(bytes, &local, leaf_windows);
+impl BlockShape {
+    /// Checks a record's counts and returns its kd-tree's internal node count.
+    fn nodes(&self, record: &StripRecord) -> Result<usize, StripDefect> {
+        let vertices = record.vertex_count as usize;
+        let references = record.reference_count as usize;
+        if !(3..=MAX_STRIP_VERTICES).contains(&vertices) || references < 3 {
+            return Err((
+                None,
+                format!("{vertices} vertices and {references} references"),
+            ));
+        }
+        let nodes = internal_nodes(references - 2, self.leaf_windows);
+        if 2 * nodes > vertices {
+            let detail = format!(
+                "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
+                2 * nodes
+            );
+            return Err((None, detail));
+        }
+        Ok(nodes)
+    }
+
+    /// Bytes of the block with vertices of `vertex_bytes`.
+    fn length(&self, record: &StripRecord, nodes: usize, vertex_bytes: usize) -> u64 {
+        (vertex_bytes + axis_bytes(nodes) + record.reference_count as usize) as u64
+    }
+
+    /// A byte range of the strip-data section that holds the record's block: exact for f32
+    /// vertices; for grid vertices, whose length the block's own axis words give, the longest
+    /// the block could be, cut at the section end.
+    fn extent(&self, record: &StripRecord, data_len: u64) -> Result<Range<u64>, StripDefect> {
+        let nodes = self.nodes(record)?;
+        let count = record.vertex_count as usize;
+        let (shortest, longest) = match self.layout {
+            VertexLayout::F32 => {
+                let length = self.length(record, nodes, count * F32_VERTEX_BYTES);
+                (length, length)
+            }
+            VertexLayout::Grid(grid) => {
+                let widest = [AxisWord {
+                    anchor: 0,
+                    width: grid.bits,
+                }; 3];
+                (
+                    self.length(record, nodes, AXIS_WORDS_BYTES),
+                    self.length(record, nodes, vertex_part_bytes(count, &widest)),
+                )
+            }
+        };
+        let start = record.data_word as u64 * 4;
+        if start + shortest > data_len {
+            return Err(past_the_end(start, shortest, data_len));
+        }
+        Ok(start..(start + longest).min(data_len))
+    }
+
+    /// Validates a strip's block inside `window` (which starts at `window_start` in the
+    /// section, and holds the block's [`BlockShape::extent`]); returns its real-triangle count.
+    fn check(
+        &self,
+        window: &[u8],
+        window_start: u64,
+        record: &StripRecord,
+        data_len: u64,
+    ) -> Result<u64, StripDefect> {
+        let nodes = self.nodes(record)?;
+        let start = record.data_word as u64 * 4;
+        let available = &window[(start - window_start) as usize..];
+        let vertex_bytes = match self.layout {
+            VertexLayout::F32 => record.vertex_count as usize * F32_VERTEX_BYTES,
+            VertexLayout::Grid(grid) => {
+                let words = AxisWord::read_all(available);
+                for (axis, word) in words.iter().enumerate() {
+                    word.check(grid.bits)
+                        .map_err(|detail| (Some(start + 4 * axis as u64), detail))?;
+                }
+                vertex_part_bytes(record.vertex_count as usize, &words)
+            }
+        };
+        let length = self.length(record, nodes, vertex_bytes);
+        if start + length > data_len {
+            return Err(past_the_end(start, length, data_len));
+        }
+        let local = StripRecord {
+            data_word: 0,
+            ..*record
+        };
+        let view = strip_view(
+            &available[..length as usize],
+            &local,
+            self.leaf_windows,
+            &self.layout,
+        );
+        check_view(&view, start + length, nodes)
+    }
+}
+
+fn past_the_end(start: u64, length: u64, data_len: u64) -> StripDefect {
+    let detail = format!("block of {length} bytes runs past the section end {data_len}");
+    (Some(start), detail)
+}
+
+/// Checks references and split axes of a block ending at section offset `block_end`; returns
+/// its real-triangle count.
+fn check_view(view: &StripView, block_end: u64, nodes: usize) -> Result<u64, StripDefect> {
+    let vertices = view.vertices.len();
     if let Some(position) = view.references.iter().position(|&r| r as usize >= vertices) {
-        let offset = block.end - view.references.len() as u64 + position as u64;
+        let offset = block_end - view.references.len() as u64 + position as u64;
         let detail = format!(
             "reference {} out of range ({vertices} vertices)",
             view.references[position]
         );
         return Err((Some(offset), detail));
     }
-    let nodes = internal_nodes(view.window_count(), leaf_windows);
     if let Some(node) = (0..nodes).find(|&n| view.axis(n) > 2) {
-        return Err((Some(block.start), format!("node {node} has split axis 3")));
+        let axes_start = block_end - (view.references.len() + view.axes.len()) as u64;
+        return Err((Some(axes_start), format!("node {node} has split axis 3")));
     }
     Ok(crate::strip::triangles(view.references).count() as u64)
 }
@@ -568,8 +691,7 @@ impl Checker<'_> {
             );
             return Err(self.invalid("header", 0, detail));
         }
-        let header: Header =
-            bytemuck::pod_read_unaligned(&self.head[..std::mem::size_of::<Header>()]);
+        let header: Header = bytemuck::pod_read_unaligned(&self.head[..size_of::<Header>()]);
         if header.magic != MAGIC {
             return Err(self.invalid("header", 0, "not a ReduceM file (bad magic)".into()));
         }
@@ -593,20 +715,12 @@ impl Checker<'_> {
             return Err(self.invalid("header", 8, detail));
         }
         let checksum = xxhash_rust::xxh3::xxh3_64(&self.head[..HEADER_CHECKSUMMED_BYTES]);
-        if checksum != header.header_checksum
-            || header.header_bytes as usize != std::mem::size_of::<Header>()
+        if checksum != header.header_checksum || header.header_bytes as usize != size_of::<Header>()
         {
             return Err(self.invalid(
                 "header",
                 HEADER_CHECKSUMMED_BYTES as u64,
                 "header checksum mismatch".into(),
-            ));
-        }
-        if VertexEncoding::from_u32(header.vertex_encoding).is_none() {
-            return Err(self.invalid(
-                "header",
-                20,
-                format!("unknown vertex encoding {}", header.vertex_encoding),
             ));
         }
         if !(1..=255).contains(&header.leaf_windows) {
@@ -617,6 +731,75 @@ impl Checker<'_> {
             ));
         }
         Ok(header)
+    }
+
+    /// The precision record of a format 2.1 file, checksum checked; zeros for 2.0.
+    fn precision(&self, header: &Header) -> Result<PrecisionRecord, FormatError> {
+        if header.version_minor == 0 {
+            return Ok(PrecisionRecord::default());
+        }
+        let bytes = &self.head[PRECISION_OFFSET..PRECISION_OFFSET + size_of::<PrecisionRecord>()];
+        let record: PrecisionRecord = bytemuck::pod_read_unaligned(bytes);
+        if record.computed_checksum() != record.checksum {
+            return Err(self.invalid(
+                "header",
+                (PRECISION_OFFSET + PRECISION_CHECKSUMMED_BYTES) as u64,
+                "precision record checksum mismatch".into(),
+            ));
+        }
+        Ok(record)
+    }
+
+    /// The vertex layout the header and precision record describe, checked: a grid has 1 to 24
+    /// bits, a power-of-two cell and finite corners, so that every grid point decodes to a
+    /// finite position; f32 vertices have no grid.
+    fn layout(
+        &self,
+        header: &Header,
+        precision: &PrecisionRecord,
+    ) -> Result<VertexLayout, FormatError> {
+        let at = |field: usize| (PRECISION_OFFSET + field) as u64;
+        match VertexEncoding::from_u32(header.vertex_encoding) {
+            None => Err(self.invalid(
+                "header",
+                20,
+                format!("unknown vertex encoding {}", header.vertex_encoding),
+            )),
+            Some(VertexEncoding::F32) if precision.grid_bits != 0 => Err(self.invalid(
+                "header",
+                at(0),
+                format!("f32 vertices with a {}-bit grid", precision.grid_bits),
+            )),
+            Some(VertexEncoding::F32) => Ok(VertexLayout::F32),
+            Some(VertexEncoding::Grid) if header.version_minor == 0 => Err(self.invalid(
+                "header",
+                20,
+                "grid vertices need format 2.1 or later".into(),
+            )),
+            Some(VertexEncoding::Grid) => {
+                let grid = precision.grid();
+                if !(1..=MAX_GRID_BITS).contains(&grid.bits) {
+                    let detail = format!("grid of {} bits outside 1..={MAX_GRID_BITS}", grid.bits);
+                    return Err(self.invalid("header", at(0), detail));
+                }
+                let power_of_two = grid.cell.is_normal()
+                    && grid.cell > 0.0
+                    && grid.cell.to_bits() & 0x007f_ffff == 0;
+                if !power_of_two {
+                    let detail = format!("grid cell {} is not a power of two", grid.cell);
+                    return Err(self.invalid("header", at(20), detail));
+                }
+                let far = grid.far_corner();
+                if !grid.origin.iter().chain(&far).all(|c| c.is_finite()) {
+                    let detail = format!(
+                        "grid from {:?} in steps of {} is not finite",
+                        grid.origin, grid.cell
+                    );
+                    return Err(self.invalid("header", at(8), detail));
+                }
+                Ok(VertexLayout::Grid(grid))
+            }
+        }
     }
 
     fn sections(&self, header: &Header) -> Result<[Range<usize>; 3], FormatError> {

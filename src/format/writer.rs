@@ -7,15 +7,17 @@ use std::path::{Path, PathBuf};
 
 use xxhash_rust::xxh3::Xxh3;
 
+use super::grid::Grid;
 use super::{
-    align_up, Header, SectionEntry, SectionKind, StripRecord, VertexEncoding, ENDIAN_MARKER,
-    HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR,
-    VERSION_MINOR,
+    align_up, Header, PrecisionRecord, SectionEntry, SectionKind, StripRecord, VertexEncoding,
+    ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, PRECISION_OFFSET, SECTION_ALIGN,
+    SECTION_COUNT, VERSION_MAJOR, VERSION_MINOR,
 };
 use crate::atomic::write_atomically;
 use crate::build::ChunkStats;
 use crate::encode::EncodedStrip;
 use crate::geometry::Aabb;
+use crate::input::WeldStats;
 use crate::toplevel::TopLevel;
 
 /// What the header records about the build besides the sections.
@@ -25,6 +27,9 @@ pub struct FileInfo {
     pub leaf_windows: usize,
     pub max_strip_length: usize,
     pub bounds: Aabb,
+    /// The grid the vertices were snapped to; `None` for lossless f32 vertices.
+    pub grid: Option<Grid>,
+    pub weld: WeldStats,
 }
 
 /// A failed write, naming the file.
@@ -87,7 +92,32 @@ fn write_sections(
     }
     let header = header(info, source.strip_count(), entries);
     file.seek(SeekFrom::Start(0))?;
-    file.write_all(bytemuck::bytes_of(&header))
+    file.write_all(bytemuck::bytes_of(&header))?;
+    file.seek(SeekFrom::Start(PRECISION_OFFSET as u64))?;
+    file.write_all(bytemuck::bytes_of(&precision(info)))
+}
+
+fn precision(info: &FileInfo) -> PrecisionRecord {
+    let grid = info.grid.unwrap_or(Grid {
+        bits: 0,
+        origin: [0.0; 3],
+        cell: 0.0,
+    });
+    let error = &info.stats.quantization;
+    let weld = &info.weld.displacement;
+    PrecisionRecord {
+        grid_bits: grid.bits,
+        grid_origin: grid.origin,
+        grid_cell: grid.cell,
+        error_max: error.max,
+        error_rms: error.rms(),
+        weld_tolerance: info.weld.tolerance,
+        welded_vertex_count: weld.count,
+        weld_displacement_max: weld.max,
+        weld_displacement_rms: weld.rms(),
+        ..PrecisionRecord::default()
+    }
+    .sealed()
 }
 
 /// The sections of a model converted in memory.
@@ -148,7 +178,10 @@ fn header(info: &FileInfo, strip_count: u64, sections: [SectionEntry; SECTION_CO
         version_minor: VERSION_MINOR,
         endian_marker: ENDIAN_MARKER,
         header_bytes: std::mem::size_of::<Header>() as u32,
-        vertex_encoding: VertexEncoding::F32 as u32,
+        vertex_encoding: match info.grid {
+            None => VertexEncoding::F32 as u32,
+            Some(_) => VertexEncoding::Grid as u32,
+        },
         leaf_windows: info.leaf_windows as u32,
         max_strip_length: info.max_strip_length as u32,
         triangle_count: info.stats.triangles,

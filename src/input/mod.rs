@@ -11,6 +11,7 @@ mod error;
 mod obj;
 mod ply;
 pub mod stream;
+mod tolerance_weld;
 mod weld;
 
 use std::path::Path;
@@ -19,7 +20,8 @@ pub use error::{InputError, InputErrorKind, Location};
 pub use obj::read_obj;
 pub use ply::PlyFile;
 pub use stream::PlyStream;
-pub use weld::weld_identical_positions;
+pub use tolerance_weld::{tolerance_representatives, weld_within_tolerance, WeldStats};
+pub use weld::{weld_identical_positions, weld_identical_positions_kept};
 
 use crate::mesh::Mesh;
 

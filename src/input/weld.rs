@@ -18,13 +18,21 @@ use crate::mesh::Mesh;
 /// remapped. Unreferenced vertices are kept. Triangles must refer to existing vertices, as the
 /// readers guarantee.
 pub fn weld_identical_positions(mesh: Mesh) -> Mesh {
+    weld_identical_positions_kept(mesh).0
+}
+
+/// [`weld_identical_positions`], and for each vertex of the result its index in `mesh` (so that
+/// data kept beside the positions can follow).
+pub fn weld_identical_positions_kept(mesh: Mesh) -> (Mesh, Vec<u32>) {
     let representative = first_occurrences(&mesh);
     let mut new_index = vec![0u32; mesh.positions.len()];
     let mut positions = Vec::with_capacity(mesh.positions.len());
+    let mut kept = Vec::with_capacity(mesh.positions.len());
     for (index, point) in mesh.positions.iter().enumerate() {
         let first = representative[index] as usize;
         new_index[index] = if first == index {
             positions.push(*point);
+            kept.push(index as u32);
             // Fewer survivors than input vertices, whose indices fit in u32.
             (positions.len() - 1) as u32
         } else {
@@ -36,10 +44,11 @@ pub fn weld_identical_positions(mesh: Mesh) -> Mesh {
         .into_par_iter()
         .map(|triangle| triangle.map(|vertex| new_index[vertex as usize]))
         .collect();
-    Mesh {
+    let welded = Mesh {
         positions,
         triangles,
-    }
+    };
+    (welded, kept)
 }
 
 /// For every vertex, the index of the first vertex at the same position.

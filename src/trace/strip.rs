@@ -162,8 +162,8 @@ impl StripQuery<'_> {
                 // Validated axes are at most 2; saying so lets the compiler drop the bounds
                 // checks of the indexing below.
                 let axis = view.axis(node).min(2);
-                let left_max = view.vertices[2 * node][axis];
-                let right_min = view.vertices[2 * node + 1][axis];
+                let left_max = view.vertices.coordinate(2 * node, axis);
+                let right_min = view.vertices.coordinate(2 * node + 1, axis);
                 let left = Pending {
                     node: current.node + 1,
                     end: mid as u32,
@@ -241,7 +241,7 @@ impl StripQuery<'_> {
     ) -> [[f32; 2 * BLOCK]; 3] {
         let mut model = [[0.0f32; 2 * BLOCK]; 3];
         for (position, &reference) in references.iter().enumerate() {
-            let vertex = &view.vertices[reference as usize];
+            let vertex = view.vertices.point(reference as usize);
             model[0][position] = vertex[KX];
             model[1][position] = vertex[KY];
             model[2][position] = vertex[KZ];

@@ -6,11 +6,13 @@ use std::path::{Path, PathBuf};
 
 use reducem::build::ChunkStats;
 use reducem::decode;
-use reducem::encode::{encode_strip, split_strip, EncodedStrip};
+use reducem::encode::{encode_strip, split_strip, EncodedStrip, Positions};
+use reducem::format::grid::Grid;
 use reducem::format::reader::ReducemFile;
 use reducem::format::writer::{write_file, FileInfo};
 use reducem::geometry::{is_degenerate, Aabb, Point};
 use reducem::mesh::Mesh;
+use reducem::quantize::quantize_mesh;
 pub use reducem::splitmix::SplitMix64;
 use reducem::strip;
 use reducem::toplevel::{self, TopLevelParams};
@@ -241,10 +243,22 @@ fn join(strip: &mut Vec<u32>, [a, b, c]: [u32; 3]) {
 /// Writes `strips` over `mesh` as a ReduceM file: the build side's encoder, top level and
 /// writer, without the stripifier.
 pub fn write_strips(mesh: &Mesh, strips: &[Vec<u32>], leaf_windows: usize, path: &Path) {
+    let positions = Positions::F32(&mesh.positions);
+    write_positioned_strips(positions, None, strips, leaf_windows, path);
+}
+
+/// [`write_strips`] over vertices in any encoding (`grid` when `positions` are grid points).
+pub fn write_positioned_strips(
+    positions: Positions,
+    grid: Option<Grid>,
+    strips: &[Vec<u32>],
+    leaf_windows: usize,
+    path: &Path,
+) {
     let mut encoded: Vec<EncodedStrip> = Vec::new();
     let mut stack: Vec<&[u32]> = strips.iter().rev().map(|s| s.as_slice()).collect();
     while let Some(references) = stack.pop() {
-        match encode_strip(references, &mesh.positions, leaf_windows) {
+        match encode_strip(references, positions, leaf_windows) {
             Ok(strip) => encoded.push(strip),
             Err(_) => {
                 let (first, second) = split_strip(references);
@@ -253,12 +267,21 @@ pub fn write_strips(mesh: &Mesh, strips: &[Vec<u32>], leaf_windows: usize, path:
             }
         }
     }
+    let triangles = strips.iter().map(|s| strip::triangles(s).count() as u64);
+    write_encoded_strips(&encoded, grid, triangles.sum(), leaf_windows, path);
+}
+
+/// Writes encoded strips (of `triangles` real triangles) with a top level over them.
+pub fn write_encoded_strips(
+    encoded: &[EncodedStrip],
+    grid: Option<Grid>,
+    triangles: u64,
+    leaf_windows: usize,
+    path: &Path,
+) {
     let stats = ChunkStats {
         stored_vertices: encoded.iter().map(|s| s.vertex_count as u64).sum(),
-        triangles: strips
-            .iter()
-            .map(|s| strip::triangles(s).count() as u64)
-            .sum(),
+        triangles,
         ..ChunkStats::default()
     };
     let bounds: Vec<Aabb> = encoded.iter().map(|s| s.bounds).collect();
@@ -268,8 +291,10 @@ pub fn write_strips(mesh: &Mesh, strips: &[Vec<u32>], leaf_windows: usize, path:
         leaf_windows,
         max_strip_length: 1000,
         bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
+        grid,
+        weld: Default::default(),
     };
-    write_file(path, &info, &top, &encoded).expect("write file");
+    write_file(path, &info, &top, encoded).expect("write file");
 }
 
 /// A mesh written with long strips and opened.
@@ -277,6 +302,48 @@ pub fn open_with_long_strips(mesh: &Mesh, name: &str, max_windows: usize) -> Red
     let path = temp_path(name);
     write_strips(mesh, &long_strips(mesh, max_windows), 2, &path);
     ReducemFile::open(&path).expect("open")
+}
+
+/// [`open_with_long_strips`] with vertices on the `bits`-bit grid over the mesh's bounds: long
+/// strips over the quantized mesh (coincident grid points welded and collapsed triangles
+/// dropped, as the build does).
+pub fn open_with_long_strips_on_grid(
+    mesh: &Mesh,
+    name: &str,
+    max_windows: usize,
+    bits: u32,
+) -> ReducemFile {
+    let grid = Grid::over(&mesh.bounds(), bits);
+    let mut quantized = quantize_mesh(mesh, &grid);
+    let positions = &quantized.mesh.positions;
+    quantized.mesh.triangles.retain(|t| {
+        let [a, b, c] = t.map(|v| positions[v as usize]);
+        !is_degenerate(&a, &b, &c)
+    });
+    let positions = Positions::Grid {
+        points: &quantized.points,
+        decoded: &quantized.mesh.positions,
+        bits,
+    };
+    let strips = long_strips(&quantized.mesh, max_windows);
+    let path = temp_path(name);
+    write_positioned_strips(positions, Some(grid), &strips, 2, &path);
+    ReducemFile::open(&path).expect("open")
+}
+
+/// `mesh` with every vertex snapped to the `bits`-bit grid over its bounds (not welded), and
+/// that grid: what a grid file of `mesh` must decode to, exactly.
+pub fn quantized_input(mesh: &Mesh, bits: u32) -> (Mesh, Grid) {
+    let grid = Grid::over(&mesh.bounds(), bits);
+    let snapped = Mesh {
+        positions: mesh
+            .positions
+            .iter()
+            .map(|p| grid.decode(&grid.quantize(p)))
+            .collect(),
+        triangles: mesh.triangles.clone(),
+    };
+    (snapped, grid)
 }
 
 /// The brute-force closest hit over every decoded triangle: `(t, triangle)`.

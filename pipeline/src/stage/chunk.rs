@@ -5,7 +5,8 @@
 //! The stage is one unit: a run killed inside it redoes it from the start, since its passes
 //! share one plan. Triangles are first spilled per chunk as global vertex indices (12 bytes
 //! each), then each chunk gathers its positions with `positions_of` and is written on its own,
-//! so memory holds one chunk at a time, plus the 2-byte cell of every vertex.
+//! so memory holds one chunk at a time, plus the 2-byte cell of every vertex (and, with a
+//! `[vertices] weld_tolerance`, every position while the model-wide weld is computed).
 
 use std::fs::{self, File};
 use std::io::{BufReader, BufWriter, Read, Write};
@@ -13,8 +14,8 @@ use std::path::Path;
 
 use anyhow::Context;
 use reducem::chunking::{self, MeshSource, Partition};
-use reducem::geometry::Point;
-use reducem::input::{InputError, PlyStream};
+use reducem::geometry::{Aabb, Point};
+use reducem::input::{InputError, PlyStream, WeldStats};
 use serde::{Deserialize, Serialize};
 
 use crate::chunk_io;
@@ -33,11 +34,20 @@ pub struct Chunked {
     pub triangles_per_chunk: Vec<u64>,
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
+    pub weld: WeldStats,
 }
 
 impl Chunked {
     pub fn chunk_count(&self) -> usize {
         self.triangles_per_chunk.len()
+    }
+
+    /// The bounds of every input vertex: the model grid is laid over them.
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            min: self.bounds_min,
+            max: self.bounds_max,
+        }
     }
 }
 
@@ -45,6 +55,10 @@ pub fn fingerprint(job: &Job, input: &ResolvedInput) -> Fingerprint {
     Fingerprint::new()
         .with("input", &input.content)
         .with("chunk.max_triangles", job.config.chunk.max_triangles)
+        .with(
+            "vertices.weld_tolerance",
+            job.config.vertices.weld_tolerance,
+        )
 }
 
 /// The recorded result, if the stage is fresh.
@@ -69,7 +83,10 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
         return Ok(chunked);
     }
     clear_chunks(job)?;
-    let source = open_source(&input.path)?;
+    let (source, weld) = chunking::weld_source(
+        open_source(&input.path)?,
+        job.config.vertices.weld_tolerance,
+    )?;
     let partition = chunking::partition(&*source, job.config.chunk.max_triangles)?;
     let triangles_per_chunk = spill(job, &*source, &partition)?;
     let progress = job
@@ -87,6 +104,7 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
         triangles_per_chunk,
         bounds_min: partition.bounds.min,
         bounds_max: partition.bounds.max,
+        weld,
     };
     write_json(&job.work.file(PLAN), &chunked)?;
     outputs.push(PLAN.to_string());

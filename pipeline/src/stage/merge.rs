@@ -1,14 +1,18 @@
 //! Stage *merge*: gathers every chunk's strip summary (strip, node and data sizes, bounds and
 //! statistics) into one table, and fixes where each chunk's strip blocks will sit in the final
-//! strip-data section. Reads only the 104-byte chunk headers.
+//! strip-data section. Reads only the 128-byte chunk headers. It also carries what the chunk
+//! stage measured (the weld) and the model grid to the write stage.
 
 use anyhow::Context;
 use reducem::build::ChunkStats;
-use reducem::geometry::Aabb;
+use reducem::format::grid::Grid;
+use reducem::geometry::{Aabb, Displacement};
+use reducem::input::WeldStats;
 use serde::{Deserialize, Serialize};
 
 use crate::chunk_io::StripChunk;
 use crate::fingerprint::Fingerprint;
+use crate::stage::chunk::Chunked;
 use crate::stage::{fresh_output, write_json, Job, Stamped};
 use crate::workdir::strip_chunk;
 
@@ -24,12 +28,16 @@ pub struct ChunkSummary {
     pub bounds_max: [f32; 3],
     /// triangles, dropped, input vertices, stored vertices, hierarchy vertices, max strip length.
     pub stats: [u64; 6],
+    pub quantization: Displacement,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Merged {
     pub digest: String,
     pub chunks: Vec<ChunkSummary>,
+    /// The grid every chunk's vertices were snapped to, if any.
+    pub grid: Option<Grid>,
+    pub weld: WeldStats,
 }
 
 impl Merged {
@@ -45,6 +53,7 @@ impl Merged {
                 stored_vertices,
                 hierarchy_vertices,
                 max_strip_length,
+                quantization: chunk.quantization,
             });
         }
         total
@@ -77,7 +86,8 @@ impl Stamped for Merged {
     }
 }
 
-pub fn run(job: &Job, chunk_count: usize, strip_digest: &str) -> anyhow::Result<Merged> {
+pub fn run(job: &Job, chunked: &Chunked, strip_digest: &str) -> anyhow::Result<Merged> {
+    let chunk_count = chunked.chunk_count();
     let fingerprint = fingerprint(strip_digest);
     if let Some(merged) = fresh_result(job, &fingerprint) {
         job.progress.event(UNIT, "skip", "fresh");
@@ -97,12 +107,15 @@ pub fn run(job: &Job, chunk_count: usize, strip_digest: &str) -> anyhow::Result<
             bounds_min: header.bounds_min,
             bounds_max: header.bounds_max,
             stats: header.stats,
+            quantization: header.quantization(),
         });
         progress.advance(1);
     }
     let merged = Merged {
         digest: fingerprint.digest(),
         chunks,
+        grid: job.config.build_params().grid(&chunked.bounds()),
+        weld: chunked.weld,
     };
     write_json(&job.work.file(TABLE), &merged)?;
     job.complete(UNIT, &fingerprint, &[TABLE.to_string()])?;

@@ -4,7 +4,7 @@
 //! about threads × one chunk ([`for_each_unit`]).
 
 use anyhow::Context;
-use reducem::build::{encode_chunk, strip_bounds};
+use reducem::build::{encode_chunk_on, strip_bounds};
 use reducem::format::StripRecord;
 use reducem::toplevel::{self, TopLevelParams};
 
@@ -30,7 +30,16 @@ pub fn fingerprint(job: &Job, chunked: &Chunked, chunk: usize) -> Fingerprint {
         .with("strip.max_length", strip.max_length)
         .with("strip.leaf_triangles", strip.leaf_triangles)
         .with("strip.sah_bins", strip.sah_bins)
+        .with("vertices.grid_bits", grid_bits(job))
         .with("top_level", format!("{:?}", TopLevelParams::default()))
+}
+
+/// `[vertices] grid_bits` when the encoding uses it, else "none" (f32 vertices).
+fn grid_bits(job: &Job) -> String {
+    job.config
+        .build_params()
+        .grid_bits
+        .map_or("none".to_string(), |bits| bits.to_string())
 }
 
 /// Digest over every chunk's fingerprint: what later stages depend on.
@@ -68,7 +77,7 @@ pub fn run(job: &Job, chunked: &Chunked, shard: Shard) -> anyhow::Result<String>
         job.reload_manifest();
         let fingerprint = fingerprint(job, chunked, chunk);
         if job.freshness(&unit(chunk), &fingerprint) != Freshness::Fresh {
-            strip_one(job, chunk).with_context(|| format!("chunk {chunk}"))?;
+            strip_one(job, chunked, chunk).with_context(|| format!("chunk {chunk}"))?;
             job.complete(&unit(chunk), &fingerprint, &[strip_chunk(chunk)])?;
             converted.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
@@ -95,11 +104,14 @@ pub fn run(job: &Job, chunked: &Chunked, shard: Shard) -> anyhow::Result<String>
     Ok(digest(job, chunked))
 }
 
-fn strip_one(job: &Job, chunk: usize) -> anyhow::Result<()> {
+fn strip_one(job: &Job, chunked: &Chunked, chunk: usize) -> anyhow::Result<()> {
     let mesh_path = job.work.file(&mesh_chunk(chunk));
     let mesh = chunk_io::read_mesh(&mesh_path)
         .with_context(|| format!("reading {}", mesh_path.display()))?;
-    let encoded = encode_chunk(&mesh, &job.config.build_params());
+    let params = job.config.build_params();
+    // One grid over the whole model, the same for every chunk.
+    let grid = params.grid(&chunked.bounds());
+    let encoded = encode_chunk_on(&mesh, &params, grid.as_ref());
     drop(mesh);
     let bounds = strip_bounds(&encoded.strips);
     let top = toplevel::build(&bounds, &TopLevelParams::default());

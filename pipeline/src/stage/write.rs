@@ -49,6 +49,8 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         leaf_windows: job.config.strip.leaf_triangles,
         max_strip_length: job.config.strip.max_length,
         bounds: merged.bounds(),
+        grid: merged.grid,
+        weld: merged.weld,
     };
     let mut source = Spliced::new(job, merged, hierarchy)?;
     write_streaming(&output, &info, &mut source)?;

@@ -1,0 +1,310 @@
+//! The vertices of a quantized strip block: one anchor per axis plus fixed-width offsets, the
+//! approach of AMD's Dense Geometry Format (Barczak et al., "DGF: A Dense, Hardware-Friendly
+//! Geometry Format for Lossily Compressing Meshlets with Arbitrary Topologies", HPG 2024).
+//!
+//! A strip is small and spatially compact, so its grid points differ from the strip's minimum
+//! corner by far less than the grid's extent: each axis stores only the bits that the strip's
+//! extent on that axis needs. Layout at the start of the block (little-endian):
+//!
+//! ```text
+//! 3 axis words (u32: x, y, z)   bits 0..24 anchor a (grid coordinate), bits 24..29 width w
+//!                               (0..=24), bits 29..32 zero
+//! vertex offsets                vertex_count × (wx + wy + wz) bits in ceil(/ 8) bytes, least
+//!                               significant bit first; vertex i's x offset at bits
+//!                               [i s, i s + wx), then y, then z (s = wx + wy + wz)
+//! ```
+//!
+//! A vertex's grid coordinate on an axis is `a + offset`. Writers keep `a + 2^w - 1` inside the
+//! grid (`< 2^bits`), so a reader checks three words, not every vertex, to know that every grid
+//! coordinate is in range.
+//!
+//! Decoding reads four bytes per axis at the offset's first byte: an offset of at most 24 bits
+//! shifted by at most 7 fits. The last such read ends at most three bytes past the offsets, and
+//! a block always has at least three reference bytes after them.
+
+use super::grid::{Grid, MAX_GRID_BITS};
+use crate::geometry::Point;
+
+/// Bytes of the three axis words at the start of a quantized block.
+pub const AXIS_WORDS_BYTES: usize = 12;
+
+const ANCHOR_MASK: u32 = (1 << MAX_GRID_BITS) - 1;
+const WIDTH_SHIFT: u32 = 24;
+
+/// One axis of a strip's quantized vertices: the anchor and the offset width in bits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AxisWord {
+    pub anchor: u32,
+    pub width: u32,
+}
+
+impl AxisWord {
+    pub fn to_u32(self) -> u32 {
+        self.anchor | self.width << WIDTH_SHIFT
+    }
+
+    pub fn from_u32(word: u32) -> AxisWord {
+        AxisWord {
+            anchor: word & ANCHOR_MASK,
+            width: word >> WIDTH_SHIFT,
+        }
+    }
+
+    /// The three words at the start of `block` (at least [`AXIS_WORDS_BYTES`] long), unchecked.
+    #[inline]
+    pub fn read_all(block: &[u8]) -> [AxisWord; 3] {
+        std::array::from_fn(|a| {
+            let at = 4 * a;
+            AxisWord::from_u32(u32::from_le_bytes([
+                block[at],
+                block[at + 1],
+                block[at + 2],
+                block[at + 3],
+            ]))
+        })
+    }
+
+    /// Whether the word fits the file's grid (see the module documentation).
+    pub fn check(&self, grid_bits: u32) -> Result<(), String> {
+        if self.width > grid_bits {
+            return Err(format!(
+                "offset width {} exceeds the grid's {grid_bits} bits",
+                self.width
+            ));
+        }
+        let top = self.anchor as u64 + (1u64 << self.width) - 1;
+        if top >> grid_bits != 0 {
+            return Err(format!(
+                "anchor {} plus {}-bit offsets leaves the {grid_bits}-bit grid",
+                self.anchor, self.width
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Bits of one vertex's offsets.
+pub fn vertex_bits(axes: &[AxisWord; 3]) -> usize {
+    axes.iter().map(|a| a.width as usize).sum()
+}
+
+/// Bytes of the axis words and offsets of `count` vertices.
+pub fn vertex_part_bytes(count: usize, axes: &[AxisWord; 3]) -> usize {
+    AXIS_WORDS_BYTES + (count * vertex_bits(axes)).div_ceil(8)
+}
+
+/// The axis words and packed offsets of `points` on a grid of `grid_bits` bits.
+pub fn pack(points: &[[u32; 3]], grid_bits: u32) -> Vec<u8> {
+    let axes: [AxisWord; 3] = std::array::from_fn(|a| {
+        let min = points.iter().map(|p| p[a]).min().unwrap_or(0);
+        let max = points.iter().map(|p| p[a]).max().unwrap_or(0);
+        let width = u32::BITS - (max - min).leading_zeros();
+        // Lowered when the offsets' full range would pass the grid's last coordinate; the
+        // offsets still fit, since max < 2^bits.
+        let anchor = min.min((1u32 << grid_bits) - (1u32 << width));
+        AxisWord { anchor, width }
+    });
+    let mut bytes = Vec::with_capacity(vertex_part_bytes(points.len(), &axes));
+    for axis in &axes {
+        bytes.extend_from_slice(&axis.to_u32().to_le_bytes());
+    }
+    let mut writer = BitWriter {
+        bytes,
+        pending: 0,
+        pending_bits: 0,
+    };
+    for p in points {
+        for (a, axis) in axes.iter().enumerate() {
+            writer.push(p[a] - axis.anchor, axis.width);
+        }
+    }
+    writer.finish()
+}
+
+/// Appends values of up to 24 bits, least significant bit first.
+struct BitWriter {
+    bytes: Vec<u8>,
+    pending: u64,
+    pending_bits: u32,
+}
+
+impl BitWriter {
+    fn push(&mut self, value: u32, width: u32) {
+        self.pending |= (value as u64) << self.pending_bits;
+        self.pending_bits += width;
+        while self.pending_bits >= 8 {
+            self.bytes.push(self.pending as u8);
+            self.pending >>= 8;
+            self.pending_bits -= 8;
+        }
+    }
+
+    fn finish(mut self) -> Vec<u8> {
+        if self.pending_bits > 0 {
+            self.bytes.push(self.pending as u8);
+        }
+        self.bytes
+    }
+}
+
+/// A strip's quantized vertices decoded in place from the mapping.
+#[derive(Clone, Copy, Debug)]
+pub struct GridVertices<'a> {
+    /// From the first offset byte to the end of the block (at least three bytes past the
+    /// offsets: see the module documentation).
+    bytes: &'a [u8],
+    anchor: [u32; 3],
+    mask: [u32; 3],
+    /// Bit of vertex 0's offset on each axis; 0 for zero-width axes, so that their (masked)
+    /// read never passes the offsets.
+    first_bit: [u32; 3],
+    stride: u32,
+    count: u32,
+    grid: Grid,
+}
+
+impl<'a> GridVertices<'a> {
+    /// `bytes` starts at the first offset byte and runs to the block's end; `axes` were checked
+    /// by [`AxisWord::check`] and the block's length by the reader.
+    pub fn new(bytes: &'a [u8], axes: &[AxisWord; 3], count: usize, grid: &Grid) -> Self {
+        let mut first_bit = [0; 3];
+        let mut stride = 0;
+        for (a, axis) in axes.iter().enumerate() {
+            if axis.width > 0 {
+                first_bit[a] = stride;
+            }
+            stride += axis.width;
+        }
+        GridVertices {
+            bytes,
+            anchor: axes.map(|a| a.anchor),
+            mask: axes.map(|a| (1u32 << a.width) - 1),
+            first_bit,
+            stride,
+            count: count as u32,
+            grid: *grid,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.count as usize
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// Grid coordinate of vertex `index` on `axis`.
+    #[inline(always)]
+    pub fn grid_coordinate(&self, index: usize, axis: usize) -> u32 {
+        let bit = index as u32 * self.stride + self.first_bit[axis];
+        let at = (bit >> 3) as usize;
+        let word = u32::from_le_bytes([
+            self.bytes[at],
+            self.bytes[at + 1],
+            self.bytes[at + 2],
+            self.bytes[at + 3],
+        ]);
+        self.anchor[axis] + ((word >> (bit & 7)) & self.mask[axis])
+    }
+
+    pub fn grid_point(&self, index: usize) -> [u32; 3] {
+        [0, 1, 2].map(|a| self.grid_coordinate(index, a))
+    }
+
+    /// Vertex `index`'s coordinate on `axis`, through [`Grid::decode_axis`].
+    #[inline(always)]
+    pub fn coordinate(&self, index: usize, axis: usize) -> f32 {
+        self.grid
+            .decode_axis(self.grid_coordinate(index, axis), axis)
+    }
+
+    #[inline(always)]
+    pub fn point(&self, index: usize) -> Point {
+        [
+            self.coordinate(index, 0),
+            self.coordinate(index, 1),
+            self.coordinate(index, 2),
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Aabb;
+
+    fn words(bytes: &[u8], bits: u32) -> [AxisWord; 3] {
+        let axes = AxisWord::read_all(bytes);
+        for axis in &axes {
+            axis.check(bits).expect("valid word");
+        }
+        axes
+    }
+
+    fn decoder<'a>(bytes: &'a [u8], count: usize, grid: &Grid) -> GridVertices<'a> {
+        let axes = words(bytes, grid.bits);
+        GridVertices::new(&bytes[AXIS_WORDS_BYTES..], &axes, count, grid)
+    }
+
+    fn unit_grid(bits: u32) -> Grid {
+        Grid::over(
+            &Aabb {
+                min: [0.0; 3],
+                max: [1.0; 3],
+            },
+            bits,
+        )
+    }
+
+    #[test]
+    fn packed_points_read_back_exactly() {
+        let grid = unit_grid(20);
+        let points: Vec<[u32; 3]> = (0..200u32)
+            .map(|i| [1000 + i * 37 % 4096, 77, 500_000 + (i * i) % 300])
+            .collect();
+        let mut bytes = pack(&points, 20);
+        let axes = words(&bytes, 20);
+        assert_eq!(axes.map(|a| a.width), [12, 0, 9]);
+        assert_eq!(bytes.len(), vertex_part_bytes(points.len(), &axes));
+        bytes.extend([0; 3]);
+        let vertices = decoder(&bytes, points.len(), &grid);
+        for (i, p) in points.iter().enumerate() {
+            assert_eq!(vertices.grid_point(i), *p);
+            assert_eq!(vertices.point(i), grid.decode(p));
+        }
+    }
+
+    #[test]
+    fn anchors_near_the_grid_end_are_lowered_to_stay_inside() {
+        let points = [[1022, 1023, 0], [1023, 1015, 0]];
+        let mut bytes = pack(&points, 10);
+        let axes = words(&bytes, 10);
+        assert_eq!(
+            axes[0],
+            AxisWord {
+                anchor: 1022,
+                width: 1
+            }
+        );
+        assert_eq!(
+            axes[1],
+            AxisWord {
+                anchor: 1008,
+                width: 4
+            }
+        );
+        bytes.extend([0; 3]);
+        let vertices = decoder(&bytes, 2, &unit_grid(10));
+        assert_eq!(vertices.grid_point(1), points[1]);
+    }
+
+    #[test]
+    fn words_outside_the_grid_are_rejected() {
+        let check = |anchor, width, bits| AxisWord { anchor, width }.check(bits);
+        assert!(check(0, 17, 16).is_err());
+        assert!(check(65_535, 1, 16).is_err());
+        assert!(check(65_534, 1, 16).is_ok());
+        assert!(AxisWord::from_u32(u32::MAX).check(24).is_err());
+    }
+}

@@ -1,0 +1,251 @@
+//! Grid (quantized) vertices: a grid file decodes to exactly the quantized input, every vertex
+//! lies within the grid's error bound of its input, chunks encoded on one model grid stay
+//! closed across their boundaries, and the tolerance weld reconnects perturbed meshes.
+
+mod common;
+
+use common::*;
+use reducem::build::{convert_mesh, encode_chunk, encode_chunk_on, BuildParams};
+use reducem::chunking::local_mesh;
+use reducem::decode;
+use reducem::encode::{self, EncodedStrip};
+use reducem::format::grid::Grid;
+use reducem::format::reader::{ReducemFile, VertexLayout};
+use reducem::geometry::{distance, Point};
+use reducem::input::weld_within_tolerance;
+use reducem::inspect::file_stats;
+use reducem::mesh::Mesh;
+
+fn grid_params(bits: u32, leaf_windows: usize) -> BuildParams {
+    BuildParams {
+        leaf_windows,
+        grid_bits: Some(bits),
+        ..BuildParams::default()
+    }
+}
+
+fn convert_on_grid(mesh: &Mesh, params: &BuildParams, name: &str) -> ReducemFile {
+    let path = temp_path(name);
+    convert_mesh(mesh, params, &path).expect("convert");
+    let file = ReducemFile::open(&path).expect("open");
+    file.verify_checksums().expect("checksums");
+    file
+}
+
+fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usize) {
+    let params = grid_params(bits, leaf_windows);
+    let chunk = encode_chunk(mesh, &params);
+    let layout = chunk.grid.into();
+    for (i, strip) in chunk.strips.iter().enumerate() {
+        encode::validate(strip, leaf_windows, &layout)
+            .unwrap_or_else(|e| panic!("{name} at {bits} bits: strip {i}: {e}"));
+    }
+    let file = convert_on_grid(mesh, &params, &format!("{name}-{bits}-{leaf_windows}.rdm"));
+    let (quantized, grid) = quantized_input(mesh, bits);
+    assert_eq!(file.vertex_layout(), &VertexLayout::Grid(grid));
+    let expected = expected_triangles(&quantized);
+    assert_eq!(
+        canonical_sorted(decode::triangles(&file)),
+        expected,
+        "{name} at {bits} bits, leaf {leaf_windows}: decoded triangles differ"
+    );
+    let header = file.header();
+    assert_eq!(header.triangle_count, expected.len() as u64);
+    assert_eq!(
+        header.dropped_triangle_count,
+        (mesh.triangles.len() - expected.len()) as u64
+    );
+}
+
+fn generated(kind: reducem::gen::Kind, triangles: u64) -> Mesh {
+    let path = temp_path(&format!("quantized-{kind:?}.ply"));
+    reducem::gen::generate(kind, triangles, 2, &path).expect("generate");
+    reducem::input::read_mesh(&path).expect("read")
+}
+
+#[test]
+fn grid_files_decode_to_the_quantized_input_exactly() {
+    let meshes = [
+        ("grid", grid(40, 30)),
+        ("torus", torus(48, 20)),
+        ("soup", soup(400, 3)),
+        ("slivers", slivers(60)),
+        ("offset-sphere", transformed(&icosphere(3), |x| x + 1e5)),
+    ];
+    for (name, mesh) in &meshes {
+        for bits in [4, 10, 16, 20, 24] {
+            assert_grid_round_trip(name, mesh, bits, 2);
+        }
+    }
+    for leaf_windows in [1, 4, 8] {
+        assert_grid_round_trip("torus-leaf", &torus(30, 12), 16, leaf_windows);
+    }
+}
+
+#[test]
+fn generated_scan_round_trips_on_the_grid() {
+    let mesh = generated(reducem::gen::Kind::Scan, 20_000);
+    for bits in [12, 20] {
+        assert_grid_round_trip("scan", &mesh, bits, 2);
+    }
+}
+
+/// Half a unit in the last place of `x`: the most the decode's one rounding adds.
+fn half_ulp(x: f32) -> f32 {
+    let x = x.abs();
+    (f32::from_bits(x.to_bits() + 1) - x) / 2.0
+}
+
+#[test]
+fn every_vertex_lies_within_half_a_cell_of_its_input() {
+    let meshes = [
+        ("scan", generated(reducem::gen::Kind::Scan, 6_000)),
+        ("soup", soup(500, 9)),
+        (
+            "offset-sphere",
+            transformed(&icosphere(3), |x| x * 3.0 + 1e5),
+        ),
+    ];
+    for (name, mesh) in &meshes {
+        for bits in [8, 16, 20, 24] {
+            let file = convert_on_grid(mesh, &grid_params(bits, 2), &format!("bound-{name}.rdm"));
+            let grid = file.precision().grid();
+            assert_eq!(grid, Grid::over(&mesh.bounds(), bits));
+            let (quantized, _) = quantized_input(mesh, bits);
+            let mut largest = 0.0f64;
+            let mut squares = 0.0f64;
+            for (input, stored) in mesh.positions.iter().zip(&quantized.positions) {
+                for axis in 0..3 {
+                    let bound = grid.cell / 2.0 + half_ulp(stored[axis]);
+                    assert!(
+                        (stored[axis] - input[axis]).abs() <= bound,
+                        "{name} at {bits} bits: {input:?} stored at {stored:?}"
+                    );
+                }
+                let d = distance(input, stored);
+                largest = largest.max(d);
+                squares += d * d;
+            }
+            let stats = file_stats(&file);
+            assert_eq!(stats.position_error_max, largest, "{name} at {bits} bits");
+            let rms = (squares / mesh.positions.len() as f64).sqrt();
+            assert!((stats.position_error_rms - rms).abs() <= 1e-12 * rms.max(1.0));
+            assert!(stats.position_error_max <= grid.cell as f64 * 3f64.sqrt() / 2.0 * 1.0001);
+            let relative = stats.position_error_max / stats.bounds_diagonal;
+            assert_eq!(stats.position_error_max_relative, relative);
+        }
+    }
+}
+
+/// The triangles of `mesh` whose first vertex lies in each of the four quadrants around the
+/// z axis, each as a chunk with its own vertex array, as the pipeline's chunk stage makes them.
+fn quadrant_chunks(mesh: &Mesh) -> Vec<Mesh> {
+    let mut quadrants = vec![Vec::new(); 4];
+    for triangle in &mesh.triangles {
+        let p = mesh.positions[triangle[0] as usize];
+        quadrants[(p[0] >= 0.0) as usize + 2 * (p[1] >= 0.0) as usize].push(*triangle);
+    }
+    quadrants
+        .iter()
+        .map(|triangles| {
+            local_mesh(triangles, |ids| {
+                Ok::<_, ()>(ids.iter().map(|&v| mesh.positions[v as usize]).collect())
+            })
+            .expect("positions")
+        })
+        .collect()
+}
+
+#[test]
+fn chunks_on_one_model_grid_stay_closed_across_their_boundaries() {
+    let mesh = icosphere(4);
+    let inside: Vec<Point> = vec![[0.0; 3], [0.3, -0.2, 0.1], [-0.5, 0.4, -0.3]];
+    for bits in [10, 16, 24] {
+        let params = grid_params(bits, 2);
+        let grid = params.grid(&mesh.bounds());
+        let mut strips: Vec<EncodedStrip> = Vec::new();
+        let mut triangles = 0;
+        for chunk in quadrant_chunks(&mesh) {
+            let encoded = encode_chunk_on(&chunk, &params, grid.as_ref());
+            assert_eq!(encoded.stats.dropped_triangles, 0);
+            triangles += encoded.stats.triangles;
+            strips.extend(encoded.strips);
+        }
+        let path = temp_path(&format!("quadrants-{bits}.rdm"));
+        write_encoded_strips(&strips, grid, triangles, 2, &path);
+        let file = ReducemFile::open(&path).expect("open");
+        let (quantized, _) = quantized_input(&mesh, bits);
+        assert_eq!(
+            canonical_sorted(decode::triangles(&file)),
+            expected_triangles(&quantized)
+        );
+        assert_closed(
+            &file,
+            &quantized,
+            &inside,
+            &format!("quadrants at {bits} bits"),
+        );
+    }
+}
+
+#[test]
+fn coarse_grids_drop_collapsed_triangles_and_keep_the_rest() {
+    let mesh = icosphere(4);
+    let file = convert_on_grid(&mesh, &grid_params(5, 2), "coarse.rdm");
+    let (quantized, _) = quantized_input(&mesh, 5);
+    let expected = expected_triangles(&quantized);
+    assert!(expected.len() < mesh.triangles.len(), "nothing collapsed");
+    assert_eq!(canonical_sorted(decode::triangles(&file)), expected);
+    // Fewer distinct grid points than input vertices: coincident ones were merged.
+    assert!(file.header().input_vertex_count < mesh.positions.len() as u64);
+}
+
+/// Each triangle of `mesh` with its own copies of its corners, every copy moved by up to
+/// `amount` on each axis: a mesh whose shared vertices were perturbed.
+fn perturbed_copies(mesh: &Mesh, amount: f32, seed: u64) -> Mesh {
+    let mut rng = SplitMix64::new(seed);
+    let mut out = Mesh::default();
+    for triangle in &mesh.triangles {
+        let base = out.positions.len() as u32;
+        for &v in triangle {
+            let p = mesh.positions[v as usize];
+            out.positions
+                .push(p.map(|c| c + rng.range(-amount, amount)));
+        }
+        out.triangles.push([base, base + 1, base + 2]);
+    }
+    out
+}
+
+#[test]
+fn a_tolerance_weld_reconnects_a_perturbed_mesh_into_long_strips() {
+    let mesh = grid(50, 40);
+    let perturbed = perturbed_copies(&mesh, 1e-5, 4);
+    let apart = convert_on_grid(&perturbed, &BuildParams::default(), "perturbed.rdm");
+    assert_eq!(file_stats(&apart).avg_strip_length, 1.0);
+
+    let tolerance = 1e-4;
+    let (welded, stats) = weld_within_tolerance(perturbed.clone(), tolerance);
+    assert_eq!(welded.positions.len(), mesh.positions.len());
+    assert_eq!(
+        stats.displacement.count as usize,
+        perturbed.positions.len() - mesh.positions.len()
+    );
+    assert!(stats.displacement.max <= tolerance as f64);
+    for (triangle, original) in welded.triangles.iter().zip(&perturbed.triangles) {
+        for (v, o) in triangle.iter().zip(original) {
+            let moved = distance(
+                &welded.positions[*v as usize],
+                &perturbed.positions[*o as usize],
+            );
+            assert!(moved <= tolerance as f64);
+        }
+    }
+    let joined = convert_on_grid(&welded, &BuildParams::default(), "welded.rdm");
+    assert_eq!(
+        canonical_sorted(decode::triangles(&joined)),
+        expected_triangles(&welded)
+    );
+    let length = file_stats(&joined).avg_strip_length;
+    assert!(length > 10.0, "average strip length {length}");
+}
