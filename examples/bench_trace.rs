@@ -58,6 +58,10 @@ struct Args {
     /// is tested against every triangle).
     #[arg(long)]
     check_ao: bool,
+    /// Trace this converted file (any vertex encoding) instead of converting the mesh; ReduceM
+    /// alone (`scripts/bench_quantized.sh`).
+    #[arg(long)]
+    model: Option<PathBuf>,
     /// Where generated meshes and converted files are cached between runs.
     #[arg(long, default_value = "/tmp/reducem-bench")]
     dir: PathBuf,
@@ -72,7 +76,7 @@ fn main() -> anyhow::Result<()> {
     let name = format!("{}-{}", kind_name(args.kind), args.triangles);
     // Loaded only when needed, so that tuning runs on a cached file trace and nothing else.
     let mut mesh = None;
-    let model = args.dir.join(format!("{name}.rdm"));
+    let model = args.model.clone().unwrap_or_else(|| args.dir.join(format!("{name}.rdm")));
     if !model.exists() {
         let started = Instant::now();
         let mesh = mesh.insert(load_mesh(args.kind, args.triangles, &args.dir)?);
@@ -125,7 +129,7 @@ fn main() -> anyhow::Result<()> {
         mib(memory.mapped_resident_bytes.unwrap_or(0)),
         mib(memory.process_rss_bytes.unwrap_or(0))
     );
-    if args.reducem_only {
+    if args.reducem_only || args.model.is_some() {
         return Ok(());
     }
 

@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# Vertex precision benchmark (issue 8; not a test): converts one `scan` mesh lossless and on
+# grids of 16, 20 and 24 bits with `pipeline run`, then prints per encoding the file's bytes per
+# triangle, the position error (`reducem inspect --json`: max and RMS, absolute and relative to
+# the bounding-box diagonal) and ReduceM's tracing speed on 1 thread (examples/bench_trace:
+# 1024x1024 primary rays and 16 AO rays per hit, median of 3 runs, packets).
+#
+#   scripts/bench_quantized.sh                         # scan at 10M triangles
+#   TRIANGLES=1000000 scripts/bench_quantized.sh       # another size
+#   BITS="12 16 20 24" scripts/bench_quantized.sh      # other grids
+#   EXTRA_TOML=$'[strip]\nleaf_triangles = 4' ...      # appended to every job's config
+#
+# The input PLY is shared with the other benchmarks in $BENCH_DIR (default /tmp/reducem-bench);
+# converted files and work directories go to $BENCH_DIR/quantized.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+triangles=${TRIANGLES:-10000000}
+bits_list=${BITS:-16 20 24}
+dir=${BENCH_DIR:-/tmp/reducem-bench}
+work="$dir/quantized"
+mkdir -p "$work"
+cargo build --release --bins --example bench_trace -q
+ply="$dir/scan-$triangles.ply"
+[ -f "$ply" ] || ./target/release/pipeline gen scan --triangles "$triangles" -o "$ply" 2>/dev/null
+
+# One work directory for every encoding: the chunk stage runs once, the others rerun.
+convert() {
+  local name=$1 vertices=$2
+  cat > "$work/$name.toml" <<TOML
+[input]
+path = "$ply"
+[output]
+path = "$work/scan-$triangles-$name.rdm"
+[work]
+dir = "$work/scan-$triangles.work"
+[vertices]
+$vertices
+${EXTRA_TOML:-}
+TOML
+  ./target/release/pipeline run "$work/$name.toml" --log-format plain 2>/dev/null
+}
+
+row() {
+  local name=$1 label=$2 bits=$3
+  local model="$work/scan-$triangles-$name.rdm"
+  local speed
+  speed=$(./target/release/examples/bench_trace --model "$model" --kind scan \
+    --triangles "$triangles" --dir "$dir" --threads 1 --runs 3 | grep 'reducem (packets)')
+  ./target/release/reducem inspect "$model" --json | python3 -c '
+import json, re, sys
+s = json.load(sys.stdin)
+label, bits, speed = sys.argv[1], sys.argv[2], sys.argv[3]
+primary, ao = re.findall(r"(?:primary|AO)\s+([0-9.]+) Mrays/s", speed)
+print("%-8s %5s %7.2f %10.3e %10.3e %10.3e %10.3e %9s %8s" % (
+    label, bits, s["bytes_per_triangle"], s["position_error_max"], s["position_error_rms"],
+    s["position_error_max_relative"], s["position_error_rms_relative"], primary, ao))
+' "$label" "$bits" "$speed"
+}
+
+convert lossless 'encoding = "f32"'
+for bits in $bits_list; do
+  convert "grid$bits" "encoding = \"grid\"
+grid_bits = $bits"
+done
+printf '%-8s %5s %7s %10s %10s %10s %10s %9s %8s\n' encoding bits B/tri max_err rms_err max_rel rms_rel primary AO
+row lossless f32 -
+for bits in $bits_list; do
+  row "grid$bits" grid "$bits"
+done
+echo "(scan, $triangles triangles; errors in model units and relative to the bounds' diagonal; primary and AO in Mrays/s on 1 thread, 1024x1024 primary rays, 16 AO rays per hit, median of 3 runs)"
