@@ -26,6 +26,11 @@
 //! finding its right child take a shift and an add rather than divisions by the leaf size, and
 //! nothing is allocated or zeroed per strip or per window.
 //!
+//! Vertex encodings: the traversal is generic over [`VertexAccess`] and monomorphized per
+//! encoding, with one branch per strip on [`StripVertices`]: lossless strips read their f32
+//! vertices as before, grid strips decode each vertex in place through the one grid decode
+//! expression, so a vertex shared by two strips is bit-identical in both (watertightness).
+//!
 //! Determinism: among hits at the same parameter the one with the smallest (strip, window) wins,
 //! and culling compares inclusively against [`Closest::reach`], a little beyond the closest hit,
 //! so ties resolve the same way whatever the visiting order.
@@ -35,6 +40,7 @@ use wide::f32x8;
 
 use super::watertight::{candidate_lanes, edge, edge_lanes, resolve, RayPoints};
 use crate::format::reader::StripView;
+use crate::format::vertices::{StripVertices, VertexAccess};
 
 /// Deepest strip kd-tree: intervals halve, and a strip has fewer than 2^16 windows.
 const STRIP_STACK: usize = 20;
@@ -96,6 +102,10 @@ pub struct StripQuery<'a> {
     pub any_hit: bool,
 }
 
+/// A strip traversal's strip, its file position, the ray's parameter interval and the closest
+/// hit so far.
+type TraceArgs<'a, 'v> = (&'a StripView<'v>, u32, f32, f32, &'a mut Closest);
+
 /// A subtree of the strip's kd-tree and the ray's parameter interval in it. The subtree covers
 /// buckets `[first, end)`, bucket `b` being windows `b * leaf_windows ..` (the last one shorter).
 #[derive(Clone, Copy, Default)]
@@ -118,21 +128,36 @@ impl StripQuery<'_> {
         t_far: f32,
         closest: &mut Closest,
     ) -> bool {
-        let args = (view, index, t_near, t_far, closest);
+        // The one branch on the vertex encoding, per strip; below it everything is compiled
+        // for the encoding at hand.
+        match view.vertices {
+            StripVertices::F32(vertices) => {
+                self.trace_with(vertices, (view, index, t_near, t_far, closest))
+            }
+            StripVertices::Grid(vertices) => {
+                self.trace_with(vertices, (view, index, t_near, t_far, closest))
+            }
+        }
+    }
+
+    /// [`StripQuery::trace`] with the strip's vertices read through `vertices`.
+    #[inline(always)]
+    fn trace_with<V: VertexAccess>(&self, vertices: V, args: TraceArgs) -> bool {
         match self.ray.space.axes() {
-            [1, 2, 0] => self.trace_as::<1, 2, 0>(args),
-            [2, 1, 0] => self.trace_as::<2, 1, 0>(args),
-            [2, 0, 1] => self.trace_as::<2, 0, 1>(args),
-            [0, 2, 1] => self.trace_as::<0, 2, 1>(args),
-            [0, 1, 2] => self.trace_as::<0, 1, 2>(args),
-            _ => self.trace_as::<1, 0, 2>(args),
+            [1, 2, 0] => self.trace_as::<V, 1, 2, 0>(vertices, args),
+            [2, 1, 0] => self.trace_as::<V, 2, 1, 0>(vertices, args),
+            [2, 0, 1] => self.trace_as::<V, 2, 0, 1>(vertices, args),
+            [0, 2, 1] => self.trace_as::<V, 0, 2, 1>(vertices, args),
+            [0, 1, 2] => self.trace_as::<V, 0, 1, 2>(vertices, args),
+            _ => self.trace_as::<V, 1, 0, 2>(vertices, args),
         }
     }
 
     /// [`StripQuery::trace`] for a ray whose ray-space axes are `[KX, KY, KZ]`.
-    fn trace_as<const KX: usize, const KY: usize, const KZ: usize>(
+    fn trace_as<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
         &self,
-        (view, index, t_near, t_far, closest): (&StripView, u32, f32, f32, &mut Closest),
+        vertices: V,
+        (view, index, t_near, t_far, closest): TraceArgs,
     ) -> bool {
         let windows = view.window_count();
         let leaf = self.leaf_windows;
@@ -152,7 +177,8 @@ impl StripQuery<'_> {
             let lo = first * leaf;
             let hi = (end * leaf).min(windows);
             if end - first == 1 || hi - lo <= self.subtree_windows {
-                if self.intersect::<KX, KY, KZ>(view, index, lo, hi, closest) && self.any_hit {
+                let found = self.intersect::<V, KX, KY, KZ>(vertices, view, index, lo, hi, closest);
+                if found && self.any_hit {
                     return true;
                 }
             } else {
@@ -162,8 +188,8 @@ impl StripQuery<'_> {
                 // Validated axes are at most 2; saying so lets the compiler drop the bounds
                 // checks of the indexing below.
                 let axis = view.axis(node).min(2);
-                let left_max = view.vertices.coordinate(2 * node, axis);
-                let right_min = view.vertices.coordinate(2 * node + 1, axis);
+                let left_max = vertices.coordinate(2 * node, axis);
+                let right_min = vertices.coordinate(2 * node + 1, axis);
                 let left = Pending {
                     node: current.node + 1,
                     end: mid as u32,
@@ -210,8 +236,9 @@ impl StripQuery<'_> {
 
     /// Intersects windows `[lo, hi)` in blocks of [`BLOCK`] windows.
     #[inline(always)]
-    fn intersect<const KX: usize, const KY: usize, const KZ: usize>(
+    fn intersect<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
         &self,
+        vertices: V,
         view: &StripView,
         index: u32,
         lo: usize,
@@ -221,7 +248,8 @@ impl StripQuery<'_> {
         let mut found = false;
         for first in (lo..hi).step_by(BLOCK) {
             let count = BLOCK.min(hi - first);
-            if self.intersect_block::<KX, KY, KZ>(view, index, first, count, closest) {
+            let block = (vertices, view, first, count);
+            if self.intersect_block::<V, KX, KY, KZ>(block, index, closest) {
                 found = true;
                 if self.any_hit {
                     return true;
@@ -234,14 +262,14 @@ impl StripQuery<'_> {
     /// The ray-space x, y and z of the block's positions (`references`, at most `BLOCK + 2`),
     /// each vertex transformed once; lanes past the block's end hold the transform of zero.
     #[inline(always)]
-    fn ray_space_points<const KX: usize, const KY: usize, const KZ: usize>(
+    fn ray_space_points<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
         &self,
-        view: &StripView,
+        vertices: V,
         references: &[u8],
     ) -> [[f32; 2 * BLOCK]; 3] {
         let mut model = [[0.0f32; 2 * BLOCK]; 3];
         for (position, &reference) in references.iter().enumerate() {
-            let vertex = view.vertices.point(reference as usize);
+            let vertex = vertices.point(reference as usize);
             model[0][position] = vertex[KX];
             model[1][position] = vertex[KY];
             model[2][position] = vertex[KZ];
@@ -268,16 +296,14 @@ impl StripQuery<'_> {
     /// depends on the geometry. The rare lanes whose edges all agree go through the scalar
     /// [`resolve`], which sees bit-identical inputs to the single-triangle test.
     #[inline(always)]
-    fn intersect_block<const KX: usize, const KY: usize, const KZ: usize>(
+    fn intersect_block<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
         &self,
-        view: &StripView,
+        (vertices, view, first, count): (V, &StripView, usize, usize),
         index: u32,
-        first: usize,
-        count: usize,
         closest: &mut Closest,
     ) -> bool {
         let references = &view.references[first..first + count + 2];
-        let points = self.ray_space_points::<KX, KY, KZ>(view, references);
+        let points = self.ray_space_points::<V, KX, KY, KZ>(vertices, references);
         let corner = |shift: usize| RayPoints {
             x: lanes_from(&points[0], shift),
             y: lanes_from(&points[1], shift),
