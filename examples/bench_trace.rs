@@ -76,7 +76,10 @@ fn main() -> anyhow::Result<()> {
     let name = format!("{}-{}", kind_name(args.kind), args.triangles);
     // Loaded only when needed, so that tuning runs on a cached file trace and nothing else.
     let mut mesh = None;
-    let model = args.model.clone().unwrap_or_else(|| args.dir.join(format!("{name}.rdm")));
+    let model = args
+        .model
+        .clone()
+        .unwrap_or_else(|| args.dir.join(format!("{name}.rdm")));
     if !model.exists() {
         let started = Instant::now();
         let mesh = mesh.insert(load_mesh(args.kind, args.triangles, &args.dir)?);
