@@ -189,7 +189,11 @@ impl<'a> GridVertices<'a> {
         GridVertices {
             bytes,
             anchor: [axes[0].anchor, axes[1].anchor, axes[2].anchor],
-            mask: [mask(axes[0].width), mask(axes[1].width), mask(axes[2].width)],
+            mask: [
+                mask(axes[0].width),
+                mask(axes[1].width),
+                mask(axes[2].width),
+            ],
             first_bit,
             stride,
             count: count as u32,
@@ -199,6 +203,10 @@ impl<'a> GridVertices<'a> {
 
     pub fn len(&self) -> usize {
         self.count as usize
+    }
+
+    pub fn grid(&self) -> &Grid {
+        &self.grid
     }
 
     pub fn is_empty(&self) -> bool {

@@ -5,6 +5,8 @@
 //! as it would without the abstraction, and the quantized path decodes in place with no branch
 //! per vertex. [`StripVertices`] is the one branch, per strip, between the two.
 
+use wide::{f32x8, i32x8};
+
 use super::quantized::GridVertices;
 use crate::geometry::Point;
 
@@ -12,6 +14,14 @@ use crate::geometry::Point;
 pub trait VertexAccess: Copy {
     fn point(&self, index: usize) -> Point;
     fn coordinate(&self, index: usize, axis: usize) -> f32;
+
+    /// The coordinates on axes `KX`, `KY` and `KZ` of the vertices `references` name, one lane
+    /// per reference (`N`, a multiple of 8, at least `references.len()`); later lanes hold
+    /// some position, not to be used. Bit-identical to [`VertexAccess::point`].
+    fn gather<const KX: usize, const KY: usize, const KZ: usize, const N: usize>(
+        &self,
+        references: &[u8],
+    ) -> [[f32; N]; 3];
 }
 
 impl VertexAccess for &[Point] {
@@ -24,6 +34,21 @@ impl VertexAccess for &[Point] {
     fn coordinate(&self, index: usize, axis: usize) -> f32 {
         self[index][axis]
     }
+
+    #[inline(always)]
+    fn gather<const KX: usize, const KY: usize, const KZ: usize, const N: usize>(
+        &self,
+        references: &[u8],
+    ) -> [[f32; N]; 3] {
+        let mut model = [[0.0f32; N]; 3];
+        for (position, &reference) in references.iter().enumerate() {
+            let vertex = &self[reference as usize];
+            model[0][position] = vertex[KX];
+            model[1][position] = vertex[KY];
+            model[2][position] = vertex[KZ];
+        }
+        model
+    }
 }
 
 impl VertexAccess for GridVertices<'_> {
@@ -35,6 +60,36 @@ impl VertexAccess for GridVertices<'_> {
     #[inline(always)]
     fn coordinate(&self, index: usize, axis: usize) -> f32 {
         GridVertices::coordinate(self, index, axis)
+    }
+
+    /// Grid points first, then [`crate::format::grid::Grid::decode_axis`] eight lanes at a
+    /// time: the same two IEEE operations (an exact conversion, a product, a sum), so the same
+    /// bits as one vertex at a time.
+    #[inline(always)]
+    fn gather<const KX: usize, const KY: usize, const KZ: usize, const N: usize>(
+        &self,
+        references: &[u8],
+    ) -> [[f32; N]; 3] {
+        let mut points = [[0i32; N]; 3];
+        for (position, &reference) in references.iter().enumerate() {
+            let q = self.grid_point(reference as usize);
+            // Grid coordinates are below 2^24: exact as i32 and as f32.
+            points[0][position] = q[KX] as i32;
+            points[1][position] = q[KY] as i32;
+            points[2][position] = q[KZ] as i32;
+        }
+        let grid = self.grid();
+        let mut model = [[0.0f32; N]; 3];
+        for (k, axis) in [KX, KY, KZ].into_iter().enumerate() {
+            let origin = f32x8::splat(grid.origin[axis]);
+            let cell = f32x8::splat(grid.cell);
+            for lane in (0..N).step_by(8) {
+                let q: [i32; 8] = points[k][lane..lane + 8].try_into().unwrap_or_default();
+                let decoded = origin + f32x8::from_i32x8(i32x8::from(q)) * cell;
+                model[k][lane..lane + 8].copy_from_slice(decoded.as_array());
+            }
+        }
+        model
     }
 }
 

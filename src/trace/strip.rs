@@ -260,20 +260,14 @@ impl StripQuery<'_> {
     }
 
     /// The ray-space x, y and z of the block's positions (`references`, at most `BLOCK + 2`),
-    /// each vertex transformed once; lanes past the block's end hold the transform of zero.
+    /// each vertex transformed once; lanes past the block's end are not used.
     #[inline(always)]
     fn ray_space_points<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
         &self,
         vertices: V,
         references: &[u8],
     ) -> [[f32; 2 * BLOCK]; 3] {
-        let mut model = [[0.0f32; 2 * BLOCK]; 3];
-        for (position, &reference) in references.iter().enumerate() {
-            let vertex = vertices.point(reference as usize);
-            model[0][position] = vertex[KX];
-            model[1][position] = vertex[KY];
-            model[2][position] = vertex[KZ];
-        }
+        let model = vertices.gather::<KX, KY, KZ, { 2 * BLOCK }>(references);
         let mut points = [[0.0f32; 2 * BLOCK]; 3];
         for half in [0, BLOCK] {
             let transformed = self.ray.space.transform_lanes::<KX, KY, KZ>(
