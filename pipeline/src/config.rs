@@ -75,7 +75,8 @@ impl Default for ChunkConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct StripConfig {
     pub max_length: usize,
-    pub leaf_triangles: usize,
+    /// Default 2 (the paper's), or [`reducem::build::GRID_LEAF_WINDOWS`] for grid vertices.
+    pub leaf_triangles: Option<usize>,
     pub sah_bins: usize,
 }
 
@@ -83,7 +84,7 @@ impl Default for StripConfig {
     fn default() -> Self {
         StripConfig {
             max_length: 60,
-            leaf_triangles: 2,
+            leaf_triangles: None,
             sah_bins: 16,
         }
     }
@@ -211,14 +212,18 @@ impl Config {
     }
 
     pub fn build_params(&self) -> reducem::build::BuildParams {
+        let grid = self.vertices.encoding == VertexEncodingName::Grid;
+        let default_leaf = match grid {
+            true => reducem::build::GRID_LEAF_WINDOWS,
+            false => reducem::build::BuildParams::default().leaf_windows,
+        };
         let mut params = reducem::build::BuildParams {
-            leaf_windows: self.strip.leaf_triangles,
+            leaf_windows: self.strip.leaf_triangles.unwrap_or(default_leaf),
+            grid_bits: grid.then_some(self.vertices.grid_bits),
             ..Default::default()
         };
         params.stripify.max_length = self.strip.max_length;
         params.stripify.sah_bins = self.strip.sah_bins;
-        params.grid_bits =
-            (self.vertices.encoding == VertexEncodingName::Grid).then_some(self.vertices.grid_bits);
         params
     }
 }

@@ -28,7 +28,10 @@ pub fn fingerprint(job: &Job, chunked: &Chunked, chunk: usize) -> Fingerprint {
         .with("chunk_stage", &chunked.digest)
         .with("chunk", chunk)
         .with("strip.max_length", strip.max_length)
-        .with("strip.leaf_triangles", strip.leaf_triangles)
+        .with(
+            "strip.leaf_triangles",
+            job.config.build_params().leaf_windows,
+        )
         .with("strip.sah_bins", strip.sah_bins)
         .with("vertices.grid_bits", grid_bits(job))
         .with("top_level", format!("{:?}", TopLevelParams::default()))

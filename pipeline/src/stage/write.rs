@@ -46,7 +46,7 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
     }
     let info = FileInfo {
         stats: merged.stats(),
-        leaf_windows: job.config.strip.leaf_triangles,
+        leaf_windows: job.config.build_params().leaf_windows,
         max_strip_length: job.config.strip.max_length,
         bounds: merged.bounds(),
         grid: merged.grid,
