@@ -200,27 +200,10 @@ fn coarse_grids_drop_collapsed_triangles_and_keep_the_rest() {
     assert!(file.header().input_vertex_count < mesh.positions.len() as u64);
 }
 
-/// Each triangle of `mesh` with its own copies of its corners, every copy moved by up to
-/// `amount` on each axis: a mesh whose shared vertices were perturbed.
-fn perturbed_copies(mesh: &Mesh, amount: f32, seed: u64) -> Mesh {
-    let mut rng = SplitMix64::new(seed);
-    let mut out = Mesh::default();
-    for triangle in &mesh.triangles {
-        let base = out.positions.len() as u32;
-        for &v in triangle {
-            let p = mesh.positions[v as usize];
-            out.positions
-                .push(p.map(|c| c + rng.range(-amount, amount)));
-        }
-        out.triangles.push([base, base + 1, base + 2]);
-    }
-    out
-}
-
 #[test]
 fn a_tolerance_weld_reconnects_a_perturbed_mesh_into_long_strips() {
     let mesh = grid(50, 40);
-    let perturbed = perturbed_copies(&mesh, 1e-5, 4);
+    let perturbed = reducem::gen::perturbed_copies(&mesh, 1e-5, 4);
     let apart = convert_on_grid(&perturbed, &BuildParams::default(), "perturbed.rdm");
     assert_eq!(file_stats(&apart).avg_strip_length, 1.0);
 

@@ -56,7 +56,7 @@ fn report_names_machine_commit_and_date_and_every_section() {
 fn every_plot_is_an_svg_with_labelled_axes_referenced_by_the_report() {
     let (_, written) = tiny_report();
     let text = std::fs::read_to_string(&written.report).expect("REPORT.md");
-    assert_eq!(written.plots.len(), 8);
+    assert_eq!(written.plots.len(), 10);
     for plot in &written.plots {
         let svg = std::fs::read_to_string(plot).expect("plot");
         assert!(svg.starts_with("<svg"), "{}", plot.display());
@@ -158,6 +158,33 @@ fn sweeps_cover_their_parameters_consistently() {
     }
     assert_eq!(data.sah_bins.len(), 2 * sweeps::SAH_BINS.len());
     assert!(data.sah_bins.iter().all(|r| r.build_seconds > 0.0));
+}
+
+#[test]
+fn precision_rows_trade_error_for_bytes_and_the_weld_joins_strips() {
+    let (data, _) = tiny_report();
+    let rows = &data.precision;
+    assert_eq!(rows.len(), 1 + report::precision::GRID_BITS.len());
+    let (lossless, grids) = rows.split_first().unwrap();
+    assert_eq!(lossless.grid_bits, None);
+    assert_eq!(lossless.stats.position_error_max, 0.0);
+    for pair in grids.windows(2) {
+        assert!(pair[0].grid_bits < pair[1].grid_bits);
+        assert!(pair[1].stats.position_error_max < pair[0].stats.position_error_max);
+        assert!(pair[0].stats.bytes_per_triangle < pair[1].stats.bytes_per_triangle);
+    }
+    for grid in grids {
+        assert!(grid.stats.bytes_per_triangle < lossless.stats.bytes_per_triangle);
+        let bound = grid.stats.grid_cell as f64 * 3f64.sqrt() / 2.0;
+        assert!(grid.stats.position_error_max <= bound * 1.0001, "{grid:?}");
+    }
+    let [apart, welded] = &data.weld[..] else {
+        panic!("two weld rows")
+    };
+    assert_eq!(apart.stats.triangles, welded.stats.triangles);
+    assert_eq!(apart.stats.avg_strip_length, 1.0);
+    assert!(welded.stats.avg_strip_length > 2.0, "{welded:?}");
+    assert!(welded.weld.displacement.max <= welded.weld.tolerance as f64);
 }
 
 #[test]

@@ -348,30 +348,22 @@ fn write_ply(mesh: &reducem::mesh::Mesh, path: &Path) {
 /// A 60 × 50 quad grid whose every triangle has its own copies of its corners, each moved by
 /// up to 1e-5 per axis: shared vertices perturbed as in separately exported parts.
 fn perturbed_grid() -> reducem::mesh::Mesh {
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    let mut jitter = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 2e-5
-    };
     let mut mesh = reducem::mesh::Mesh::default();
-    for y in 0..50 {
-        for x in 0..60 {
-            let corner = |dx: u32, dy: u32| [(x + dx) as f32, (y + dy) as f32, 0.0];
-            for triangle in [
-                [corner(0, 0), corner(1, 0), corner(1, 1)],
-                [corner(0, 0), corner(1, 1), corner(0, 1)],
-            ] {
-                let base = mesh.positions.len() as u32;
-                for p in triangle {
-                    mesh.positions.push(p.map(|c| c + jitter()));
-                }
-                mesh.triangles.push([base, base + 1, base + 2]);
-            }
+    let id = |x: u32, y: u32| y * 61 + x;
+    for y in 0..=50 {
+        for x in 0..=60 {
+            mesh.positions.push([x as f32, y as f32, 0.0]);
         }
     }
-    mesh
+    for y in 0..50 {
+        for x in 0..60 {
+            mesh.triangles
+                .push([id(x, y), id(x + 1, y), id(x + 1, y + 1)]);
+            mesh.triangles
+                .push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
+        }
+    }
+    reducem::gen::perturbed_copies(&mesh, 1e-5, 3)
 }
 
 #[test]

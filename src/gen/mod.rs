@@ -16,6 +16,7 @@ mod cad;
 mod isosurface;
 mod marching_cubes;
 mod noise;
+mod perturb;
 mod ply;
 mod scan;
 mod soup;
@@ -28,6 +29,8 @@ use std::ops::Range;
 use std::path::Path;
 
 use anyhow::Result;
+
+pub use perturb::perturbed_copies;
 
 /// The family of synthetic mesh to generate.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]

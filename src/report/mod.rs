@@ -11,7 +11,8 @@
 //! 2. [`stripifier`]: Strip-RT against meshoptimizer's rasterization stripifier, same encoding.
 //! 3. to 5. [`sweeps`]: maximum strip length, leaf size × subtree intersection, SAH bins.
 //! 6. [`accuracy`]: ambient-occlusion samples against image error and render time.
-//! 7. vertex precision: no option exists yet; the report says so.
+//! 7. [`precision`]: lossless against grid vertices of 12 to 24 bits (error, bytes, speed), and
+//!    the tolerance weld on a perturbed copy of the mesh.
 //!
 //! [`Scale`] sets mesh and image sizes: `tiny` runs in seconds (the tests), `medium` in minutes,
 //! `full` in about half an hour on 2 cores.
@@ -23,6 +24,7 @@ pub mod machine;
 pub mod markdown;
 pub mod memory;
 pub mod plot;
+pub mod precision;
 pub mod speed;
 pub mod stripifier;
 pub mod sweeps;
@@ -120,6 +122,8 @@ pub struct ReportData {
     pub leaf_subtree: Vec<sweeps::LeafSubtreeRow>,
     pub sah_bins: Vec<sweeps::SahRow>,
     pub ambient_occlusion: Vec<accuracy::AoRow>,
+    pub precision: Vec<precision::PrecisionRow>,
+    pub weld: Vec<precision::WeldRow>,
 }
 
 /// What [`run`] wrote.
@@ -151,6 +155,8 @@ pub fn run(config: &ReportConfig) -> anyhow::Result<(ReportData, Written)> {
     let leaf_subtree = sweeps::leaf_subtree(&subject, work, &sizes)?;
     let sah_bins = sweeps::sah_bins(&subject, work, &sizes)?;
     let (ambient_occlusion, images) = accuracy::collect(work, &config.out_dir, &sizes)?;
+    let precision = precision::precision(&subject, work, &sizes)?;
+    let weld = precision::weld(&subject, work, &sizes)?;
     let data = ReportData {
         machine,
         sizes,
@@ -160,6 +166,8 @@ pub fn run(config: &ReportConfig) -> anyhow::Result<(ReportData, Written)> {
         leaf_subtree,
         sah_bins,
         ambient_occlusion,
+        precision,
+        weld,
     };
     let written = write(&data, &config.out_dir, &plots_dir, images)?;
     Ok((data, written))
@@ -185,7 +193,7 @@ fn write(
             out_dir,
             plots_dir,
         )?,
-        vertex_precision_section(),
+        precision::section(&data.precision, &data.weld, plots_dir)?,
     ];
     let mut text = markdown::preamble(&data.machine, &data.sizes);
     let mut plots = Vec::new();
@@ -200,17 +208,4 @@ fn write(
         plots,
         images,
     })
-}
-
-/// Section 7: the format has one vertex encoding, so there is nothing to measure yet.
-fn vertex_precision_section() -> Section {
-    Section {
-        markdown: "## 7. Vertex precision\n\n\
-            Not measured: the format has one vertex encoding, lossless f32 (`vertex_encoding` \
-            in `reducem inspect --json`); no quantized encoding exists yet, so there is no \
-            error/bytes/time trade-off to measure. A later issue adds one; this section will \
-            then plot its error against bytes and time.\n\n"
-            .to_string(),
-        plots: Vec::new(),
-    }
 }

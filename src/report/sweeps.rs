@@ -47,14 +47,26 @@ impl Subject {
     }
 
     /// Converts with `params` and measures the file with `options`.
-    fn measure(
+    pub(super) fn measure(
         &self,
         params: &BuildParams,
         options: TraceOptions,
         work: &Path,
         sizes: &Sizes,
     ) -> anyhow::Result<(Converted, Speed)> {
-        let converted = convert_timed(&self.mesh, params, work, "sweep", sizes.runs)?;
+        self.measure_mesh(&self.mesh, params, options, work, sizes)
+    }
+
+    /// [`Subject::measure`] for a variant of the mesh, traced with the same rays.
+    pub(super) fn measure_mesh(
+        &self,
+        mesh: &Mesh,
+        params: &BuildParams,
+        options: TraceOptions,
+        work: &Path,
+        sizes: &Sizes,
+    ) -> anyhow::Result<(Converted, Speed)> {
+        let converted = convert_timed(mesh, params, work, "sweep", sizes.runs)?;
         let speed = self.speed(&converted.path, options, sizes)?;
         Ok((converted, speed))
     }
