@@ -19,11 +19,14 @@ bits_list=${BITS:-16 20 24}
 dir=${BENCH_DIR:-/tmp/reducem-bench}
 work="$dir/quantized"
 mkdir -p "$work"
-cargo build --release --bins --example bench_trace -q
+cargo build --release --workspace --bins -q
+cargo build --release --example bench_trace -q
 ply="$dir/scan-$triangles.ply"
 [ -f "$ply" ] || ./target/release/pipeline gen scan --triangles "$triangles" -o "$ply" 2>/dev/null
 
-# One work directory for every encoding: the chunk stage runs once, the others rerun.
+# One work directory for every encoding: the chunk stage runs once, the others rerun. It starts
+# clean, so that no file of an earlier build is taken as fresh.
+rm -rf "$work/scan-$triangles.work"
 convert() {
   local name=$1 vertices=$2
   cat > "$work/$name.toml" <<TOML
