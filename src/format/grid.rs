@@ -110,6 +110,93 @@ impl Grid {
     }
 }
 
+/// Largest coordinate of the [`NodeGrid`]: node boxes are stored as u16.
+pub const NODE_GRID_LAST: u16 = u16::MAX;
+
+/// The grid of the top-level node boxes of a grid file (format 2.2): the model grid's origin
+/// with its cell scaled by `2^shift`, the smallest scale whose 2^16 points cover the model.
+///
+/// A coarser grid of the same origin keeps the one decode expression (`origin + q * cell`, an
+/// exact product and one rounded sum, see [`Grid::decode_axis`]), so a box decodes to the same
+/// f32 in the writer's rounding and in every traversal lane; boxes are rounded outward to it,
+/// which decoding being monotone in `q` makes conservative.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NodeGrid {
+    pub origin: Point,
+    /// `grid.cell * 2^shift`, a power of two.
+    pub cell: f32,
+    pub shift: u32,
+}
+
+impl NodeGrid {
+    /// The node grid of `grid` with cell `grid.cell * 2^shift`; `None` when that cell or the
+    /// grid's far corner is not a finite normal f32.
+    pub fn new(grid: &Grid, shift: u32) -> Option<NodeGrid> {
+        let cell = (grid.cell as f64 * 2f64.powi(shift.min(300) as i32)) as f32;
+        let node = NodeGrid {
+            origin: grid.origin,
+            cell,
+            shift,
+        };
+        let far = [0, 1, 2].map(|a| node.decode_axis(NODE_GRID_LAST, a));
+        (cell.is_normal() && far.iter().all(|c| c.is_finite())).then_some(node)
+    }
+
+    /// The finest node grid of `grid` whose far corner is at or beyond `bounds.max` (the
+    /// model's decoded bounds, which hold every strip box).
+    pub fn over(grid: &Grid, bounds: &Aabb) -> NodeGrid {
+        let mut shift = 0;
+        loop {
+            if let Some(node) = NodeGrid::new(grid, shift) {
+                let covers = |a: usize| node.decode_axis(NODE_GRID_LAST, a) >= bounds.max[a];
+                if bounds.is_empty() || (0..3).all(covers) {
+                    return node;
+                }
+            }
+            shift += 1;
+        }
+    }
+
+    /// The position of node grid coordinate `q` on `axis`: the decode expression of
+    /// [`Grid::decode_axis`] with the node cell.
+    #[inline(always)]
+    pub fn decode_axis(&self, q: u16, axis: usize) -> f32 {
+        self.origin[axis] + q as f32 * self.cell
+    }
+
+    /// The largest coordinate decoding at or below `value`, or `None` when even 0 is above it.
+    pub fn floor(&self, value: f32, axis: usize) -> Option<u16> {
+        let mut q = self.estimate(value, axis);
+        while q > 0 && self.decode_axis(q, axis) > value {
+            q -= 1;
+        }
+        while q < NODE_GRID_LAST && self.decode_axis(q + 1, axis) <= value {
+            q += 1;
+        }
+        (self.decode_axis(q, axis) <= value).then_some(q)
+    }
+
+    /// The smallest coordinate decoding at or above `value`, or `None` when even the last is
+    /// below it.
+    pub fn ceil(&self, value: f32, axis: usize) -> Option<u16> {
+        let mut q = self.estimate(value, axis);
+        while q < NODE_GRID_LAST && self.decode_axis(q, axis) < value {
+            q += 1;
+        }
+        while q > 0 && self.decode_axis(q - 1, axis) >= value {
+            q -= 1;
+        }
+        (self.decode_axis(q, axis) >= value).then_some(q)
+    }
+
+    /// A coordinate near `value`, which [`NodeGrid::floor`] and [`NodeGrid::ceil`] adjust by
+    /// the decode expression itself (a step or two).
+    fn estimate(&self, value: f32, axis: usize) -> u16 {
+        let offset = (value as f64 - self.origin[axis] as f64) / self.cell as f64;
+        offset.round().clamp(0.0, NODE_GRID_LAST as f64) as u16
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -173,5 +260,24 @@ mod tests {
         assert_eq!(flat.decode(&flat.quantize(&[5.0; 3])), [5.0; 3]);
         let empty = Grid::over(&Aabb::EMPTY, 20);
         assert_eq!(empty.cell, 1.0);
+    }
+
+    #[test]
+    fn node_grid_covers_the_model_and_rounds_outward() {
+        let b = bounds([-3.7, 10.25, -0.001], [12.9, 10.5, 0.002]);
+        for bits in [1, 8, 16, 17, 20, 24] {
+            let grid = Grid::over(&b, bits);
+            let node = NodeGrid::over(&grid, &b);
+            assert!(node.shift <= bits.saturating_sub(15), "bits {bits}");
+            for t in 0..=64 {
+                let t = t as f32 / 64.0;
+                for a in 0..3 {
+                    let v = b.min[a] + t * (b.max[a] - b.min[a]);
+                    let (lo, hi) = (node.floor(v, a).unwrap(), node.ceil(v, a).unwrap());
+                    assert!(node.decode_axis(lo, a) <= v && node.decode_axis(hi, a) >= v);
+                    assert!(hi - lo <= 1 && (lo == 0 || node.decode_axis(lo + 1, a) > v));
+                }
+            }
+        }
     }
 }

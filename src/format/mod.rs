@@ -21,8 +21,10 @@ pub const MAGIC: [u8; 8] = *b"REDUCEM\0";
 /// replaced version 1's binary top-level nodes (32 bytes) with 4-wide ones ([`TopNode`]).
 pub const VERSION_MAJOR: u16 = 2;
 /// Incremented on compatible additions; readers accept any minor of their major. Minor 1 added
-/// the [`PrecisionRecord`] and the grid vertex encoding.
-pub const VERSION_MINOR: u16 = 1;
+/// the [`PrecisionRecord`] and the grid vertex encoding, minor 2 grid top-level nodes
+/// ([`GridNode`], `vertex_encoding` 2). Writers write the lowest minor that has what the file
+/// uses ([`VertexEncoding::minor`]), so a lossless file is the same bytes as from a 2.1 writer.
+pub const VERSION_MINOR: u16 = 2;
 /// Written as a little-endian u32; a reader on a big-endian host sees `0x0403_0201`.
 pub const ENDIAN_MARKER: u32 = 0x0102_0304;
 /// Sections start at multiples of this, so each can be mapped and paged on its own.
@@ -41,8 +43,12 @@ pub enum VertexEncoding {
     /// Three little-endian f32 per vertex, bit-exact copies of the input (lossless).
     F32 = 0,
     /// Points of the global grid of the [`PrecisionRecord`], per strip an anchor plus
-    /// fixed-width offsets ([`quantized`]). Since format 2.1.
+    /// fixed-width offsets ([`quantized`]), with f32 top-level nodes ([`TopNode`]). Written by
+    /// format 2.1 writers only; read since 2.1.
     Grid = 1,
+    /// Grid vertices as [`VertexEncoding::Grid`], with top-level nodes on the node grid
+    /// ([`GridNode`], 64 bytes). Since format 2.2; older readers reject the value.
+    GridNodes = 2,
 }
 
 impl VertexEncoding {
@@ -50,14 +56,25 @@ impl VertexEncoding {
         match value {
             0 => Some(VertexEncoding::F32),
             1 => Some(VertexEncoding::Grid),
+            2 => Some(VertexEncoding::GridNodes),
             _ => None,
         }
     }
 
+    /// How the vertices are stored: the two grid encodings differ in their nodes only.
     pub fn name(self) -> &'static str {
         match self {
             VertexEncoding::F32 => "f32",
-            VertexEncoding::Grid => "grid",
+            VertexEncoding::Grid | VertexEncoding::GridNodes => "grid",
+        }
+    }
+
+    /// The first format minor with this encoding.
+    pub fn minor(self) -> u16 {
+        match self {
+            VertexEncoding::F32 => 0,
+            VertexEncoding::Grid => 1,
+            VertexEncoding::GridNodes => 2,
         }
     }
 }
@@ -174,7 +191,7 @@ pub const PRECISION_OFFSET: usize = 208;
 /// | bytes | field |
 /// |---|---|
 /// | 208..212 | `grid_bits`: bits per axis of the grid (1..=24); 0 for f32 vertices |
-/// | 212..216 | reserved, zero |
+/// | 212..216 | `node_shift`: the [`GridNode`] boxes' cell is `grid_cell * 2^node_shift` (vertex encoding 2); zero otherwise |
 /// | 216..228 | `grid_origin` f32×3: the position of grid point (0, 0, 0) |
 /// | 228..232 | `grid_cell` f32: grid step on every axis, a power of two; 0 for f32 vertices |
 /// | 232..240 | `error_max` f64: largest distance from an input vertex (after welding) to its stored position |
@@ -189,7 +206,7 @@ pub const PRECISION_OFFSET: usize = 208;
 #[repr(C)]
 pub struct PrecisionRecord {
     pub grid_bits: u32,
-    pub reserved: u32,
+    pub node_shift: u32,
     pub grid_origin: [f32; 3],
     pub grid_cell: f32,
     pub error_max: f64,
@@ -328,6 +345,153 @@ impl TopNode {
                 && self.max[axis][slot].to_bits() == empty.max[axis][slot].to_bits()
         }) && self.child[slot] == 0
             && self.kind[slot] == 0
+    }
+}
+
+/// Bits of a [`GridNode`] link below its tag: the node index or first strip.
+pub const GRID_LINK_INDEX_BITS: u32 = 28;
+/// Mask of a [`GridNode`] link's index.
+pub const GRID_LINK_INDEX: u32 = (1 << GRID_LINK_INDEX_BITS) - 1;
+/// [`GridNode`] link tag of an internal child; tags 1 to 14 are leaf strip counts.
+pub const GRID_LINK_INTERNAL: u32 = 15;
+/// Most strips in one leaf of a [`GridNode`] (the builder's leaves hold at most
+/// `TopLevelParams::max_leaf_strips`, 4 by default).
+pub const MAX_GRID_LEAF_STRIPS: u32 = GRID_LINK_INTERNAL - 1;
+
+/// A top-level node of a grid file (`vertex_encoding` 2, format 2.2): [`TopNode`]'s boxes on
+/// the node grid ([`grid::NodeGrid`]) as u16 and its `child`/`kind` pairs packed in one word.
+/// 64 bytes, half a [`TopNode`], in the same tree order.
+///
+/// | bytes | field |
+/// |---|---|
+/// | 0..24 | `min[axis][slot]`: u16 × 4 per axis (x at 0, y at 8, z at 16), one lane per child |
+/// | 24..48 | `max[axis][slot]`, same layout |
+/// | 48..64 | `link[slot]`: bits 28..32 tag, bits 0..28 index: tag 0 → empty slot (the whole word 0); tags 1..=14 → a leaf of that many strips from strip `index`; tag 15 → internal child, node `index` |
+///
+/// Child `i` covers `node_grid.decode(min[·][i]) ..= node_grid.decode(max[·][i])`, rounded
+/// outward from the f32 box when written. An empty slot is all zero bytes (box included):
+/// traversal skips it by its link, since no u16 box is missed by every ray.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+#[repr(C)]
+pub struct GridNode {
+    pub min: [[u16; TOP_WIDTH]; 3],
+    pub max: [[u16; TOP_WIDTH]; 3],
+    pub link: [u32; TOP_WIDTH],
+}
+const _: () = assert!(std::mem::size_of::<GridNode>() == 64);
+
+impl GridNode {
+    /// `node` with its boxes rounded outward to `grid` and its links packed; an error when a
+    /// box lies outside the node grid or a link does not fit.
+    pub fn encode(node: &TopNode, grid: &grid::NodeGrid) -> Result<GridNode, String> {
+        let mut out = GridNode::zeroed();
+        for slot in 0..node.occupied() {
+            let (min, max) = node.slot_box(slot);
+            for axis in 0..3 {
+                let outside = || format!("box {min:?}..{max:?} outside the node grid {grid:?}");
+                out.min[axis][slot] = grid.floor(min[axis], axis).ok_or_else(outside)?;
+                out.max[axis][slot] = grid.ceil(max[axis], axis).ok_or_else(outside)?;
+            }
+            let (tag, index) = match node.slot(slot) {
+                TopSlot::Internal(child) => (GRID_LINK_INTERNAL, child),
+                TopSlot::Leaf { first, count } if (1..=MAX_GRID_LEAF_STRIPS).contains(&count) => {
+                    (count, first)
+                }
+                other => return Err(format!("slot {slot} holds {other:?}: no grid node link")),
+            };
+            if index > GRID_LINK_INDEX {
+                return Err(format!(
+                    "index {index} of slot {slot} needs more than 28 bits"
+                ));
+            }
+            out.link[slot] = tag << GRID_LINK_INDEX_BITS | index;
+        }
+        Ok(out)
+    }
+}
+
+/// The slot structure of a top-level node record, [`TopNode`] or [`GridNode`]: what the reader
+/// validates and traversal follows.
+pub trait NodeRecord: Pod {
+    /// Byte offset of slot 0's link (child or first strip) within the record, for errors.
+    const CHILD_FIELD: u64;
+    /// Byte offset of slot 0's kind (or whole link), for errors.
+    const KIND_FIELD: u64;
+    /// Bytes from one slot's link word to the next.
+    const LINK_STRIDE: u64 = 4;
+    /// The exact empty slot, for errors.
+    const EMPTY_SLOT: &'static str;
+
+    fn slot(&self, slot: usize) -> TopSlot;
+
+    /// Whether `slot` is bit for bit the record's empty slot.
+    fn is_exactly_empty(&self, slot: usize) -> bool;
+
+    /// Occupied slots: those before the first empty one.
+    fn occupied(&self) -> usize {
+        (0..TOP_WIDTH)
+            .take_while(|&slot| self.slot(slot) != TopSlot::Empty)
+            .count()
+    }
+
+    /// The first axis on which occupied `slot`'s box has `min > max`, with the byte offset of
+    /// that `min` in the record; `None` when the box is well formed (or the record admits any).
+    fn inverted_axis(&self, slot: usize) -> Option<(usize, u64)>;
+}
+
+impl NodeRecord for TopNode {
+    const CHILD_FIELD: u64 = 96;
+    const KIND_FIELD: u64 = 112;
+    const EMPTY_SLOT: &'static str = "min +inf, max -inf, child 0, kind 0";
+
+    fn slot(&self, slot: usize) -> TopSlot {
+        TopNode::slot(self, slot)
+    }
+
+    fn is_exactly_empty(&self, slot: usize) -> bool {
+        TopNode::is_exactly_empty(self, slot)
+    }
+
+    fn occupied(&self) -> usize {
+        TopNode::occupied(self)
+    }
+
+    /// An inverted f32 box is missed by every ray, like the empty slot's: harmless, admitted.
+    fn inverted_axis(&self, _slot: usize) -> Option<(usize, u64)> {
+        None
+    }
+}
+
+impl NodeRecord for GridNode {
+    const CHILD_FIELD: u64 = 48;
+    const KIND_FIELD: u64 = 48;
+    const EMPTY_SLOT: &'static str = "all zero bytes";
+
+    fn slot(&self, slot: usize) -> TopSlot {
+        let link = self.link[slot];
+        let index = link & GRID_LINK_INDEX;
+        match link >> GRID_LINK_INDEX_BITS {
+            0 if link == 0 => TopSlot::Empty,
+            0 => TopSlot::Invalid(link),
+            GRID_LINK_INTERNAL => TopSlot::Internal(index),
+            count => TopSlot::Leaf {
+                first: index,
+                count,
+            },
+        }
+    }
+
+    fn is_exactly_empty(&self, slot: usize) -> bool {
+        (0..3).all(|axis| self.min[axis][slot] == 0 && self.max[axis][slot] == 0)
+            && self.link[slot] == 0
+    }
+
+    /// An inverted u16 box need not be missed (traversal relies on the link to skip empty
+    /// slots only), and no writer rounds outward to one: rejected.
+    fn inverted_axis(&self, slot: usize) -> Option<(usize, u64)> {
+        (0..3)
+            .find(|&axis| self.min[axis][slot] > self.max[axis][slot])
+            .map(|axis| (axis, (axis * 8 + slot * 2) as u64))
     }
 }
 

@@ -18,15 +18,15 @@ use std::path::{Path, PathBuf};
 use memmap2::Mmap;
 use rayon::prelude::*;
 
-use super::grid::{Grid, MAX_GRID_BITS};
+use super::grid::{Grid, NodeGrid, MAX_GRID_BITS};
 use super::implicit_tree::internal_nodes;
 use super::quantized::{vertex_part_bytes, AxisWord, GridVertices, AXIS_WORDS_BYTES};
 use super::vertices::StripVertices;
 use super::{
-    axis_bytes, Header, PrecisionRecord, SectionKind, StripRecord, TopNode, TopSlot,
-    VertexEncoding, ENDIAN_MARKER, F32_VERTEX_BYTES, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC,
-    MAX_STRIP_VERTICES, MAX_TOP_DEPTH, PRECISION_CHECKSUMMED_BYTES, PRECISION_OFFSET,
-    SECTION_ALIGN, TOP_WIDTH, VERSION_MAJOR,
+    axis_bytes, GridNode, Header, NodeRecord, PrecisionRecord, SectionKind, StripRecord, TopNode,
+    TopSlot, VertexEncoding, ENDIAN_MARKER, F32_VERTEX_BYTES, HEADER_CHECKSUMMED_BYTES,
+    HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH, PRECISION_CHECKSUMMED_BYTES,
+    PRECISION_OFFSET, SECTION_ALIGN, TOP_WIDTH, VERSION_MAJOR,
 };
 use crate::geometry::Point;
 use crate::mapping::{map_file, map_range};
@@ -56,7 +56,30 @@ pub struct ReducemFile {
     header: Header,
     precision: PrecisionRecord,
     layout: VertexLayout,
+    /// The grid of [`GridNode`] boxes; `None` for f32 [`TopNode`]s.
+    node_grid: Option<NodeGrid>,
     sections: [Range<usize>; 3],
+}
+
+/// The top-level nodes of a file, in the record its vertex encoding implies.
+#[derive(Clone, Copy, Debug)]
+pub enum TopNodes<'a> {
+    F32(&'a [TopNode]),
+    Grid(&'a [GridNode], NodeGrid),
+}
+
+impl TopNodes<'_> {
+    pub fn len(&self) -> usize {
+        match self {
+            TopNodes::F32(nodes) => nodes.len(),
+            TopNodes::Grid(nodes, _) => nodes.len(),
+        }
+    }
+
+    /// Never true for an opened file, whose root always exists.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
 }
 
 /// How a file's strip blocks store vertices: what viewing a block needs besides the block.
@@ -126,8 +149,8 @@ impl ReducemFile {
         };
         let header = checker.header()?;
         let precision = checker.precision(&header)?;
-        let layout = checker.layout(&header, &precision)?;
-        let sections = checker.sections(&header)?;
+        let (layout, node_grid) = checker.layout(&header, &precision)?;
+        let sections = checker.sections(&header, node_bytes(node_grid.is_some()))?;
         let map = map_file(&file).map_err(io_error)?;
         if map.len() as u64 != file_len {
             let detail = "the file changed size while it was being opened".to_string();
@@ -139,6 +162,7 @@ impl ReducemFile {
             header,
             precision,
             layout,
+            node_grid,
             sections,
         };
         let windows = Windows {
@@ -180,8 +204,12 @@ impl ReducemFile {
         &self.map[self.sections[section_slot(kind)].clone()]
     }
 
-    pub fn top_nodes(&self) -> &[TopNode] {
-        bytemuck::cast_slice(self.section_bytes(SectionKind::TopNodes))
+    pub fn top_nodes(&self) -> TopNodes<'_> {
+        let bytes = self.section_bytes(SectionKind::TopNodes);
+        match self.node_grid {
+            None => TopNodes::F32(bytemuck::cast_slice(bytes)),
+            Some(grid) => TopNodes::Grid(bytemuck::cast_slice(bytes), grid),
+        }
     }
 
     pub fn strip_records(&self) -> &[StripRecord] {
@@ -355,19 +383,28 @@ impl Windows<'_> {
     /// exactly one parent, before it in the array, so traversal terminates and indexes nothing
     /// out of bounds.
     fn validate_nodes(&self) -> Result<(), FormatError> {
+        match self.opened.node_grid {
+            None => self.validate_nodes_of::<TopNode>(),
+            Some(_) => self.validate_nodes_of::<GridNode>(),
+        }
+    }
+
+    fn validate_nodes_of<N: NodeRecord>(&self) -> Result<(), FormatError> {
         let section = self.section(SectionKind::TopNodes);
-        let count = ((section.end - section.start) / NODE_BYTES) as usize;
+        let node_bytes = size_of::<N>() as u64;
+        let count = ((section.end - section.start) / node_bytes) as usize;
         let mut tree = TreeCheck {
             opened: self.opened,
+            node_bytes,
             depth: vec![u8::MAX; count],
             leaf_strips: 0,
         };
         tree.depth[0] = 0;
-        let batch = (VALIDATION_WINDOW as u64 / NODE_BYTES).max(1) as usize;
+        let batch = (VALIDATION_WINDOW as u64 / node_bytes).max(1) as usize;
         for first in (0..count).step_by(batch) {
-            let length = batch.min(count - first) as u64 * NODE_BYTES;
-            let window = self.map(section.start + first as u64 * NODE_BYTES, length as usize)?;
-            let nodes: &[TopNode] = bytemuck::try_cast_slice(&window).map_err(|_| {
+            let length = batch.min(count - first) as u64 * node_bytes;
+            let window = self.map(section.start + first as u64 * node_bytes, length as usize)?;
+            let nodes: &[N] = bytemuck::try_cast_slice(&window).map_err(|_| {
                 self.opened
                     .invalid("top_nodes", section.start, "misaligned".into())
             })?;
@@ -380,37 +417,43 @@ impl Windows<'_> {
 }
 
 const RECORD_BYTES: u64 = std::mem::size_of::<StripRecord>() as u64;
-const NODE_BYTES: u64 = std::mem::size_of::<TopNode>() as u64;
+
+/// Bytes of one top-level node record: [`GridNode`] with a node grid, else [`TopNode`].
+fn node_bytes(grid_nodes: bool) -> u64 {
+    match grid_nodes {
+        true => size_of::<GridNode>() as u64,
+        false => size_of::<TopNode>() as u64,
+    }
+}
 
 /// The one-parent, depth and strip-count bookkeeping of [`Windows::validate_nodes`].
 struct TreeCheck<'a> {
     opened: &'a ReducemFile,
+    node_bytes: u64,
     depth: Vec<u8>,
     /// Strips over all leaves so far.
     leaf_strips: u64,
 }
 
-/// Byte offsets of a slot's fields within a [`TopNode`].
-const CHILD_FIELD: u64 = 96;
-const KIND_FIELD: u64 = 112;
-
 impl TreeCheck<'_> {
     fn fail(&self, index: usize, field: u64, detail: String) -> FormatError {
         self.opened.invalid(
             "top_nodes",
-            self.opened.section_offset(SectionKind::TopNodes) + index as u64 * NODE_BYTES + field,
+            self.opened.section_offset(SectionKind::TopNodes)
+                + index as u64 * self.node_bytes
+                + field,
             format!("node {index}: {detail}"),
         )
     }
 
-    fn check(&mut self, index: usize, node: &TopNode) -> Result<(), FormatError> {
+    fn check<N: NodeRecord>(&mut self, index: usize, node: &N) -> Result<(), FormatError> {
         if self.depth[index] == u8::MAX {
             return Err(self.fail(index, 0, "has no parent".into()));
         }
         let occupied = node.occupied();
         let empty_model = index == 0 && self.opened.header.strip_count == 0;
         if occupied == 0 && !empty_model {
-            return Err(self.fail(index, KIND_FIELD, "has no children".into()));
+            return Err(self.fail(index, N::KIND_FIELD, "has no children".into()));
         }
         for slot in 0..TOP_WIDTH {
             self.check_slot(index, node, slot, slot >= occupied)?;
@@ -418,27 +461,31 @@ impl TreeCheck<'_> {
         Ok(())
     }
 
-    fn check_slot(
+    fn check_slot<N: NodeRecord>(
         &mut self,
         index: usize,
-        node: &TopNode,
+        node: &N,
         slot: usize,
         empty: bool,
     ) -> Result<(), FormatError> {
-        let child_field = CHILD_FIELD + 4 * slot as u64;
-        let kind_field = KIND_FIELD + 4 * slot as u64;
+        let child_field = N::CHILD_FIELD + N::LINK_STRIDE * slot as u64;
+        let kind_field = N::KIND_FIELD + N::LINK_STRIDE * slot as u64;
         if empty {
             if !node.is_exactly_empty(slot) {
                 let detail = format!(
-                    "slot {slot} follows an empty slot but is not the exact empty slot \
-                     (min +inf, max -inf, child 0, kind 0)"
+                    "slot {slot} follows an empty slot but is not the exact empty slot ({})",
+                    N::EMPTY_SLOT
                 );
                 return Err(self.fail(index, kind_field, detail));
             }
             return Ok(());
         }
+        if let Some((axis, field)) = node.inverted_axis(slot) {
+            let detail = format!("slot {slot}: box minimum above its maximum on axis {axis}");
+            return Err(self.fail(index, field, detail));
+        }
         match node.slot(slot) {
-            TopSlot::Internal(child) => self.adopt(index, slot, child as usize),
+            TopSlot::Internal(child) => self.adopt(index, slot, child as usize, child_field),
             TopSlot::Leaf { first, count } => {
                 let strips = self.opened.header.strip_count;
                 let end = first as u64 + count as u64;
@@ -449,20 +496,23 @@ impl TreeCheck<'_> {
                 self.leaf_strips += count as u64;
                 Ok(())
             }
-            TopSlot::Invalid(_) | TopSlot::Empty => Err(self.fail(
+            TopSlot::Invalid(kind) => Err(self.fail(
                 index,
                 kind_field,
-                format!(
-                    "slot {slot}: kind {:#x} is neither internal nor a strip count",
-                    node.kind[slot]
-                ),
+                format!("slot {slot}: kind {kind:#x} is neither internal nor a strip count"),
             )),
+            TopSlot::Empty => unreachable!("occupied slots come before the first empty one"),
         }
     }
 
     /// Records node `child` as the child of node `index` in `slot`.
-    fn adopt(&mut self, index: usize, slot: usize, child: usize) -> Result<(), FormatError> {
-        let field = CHILD_FIELD + 4 * slot as u64;
+    fn adopt(
+        &mut self,
+        index: usize,
+        slot: usize,
+        child: usize,
+        field: u64,
+    ) -> Result<(), FormatError> {
         let nodes = self.depth.len();
         if child <= index || child >= nodes {
             let detail = format!("slot {slot}: child {child} outside {}..{nodes}", index + 1);
@@ -757,26 +807,38 @@ impl Checker<'_> {
         &self,
         header: &Header,
         precision: &PrecisionRecord,
-    ) -> Result<VertexLayout, FormatError> {
+    ) -> Result<(VertexLayout, Option<NodeGrid>), FormatError> {
         let at = |field: usize| (PRECISION_OFFSET + field) as u64;
-        match VertexEncoding::from_u32(header.vertex_encoding) {
-            None => Err(self.invalid(
+        let Some(encoding) = VertexEncoding::from_u32(header.vertex_encoding) else {
+            return Err(self.invalid(
                 "header",
                 20,
                 format!("unknown vertex encoding {}", header.vertex_encoding),
-            )),
-            Some(VertexEncoding::F32) if precision.grid_bits != 0 => Err(self.invalid(
+            ));
+        };
+        if header.version_minor < encoding.minor() {
+            let detail = format!(
+                "vertex encoding {} needs format 2.{} or later",
+                header.vertex_encoding,
+                encoding.minor()
+            );
+            return Err(self.invalid("header", 20, detail));
+        }
+        if encoding != VertexEncoding::GridNodes && precision.node_shift != 0 {
+            let detail = format!(
+                "node shift {} without grid top-level nodes",
+                precision.node_shift
+            );
+            return Err(self.invalid("header", at(4), detail));
+        }
+        match encoding {
+            VertexEncoding::F32 if precision.grid_bits != 0 => Err(self.invalid(
                 "header",
                 at(0),
                 format!("f32 vertices with a {}-bit grid", precision.grid_bits),
             )),
-            Some(VertexEncoding::F32) => Ok(VertexLayout::F32),
-            Some(VertexEncoding::Grid) if header.version_minor == 0 => Err(self.invalid(
-                "header",
-                20,
-                "grid vertices need format 2.1 or later".into(),
-            )),
-            Some(VertexEncoding::Grid) => {
+            VertexEncoding::F32 => Ok((VertexLayout::F32, None)),
+            VertexEncoding::Grid | VertexEncoding::GridNodes => {
                 let grid = precision.grid();
                 if !(1..=MAX_GRID_BITS).contains(&grid.bits) {
                     let detail = format!("grid of {} bits outside 1..={MAX_GRID_BITS}", grid.bits);
@@ -797,19 +859,38 @@ impl Checker<'_> {
                     );
                     return Err(self.invalid("header", at(8), detail));
                 }
-                Ok(VertexLayout::Grid(grid))
+                let node_grid = match encoding {
+                    VertexEncoding::GridNodes => {
+                        let shift = precision.node_shift;
+                        let node_grid = NodeGrid::new(&grid, shift).ok_or_else(|| {
+                            let detail = format!(
+                                "node grid of cell {} * 2^{shift} is not finite",
+                                grid.cell
+                            );
+                            self.invalid("header", at(4), detail)
+                        })?;
+                        Some(node_grid)
+                    }
+                    _ => None,
+                };
+                Ok((VertexLayout::Grid(grid), node_grid))
             }
         }
     }
 
-    fn sections(&self, header: &Header) -> Result<[Range<usize>; 3], FormatError> {
+    /// The section ranges, checked; `node_bytes` is the top-level node record's size.
+    fn sections(&self, header: &Header, node_bytes: u64) -> Result<[Range<usize>; 3], FormatError> {
         let mut previous_end = HEADER_PAGE;
         let mut ranges = [0..0, 0..0, 0..0];
         for (slot, kind) in SectionKind::ALL.into_iter().enumerate() {
             let entry = &header.sections[slot];
             let table_offset = 104 + slot as u64 * 32;
             let end = entry.offset.saturating_add(entry.length);
-            let record = record_size(kind);
+            let record = match kind {
+                SectionKind::TopNodes => node_bytes,
+                SectionKind::StripRecords => RECORD_BYTES,
+                SectionKind::StripData => 4,
+            };
             let detail = if entry.kind != kind as u32 {
                 Some(format!(
                     "section {slot} has kind {}, expected {}",
@@ -845,13 +926,5 @@ impl Checker<'_> {
             previous_end = end;
         }
         Ok(ranges)
-    }
-}
-
-fn record_size(kind: SectionKind) -> u64 {
-    match kind {
-        SectionKind::TopNodes => std::mem::size_of::<TopNode>() as u64,
-        SectionKind::StripRecords => std::mem::size_of::<StripRecord>() as u64,
-        SectionKind::StripData => 4,
     }
 }

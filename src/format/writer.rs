@@ -7,11 +7,11 @@ use std::path::{Path, PathBuf};
 
 use xxhash_rust::xxh3::Xxh3;
 
-use super::grid::Grid;
+use super::grid::{Grid, NodeGrid};
 use super::{
-    align_up, Header, PrecisionRecord, SectionEntry, SectionKind, StripRecord, VertexEncoding,
-    ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, PRECISION_OFFSET, SECTION_ALIGN,
-    SECTION_COUNT, VERSION_MAJOR, VERSION_MINOR,
+    align_up, GridNode, Header, PrecisionRecord, SectionEntry, SectionKind, StripRecord, TopNode,
+    VertexEncoding, ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, PRECISION_OFFSET,
+    SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR,
 };
 use crate::atomic::write_atomically;
 use crate::build::ChunkStats;
@@ -30,6 +30,45 @@ pub struct FileInfo {
     /// The grid the vertices were snapped to; `None` for lossless f32 vertices.
     pub grid: Option<Grid>,
     pub weld: WeldStats,
+}
+
+impl FileInfo {
+    /// The grid of the top-level node boxes: for grid vertices, the finest node grid over the
+    /// (decoded) bounds, which hold every strip box; `None` for lossless files, whose nodes
+    /// stay f32 [`TopNode`]s.
+    pub fn node_grid(&self) -> Option<NodeGrid> {
+        self.grid.map(|grid| NodeGrid::over(&grid, &self.bounds))
+    }
+
+    fn vertex_encoding(&self) -> VertexEncoding {
+        match self.grid {
+            None => VertexEncoding::F32,
+            Some(_) => VertexEncoding::GridNodes,
+        }
+    }
+}
+
+/// Writes top-level nodes (of the f32 wide tree) in the file's record: as they are, or as
+/// [`GridNode`]s rounded outward to `node_grid`.
+pub fn write_nodes(
+    out: &mut dyn Write,
+    nodes: &[TopNode],
+    node_grid: Option<&NodeGrid>,
+) -> io::Result<()> {
+    let Some(grid) = node_grid else {
+        return out.write_all(bytemuck::cast_slice(nodes));
+    };
+    let compact = nodes
+        .iter()
+        .enumerate()
+        .map(|(index, node)| {
+            GridNode::encode(node, grid).map_err(|detail| {
+                let detail = format!("top-level node {index}: {detail} in a format 2.2 grid node");
+                io::Error::new(io::ErrorKind::InvalidData, detail)
+            })
+        })
+        .collect::<io::Result<Vec<_>>>()?;
+    out.write_all(bytemuck::cast_slice(&compact))
 }
 
 /// A failed write, naming the file.
@@ -61,6 +100,7 @@ pub fn write_file(
     let records = strip_records(top, strips).map_err(error)?;
     let mut source = InMemory {
         top,
+        node_grid: info.node_grid(),
         strips,
         records,
     };
@@ -107,6 +147,7 @@ fn precision(info: &FileInfo) -> PrecisionRecord {
     let weld = &info.weld.displacement;
     PrecisionRecord {
         grid_bits: grid.bits,
+        node_shift: info.node_grid().map_or(0, |node| node.shift),
         grid_origin: grid.origin,
         grid_cell: grid.cell,
         error_max: error.max,
@@ -123,6 +164,7 @@ fn precision(info: &FileInfo) -> PrecisionRecord {
 /// The sections of a model converted in memory.
 struct InMemory<'a> {
     top: &'a TopLevel,
+    node_grid: Option<NodeGrid>,
     strips: &'a [EncodedStrip],
     records: Vec<StripRecord>,
 }
@@ -134,7 +176,7 @@ impl SectionSource for InMemory<'_> {
 
     fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()> {
         match kind {
-            SectionKind::TopNodes => out.write_all(bytemuck::cast_slice(&self.top.nodes)),
+            SectionKind::TopNodes => write_nodes(out, &self.top.nodes, self.node_grid.as_ref()),
             SectionKind::StripRecords => out.write_all(bytemuck::cast_slice(&self.records)),
             SectionKind::StripData => self
                 .top
@@ -175,13 +217,12 @@ fn header(info: &FileInfo, strip_count: u64, sections: [SectionEntry; SECTION_CO
     let mut header = Header {
         magic: MAGIC,
         version_major: VERSION_MAJOR,
-        version_minor: VERSION_MINOR,
+        // The lowest minor with what the file uses: 2.1 for lossless files (the precision
+        // record), so that they stay readable by 2.1 readers byte for byte.
+        version_minor: info.vertex_encoding().minor().max(1),
         endian_marker: ENDIAN_MARKER,
         header_bytes: std::mem::size_of::<Header>() as u32,
-        vertex_encoding: match info.grid {
-            None => VertexEncoding::F32 as u32,
-            Some(_) => VertexEncoding::Grid as u32,
-        },
+        vertex_encoding: info.vertex_encoding() as u32,
         leaf_windows: info.leaf_windows as u32,
         max_strip_length: info.max_strip_length as u32,
         triangle_count: info.stats.triangles,

@@ -25,9 +25,11 @@ use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION
 use super::strip::Closest;
 use super::top::{
     for_each_bit, order_keys, sort_by_key, trace_leaf, trace_ray, DeferStack, Deferred,
+    NodeGridLanes, TraceNode,
 };
 use super::{Ray, Tracer};
-use crate::format::{TopNode, INTERNAL_CHILD, TOP_WIDTH};
+use crate::format::reader::TopNodes;
+use crate::format::{INTERNAL_CHILD, TOP_WIDTH};
 
 /// Rays per packet at the top level.
 pub const PACKET_WIDTH: usize = 8;
@@ -95,14 +97,19 @@ impl Lanes {
         }
     }
 
-    /// Lanewise [`PreparedRay::clip_box`] against child `slot` of `node`: the same operations
-    /// in the same order.
+    /// Lanewise [`PreparedRay::clip_box`] against child `slot` of boxes `min`..`max`
+    /// (`[axis][slot]`): the same operations in the same order.
     #[inline(always)]
-    fn clip_slot(&self, node: &TopNode, slot: usize, t_far: f32x8) -> (f32x8, f32x8, u32) {
+    fn clip_slot(
+        &self,
+        (min, max): &super::top::ChildBoxes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32) {
         let mut near = self.tmin;
         let mut far = t_far;
         for axis in 0..3 {
-            let (min, max) = (node.min[axis][slot], node.max[axis][slot]);
+            let (min, max) = (min[axis][slot], max[axis][slot]);
             let (entry, exit) = if self.rays[0].negative[axis] {
                 (max, min)
             } else {
@@ -120,26 +127,31 @@ impl Lanes {
 
     /// Clips the `active` lanes against `node`'s occupied slots; returns the child entered
     /// nearest (by the entry distance of the first lane entering it) and defers the others,
-    /// farthest first. Empty slots are skipped: no ray enters them (see [`TopNode`]).
+    /// farthest first. Empty slots are skipped (by their link: a grid node's empty box is not
+    /// missed by construction).
     #[inline(always)]
-    fn enter_children(
+    fn enter_children<N: TraceNode>(
         &self,
-        node: &TopNode,
+        node: &N,
+        decoder: &N::Decoder,
         active: u32,
         limit: f32x8,
         stack: &mut DeferStack<PacketDeferred>,
     ) -> Option<PacketDeferred> {
-        let keys = order_keys(node, &self.rays[0].negative);
+        let boxes = node.boxes(decoder);
+        let keys = order_keys(&boxes.0, &boxes.1, &self.rays[0].negative);
         let mut entered = [(0.0, PacketDeferred::default()); TOP_WIDTH];
         let mut count = 0;
-        for slot in (0..TOP_WIDTH).take_while(|&slot| node.kind[slot] != 0) {
-            let (t_near, t_far, mask) = self.clip_slot(node, slot, limit);
+        let occupied = node.occupied_mask();
+        for slot in (0..TOP_WIDTH).take_while(|&slot| occupied & (1 << slot) != 0) {
+            let (t_near, t_far, mask) = self.clip_slot(&boxes, slot, limit);
             let mask = mask & active;
             if mask != 0 {
                 let key = keys[slot];
+                let (child, kind) = node.link(slot);
                 let child = PacketDeferred {
-                    child: node.child[slot],
-                    kind: node.kind[slot],
+                    child,
+                    kind,
                     mask,
                     t_near,
                     t_far,
@@ -174,7 +186,34 @@ fn traverse(
     any_hit: bool,
     closest: &mut [Closest; PACKET_WIDTH],
 ) {
-    let nodes = tracer.file().top_nodes();
+    match tracer.file().top_nodes() {
+        TopNodes::F32(nodes) => {
+            traverse_nodes(tracer, nodes, &(), lanes, packet_mask, any_hit, closest)
+        }
+        TopNodes::Grid(nodes, grid) => {
+            let decoder = NodeGridLanes::new(&grid);
+            traverse_nodes(
+                tracer,
+                nodes,
+                &decoder,
+                lanes,
+                packet_mask,
+                any_hit,
+                closest,
+            )
+        }
+    }
+}
+
+fn traverse_nodes<N: TraceNode>(
+    tracer: &Tracer,
+    nodes: &[N],
+    decoder: &N::Decoder,
+    lanes: &Lanes,
+    packet_mask: u32,
+    any_hit: bool,
+    closest: &mut [Closest; PACKET_WIDTH],
+) {
     let mut finished = 0u32;
     let mut stack = DeferStack::default();
     // The root has no box: every lane starts with its own interval.
@@ -190,7 +229,9 @@ fn traverse(
             if current.kind == INTERNAL_CHILD {
                 let node = &nodes[current.child as usize];
                 let limit = bounds(closest, finished);
-                if let Some(nearest) = lanes.enter_children(node, current.mask, limit, &mut stack) {
+                if let Some(nearest) =
+                    lanes.enter_children(node, decoder, current.mask, limit, &mut stack)
+                {
                     current = nearest;
                     continue;
                 }

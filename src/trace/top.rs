@@ -1,6 +1,8 @@
 //! Single-ray traversal of the global hierarchy over strips (paper 3.2, first level).
 //!
-//! Depth-first over the mapped [`TopNode`] array. At a node the ray is clipped against all four
+//! Depth-first over the mapped node array ([`TopNode`]s, or [`GridNode`]s decoded to the same
+//! f32 boxes, see [`TraceNode`]; traversal is generic over the two and monomorphized, so the
+//! f32 path is what it was without the grid one). At a node the ray is clipped against all four
 //! child boxes at once ([`WideRay::clip_boxes`], SIMD); of the children it enters, the first in
 //! visiting order is entered at once and the others deferred on a stack with their entry
 //! distance, so that each is dropped if a nearer hit is found meanwhile. The visiting order is
@@ -17,8 +19,106 @@ use wide::f32x4;
 
 use super::prepared::{PreparedRay, WideRay};
 use super::strip::{Closest, StripQuery};
-use crate::format::reader::ReducemFile;
-use crate::format::{TopNode, INTERNAL_CHILD, TOP_WIDTH};
+use crate::format::grid::NodeGrid;
+use crate::format::reader::{ReducemFile, TopNodes};
+use crate::format::{
+    GridNode, NodeRecord, TopNode, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS, GRID_LINK_INTERNAL,
+    INTERNAL_CHILD, TOP_WIDTH,
+};
+
+/// Child boxes of a node, axis by axis (`[axis][slot]`): minima, maxima.
+pub type ChildBoxes = ([[f32; TOP_WIDTH]; 3], [[f32; TOP_WIDTH]; 3]);
+
+/// A top-level node record as traversal sees it: four f32 child boxes and `(child, kind)`
+/// links as [`TopNode`] stores them.
+pub trait TraceNode: NodeRecord {
+    /// What decoding the boxes takes besides the node.
+    type Decoder: Copy;
+    /// Whether every ray misses an empty slot's box, so that the box test alone skips it.
+    const EMPTY_BOXES_MISS: bool;
+
+    fn boxes(&self, decoder: &Self::Decoder) -> ChildBoxes;
+    /// `(child, kind)` of an occupied slot, as in [`TopNode`].
+    fn link(&self, slot: usize) -> (u32, u32);
+    /// Bit `i` set when slot `i` is occupied.
+    fn occupied_mask(&self) -> u32;
+}
+
+impl TraceNode for TopNode {
+    type Decoder = ();
+    const EMPTY_BOXES_MISS: bool = true;
+
+    #[inline(always)]
+    fn boxes(&self, _: &()) -> ChildBoxes {
+        (self.min, self.max)
+    }
+
+    #[inline(always)]
+    fn link(&self, slot: usize) -> (u32, u32) {
+        (self.child[slot], self.kind[slot])
+    }
+
+    #[inline(always)]
+    fn occupied_mask(&self) -> u32 {
+        (0..TOP_WIDTH).fold(0, |mask, slot| {
+            mask | ((self.kind[slot] != 0) as u32) << slot
+        })
+    }
+}
+
+/// The node grid in four lanes.
+#[derive(Clone, Copy, Debug)]
+pub struct NodeGridLanes {
+    origin: [f32x4; 3],
+    cell: f32x4,
+}
+
+impl NodeGridLanes {
+    pub fn new(grid: &NodeGrid) -> NodeGridLanes {
+        NodeGridLanes {
+            origin: grid.origin.map(f32x4::splat),
+            cell: f32x4::splat(grid.cell),
+        }
+    }
+
+    /// [`NodeGrid::decode_axis`] lanewise: an exact u16 → f32 conversion, the exact product
+    /// and one rounded sum, so each lane is the scalar expression's value bit for bit.
+    #[inline(always)]
+    fn decode(&self, q: &[u16; TOP_WIDTH], axis: usize) -> [f32; TOP_WIDTH] {
+        (self.origin[axis] + f32x4::from(q.map(f32::from)) * self.cell).to_array()
+    }
+}
+
+impl TraceNode for GridNode {
+    type Decoder = NodeGridLanes;
+    /// An empty slot is all zeros: a box at the origin that rays may well enter.
+    const EMPTY_BOXES_MISS: bool = false;
+
+    #[inline(always)]
+    fn boxes(&self, grid: &NodeGridLanes) -> ChildBoxes {
+        let decode = |q: &[[u16; TOP_WIDTH]; 3]| [0, 1, 2].map(|axis| grid.decode(&q[axis], axis));
+        (decode(&self.min), decode(&self.max))
+    }
+
+    #[inline(always)]
+    fn link(&self, slot: usize) -> (u32, u32) {
+        let link = self.link[slot];
+        let tag = link >> GRID_LINK_INDEX_BITS;
+        let kind = if tag == GRID_LINK_INTERNAL {
+            INTERNAL_CHILD
+        } else {
+            tag
+        };
+        (link & GRID_LINK_INDEX, kind)
+    }
+
+    #[inline(always)]
+    fn occupied_mask(&self) -> u32 {
+        (0..TOP_WIDTH).fold(0, |mask, slot| {
+            mask | ((self.link[slot] != 0) as u32) << slot
+        })
+    }
+}
 
 /// A deferred child: its link and kind as the node's slot holds them, and the ray's interval in
 /// its box.
@@ -90,14 +190,28 @@ impl<T: Copy> DeferStack<T> {
 
 /// Traverses the whole file for one ray; returns true when `query.any_hit` found a hit.
 pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) -> bool {
-    let nodes = file.top_nodes();
+    match file.top_nodes() {
+        TopNodes::F32(nodes) => trace_nodes(file, nodes, &(), query, closest),
+        TopNodes::Grid(nodes, grid) => {
+            trace_nodes(file, nodes, &NodeGridLanes::new(&grid), query, closest)
+        }
+    }
+}
+
+fn trace_nodes<N: TraceNode>(
+    file: &ReducemFile,
+    nodes: &[N],
+    decoder: &N::Decoder,
+    query: &StripQuery,
+    closest: &mut Closest,
+) -> bool {
     let ray = WideRay::new(query.ray);
     let mut stack = DeferStack::default();
     let mut current = Deferred::root(query.ray);
     loop {
         if current.kind == INTERNAL_CHILD {
             let node = &nodes[current.child as usize];
-            if let Some(nearest) = enter_children(&ray, node, query, closest, &mut stack) {
+            if let Some(nearest) = enter_children(&ray, node, decoder, query, closest, &mut stack) {
                 current = nearest;
                 continue;
             }
@@ -124,20 +238,28 @@ pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) 
 /// does not depend on the order, since the culling bound stays `tmax` until the first hit ends
 /// the traversal.
 #[inline(always)]
-fn enter_children(
+fn enter_children<N: TraceNode>(
     ray: &WideRay,
-    node: &TopNode,
+    node: &N,
+    decoder: &N::Decoder,
     query: &StripQuery,
     closest: &Closest,
     stack: &mut DeferStack<Deferred>,
 ) -> Option<Deferred> {
-    let (near, far, mask) = ray.clip_boxes(&node.min, &node.max, query.ray.tmin, closest.reach);
+    let (min, max) = node.boxes(decoder);
+    let (near, far, mut mask) = ray.clip_boxes(&min, &max, query.ray.tmin, closest.reach);
+    if !N::EMPTY_BOXES_MISS {
+        mask &= node.occupied_mask();
+    }
     let (near, far) = (near.to_array(), far.to_array());
-    let entry = |slot: usize| Deferred {
-        child: node.child[slot],
-        kind: node.kind[slot],
-        t_near: near[slot],
-        t_far: far[slot],
+    let entry = |slot: usize| {
+        let (child, kind) = node.link(slot);
+        Deferred {
+            child,
+            kind,
+            t_near: near[slot],
+            t_far: far[slot],
+        }
     };
     if mask.is_power_of_two() {
         return Some(entry(mask.trailing_zeros() as usize));
@@ -145,7 +267,7 @@ fn enter_children(
     let keys = if query.any_hit {
         near
     } else {
-        order_keys(node, &ray.negative)
+        order_keys(&min, &max, &ray.negative)
     };
     let mut entered = [(0.0, Deferred::default()); TOP_WIDTH];
     let mut count = 0;
@@ -167,10 +289,14 @@ fn enter_children(
 /// that opens, even on a corrupt one whose boxes no longer bound their strips (where the order
 /// decides which hits are culled).
 #[inline(always)]
-pub fn order_keys(node: &TopNode, negative: &[bool; 3]) -> [f32; TOP_WIDTH] {
+pub fn order_keys(
+    min: &[[f32; TOP_WIDTH]; 3],
+    max: &[[f32; TOP_WIDTH]; 3],
+    negative: &[bool; 3],
+) -> [f32; TOP_WIDTH] {
     let mut key = f32x4::ZERO;
     for (axis, &negative) in negative.iter().enumerate() {
-        let centre = f32x4::from(node.min[axis]) + f32x4::from(node.max[axis]);
+        let centre = f32x4::from(min[axis]) + f32x4::from(max[axis]);
         key = if negative { key - centre } else { key + centre };
     }
     key.to_array()

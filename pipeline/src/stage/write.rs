@@ -6,8 +6,9 @@ use std::io::{self, Write};
 use std::path::PathBuf;
 
 use anyhow::Context;
+use reducem::format::grid::NodeGrid;
 use reducem::format::reader::ReducemFile;
-use reducem::format::writer::{write_streaming, FileInfo, SectionSource};
+use reducem::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource};
 use reducem::format::SectionKind;
 use reducem::toplevel::relocate;
 
@@ -52,7 +53,7 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         grid: merged.grid,
         weld: merged.weld,
     };
-    let mut source = Spliced::new(job, merged, hierarchy)?;
+    let mut source = Spliced::new(job, merged, hierarchy, info.node_grid())?;
     write_streaming(&output, &info, &mut source)?;
     progress.advance(3);
     ReducemFile::open(&output).context("verifying the written file")?;
@@ -71,6 +72,8 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
 struct Spliced<'a> {
     job: &'a Job<'a>,
     steps: &'a [Step],
+    /// The grid of grid files' top-level node boxes ([`FileInfo::node_grid`]).
+    node_grid: Option<NodeGrid>,
     strip_count: u64,
     /// Where each chunk's strip blocks start in the strip-data section, in 4-byte words.
     data_word_base: Vec<u32>,
@@ -81,6 +84,7 @@ impl<'a> Spliced<'a> {
         job: &'a Job<'a>,
         merged: &'a Merged,
         hierarchy: &'a Hierarchy,
+        node_grid: Option<NodeGrid>,
     ) -> anyhow::Result<Spliced<'a>> {
         let mut data_word_base = vec![0u32; merged.chunks.len()];
         let mut words = 0u64;
@@ -94,6 +98,7 @@ impl<'a> Spliced<'a> {
         Ok(Spliced {
             job,
             steps: &hierarchy.steps,
+            node_grid,
             strip_count: merged.chunks.iter().map(|c| c.strips as u64).sum(),
             data_word_base,
         })
@@ -125,7 +130,9 @@ impl SectionSource for Spliced<'_> {
     fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()> {
         match kind {
             SectionKind::TopNodes => self.steps.iter().try_for_each(|step| match *step {
-                Step::Node { ref slots } => out.write_all(bytemuck::bytes_of(&node(slots))),
+                Step::Node { ref slots } => {
+                    write_nodes(out, &[node(slots)], self.node_grid.as_ref())
+                }
                 Step::Chunk {
                     index,
                     node_base,
@@ -136,7 +143,7 @@ impl SectionSource for Spliced<'_> {
                         .iter()
                         .map(|n| relocate(n, node_base, strip_base))
                         .collect();
-                    out.write_all(bytemuck::cast_slice(&moved))
+                    write_nodes(out, &moved, self.node_grid.as_ref())
                 }
             }),
             SectionKind::StripRecords => self.chunks().try_for_each(|(index, _, _)| {
