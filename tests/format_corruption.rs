@@ -414,3 +414,125 @@ fn crafted_grid_blocks_are_rejected_naming_strip_and_byte() {
     let message = open_error("long.rdm", &long);
     assert!(message.contains("past the section end"), "{message}");
 }
+
+/// Byte offsets within a 64-byte grid top-level node (see `docs/FORMAT.md`).
+const GRID_NODE_BYTES: usize = 64;
+const GRID_MAX_FIELD: usize = 24;
+const GRID_LINK_FIELD: usize = 48;
+const GRID_INTERNAL: u32 = 15 << 28;
+
+fn grid_node_at(bytes: &[u8], node: usize, field: usize) -> usize {
+    section_offset(bytes, SectionKind::TopNodes) + node * GRID_NODE_BYTES + field
+}
+
+fn grid_link(bytes: &[u8], node: usize, slot: usize) -> u32 {
+    let at = grid_node_at(bytes, node, GRID_LINK_FIELD + 4 * slot);
+    u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap())
+}
+
+#[test]
+fn crafted_grid_nodes_are_rejected_naming_node_and_byte() {
+    let bytes = grid_file_bytes("crafted-grid-nodes-source.rdm");
+    let nodes = section_range(&bytes, SectionKind::TopNodes).1 / GRID_NODE_BYTES;
+    let slots = || (0..nodes).flat_map(|node| (0..4).map(move |slot| (node, slot)));
+    let with_link = |node: usize, slot: usize, link: u32| {
+        let at = grid_node_at(&bytes, node, GRID_LINK_FIELD + 4 * slot);
+        let mut changed = bytes.clone();
+        changed[at..at + 4].copy_from_slice(&link.to_le_bytes());
+        (changed, at)
+    };
+    let (node, slot) = slots()
+        .find(|&(n, s)| grid_link(&bytes, n, s) >> 28 == 15)
+        .expect("an internal slot");
+    let named = |message: &str, at: usize| {
+        message.contains("top_nodes")
+            && message.contains(&format!("node {node}:"))
+            && message.contains(&format!("at byte {at}"))
+    };
+
+    // A child pointing at its own node would loop forever.
+    let (self_loop, at) = with_link(node, slot, GRID_INTERNAL | node as u32);
+    let message = rejection("grid-loop.rdm", &self_loop);
+    assert!(
+        named(&message, at) && message.contains("outside"),
+        "{message}"
+    );
+
+    // Tag 0 with an index: neither empty nor a link.
+    let (untagged, at) = with_link(node, slot, 5);
+    let message = rejection("grid-untagged.rdm", &untagged);
+    assert!(
+        named(&message, at) && message.contains("neither internal nor a strip count"),
+        "{message}"
+    );
+
+    // A leaf running past the strip records.
+    let strips = u64::from_le_bytes(bytes[40..48].try_into().unwrap()) as u32;
+    let (leaf_node, leaf_slot) = slots()
+        .find(|&(n, s)| (1..15).contains(&(grid_link(&bytes, n, s) >> 28)))
+        .expect("a leaf slot");
+    let (long_leaf, _) = with_link(leaf_node, leaf_slot, 14 << 28 | strips);
+    let message = rejection("grid-long-leaf.rdm", &long_leaf);
+    assert!(
+        message.contains(&format!("outside 0..{strips}")),
+        "{message}"
+    );
+
+    // A box whose maximum is below its minimum, named at the minimum's byte.
+    let min_at = grid_node_at(&bytes, node, 8 + 2 * slot);
+    let max_at = grid_node_at(&bytes, node, GRID_MAX_FIELD + 8 + 2 * slot);
+    let mut inverted = bytes.clone();
+    inverted[min_at..min_at + 2].copy_from_slice(&2u16.to_le_bytes());
+    inverted[max_at..max_at + 2].copy_from_slice(&1u16.to_le_bytes());
+    let message = rejection("grid-inverted.rdm", &inverted);
+    assert!(
+        named(&message, min_at) && message.contains("minimum above its maximum on axis 1"),
+        "{message}"
+    );
+
+    // An empty slot with a box: it must be all zero bytes.
+    let (empty_node, empty_slot) = slots()
+        .find(|&(n, s)| grid_link(&bytes, n, s) == 0)
+        .expect("an empty slot");
+    let mut boxed_empty = bytes.clone();
+    boxed_empty[grid_node_at(&bytes, empty_node, GRID_MAX_FIELD + 2 * empty_slot)] = 1;
+    let message = rejection("grid-boxed-empty.rdm", &boxed_empty);
+    let link_at = grid_node_at(&bytes, empty_node, GRID_LINK_FIELD + 4 * empty_slot);
+    assert!(
+        message.contains(&format!("node {empty_node}:"))
+            && message.contains(&format!("at byte {link_at}"))
+            && message.contains("all zero bytes"),
+        "{message}"
+    );
+}
+
+/// A 2.1 reader rejects grid nodes through `vertex_encoding` 2 (unknown to it); this reader
+/// rejects that encoding in a file claiming 2.1, and a node shift on any other encoding.
+#[test]
+fn grid_nodes_need_format_2_2_and_a_finite_node_grid() {
+    let bytes = grid_file_bytes("grid-nodes-version-source.rdm");
+    assert_eq!(&bytes[10..12], &2u16.to_le_bytes());
+    assert_eq!(&bytes[20..24], &2u32.to_le_bytes());
+    let mut claimed_2_1 = bytes.clone();
+    claimed_2_1[10..12].copy_from_slice(&1u16.to_le_bytes());
+    let checksum = xxhash_rust::xxh3::xxh3_64(&claimed_2_1[..200]);
+    claimed_2_1[200..208].copy_from_slice(&checksum.to_le_bytes());
+    let message = open_error("grid-nodes-2.1.rdm", &claimed_2_1);
+    assert!(
+        message.contains("at byte 20") && message.contains("needs format 2.2"),
+        "{message}"
+    );
+    let overflowing = with_precision(&bytes, |r| r.node_shift = 200);
+    let message = open_error("node-shift.rdm", &overflowing);
+    assert!(
+        message.contains("at byte 212") && message.contains("node grid"),
+        "{message}"
+    );
+    let lossless = valid_file_bytes("node-shift-f32-source.rdm");
+    let shifted = with_precision(&lossless, |r| r.node_shift = 1);
+    let message = open_error("node-shift-f32.rdm", &shifted);
+    assert!(
+        message.contains("at byte 212") && message.contains("without grid top-level nodes"),
+        "{message}"
+    );
+}

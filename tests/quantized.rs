@@ -232,3 +232,63 @@ fn a_tolerance_weld_reconnects_a_perturbed_mesh_into_long_strips() {
     let length = file_stats(&joined).avg_strip_length;
     assert!(length > 10.0, "average strip length {length}");
 }
+
+/// Every box of a grid file's 64-byte nodes, decoded, holds every vertex of the strips below
+/// it, at 8 bits (node grid = model grid) and 24 bits (node grid 2^8 model cells): the outward
+/// rounding is conservative on both sides of the node grid's shift.
+#[test]
+fn grid_node_boxes_hold_their_strips() {
+    use reducem::format::reader::TopNodes;
+    use reducem::format::{GridNode, NodeRecord, TopSlot};
+    let mesh = generated(reducem::gen::Kind::Scan, 20_000);
+    for bits in [8, 24] {
+        let file = convert_on_grid(&mesh, &grid_params(bits, 4), &format!("nodes-{bits}.rdm"));
+        let TopNodes::Grid(nodes, grid) = file.top_nodes() else {
+            panic!("a grid file has grid nodes");
+        };
+        assert!(grid.shift >= bits.saturating_sub(16) && grid.shift <= bits.saturating_sub(15));
+        assert_eq!(
+            file.section_bytes(reducem::format::SectionKind::TopNodes)
+                .len(),
+            nodes.len() * size_of::<GridNode>()
+        );
+        // (node, decoded min, decoded max) of each slot to check, from the root's children.
+        let decode = |node: &GridNode, slot: usize| {
+            let min = [0, 1, 2].map(|a| grid.decode_axis(node.min[a][slot], a));
+            let max = [0, 1, 2].map(|a| grid.decode_axis(node.max[a][slot], a));
+            (min, max)
+        };
+        let inside = |p: &Point, (min, max): &(Point, Point)| {
+            (0..3).all(|a| min[a] <= p[a] && p[a] <= max[a])
+        };
+        let mut pending = vec![0usize];
+        let mut strips = 0;
+        while let Some(index) = pending.pop() {
+            let node = &nodes[index];
+            for slot in 0..node.occupied() {
+                let bounds = decode(node, slot);
+                match node.slot(slot) {
+                    TopSlot::Internal(child) => {
+                        let child_node = &nodes[child as usize];
+                        for s in 0..child_node.occupied() {
+                            let (min, max) = decode(child_node, s);
+                            assert!(inside(&min, &bounds) && inside(&max, &bounds));
+                        }
+                        pending.push(child as usize);
+                    }
+                    TopSlot::Leaf { first, count } => {
+                        for strip in first..first + count {
+                            let view = file.strip(strip as usize);
+                            for v in 0..view.vertices.len() {
+                                assert!(inside(&view.vertices.point(v), &bounds), "bits {bits}");
+                            }
+                            strips += 1;
+                        }
+                    }
+                    other => panic!("{other:?}"),
+                }
+            }
+        }
+        assert_eq!(strips, file.strip_count());
+    }
+}
