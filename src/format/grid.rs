@@ -143,18 +143,15 @@ impl NodeGrid {
     }
 
     /// The finest node grid of `grid` whose far corner is at or beyond `bounds.max` (the
-    /// model's decoded bounds, which hold every strip box).
-    pub fn over(grid: &Grid, bounds: &Aabb) -> NodeGrid {
-        let mut shift = 0;
-        loop {
-            if let Some(node) = NodeGrid::new(grid, shift) {
+    /// model's decoded bounds, which hold every strip box); `None` when no finite one is (only
+    /// for grids ending near `f32::MAX`).
+    pub fn over(grid: &Grid, bounds: &Aabb) -> Option<NodeGrid> {
+        (0..=u8::MAX as u32)
+            .filter_map(|shift| NodeGrid::new(grid, shift))
+            .find(|node| {
                 let covers = |a: usize| node.decode_axis(NODE_GRID_LAST, a) >= bounds.max[a];
-                if bounds.is_empty() || (0..3).all(covers) {
-                    return node;
-                }
-            }
-            shift += 1;
-        }
+                bounds.is_empty() || (0..3).all(covers)
+            })
     }
 
     /// The position of node grid coordinate `q` on `axis`: the decode expression of
@@ -267,7 +264,7 @@ mod tests {
         let b = bounds([-3.7, 10.25, -0.001], [12.9, 10.5, 0.002]);
         for bits in [1, 8, 16, 17, 20, 24] {
             let grid = Grid::over(&b, bits);
-            let node = NodeGrid::over(&grid, &b);
+            let node = NodeGrid::over(&grid, &b).unwrap();
             assert!(node.shift <= bits.saturating_sub(15), "bits {bits}");
             for t in 0..=64 {
                 let t = t as f32 / 64.0;

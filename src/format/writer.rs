@@ -36,8 +36,16 @@ impl FileInfo {
     /// The grid of the top-level node boxes: for grid vertices, the finest node grid over the
     /// (decoded) bounds, which hold every strip box; `None` for lossless files, whose nodes
     /// stay f32 [`TopNode`]s.
-    pub fn node_grid(&self) -> Option<NodeGrid> {
-        self.grid.map(|grid| NodeGrid::over(&grid, &self.bounds))
+    pub fn node_grid(&self) -> io::Result<Option<NodeGrid>> {
+        let Some(grid) = self.grid else {
+            return Ok(None);
+        };
+        NodeGrid::over(&grid, &self.bounds)
+            .map(Some)
+            .ok_or_else(|| {
+                let detail = format!("no finite node grid of {grid:?} covers {:?}", self.bounds);
+                io::Error::new(io::ErrorKind::InvalidData, detail)
+            })
     }
 
     fn vertex_encoding(&self) -> VertexEncoding {
@@ -100,7 +108,7 @@ pub fn write_file(
     let records = strip_records(top, strips).map_err(error)?;
     let mut source = InMemory {
         top,
-        node_grid: info.node_grid(),
+        node_grid: info.node_grid().map_err(error)?,
         strips,
         records,
     };
@@ -134,10 +142,10 @@ fn write_sections(
     file.seek(SeekFrom::Start(0))?;
     file.write_all(bytemuck::bytes_of(&header))?;
     file.seek(SeekFrom::Start(PRECISION_OFFSET as u64))?;
-    file.write_all(bytemuck::bytes_of(&precision(info)))
+    file.write_all(bytemuck::bytes_of(&precision(info)?))
 }
 
-fn precision(info: &FileInfo) -> PrecisionRecord {
+fn precision(info: &FileInfo) -> io::Result<PrecisionRecord> {
     let grid = info.grid.unwrap_or(Grid {
         bits: 0,
         origin: [0.0; 3],
@@ -145,9 +153,9 @@ fn precision(info: &FileInfo) -> PrecisionRecord {
     });
     let error = &info.stats.quantization;
     let weld = &info.weld.displacement;
-    PrecisionRecord {
+    Ok(PrecisionRecord {
         grid_bits: grid.bits,
-        node_shift: info.node_grid().map_or(0, |node| node.shift),
+        node_shift: info.node_grid()?.map_or(0, |node| node.shift),
         grid_origin: grid.origin,
         grid_cell: grid.cell,
         error_max: error.max,
@@ -158,7 +166,7 @@ fn precision(info: &FileInfo) -> PrecisionRecord {
         weld_displacement_rms: weld.rms(),
         ..PrecisionRecord::default()
     }
-    .sealed()
+    .sealed())
 }
 
 /// The sections of a model converted in memory.

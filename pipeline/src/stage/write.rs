@@ -53,7 +53,7 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         grid: merged.grid,
         weld: merged.weld,
     };
-    let mut source = Spliced::new(job, merged, hierarchy, info.node_grid())?;
+    let mut source = Spliced::new(job, merged, hierarchy, info.node_grid()?)?;
     write_streaming(&output, &info, &mut source)?;
     progress.advance(3);
     ReducemFile::open(&output).context("verifying the written file")?;
