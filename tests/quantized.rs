@@ -250,7 +250,7 @@ fn grid_node_boxes_hold_their_strips() {
         assert_eq!(
             file.section_bytes(reducem::format::SectionKind::TopNodes)
                 .len(),
-            nodes.len() * size_of::<GridNode>()
+            std::mem::size_of_val(nodes)
         );
         // (node, decoded min, decoded max) of each slot to check, from the root's children.
         let decode = |node: &GridNode, slot: usize| {
