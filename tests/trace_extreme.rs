@@ -18,7 +18,7 @@ use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
-use reducem::trace::{Ray, TraceOptions, Tracer};
+use reducem::trace::{Hit, Ray, TraceOptions, Tracer};
 
 /// The mesh converted by the real build and, as a second layout, written as long strips.
 fn both_layouts(mesh: &Mesh, name: &str) -> (ChunkStats, [ReducemFile; 2]) {
@@ -41,6 +41,18 @@ fn check_rays(mesh: &Mesh, rays: &[Ray], name: &str) -> usize {
     let [built, long] = &files;
     check_rays_on(long, rays, name);
     check_rays_on(built, rays, name)
+}
+
+/// The triangle a hit names is hit by the ray on its own, at bit-identical `t`.
+fn assert_reported_triangle_hit(file: &ReducemFile, ray: &Ray, hit: &Hit, name: &str) {
+    let own = intersect_triangle(
+        &RaySpace::new(ray.origin, ray.direction),
+        &hit_triangle(file, hit),
+        ray.tmin,
+        ray.tmax,
+    )
+    .expect("the reported triangle is hit");
+    assert_eq!(own.t.to_bits(), hit.t.to_bits(), "{name}: {ray:?}");
 }
 
 fn check_rays_on(file: &ReducemFile, rays: &[Ray], name: &str) -> usize {
@@ -78,14 +90,7 @@ fn check_rays_on(file: &ReducemFile, rays: &[Ray], name: &str) -> usize {
             hit.t
         );
         assert!(ray.tmin <= hit.t && hit.t <= ray.tmax, "{name}: {ray:?}");
-        let own = intersect_triangle(
-            &RaySpace::new(ray.origin, ray.direction),
-            &hit_triangle(file, &hit),
-            ray.tmin,
-            ray.tmax,
-        )
-        .expect("the reported triangle is hit");
-        assert_eq!(own.t.to_bits(), hit.t.to_bits(), "{name}: {ray:?}");
+        assert_reported_triangle_hit(file, ray, &hit, name);
     }
     hits.iter().filter(|h| h.is_some()).count()
 }
@@ -385,14 +390,7 @@ fn zero_hit_distance_keeps_its_sign() {
                 tmax: f32::INFINITY,
             };
             if let Some(hit) = tracer.intersect(&ray) {
-                let own = intersect_triangle(
-                    &RaySpace::new(ray.origin, ray.direction),
-                    &hit_triangle(file, &hit),
-                    ray.tmin,
-                    ray.tmax,
-                )
-                .expect("the reported triangle is hit");
-                assert_eq!(own.t.to_bits(), hit.t.to_bits(), "{ray:?}");
+                assert_reported_triangle_hit(file, &ray, &hit, "");
             }
         }
     }
