@@ -260,7 +260,8 @@ impl StripQuery<'_> {
     }
 
     /// The ray-space x, y and z of the block's positions (`references`, at most `BLOCK + 2`),
-    /// each vertex transformed once; lanes past the block's end are not used.
+    /// each vertex transformed once; lanes past the block's end are not used (and may be left
+    /// untransformed).
     #[inline(always)]
     fn ray_space_points<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
         &self,
@@ -269,7 +270,11 @@ impl StripQuery<'_> {
     ) -> [[f32; 2 * BLOCK]; 3] {
         let model = vertices.gather::<KX, KY, KZ, { 2 * BLOCK }>(references);
         let mut points = [[0.0f32; 2 * BLOCK]; 3];
-        for half in [0, BLOCK] {
+        // A block of at most six windows has no position in the second half.
+        for half in [0, BLOCK]
+            .into_iter()
+            .filter(|&half| half < references.len())
+        {
             let transformed = self.ray.space.transform_lanes::<KX, KY, KZ>(
                 lanes_from(&model[0], half),
                 lanes_from(&model[1], half),
@@ -284,11 +289,11 @@ impl StripQuery<'_> {
     }
 
     /// Intersects the `count <= BLOCK` windows from `first`, lane `k` being window
-    /// `first + k`: the block's `count + 2` positions are moved to ray space once per corner
-    /// role (lanes shifted by 0, 1 and 2 positions) and the three edge functions of every window
-    /// are evaluated together, so shared strip edges cost one SIMD lane each and no branch
-    /// depends on the geometry. The rare lanes whose edges all agree go through the scalar
-    /// [`resolve`], which sees bit-identical inputs to the single-triangle test.
+    /// `first + k`: the block's `count + 2` positions are moved to ray space once, read back
+    /// shifted by 0, 1 and 2 positions as the windows' three corners, and every short edge is
+    /// evaluated once and read as one window's leading and the previous one's trailing edge; no
+    /// branch depends on the geometry. The rare lanes whose edges all agree go through the
+    /// scalar [`resolve`], which sees bit-identical inputs to the single-triangle test.
     #[inline(always)]
     fn intersect_block<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
         &self,
@@ -308,7 +313,9 @@ impl StripQuery<'_> {
         // and trails with `k + 1`, which leads window `k + 1`.
         let mut short_edges = [0.0f32; BLOCK + 1];
         short_edges[..BLOCK].copy_from_slice(edge_lanes(&corners[0], &corners[1]).as_array());
-        short_edges[BLOCK] = edge(&corners[1].lane(BLOCK - 1), &corners[2].lane(BLOCK - 1));
+        if count == BLOCK {
+            short_edges[BLOCK] = edge(&corners[1].lane(BLOCK - 1), &corners[2].lane(BLOCK - 1));
+        }
         let weights = [
             lanes_from(&short_edges, 1),
             edge_lanes(&corners[2], &corners[0]),
