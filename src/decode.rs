@@ -8,7 +8,6 @@ use std::path::Path;
 use crate::atomic::write_atomically;
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
-use crate::strip;
 
 /// Every stored triangle in file order, corners in input winding.
 pub fn triangles(file: &ReducemFile) -> impl Iterator<Item = [Point; 3]> + '_ {
@@ -43,7 +42,7 @@ fn write_ply_body(file: &ReducemFile, out: &mut impl Write) -> io::Result<()> {
     let mut first_vertex = 0u64;
     for s in 0..file.strip_count() {
         let view = file.strip(s);
-        for triangle in strip::triangles(view.references) {
+        for triangle in view.triangles() {
             out.write_all(&[3])?;
             for r in triangle {
                 let index = i32::try_from(first_vertex + r as u64)

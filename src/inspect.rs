@@ -7,7 +7,6 @@ use serde::Serialize;
 use crate::format::reader::ReducemFile;
 use crate::format::{SectionKind, VertexEncoding, HEADER_PAGE};
 use crate::geometry::distance;
-use crate::strip;
 
 /// What `reducem inspect --json` prints. Field names are a contract with other tools.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -58,8 +57,7 @@ pub struct FileStats {
 /// Gathers the statistics; walks every strip once for the length figures.
 pub fn file_stats(file: &ReducemFile) -> FileStats {
     let header = file.header();
-    let lengths =
-        (0..file.strip_count()).map(|s| strip::triangles(file.strip(s).references).count() as u64);
+    let lengths = (0..file.strip_count()).map(|s| file.strip(s).triangles().len() as u64);
     let max_strip_length = lengths.max().unwrap_or(0);
     let mut bytes_by_section = BTreeMap::new();
     bytes_by_section.insert("header".to_string(), HEADER_PAGE);

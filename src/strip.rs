@@ -12,7 +12,13 @@ pub fn window_count(len: usize) -> usize {
 /// The triangle of window `k` in input winding, or `None` for a swap window.
 #[inline]
 pub fn window_triangle<T: Copy + PartialEq>(strip: &[T], k: usize) -> Option<[T; 3]> {
-    let (a, b, c) = (strip[k], strip[k + 1], strip[k + 2]);
+    window_corners([strip[k], strip[k + 1], strip[k + 2]], k)
+}
+
+/// The triangle of window `k` whose references are `[s[k], s[k+1], s[k+2]]`, in input winding,
+/// or `None` for a swap.
+#[inline]
+pub fn window_corners<T: Copy + PartialEq>([a, b, c]: [T; 3], k: usize) -> Option<[T; 3]> {
     if a == b || b == c || a == c {
         return None;
     }

@@ -115,7 +115,7 @@ fn inspect_json_reports_the_grid_and_the_position_error() {
         .zip(&quantized.positions)
         .map(|(p, q)| distance(p, q))
         .fold(0.0, f64::max);
-    assert_eq!(stats["format_version"], "2.2");
+    assert_eq!(stats["format_version"], "2.3");
     assert_eq!(stats["vertex_encoding"], "grid");
     assert_eq!(stats["grid_bits"], 16);
     assert_eq!(

@@ -313,7 +313,7 @@ fn crafted_record_links_are_rejected() {
         .expect("bad reference")
         .to_string();
     assert!(
-        message.contains("reference 255 out of range")
+        message.contains("reference 0 is 255 out of range")
             && message.contains(&format!("at byte {first_reference}")),
         "{message}"
     );
@@ -506,20 +506,21 @@ fn crafted_grid_nodes_are_rejected_naming_node_and_byte() {
     );
 }
 
-/// A 2.1 reader rejects grid nodes through `vertex_encoding` 2 (unknown to it); this reader
-/// rejects that encoding in a file claiming 2.1, and a node shift on any other encoding.
+/// A 2.2 reader rejects packed references through `vertex_encoding` 3 (unknown to it); this
+/// reader rejects that encoding in a file claiming 2.2, and a node shift on an encoding without
+/// grid nodes.
 #[test]
-fn grid_nodes_need_format_2_2_and_a_finite_node_grid() {
+fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
     let bytes = grid_file_bytes("grid-nodes-version-source.rdm");
-    assert_eq!(&bytes[10..12], &2u16.to_le_bytes());
-    assert_eq!(&bytes[20..24], &2u32.to_le_bytes());
-    let mut claimed_2_1 = bytes.clone();
-    claimed_2_1[10..12].copy_from_slice(&1u16.to_le_bytes());
-    let checksum = xxhash_rust::xxh3::xxh3_64(&claimed_2_1[..200]);
-    claimed_2_1[200..208].copy_from_slice(&checksum.to_le_bytes());
-    let message = open_error("grid-nodes-2.1.rdm", &claimed_2_1);
+    assert_eq!(&bytes[10..12], &3u16.to_le_bytes());
+    assert_eq!(&bytes[20..24], &3u32.to_le_bytes());
+    let mut claimed_2_2 = bytes.clone();
+    claimed_2_2[10..12].copy_from_slice(&2u16.to_le_bytes());
+    let checksum = xxhash_rust::xxh3::xxh3_64(&claimed_2_2[..200]);
+    claimed_2_2[200..208].copy_from_slice(&checksum.to_le_bytes());
+    let message = open_error("grid-nodes-2.2.rdm", &claimed_2_2);
     assert!(
-        message.contains("at byte 20") && message.contains("needs format 2.2"),
+        message.contains("at byte 20") && message.contains("needs format 2.3"),
         "{message}"
     );
     let overflowing = with_precision(&bytes, |r| r.node_shift = 200);

@@ -15,6 +15,7 @@ use reducem::geometry::{distance, Point};
 use reducem::input::weld_within_tolerance;
 use reducem::inspect::file_stats;
 use reducem::mesh::Mesh;
+use reducem::trace::{Ray, TraceOptions, Tracer};
 
 fn grid_params(bits: u32, leaf_windows: usize) -> BuildParams {
     BuildParams {
@@ -42,7 +43,11 @@ fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usiz
     }
     let file = convert_on_grid(mesh, &params, &format!("{name}-{bits}-{leaf_windows}.rdm"));
     let (quantized, grid) = quantized_input(mesh, bits);
-    assert_eq!(file.vertex_layout(), &VertexLayout::Grid(grid));
+    let layout = VertexLayout::Grid {
+        grid,
+        packed_references: true,
+    };
+    assert_eq!(file.vertex_layout(), &layout);
     let expected = expected_triangles(&quantized);
     assert_eq!(
         canonical_sorted(decode::triangles(&file)),
@@ -291,4 +296,94 @@ fn grid_node_boxes_hold_their_strips() {
         }
         assert_eq!(strips, file.strip_count());
     }
+}
+
+/// `bytes` (a format 2.3 grid file) rewritten as format 2.2 wrote it: one byte per reference,
+/// `vertex_encoding` 2, the blocks, records and checksums laid out anew.
+fn with_byte_references(bytes: &[u8]) -> Vec<u8> {
+    use reducem::format::quantized::{vertex_part_bytes, AxisWord};
+    use reducem::format::references::{packed_bytes, References};
+    use reducem::format::{axis_bytes, implicit_tree::internal_nodes, SectionKind, StripRecord};
+    let section = |kind: SectionKind| {
+        let entry = 104 + (kind as usize - 1) * 32;
+        let field = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+        (entry, field(entry + 8) as usize, field(entry + 16) as usize)
+    };
+    let leaf_windows = u32::from_le_bytes(bytes[24..28].try_into().unwrap()) as usize;
+    let (_, records_at, records_len) = section(SectionKind::StripRecords);
+    let (data_entry, data_at, _) = section(SectionKind::StripData);
+    let mut records: Vec<StripRecord> =
+        bytemuck::pod_collect_to_vec(&bytes[records_at..records_at + records_len]);
+    let mut data = Vec::new();
+    for record in &mut records {
+        let block = &bytes[data_at + record.data_word as usize * 4..];
+        let (vertices, count) = (
+            record.vertex_count as usize,
+            record.reference_count as usize,
+        );
+        let axes = axis_bytes(internal_nodes(count - 2, leaf_windows));
+        let references_at = vertex_part_bytes(vertices, &AxisWord::read_all(block)) + axes;
+        let packed = &block[references_at..references_at + packed_bytes(count, vertices)];
+        record.data_word = (data.len() / 4) as u32;
+        data.extend_from_slice(&block[..references_at]);
+        data.extend(References::packed(packed, count, vertices).to_vec());
+        data.resize(data.len().next_multiple_of(4), 0);
+    }
+    let mut out = bytes[..data_at].to_vec();
+    out[records_at..records_at + records_len].copy_from_slice(bytemuck::cast_slice(&records));
+    out.extend_from_slice(&data);
+    let seal = |out: &mut Vec<u8>, entry: usize, at: usize, len: usize| {
+        out[entry + 16..entry + 24].copy_from_slice(&(len as u64).to_le_bytes());
+        let checksum = xxhash_rust::xxh3::xxh3_64(&out[at..at + len]);
+        out[entry + 24..entry + 32].copy_from_slice(&checksum.to_le_bytes());
+    };
+    let (records_entry, ..) = section(SectionKind::StripRecords);
+    seal(&mut out, records_entry, records_at, records_len);
+    seal(&mut out, data_entry, data_at, data.len());
+    out[10..12].copy_from_slice(&2u16.to_le_bytes());
+    out[20..24].copy_from_slice(&2u32.to_le_bytes());
+    let checksum = xxhash_rust::xxh3::xxh3_64(&out[..200]);
+    out[200..208].copy_from_slice(&checksum.to_le_bytes());
+    out
+}
+
+/// Format minors stay readable: a 2.2 grid file (1-byte references) decodes and traces exactly
+/// as the 2.3 file (packed references) of the same mesh, which is smaller.
+#[test]
+fn format_2_2_grid_files_with_byte_references_read_the_same() {
+    let mesh = generated(reducem::gen::Kind::Scan, 20_000);
+    let path = temp_path("packed-references.rdm");
+    convert_mesh(&mesh, &grid_params(20, 4), &path).expect("convert");
+    let packed = std::fs::read(&path).expect("read back");
+    let bytes = with_byte_references(&packed);
+    assert!(bytes.len() > packed.len());
+    let old_path = temp_path("byte-references.rdm");
+    std::fs::write(&old_path, &bytes).expect("write");
+    let (new, old) = (
+        ReducemFile::open(&path).expect("open 2.3"),
+        ReducemFile::open(&old_path).expect("open 2.2"),
+    );
+    old.verify_checksums().expect("2.2 checksums");
+    assert_eq!(old.header().version_minor, 2);
+    assert_eq!(
+        old.vertex_layout(),
+        &VertexLayout::Grid {
+            grid: old.precision().grid(),
+            packed_references: false
+        }
+    );
+    assert_eq!(
+        canonical_sorted(decode::triangles(&old)),
+        canonical_sorted(decode::triangles(&new))
+    );
+    let targets = vertex_and_edge_targets(&mesh);
+    let origin = [0.5, 0.5, 5.0];
+    let rays: Vec<Ray> = targets.iter().map(|&t| ray_towards(origin, t)).collect();
+    let trace = |file: &ReducemFile| {
+        let hits = Tracer::new(file, TraceOptions::default()).intersect_batch(&rays);
+        hits.iter().map(hit_bits).collect::<Vec<_>>()
+    };
+    let hits = trace(&new);
+    assert!(hits.iter().filter(|h| h.is_some()).count() > rays.len() / 2);
+    assert_eq!(trace(&old), hits);
 }

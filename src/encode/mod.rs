@@ -21,12 +21,14 @@
 //! Quantized strips ([`Positions::Grid`]) are laid out on their decoded positions, exactly as
 //! lossless strips on theirs, and store the grid points instead of f32 copies
 //! ([`crate::format::quantized`]). Decoding is monotone in the grid point, so every bound holds
-//! on what the reader decodes, bit for bit.
+//! on what the reader decodes, bit for bit. Their references are packed at the bits the strip's
+//! vertex count needs ([`crate::format::references`]).
 
 use std::fmt;
 
 use crate::format::implicit_tree::{internal_nodes, is_leaf, split_point};
 use crate::format::reader::VertexLayout;
+use crate::format::references::pack;
 use crate::format::{align_up, axis_bytes, quantized, MAX_STRIP_VERTICES};
 use crate::geometry::{Aabb, Point};
 use crate::strip::window_count;
@@ -323,11 +325,15 @@ impl<'a> StripLayout<'a> {
         let mut block = self.vertex_bytes();
         block.reserve(axis_bytes(axes.len()) + self.local.len() + 3);
         block.extend(axes.chunks(4).map(pack_axes));
-        block.extend(
-            self.local
-                .iter()
-                .map(|&v| self.home[v as usize].unwrap_or_default() as u8),
-        );
+        let references: Vec<u8> = self
+            .local
+            .iter()
+            .map(|&v| self.home[v as usize].unwrap_or_default() as u8)
+            .collect();
+        match self.positions {
+            Positions::F32(_) => block.extend(references),
+            Positions::Grid { .. } => block.extend(pack(&references, self.slots.len())),
+        }
         block.resize(align_up(block.len() as u64, 4) as usize, 0);
         EncodedStrip {
             bounds,
@@ -379,8 +385,8 @@ pub fn validate(
     };
     let windows = window_count(strip.reference_count as usize);
     let view = crate::format::reader::strip_view(&strip.block, &record, leaf_windows, layout);
-    if let Some(r) = view
-        .references
+    let references = view.references.to_vec();
+    if let Some(r) = references
         .iter()
         .find(|&&r| r as usize >= view.vertices.len())
     {
@@ -388,8 +394,7 @@ pub fn validate(
     }
     let mut next_node = 0;
     validate_node(&view, 0, windows, leaf_windows, &mut next_node)?;
-    let referenced: Vec<Point> = view
-        .references
+    let referenced: Vec<Point> = references
         .iter()
         .map(|&r| view.vertices.point(r as usize))
         .collect();
@@ -419,7 +424,7 @@ fn validate_node(
     let axis = view.axis(node);
     let coordinate = |position: usize| {
         view.vertices
-            .coordinate(view.references[position] as usize, axis)
+            .coordinate(view.references.get(position) as usize, axis)
     };
     let (upper, lower) = (
         view.vertices.coordinate(2 * node, axis),

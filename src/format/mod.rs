@@ -10,6 +10,7 @@ pub mod grid;
 pub mod implicit_tree;
 pub mod quantized;
 pub mod reader;
+pub mod references;
 pub mod vertices;
 pub mod writer;
 
@@ -22,9 +23,10 @@ pub const MAGIC: [u8; 8] = *b"REDUCEM\0";
 pub const VERSION_MAJOR: u16 = 2;
 /// Incremented on compatible additions; readers accept any minor of their major. Minor 1 added
 /// the [`PrecisionRecord`] and the grid vertex encoding, minor 2 grid top-level nodes
-/// ([`GridNode`], `vertex_encoding` 2). Writers write the lowest minor that has what the file
-/// uses ([`VertexEncoding::minor`]), so a lossless file is the same bytes as from a 2.1 writer.
-pub const VERSION_MINOR: u16 = 2;
+/// ([`GridNode`], `vertex_encoding` 2), minor 3 packed references in grid files
+/// (`vertex_encoding` 3). Writers write the lowest minor that has what the file uses
+/// ([`VertexEncoding::minor`]), so a lossless file is the same bytes as from a 2.1 writer.
+pub const VERSION_MINOR: u16 = 3;
 /// Written as a little-endian u32; a reader on a big-endian host sees `0x0403_0201`.
 pub const ENDIAN_MARKER: u32 = 0x0102_0304;
 /// Sections start at multiples of this, so each can be mapped and paged on its own.
@@ -47,8 +49,11 @@ pub enum VertexEncoding {
     /// format 2.1 writers only; read since 2.1.
     Grid = 1,
     /// Grid vertices as [`VertexEncoding::Grid`], with top-level nodes on the node grid
-    /// ([`GridNode`], 64 bytes). Since format 2.2; older readers reject the value.
+    /// ([`GridNode`], 64 bytes). Written by format 2.2 writers only; read since 2.2.
     GridNodes = 2,
+    /// As [`VertexEncoding::GridNodes`], with references packed at the bits each strip's vertex
+    /// count needs ([`references`]). Since format 2.3; older readers reject the value.
+    GridPackedReferences = 3,
 }
 
 impl VertexEncoding {
@@ -57,16 +62,26 @@ impl VertexEncoding {
             0 => Some(VertexEncoding::F32),
             1 => Some(VertexEncoding::Grid),
             2 => Some(VertexEncoding::GridNodes),
+            3 => Some(VertexEncoding::GridPackedReferences),
             _ => None,
         }
     }
 
-    /// How the vertices are stored: the two grid encodings differ in their nodes only.
+    /// How the vertices are stored: the grid encodings differ in their nodes and references
+    /// only.
     pub fn name(self) -> &'static str {
         match self {
             VertexEncoding::F32 => "f32",
-            VertexEncoding::Grid | VertexEncoding::GridNodes => "grid",
+            _ => "grid",
         }
+    }
+
+    /// Whether the top-level nodes are [`GridNode`]s.
+    pub fn has_grid_nodes(self) -> bool {
+        matches!(
+            self,
+            VertexEncoding::GridNodes | VertexEncoding::GridPackedReferences
+        )
     }
 
     /// The first format minor with this encoding.
@@ -75,6 +90,7 @@ impl VertexEncoding {
             VertexEncoding::F32 => 0,
             VertexEncoding::Grid => 1,
             VertexEncoding::GridNodes => 2,
+            VertexEncoding::GridPackedReferences => 3,
         }
     }
 }

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use super::grid::{Grid, NodeGrid, MAX_GRID_BITS};
 use super::implicit_tree::internal_nodes;
 use super::quantized::{vertex_part_bytes, AxisWord, GridVertices, AXIS_WORDS_BYTES};
+use super::references::{packed_bytes, References};
 use super::vertices::StripVertices;
 use super::{
     axis_bytes, GridNode, Header, NodeRecord, PrecisionRecord, SectionKind, StripRecord, TopNode,
@@ -82,16 +83,48 @@ impl TopNodes<'_> {
     }
 }
 
-/// How a file's strip blocks store vertices: what viewing a block needs besides the block.
+/// How a file's strip blocks store vertices and references: what viewing a block needs besides
+/// the block.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum VertexLayout {
+    /// f32 vertices, 1-byte references.
     F32,
-    Grid(Grid),
+    /// Grid vertices; references packed ([`super::references`]) since format 2.3, one byte
+    /// each before.
+    Grid { grid: Grid, packed_references: bool },
 }
 
 impl From<Option<Grid>> for VertexLayout {
+    /// The layout the writer gives vertices on `grid` (or f32 ones without).
     fn from(grid: Option<Grid>) -> VertexLayout {
-        grid.map_or(VertexLayout::F32, VertexLayout::Grid)
+        grid.map_or(VertexLayout::F32, |grid| VertexLayout::Grid {
+            grid,
+            packed_references: true,
+        })
+    }
+}
+
+impl VertexLayout {
+    /// Bytes of a block's `count` references with `vertices` vertices.
+    fn reference_bytes(&self, count: usize, vertices: usize) -> usize {
+        match self {
+            VertexLayout::Grid {
+                packed_references: true,
+                ..
+            } => packed_bytes(count, vertices),
+            _ => count,
+        }
+    }
+
+    /// The references in `bytes` (exactly [`VertexLayout::reference_bytes`] long).
+    fn references<'a>(&self, bytes: &'a [u8], count: usize, vertices: usize) -> References<'a> {
+        match self {
+            VertexLayout::Grid {
+                packed_references: true,
+                ..
+            } => References::packed(bytes, count, vertices),
+            _ => References::bytes(bytes),
+        }
     }
 }
 
@@ -101,8 +134,8 @@ pub struct StripView<'a> {
     pub vertices: StripVertices<'a>,
     /// Split axes, 2 bits per internal node.
     pub axes: &'a [u8],
-    /// 1-byte references into `vertices`, swaps included.
-    pub references: &'a [u8],
+    /// References into `vertices`, swaps included.
+    pub references: References<'a>,
 }
 
 impl StripView<'_> {
@@ -119,8 +152,15 @@ impl StripView<'_> {
     /// Corners of window `k` in input winding, or `None` for a swap.
     #[inline]
     pub fn window_points(&self, k: usize) -> Option<[Point; 3]> {
-        crate::strip::window_triangle(self.references, k)
+        let mut corners = [0u8; 3];
+        self.references.read_into(k, &mut corners);
+        crate::strip::window_corners(corners, k)
             .map(|t| t.map(|r| self.vertices.point(r as usize)))
+    }
+
+    /// The real triangles' references in strip order and input winding.
+    pub fn triangles(&self) -> Vec<[u8; 3]> {
+        crate::strip::triangles(&self.references.to_vec()).collect()
     }
 }
 
@@ -560,6 +600,7 @@ pub(crate) fn strip_view<'a>(
     let count = record.vertex_count as usize;
     let references = record.reference_count as usize;
     let axes_length = axis_bytes(internal_nodes(references - 2, leaf_windows));
+    let reference_bytes = layout.reference_bytes(references, count);
     let (vertices, vertex_end) = match layout {
         VertexLayout::F32 => {
             let end = start + count * F32_VERTEX_BYTES;
@@ -568,20 +609,21 @@ pub(crate) fn strip_view<'a>(
                 end,
             )
         }
-        VertexLayout::Grid(grid) => {
+        VertexLayout::Grid { grid, .. } => {
             let words = AxisWord::read_all(&data[start..start + AXIS_WORDS_BYTES]);
             let end = start + vertex_part_bytes(count, &words);
-            let block_end = end + axes_length + references;
+            let block_end = end + axes_length + reference_bytes;
             let offsets = &data[start + AXIS_WORDS_BYTES..block_end];
             let vertices = GridVertices::new(offsets, &words, count, grid);
             (StripVertices::Grid(vertices), end)
         }
     };
     let axes_end = vertex_end + axes_length;
+    let reference_area = &data[axes_end..axes_end + reference_bytes];
     StripView {
         vertices,
         axes: &data[vertex_end..axes_end],
-        references: &data[axes_end..axes_end + references],
+        references: layout.references(reference_area, references, count),
     }
 }
 
@@ -618,7 +660,11 @@ impl BlockShape {
 
     /// Bytes of the block with vertices of `vertex_bytes`.
     fn length(&self, record: &StripRecord, nodes: usize, vertex_bytes: usize) -> u64 {
-        (vertex_bytes + axis_bytes(nodes) + record.reference_count as usize) as u64
+        let references = self.layout.reference_bytes(
+            record.reference_count as usize,
+            record.vertex_count as usize,
+        );
+        (vertex_bytes + axis_bytes(nodes) + references) as u64
     }
 
     /// A byte range of the strip-data section that holds the record's block: exact for f32
@@ -632,7 +678,7 @@ impl BlockShape {
                 let length = self.length(record, nodes, count * F32_VERTEX_BYTES);
                 (length, length)
             }
-            VertexLayout::Grid(grid) => {
+            VertexLayout::Grid { grid, .. } => {
                 let widest = [AxisWord {
                     anchor: 0,
                     width: grid.bits,
@@ -664,7 +710,7 @@ impl BlockShape {
         let available = &window[(start - window_start) as usize..];
         let vertex_bytes = match self.layout {
             VertexLayout::F32 => record.vertex_count as usize * F32_VERTEX_BYTES,
-            VertexLayout::Grid(grid) => {
+            VertexLayout::Grid { grid, .. } => {
                 let words = AxisWord::read_all(available);
                 for (axis, word) in words.iter().enumerate() {
                     word.check(grid.bits)
@@ -700,19 +746,21 @@ fn past_the_end(start: u64, length: u64, data_len: u64) -> StripDefect {
 /// its real-triangle count.
 fn check_view(view: &StripView, block_end: u64, nodes: usize) -> Result<u64, StripDefect> {
     let vertices = view.vertices.len();
-    if let Some(position) = view.references.iter().position(|&r| r as usize >= vertices) {
-        let offset = block_end - view.references.len() as u64 + position as u64;
+    let references = view.references.to_vec();
+    if let Some(position) = references.iter().position(|&r| r as usize >= vertices) {
+        let area_start = block_end - view.references.stored_bytes() as u64;
+        let offset = area_start + view.references.byte_of(position) as u64;
         let detail = format!(
-            "reference {} out of range ({vertices} vertices)",
-            view.references[position]
+            "reference {position} is {} out of range ({vertices} vertices)",
+            references[position]
         );
         return Err((Some(offset), detail));
     }
     if let Some(node) = (0..nodes).find(|&n| view.axis(n) > 2) {
-        let axes_start = block_end - (view.references.len() + view.axes.len()) as u64;
+        let axes_start = block_end - (view.references.stored_bytes() + view.axes.len()) as u64;
         return Err((Some(axes_start), format!("node {node} has split axis 3")));
     }
-    Ok(crate::strip::triangles(view.references).count() as u64)
+    Ok(crate::strip::triangles(&references).count() as u64)
 }
 
 /// Header and section-table checks, before anything else is trusted.
@@ -824,7 +872,7 @@ impl Checker<'_> {
             );
             return Err(self.invalid("header", 20, detail));
         }
-        if encoding != VertexEncoding::GridNodes && precision.node_shift != 0 {
+        if !encoding.has_grid_nodes() && precision.node_shift != 0 {
             let detail = format!(
                 "node shift {} without grid top-level nodes",
                 precision.node_shift
@@ -838,7 +886,7 @@ impl Checker<'_> {
                 format!("f32 vertices with a {}-bit grid", precision.grid_bits),
             )),
             VertexEncoding::F32 => Ok((VertexLayout::F32, None)),
-            VertexEncoding::Grid | VertexEncoding::GridNodes => {
+            _ => {
                 let grid = precision.grid();
                 if !(1..=MAX_GRID_BITS).contains(&grid.bits) {
                     let detail = format!("grid of {} bits outside 1..={MAX_GRID_BITS}", grid.bits);
@@ -859,21 +907,23 @@ impl Checker<'_> {
                     );
                     return Err(self.invalid("header", at(8), detail));
                 }
-                let node_grid = match encoding {
-                    VertexEncoding::GridNodes => {
-                        let shift = precision.node_shift;
-                        let node_grid = NodeGrid::new(&grid, shift).ok_or_else(|| {
-                            let detail = format!(
-                                "node grid of cell {} * 2^{shift} is not finite",
-                                grid.cell
-                            );
-                            self.invalid("header", at(4), detail)
-                        })?;
-                        Some(node_grid)
-                    }
-                    _ => None,
+                let node_grid = if encoding.has_grid_nodes() {
+                    let shift = precision.node_shift;
+                    let node_grid = NodeGrid::new(&grid, shift).ok_or_else(|| {
+                        let detail =
+                            format!("node grid of cell {} * 2^{shift} is not finite", grid.cell);
+                        self.invalid("header", at(4), detail)
+                    })?;
+                    Some(node_grid)
+                } else {
+                    None
                 };
-                Ok((VertexLayout::Grid(grid), node_grid))
+                let packed_references = encoding == VertexEncoding::GridPackedReferences;
+                let layout = VertexLayout::Grid {
+                    grid,
+                    packed_references,
+                };
+                Ok((layout, node_grid))
             }
         }
     }

@@ -51,7 +51,7 @@ impl FileInfo {
     fn vertex_encoding(&self) -> VertexEncoding {
         match self.grid {
             None => VertexEncoding::F32,
-            Some(_) => VertexEncoding::GridNodes,
+            Some(_) => VertexEncoding::GridPackedReferences,
         }
     }
 }

@@ -301,7 +301,10 @@ impl StripQuery<'_> {
         index: u32,
         closest: &mut Closest,
     ) -> bool {
-        let references = &view.references[first..first + count + 2];
+        let mut block_references = [0u8; BLOCK + 2];
+        let references = &mut block_references[..count + 2];
+        view.references.read_into(first, references);
+        let references = &*references;
         let points = self.ray_space_points::<V, KX, KY, KZ>(vertices, references);
         let corner = |shift: usize| RayPoints {
             x: lanes_from(&points[0], shift),

@@ -1,0 +1,168 @@
+//! A strip's vertex references as stored: one byte each (the paper's 1-byte local indices), or,
+//! in grid files since format 2.3, packed at the fewest bits that address the strip's vertices.
+//!
+//! Why pack: a strip stores on average about 20 vertices, so 5 of the 8 bits of a reference
+//! address anything; on a 10M-triangle scan at 20 grid bits the references are 1.26 of 8.4
+//! bytes per triangle, and packing saves 0.44 of them. Lossless files keep one byte per
+//! reference, as in the paper, since there the vertices dominate anyway.
+//!
+//! Packed layout: a strip with `v` vertices stores reference `k` in bits
+//! `[k w, k w + w)` of its reference bytes, least significant bit first, with
+//! `w = `[`packed_width`]`(v)`; the reference bytes are at least [`MIN_PACKED_BYTES`] long
+//! (zero-filled), so that the quantized vertex decoder may read past the vertex offsets (see
+//! [`super::quantized`]).
+//!
+//! Deviation from the paper: it stores 1-byte indices; packing is the Dense Geometry Format's
+//! per-meshlet index width applied to the strip.
+
+/// Bytes a packed reference area has at least.
+pub const MIN_PACKED_BYTES: usize = 3;
+
+/// Bits of one packed reference of a strip with `vertices` stored vertices: enough for index
+/// `vertices - 1`, at least 1; 8 for 256 vertices.
+pub fn packed_width(vertices: usize) -> u32 {
+    usize::BITS - vertices.saturating_sub(1).max(1).leading_zeros()
+}
+
+/// Bytes of `count` references packed for a strip of `vertices` vertices.
+pub fn packed_bytes(count: usize, vertices: usize) -> usize {
+    (count * packed_width(vertices) as usize)
+        .div_ceil(8)
+        .max(MIN_PACKED_BYTES)
+}
+
+/// Packs `references` (each below `vertices`) into [`packed_bytes`] bytes.
+pub fn pack(references: &[u8], vertices: usize) -> Vec<u8> {
+    let width = packed_width(vertices) as usize;
+    let mut bytes = vec![0u8; packed_bytes(references.len(), vertices)];
+    for (k, &reference) in references.iter().enumerate() {
+        let bit = k * width;
+        let wide = (reference as u16) << (bit % 8);
+        bytes[bit / 8] |= wide as u8;
+        if let Some(next) = bytes.get_mut(bit / 8 + 1) {
+            *next |= (wide >> 8) as u8;
+        }
+    }
+    bytes
+}
+
+/// A strip's references viewed in place.
+#[derive(Clone, Copy, Debug)]
+pub struct References<'a> {
+    bytes: &'a [u8],
+    count: usize,
+    width: u32,
+}
+
+impl<'a> References<'a> {
+    /// One reference per byte.
+    pub fn bytes(bytes: &'a [u8]) -> References<'a> {
+        References {
+            bytes,
+            count: bytes.len(),
+            width: 8,
+        }
+    }
+
+    /// `count` references packed for a strip of `vertices` vertices in `bytes` (at least
+    /// [`packed_bytes`] long).
+    pub fn packed(bytes: &'a [u8], count: usize, vertices: usize) -> References<'a> {
+        References {
+            bytes,
+            count,
+            width: packed_width(vertices),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.count
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// Bytes the references occupy in the block.
+    pub fn stored_bytes(&self) -> usize {
+        self.bytes.len()
+    }
+
+    /// Where reference `k` starts in the stored bytes.
+    pub fn byte_of(&self, k: usize) -> usize {
+        k * self.width as usize / 8
+    }
+
+    /// Reference `k` (below [`References::len`]).
+    #[inline(always)]
+    pub fn get(&self, k: usize) -> u8 {
+        if self.width == 8 {
+            return self.bytes[k];
+        }
+        let bit = k * self.width as usize;
+        let first = bit / 8;
+        let next = self.bytes.get(first + 1).copied().unwrap_or(0);
+        let pair = u16::from_le_bytes([self.bytes[first], next]);
+        ((pair >> (bit % 8)) & ((1 << self.width) - 1)) as u8
+    }
+
+    /// References `first .. first + out.len()` into `out`.
+    #[inline(always)]
+    pub fn read_into(&self, first: usize, out: &mut [u8]) {
+        if self.width == 8 {
+            out.copy_from_slice(&self.bytes[first..first + out.len()]);
+        } else {
+            for (k, slot) in out.iter_mut().enumerate() {
+                *slot = self.get(first + k);
+            }
+        }
+    }
+
+    /// Every reference, one byte each.
+    pub fn to_vec(&self) -> Vec<u8> {
+        let mut all = vec![0; self.count];
+        self.read_into(0, &mut all);
+        all
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn widths_address_exactly_the_vertices() {
+        assert_eq!(packed_width(1), 1);
+        assert_eq!(packed_width(2), 1);
+        assert_eq!(packed_width(3), 2);
+        assert_eq!(packed_width(4), 2);
+        assert_eq!(packed_width(5), 3);
+        assert_eq!(packed_width(32), 5);
+        assert_eq!(packed_width(33), 6);
+        assert_eq!(packed_width(256), 8);
+    }
+
+    #[test]
+    fn packed_references_read_back_for_every_width() {
+        for vertices in [3usize, 4, 5, 17, 32, 33, 100, 128, 129, 256] {
+            for count in [3usize, 4, 7, 8, 9, 61, 200] {
+                let references: Vec<u8> = (0..count)
+                    .map(|k| ((k * 7919 + vertices) % vertices) as u8)
+                    .collect();
+                let bytes = pack(&references, vertices);
+                assert_eq!(bytes.len(), packed_bytes(count, vertices));
+                let view = References::packed(&bytes, count, vertices);
+                assert_eq!(view.to_vec(), references, "{vertices} vertices, {count}");
+                let mut tail = [0u8; 3];
+                view.read_into(count - 3, &mut tail);
+                assert_eq!(tail, references[count - 3..]);
+            }
+        }
+    }
+
+    #[test]
+    fn packed_areas_keep_three_bytes_for_the_vertex_decoder() {
+        assert_eq!(packed_bytes(3, 3), 3);
+        assert_eq!(packed_bytes(24, 256), 24);
+        assert_eq!(packed_bytes(25, 3), 7);
+    }
+}
