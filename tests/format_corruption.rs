@@ -377,14 +377,24 @@ fn crafted_grid_headers_are_rejected_naming_the_byte() {
     );
 }
 
+/// `bytes` with the packed axis word of `axis` (16 anchor bits and 5 width bits per axis on a
+/// 16-bit grid) of the block at `block` set to `(anchor, width)`.
+fn with_axis_word(bytes: &[u8], block: usize, axis: u32, anchor: u32, width: u32) -> Vec<u8> {
+    let mut edited = bytes.to_vec();
+    let head = &mut edited[block..block + 16];
+    let mut stream = u128::from_le_bytes(head.try_into().unwrap());
+    stream &= !(((1u128 << 21) - 1) << (21 * axis));
+    stream |= ((anchor | width << 16) as u128) << (21 * axis);
+    head.copy_from_slice(&stream.to_le_bytes());
+    edited
+}
+
 #[test]
 fn crafted_grid_blocks_are_rejected_naming_strip_and_byte() {
     let bytes = grid_file_bytes("crafted-grid-block-source.rdm");
     // Record 0's block starts the strip-data section.
     let block = section_offset(&bytes, SectionKind::StripData);
-    let word = |anchor: u32, width: u32| (anchor | width << 24).to_le_bytes();
-    let mut wide = bytes.clone();
-    wide[block..block + 4].copy_from_slice(&word(0, 17));
+    let wide = with_axis_word(&bytes, block, 0, 0, 17);
     let message = open_error("wide.rdm", &wide);
     assert!(
         message.contains("strip 0")
@@ -392,13 +402,13 @@ fn crafted_grid_blocks_are_rejected_naming_strip_and_byte() {
             && message.contains(&format!("at byte {block}")),
         "{message}"
     );
-    let mut off_grid = bytes.clone();
-    off_grid[block + 4..block + 8].copy_from_slice(&word(65_535, 4));
+    // The y word starts at bit 21, in the block's third byte.
+    let off_grid = with_axis_word(&bytes, block, 1, 65_535, 4);
     let message = open_error("off-grid.rdm", &off_grid);
     assert!(
         message.contains("strip 0")
             && message.contains("leaves the 16-bit grid")
-            && message.contains(&format!("at byte {}", block + 4)),
+            && message.contains(&format!("at byte {}", block + 2)),
         "{message}"
     );
     // Offsets this wide make the block run past the end of the last strip's data.
@@ -406,11 +416,9 @@ fn crafted_grid_blocks_are_rejected_naming_strip_and_byte() {
     let last_record = records.0 + records.1 - 8;
     let last_word = u32::from_le_bytes(bytes[last_record..last_record + 4].try_into().unwrap());
     let last_block = block + 4 * last_word as usize;
-    let mut long = bytes.clone();
-    for axis in 0..3 {
-        let at = last_block + 4 * axis;
-        long[at..at + 4].copy_from_slice(&word(0, 16));
-    }
+    let long = (0..3).fold(bytes.clone(), |edited, axis| {
+        with_axis_word(&edited, last_block, axis, 0, 16)
+    });
     let message = open_error("long.rdm", &long);
     assert!(message.contains("past the section end"), "{message}");
 }

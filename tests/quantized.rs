@@ -45,7 +45,7 @@ fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usiz
     let (quantized, grid) = quantized_input(mesh, bits);
     let layout = VertexLayout::Grid {
         grid,
-        packed_references: true,
+        packed: true,
     };
     assert_eq!(file.vertex_layout(), &layout);
     let expected = expected_triangles(&quantized);
@@ -298,37 +298,38 @@ fn grid_node_boxes_hold_their_strips() {
     }
 }
 
-/// `bytes` (a format 2.3 grid file) rewritten as format 2.2 wrote it: one byte per reference,
-/// `vertex_encoding` 2, the blocks, records and checksums laid out anew.
-fn with_byte_references(bytes: &[u8]) -> Vec<u8> {
-    use reducem::format::quantized::{vertex_part_bytes, AxisWord};
-    use reducem::format::references::{packed_bytes, References};
-    use reducem::format::{axis_bytes, implicit_tree::internal_nodes, SectionKind, StripRecord};
+/// `bytes` (a format 2.3 grid file, opened as `file`) rewritten as format 2.2 wrote it: u32
+/// axis words, one byte per reference, `vertex_encoding` 2, the blocks, records and checksums
+/// laid out anew.
+fn with_byte_references(bytes: &[u8], file: &ReducemFile) -> Vec<u8> {
+    use reducem::format::quantized::{pack, AxisWordLayout};
+    use reducem::format::vertices::StripVertices;
+    use reducem::format::{SectionKind, StripRecord};
     let section = |kind: SectionKind| {
         let entry = 104 + (kind as usize - 1) * 32;
         let field = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
         (entry, field(entry + 8) as usize, field(entry + 16) as usize)
     };
-    let leaf_windows = u32::from_le_bytes(bytes[24..28].try_into().unwrap()) as usize;
-    let (_, records_at, records_len) = section(SectionKind::StripRecords);
-    let (data_entry, data_at, _) = section(SectionKind::StripData);
-    let mut records: Vec<StripRecord> =
-        bytemuck::pod_collect_to_vec(&bytes[records_at..records_at + records_len]);
+    let mut records = Vec::new();
     let mut data = Vec::new();
-    for record in &mut records {
-        let block = &bytes[data_at + record.data_word as usize * 4..];
-        let (vertices, count) = (
-            record.vertex_count as usize,
-            record.reference_count as usize,
-        );
-        let axes = axis_bytes(internal_nodes(count - 2, leaf_windows));
-        let references_at = vertex_part_bytes(vertices, &AxisWord::read_all(block)) + axes;
-        let packed = &block[references_at..references_at + packed_bytes(count, vertices)];
-        record.data_word = (data.len() / 4) as u32;
-        data.extend_from_slice(&block[..references_at]);
-        data.extend(References::packed(packed, count, vertices).to_vec());
+    for s in 0..file.strip_count() {
+        let view = file.strip(s);
+        let StripVertices::Grid(vertices) = view.vertices else {
+            panic!("not a grid file")
+        };
+        let points: Vec<[u32; 3]> = (0..vertices.len()).map(|i| vertices.grid_point(i)).collect();
+        records.push(StripRecord {
+            data_word: (data.len() / 4) as u32,
+            vertex_count: vertices.len() as u16,
+            reference_count: view.references.len() as u16,
+        });
+        data.extend(pack(&points, vertices.grid().bits, AxisWordLayout::Words));
+        data.extend_from_slice(view.axes);
+        data.extend(view.references.to_vec());
         data.resize(data.len().next_multiple_of(4), 0);
     }
+    let (records_entry, records_at, records_len) = section(SectionKind::StripRecords);
+    let (data_entry, data_at, _) = section(SectionKind::StripData);
     let mut out = bytes[..data_at].to_vec();
     out[records_at..records_at + records_len].copy_from_slice(bytemuck::cast_slice(&records));
     out.extend_from_slice(&data);
@@ -337,7 +338,6 @@ fn with_byte_references(bytes: &[u8]) -> Vec<u8> {
         let checksum = xxhash_rust::xxh3::xxh3_64(&out[at..at + len]);
         out[entry + 24..entry + 32].copy_from_slice(&checksum.to_le_bytes());
     };
-    let (records_entry, ..) = section(SectionKind::StripRecords);
     seal(&mut out, records_entry, records_at, records_len);
     seal(&mut out, data_entry, data_at, data.len());
     out[10..12].copy_from_slice(&2u16.to_le_bytes());
@@ -347,29 +347,27 @@ fn with_byte_references(bytes: &[u8]) -> Vec<u8> {
     out
 }
 
-/// Format minors stay readable: a 2.2 grid file (1-byte references) decodes and traces exactly
-/// as the 2.3 file (packed references) of the same mesh, which is smaller.
+/// Format minors stay readable: a 2.2 grid file (u32 axis words, 1-byte references) decodes and
+/// traces exactly as the 2.3 file (both packed) of the same mesh, which is smaller.
 #[test]
 fn format_2_2_grid_files_with_byte_references_read_the_same() {
     let mesh = generated(reducem::gen::Kind::Scan, 20_000);
     let path = temp_path("packed-references.rdm");
     convert_mesh(&mesh, &grid_params(20, 4), &path).expect("convert");
     let packed = std::fs::read(&path).expect("read back");
-    let bytes = with_byte_references(&packed);
+    let new = ReducemFile::open(&path).expect("open 2.3");
+    let bytes = with_byte_references(&packed, &new);
     assert!(bytes.len() > packed.len());
     let old_path = temp_path("byte-references.rdm");
     std::fs::write(&old_path, &bytes).expect("write");
-    let (new, old) = (
-        ReducemFile::open(&path).expect("open 2.3"),
-        ReducemFile::open(&old_path).expect("open 2.2"),
-    );
+    let old = ReducemFile::open(&old_path).expect("open 2.2");
     old.verify_checksums().expect("2.2 checksums");
     assert_eq!(old.header().version_minor, 2);
     assert_eq!(
         old.vertex_layout(),
         &VertexLayout::Grid {
             grid: old.precision().grid(),
-            packed_references: false
+            packed: false
         }
     );
     assert_eq!(

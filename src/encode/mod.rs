@@ -316,7 +316,8 @@ impl<'a> StripLayout<'a> {
             Positions::Grid { points, bits, .. } => {
                 let stored: Vec<[u32; 3]> =
                     self.slots.iter().map(|s| points[mesh_vertex(s)]).collect();
-                quantized::pack(&stored, bits)
+                let layout = quantized::AxisWordLayout::Packed { grid_bits: bits };
+                quantized::pack(&stored, bits, layout)
             }
         }
     }

@@ -4,15 +4,13 @@
 //!
 //! A strip is small and spatially compact, so its grid points differ from the strip's minimum
 //! corner by far less than the grid's extent: each axis stores only the bits that the strip's
-//! extent on that axis needs. Layout at the start of the block (little-endian):
-//!
-//! ```text
-//! 3 axis words (u32: x, y, z)   bits 0..24 anchor a (grid coordinate), bits 24..29 width w
-//!                               (0..=24), bits 29..32 zero
-//! vertex offsets                vertex_count × (wx + wy + wz) bits in ceil(/ 8) bytes, least
-//!                               significant bit first; vertex i's x offset at bits
-//!                               [i s, i s + wx), then y, then z (s = wx + wy + wz)
-//! ```
+//! extent on that axis needs. The block starts with one little-endian bit stream (bit `b` is
+//! bit `b mod 8` of byte `b / 8`): per axis x, y, z an anchor `a` (a grid coordinate) and an
+//! offset width `w` (0..=24), then the vertices' offsets, vertex `i`'s x offset at bits
+//! `[h + i s, h + i s + wx)`, then y, then z (`s = wx + wy + wz`, `h` the axis words' bits).
+//! The axis words are stored as laid out by [`AxisWordLayout`]: since format 2.3 packed at the
+//! grid's bits (`h = 3 (grid_bits + 5)`, 75 bits at 20 bits instead of 96), before as three
+//! u32 words with the anchor in bits 0..24 and the width in bits 24..29.
 //!
 //! A vertex's grid coordinate on an axis is `a + offset`. Writers keep `a + 2^w - 1` inside the
 //! grid (`< 2^bits`), so a reader checks three words, not every vertex, to know that every grid
@@ -25,11 +23,52 @@
 use super::grid::{Grid, MAX_GRID_BITS};
 use crate::geometry::Point;
 
-/// Bytes of the three axis words at the start of a quantized block.
-pub const AXIS_WORDS_BYTES: usize = 12;
-
 const ANCHOR_MASK: u32 = (1 << MAX_GRID_BITS) - 1;
 const WIDTH_SHIFT: u32 = 24;
+/// Bits of a packed axis word's width field.
+const WIDTH_BITS: u32 = 5;
+
+/// How a block stores its three axis words.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AxisWordLayout {
+    /// Three u32 words, anchor in bits 0..24 and width in bits 24..29 (formats 2.1 and 2.2).
+    Words,
+    /// Per axis `grid_bits` anchor bits then 5 width bits, the offsets following in the same bit
+    /// stream (format 2.3).
+    Packed { grid_bits: u32 },
+}
+
+impl AxisWordLayout {
+    /// Bits of the three axis words, where vertex 0's offsets start.
+    pub fn bits(self) -> usize {
+        match self {
+            AxisWordLayout::Words => 96,
+            AxisWordLayout::Packed { grid_bits } => 3 * (grid_bits + WIDTH_BITS) as usize,
+        }
+    }
+
+    /// The three axis words at the start of `block`, unchecked (see [`AxisWord::check`]); a
+    /// block shorter than the words reads as zero-extended.
+    #[inline(always)]
+    pub fn read(self, block: &[u8]) -> [AxisWord; 3] {
+        let mut head = [0u8; 16];
+        let available = block.len().min(16);
+        head[..available].copy_from_slice(&block[..available]);
+        let stream = u128::from_le_bytes(head);
+        match self {
+            AxisWordLayout::Words => {
+                std::array::from_fn(|a| AxisWord::from_u32((stream >> (32 * a)) as u32))
+            }
+            AxisWordLayout::Packed { grid_bits } => std::array::from_fn(|a| {
+                let word = (stream >> (a as u32 * (grid_bits + WIDTH_BITS))) as u32;
+                AxisWord {
+                    anchor: word & ((1 << grid_bits) - 1),
+                    width: (word >> grid_bits) & ((1 << WIDTH_BITS) - 1),
+                }
+            }),
+        }
+    }
+}
 
 /// One axis of a strip's quantized vertices: the anchor and the offset width in bits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -48,21 +87,6 @@ impl AxisWord {
             anchor: word & ANCHOR_MASK,
             width: word >> WIDTH_SHIFT,
         }
-    }
-
-    /// The three words at the start of `block` (at least [`AXIS_WORDS_BYTES`] long), unchecked.
-    #[inline(always)]
-    pub fn read_all(block: &[u8]) -> [AxisWord; 3] {
-        let words = &block[..AXIS_WORDS_BYTES];
-        let word = |at: usize| {
-            AxisWord::from_u32(u32::from_le_bytes([
-                words[at],
-                words[at + 1],
-                words[at + 2],
-                words[at + 3],
-            ]))
-        };
-        [word(0), word(4), word(8)]
     }
 
     /// Whether the word fits the file's grid (see the module documentation).
@@ -90,12 +114,12 @@ pub fn vertex_bits(axes: &[AxisWord; 3]) -> usize {
 }
 
 /// Bytes of the axis words and offsets of `count` vertices.
-pub fn vertex_part_bytes(count: usize, axes: &[AxisWord; 3]) -> usize {
-    AXIS_WORDS_BYTES + (count * vertex_bits(axes)).div_ceil(8)
+pub fn vertex_part_bytes(count: usize, axes: &[AxisWord; 3], layout: AxisWordLayout) -> usize {
+    (layout.bits() + count * vertex_bits(axes)).div_ceil(8)
 }
 
 /// The axis words and packed offsets of `points` on a grid of `grid_bits` bits.
-pub fn pack(points: &[[u32; 3]], grid_bits: u32) -> Vec<u8> {
+pub fn pack(points: &[[u32; 3]], grid_bits: u32, layout: AxisWordLayout) -> Vec<u8> {
     let axes: [AxisWord; 3] = std::array::from_fn(|a| {
         let min = points.iter().map(|p| p[a]).min().unwrap_or(0);
         let max = points.iter().map(|p| p[a]).max().unwrap_or(0);
@@ -105,15 +129,20 @@ pub fn pack(points: &[[u32; 3]], grid_bits: u32) -> Vec<u8> {
         let anchor = min.min((1u32 << grid_bits) - (1u32 << width));
         AxisWord { anchor, width }
     });
-    let mut bytes = Vec::with_capacity(vertex_part_bytes(points.len(), &axes));
-    for axis in &axes {
-        bytes.extend_from_slice(&axis.to_u32().to_le_bytes());
-    }
     let mut writer = BitWriter {
-        bytes,
+        bytes: Vec::with_capacity(vertex_part_bytes(points.len(), &axes, layout)),
         pending: 0,
         pending_bits: 0,
     };
+    for axis in &axes {
+        match layout {
+            AxisWordLayout::Words => writer.push_u32(axis.to_u32()),
+            AxisWordLayout::Packed { grid_bits } => {
+                writer.push(axis.anchor, grid_bits);
+                writer.push(axis.width, WIDTH_BITS);
+            }
+        }
+    }
     for p in points {
         for (a, axis) in axes.iter().enumerate() {
             writer.push(p[a] - axis.anchor, axis.width);
@@ -130,6 +159,11 @@ struct BitWriter {
 }
 
 impl BitWriter {
+    fn push_u32(&mut self, value: u32) {
+        self.push(value & 0xffff, 16);
+        self.push(value >> 16, 16);
+    }
+
     fn push(&mut self, value: u32, width: u32) {
         self.pending |= (value as u64) << self.pending_bits;
         self.pending_bits += width;
@@ -160,9 +194,11 @@ const ONE_WORD_BITS: u32 = 64 - 7;
 /// A strip's quantized vertices decoded in place from the mapping.
 #[derive(Clone, Copy, Debug)]
 pub struct GridVertices<'a> {
-    /// From the first offset byte to the end of the block (at least three bytes past the
-    /// offsets: see the module documentation).
+    /// From the block's start to its end (at least three bytes past the offsets: see the module
+    /// documentation).
     bytes: &'a [u8],
+    /// Bit of vertex 0's offsets: the axis words' bits.
+    base_bit: u32,
     anchor: [u32; 3],
     mask: [u32; 3],
     /// Bit of vertex 0's offset on each axis; 0 for zero-width axes, so that their (masked)
@@ -174,10 +210,15 @@ pub struct GridVertices<'a> {
 }
 
 impl<'a> GridVertices<'a> {
-    /// `bytes` starts at the first offset byte and runs to the block's end; `axes` were checked
-    /// by [`AxisWord::check`] and the block's length by the reader.
+    /// `bytes` is the block, whose axis words (`axes`, laid out as `layout`) were checked by
+    /// [`AxisWord::check`] and whose length was checked by the reader.
     #[inline]
-    pub fn new(bytes: &'a [u8], axes: &[AxisWord; 3], count: usize, grid: &Grid) -> Self {
+    pub fn new(
+        bytes: &'a [u8],
+        (axes, layout): (&[AxisWord; 3], AxisWordLayout),
+        count: usize,
+        grid: &Grid,
+    ) -> Self {
         let mut first_bit = [0; 3];
         let mut stride = 0;
         for (a, axis) in axes.iter().enumerate() {
@@ -188,6 +229,7 @@ impl<'a> GridVertices<'a> {
         }
         GridVertices {
             bytes,
+            base_bit: layout.bits() as u32,
             anchor: [axes[0].anchor, axes[1].anchor, axes[2].anchor],
             mask: [
                 mask(axes[0].width),
@@ -216,7 +258,8 @@ impl<'a> GridVertices<'a> {
     /// Grid coordinate of vertex `index` on `axis`.
     #[inline(always)]
     pub fn grid_coordinate(&self, index: usize, axis: usize) -> u32 {
-        let bit = index * self.stride as usize + self.first_bit[axis] as usize;
+        let bit =
+            self.base_bit as usize + index * self.stride as usize + self.first_bit[axis] as usize;
         let at = bit >> 3;
         let bytes = &self.bytes[at..at + 4];
         let word = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]);
@@ -234,7 +277,7 @@ impl<'a> GridVertices<'a> {
                 self.grid_coordinate(index, 2),
             ];
         }
-        let bit = index * self.stride as usize;
+        let bit = self.base_bit as usize + index * self.stride as usize;
         let at = bit >> 3;
         let word = match self.bytes.get(at..at + 8) {
             Some(bytes) => u64::from_le_bytes(bytes.try_into().unwrap_or_default()),
@@ -281,17 +324,29 @@ mod tests {
     use super::*;
     use crate::geometry::Aabb;
 
-    fn words(bytes: &[u8], bits: u32) -> [AxisWord; 3] {
-        let axes = AxisWord::read_all(bytes);
+    fn layouts(bits: u32) -> [AxisWordLayout; 2] {
+        [
+            AxisWordLayout::Words,
+            AxisWordLayout::Packed { grid_bits: bits },
+        ]
+    }
+
+    fn words(bytes: &[u8], bits: u32, layout: AxisWordLayout) -> [AxisWord; 3] {
+        let axes = layout.read(bytes);
         for axis in &axes {
             axis.check(bits).expect("valid word");
         }
         axes
     }
 
-    fn decoder<'a>(bytes: &'a [u8], count: usize, grid: &Grid) -> GridVertices<'a> {
-        let axes = words(bytes, grid.bits);
-        GridVertices::new(&bytes[AXIS_WORDS_BYTES..], &axes, count, grid)
+    fn decoder<'a>(
+        bytes: &'a [u8],
+        count: usize,
+        grid: &Grid,
+        layout: AxisWordLayout,
+    ) -> GridVertices<'a> {
+        let axes = words(bytes, grid.bits, layout);
+        GridVertices::new(bytes, (&axes, layout), count, grid)
     }
 
     fn unit_grid(bits: u32) -> Grid {
@@ -310,40 +365,56 @@ mod tests {
         let points: Vec<[u32; 3]> = (0..200u32)
             .map(|i| [1000 + i * 37 % 4096, 77, 500_000 + (i * i) % 300])
             .collect();
-        let mut bytes = pack(&points, 20);
-        let axes = words(&bytes, 20);
-        assert_eq!(axes.map(|a| a.width), [12, 0, 9]);
-        assert_eq!(bytes.len(), vertex_part_bytes(points.len(), &axes));
-        bytes.extend([0; 3]);
-        let vertices = decoder(&bytes, points.len(), &grid);
-        for (i, p) in points.iter().enumerate() {
-            assert_eq!(vertices.grid_point(i), *p);
-            assert_eq!(vertices.point(i), grid.decode(p));
+        for layout in layouts(20) {
+            let mut bytes = pack(&points, 20, layout);
+            let axes = words(&bytes, 20, layout);
+            assert_eq!(axes.map(|a| a.width), [12, 0, 9]);
+            assert_eq!(axes[1].anchor, 77);
+            assert_eq!(bytes.len(), vertex_part_bytes(points.len(), &axes, layout));
+            bytes.extend([0; 3]);
+            let vertices = decoder(&bytes, points.len(), &grid, layout);
+            for (i, p) in points.iter().enumerate() {
+                assert_eq!(vertices.grid_point(i), *p);
+                assert_eq!(vertices.point(i), grid.decode(p));
+                assert_eq!(vertices.grid_coordinate(i, 2), p[2]);
+            }
         }
+    }
+
+    #[test]
+    fn packed_axis_words_take_the_grid_bits() {
+        let points = [[5, 6, 7], [9, 6, 8]];
+        let packed = pack(&points, 20, AxisWordLayout::Packed { grid_bits: 20 });
+        let words = pack(&points, 20, AxisWordLayout::Words);
+        // 75 bits of axis words and 3 + 0 + 1 offset bits per vertex.
+        assert_eq!(packed.len(), 83usize.div_ceil(8));
+        assert_eq!(words.len(), 104usize.div_ceil(8));
     }
 
     #[test]
     fn anchors_near_the_grid_end_are_lowered_to_stay_inside() {
         let points = [[1022, 1023, 0], [1023, 1015, 0]];
-        let mut bytes = pack(&points, 10);
-        let axes = words(&bytes, 10);
-        assert_eq!(
-            axes[0],
-            AxisWord {
-                anchor: 1022,
-                width: 1
-            }
-        );
-        assert_eq!(
-            axes[1],
-            AxisWord {
-                anchor: 1008,
-                width: 4
-            }
-        );
-        bytes.extend([0; 3]);
-        let vertices = decoder(&bytes, 2, &unit_grid(10));
-        assert_eq!(vertices.grid_point(1), points[1]);
+        for layout in layouts(10) {
+            let mut bytes = pack(&points, 10, layout);
+            let axes = words(&bytes, 10, layout);
+            assert_eq!(
+                axes[0],
+                AxisWord {
+                    anchor: 1022,
+                    width: 1
+                }
+            );
+            assert_eq!(
+                axes[1],
+                AxisWord {
+                    anchor: 1008,
+                    width: 4
+                }
+            );
+            bytes.extend([0; 3]);
+            let vertices = decoder(&bytes, 2, &unit_grid(10), layout);
+            assert_eq!(vertices.grid_point(1), points[1]);
+        }
     }
 
     #[test]

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use super::grid::{Grid, NodeGrid, MAX_GRID_BITS};
 use super::implicit_tree::internal_nodes;
-use super::quantized::{vertex_part_bytes, AxisWord, GridVertices, AXIS_WORDS_BYTES};
+use super::quantized::{vertex_part_bytes, AxisWord, AxisWordLayout, GridVertices};
 use super::references::{packed_bytes, References};
 use super::vertices::StripVertices;
 use super::{
@@ -89,9 +89,10 @@ impl TopNodes<'_> {
 pub enum VertexLayout {
     /// f32 vertices, 1-byte references.
     F32,
-    /// Grid vertices; references packed ([`super::references`]) since format 2.3, one byte
-    /// each before.
-    Grid { grid: Grid, packed_references: bool },
+    /// Grid vertices. `packed` since format 2.3: axis words at the grid's bits
+    /// ([`AxisWordLayout::Packed`]) and references at the strip's ([`super::references`]);
+    /// before, u32 axis words and one byte per reference.
+    Grid { grid: Grid, packed: bool },
 }
 
 impl From<Option<Grid>> for VertexLayout {
@@ -99,17 +100,27 @@ impl From<Option<Grid>> for VertexLayout {
     fn from(grid: Option<Grid>) -> VertexLayout {
         grid.map_or(VertexLayout::F32, |grid| VertexLayout::Grid {
             grid,
-            packed_references: true,
+            packed: true,
         })
     }
 }
 
 impl VertexLayout {
+    /// How the axis words of a grid block are stored.
+    fn axis_words(grid: &Grid, packed: bool) -> AxisWordLayout {
+        match packed {
+            true => AxisWordLayout::Packed {
+                grid_bits: grid.bits,
+            },
+            false => AxisWordLayout::Words,
+        }
+    }
+
     /// Bytes of a block's `count` references with `vertices` vertices.
     fn reference_bytes(&self, count: usize, vertices: usize) -> usize {
         match self {
             VertexLayout::Grid {
-                packed_references: true,
+                packed: true,
                 ..
             } => packed_bytes(count, vertices),
             _ => count,
@@ -120,7 +131,7 @@ impl VertexLayout {
     fn references<'a>(&self, bytes: &'a [u8], count: usize, vertices: usize) -> References<'a> {
         match self {
             VertexLayout::Grid {
-                packed_references: true,
+                packed: true,
                 ..
             } => References::packed(bytes, count, vertices),
             _ => References::bytes(bytes),
@@ -609,12 +620,13 @@ pub(crate) fn strip_view<'a>(
                 end,
             )
         }
-        VertexLayout::Grid { grid, .. } => {
-            let words = AxisWord::read_all(&data[start..start + AXIS_WORDS_BYTES]);
-            let end = start + vertex_part_bytes(count, &words);
+        VertexLayout::Grid { grid, packed } => {
+            let words_layout = VertexLayout::axis_words(grid, *packed);
+            let words = words_layout.read(&data[start..]);
+            let end = start + vertex_part_bytes(count, &words, words_layout);
             let block_end = end + axes_length + reference_bytes;
-            let offsets = &data[start + AXIS_WORDS_BYTES..block_end];
-            let vertices = GridVertices::new(offsets, &words, count, grid);
+            let block = &data[start..block_end];
+            let vertices = GridVertices::new(block, (&words, words_layout), count, grid);
             (StripVertices::Grid(vertices), end)
         }
     };
@@ -678,14 +690,19 @@ impl BlockShape {
                 let length = self.length(record, nodes, count * F32_VERTEX_BYTES);
                 (length, length)
             }
-            VertexLayout::Grid { grid, .. } => {
+            VertexLayout::Grid { grid, packed } => {
+                let words_layout = VertexLayout::axis_words(&grid, packed);
                 let widest = [AxisWord {
                     anchor: 0,
                     width: grid.bits,
                 }; 3];
                 (
-                    self.length(record, nodes, AXIS_WORDS_BYTES),
-                    self.length(record, nodes, vertex_part_bytes(count, &widest)),
+                    self.length(record, nodes, words_layout.bits().div_ceil(8)),
+                    self.length(
+                        record,
+                        nodes,
+                        vertex_part_bytes(count, &widest, words_layout),
+                    ),
                 )
             }
         };
@@ -710,13 +727,15 @@ impl BlockShape {
         let available = &window[(start - window_start) as usize..];
         let vertex_bytes = match self.layout {
             VertexLayout::F32 => record.vertex_count as usize * F32_VERTEX_BYTES,
-            VertexLayout::Grid { grid, .. } => {
-                let words = AxisWord::read_all(available);
+            VertexLayout::Grid { grid, packed } => {
+                let words_layout = VertexLayout::axis_words(&grid, packed);
+                let words = words_layout.read(available);
                 for (axis, word) in words.iter().enumerate() {
+                    let at = (axis * words_layout.bits() / 3 / 8) as u64;
                     word.check(grid.bits)
-                        .map_err(|detail| (Some(start + 4 * axis as u64), detail))?;
+                        .map_err(|detail| (Some(start + at), detail))?;
                 }
-                vertex_part_bytes(record.vertex_count as usize, &words)
+                vertex_part_bytes(record.vertex_count as usize, &words, words_layout)
             }
         };
         let length = self.length(record, nodes, vertex_bytes);
@@ -918,10 +937,10 @@ impl Checker<'_> {
                 } else {
                     None
                 };
-                let packed_references = encoding == VertexEncoding::GridPackedReferences;
+                let packed = encoding == VertexEncoding::GridPackedReferences;
                 let layout = VertexLayout::Grid {
                     grid,
-                    packed_references,
+                    packed,
                 };
                 Ok((layout, node_grid))
             }
