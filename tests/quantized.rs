@@ -43,10 +43,7 @@ fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usiz
     }
     let file = convert_on_grid(mesh, &params, &format!("{name}-{bits}-{leaf_windows}.rdm"));
     let (quantized, grid) = quantized_input(mesh, bits);
-    let layout = VertexLayout::Grid {
-        grid,
-        packed: true,
-    };
+    let layout = VertexLayout::Grid { grid, packed: true };
     assert_eq!(file.vertex_layout(), &layout);
     let expected = expected_triangles(&quantized);
     assert_eq!(
@@ -317,7 +314,9 @@ fn with_byte_references(bytes: &[u8], file: &ReducemFile) -> Vec<u8> {
         let StripVertices::Grid(vertices) = view.vertices else {
             panic!("not a grid file")
         };
-        let points: Vec<[u32; 3]> = (0..vertices.len()).map(|i| vertices.grid_point(i)).collect();
+        let points: Vec<[u32; 3]> = (0..vertices.len())
+            .map(|i| vertices.grid_point(i))
+            .collect();
         records.push(StripRecord {
             data_word: (data.len() / 4) as u32,
             vertex_count: vertices.len() as u16,

@@ -119,10 +119,7 @@ impl VertexLayout {
     /// Bytes of a block's `count` references with `vertices` vertices.
     fn reference_bytes(&self, count: usize, vertices: usize) -> usize {
         match self {
-            VertexLayout::Grid {
-                packed: true,
-                ..
-            } => packed_bytes(count, vertices),
+            VertexLayout::Grid { packed: true, .. } => packed_bytes(count, vertices),
             _ => count,
         }
     }
@@ -130,10 +127,7 @@ impl VertexLayout {
     /// The references in `bytes` (exactly [`VertexLayout::reference_bytes`] long).
     fn references<'a>(&self, bytes: &'a [u8], count: usize, vertices: usize) -> References<'a> {
         match self {
-            VertexLayout::Grid {
-                packed: true,
-                ..
-            } => References::packed(bytes, count, vertices),
+            VertexLayout::Grid { packed: true, .. } => References::packed(bytes, count, vertices),
             _ => References::bytes(bytes),
         }
     }
@@ -165,8 +159,7 @@ impl StripView<'_> {
     pub fn window_points(&self, k: usize) -> Option<[Point; 3]> {
         let mut corners = [0u8; 3];
         self.references.read_into(k, &mut corners);
-        crate::strip::window_corners(corners, k)
-            .map(|t| t.map(|r| self.vertices.point(r as usize)))
+        crate::strip::window_corners(corners, k).map(|t| t.map(|r| self.vertices.point(r as usize)))
     }
 
     /// The real triangles' references in strip order and input winding.
@@ -938,10 +931,7 @@ impl Checker<'_> {
                     None
                 };
                 let packed = encoding == VertexEncoding::GridPackedReferences;
-                let layout = VertexLayout::Grid {
-                    grid,
-                    packed,
-                };
+                let layout = VertexLayout::Grid { grid, packed };
                 Ok((layout, node_grid))
             }
         }

@@ -3,7 +3,7 @@
 //!
 //! ReduceM's parts come from the file's sections ([`crate::inspect::file_stats`]): vertices are
 //! the stored vertices that are not hierarchy copies; strips + strip hierarchies are the rest of
-//! the strip data (hierarchy copies, split axes, 1-byte references) plus the strip records; the
+//! the strip data (hierarchy copies, split axes, references: 1 byte each, packed in grid files) plus the strip records; the
 //! top level is the node section (4-wide nodes of 128 bytes); header and inter-section padding
 //! make up the rest, so the parts sum to the file size. The baseline's parts are its vertex
 //! array, its triangle index array and its nodes. The paper's 40-byte row keeps the baseline's
