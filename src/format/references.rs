@@ -15,6 +15,9 @@
 //! Deviation from the paper: it stores 1-byte indices; packing is the Dense Geometry Format's
 //! per-meshlet index width applied to the strip.
 
+/// Bits of packed references one 8-byte load holds: 64 less a shift of at most 7.
+const BITS_PER_LOAD: usize = 57;
+
 /// Bytes a packed reference area has at least.
 pub const MIN_PACKED_BYTES: usize = 3;
 
@@ -105,16 +108,42 @@ impl<'a> References<'a> {
         ((pair >> (bit % 8)) & ((1 << self.width) - 1)) as u8
     }
 
-    /// References `first .. first + out.len()` into `out`.
+    /// References `first .. first + out.len()` into `out`. Packed references are read with
+    /// one 8-byte load per as many of them as fit in [`BITS_PER_LOAD`] (a tracer block of ten
+    /// 5-bit references needs one) rather than one load each.
     #[inline(always)]
     pub fn read_into(&self, first: usize, out: &mut [u8]) {
         if self.width == 8 {
             out.copy_from_slice(&self.bytes[first..first + out.len()]);
-        } else {
-            for (k, slot) in out.iter_mut().enumerate() {
-                *slot = self.get(first + k);
+            return;
+        }
+        let width = self.width as usize;
+        let per_load = BITS_PER_LOAD / width;
+        let mask = (1u64 << width) - 1;
+        for (group, slots) in out.chunks_mut(per_load).enumerate() {
+            let bit = (first + group * per_load) * width;
+            let stream = self.load(bit / 8) >> (bit % 8);
+            for (k, slot) in slots.iter_mut().enumerate() {
+                *slot = ((stream >> (k * width)) & mask) as u8;
             }
         }
+    }
+
+    /// The 8 bytes from `at`, zero-extended past the end.
+    #[inline(always)]
+    fn load(&self, at: usize) -> u64 {
+        match self.bytes.get(at..at + 8) {
+            Some(bytes) => u64::from_le_bytes(bytes.try_into().unwrap_or_default()),
+            None => self.load_tail(at),
+        }
+    }
+
+    #[cold]
+    fn load_tail(&self, at: usize) -> u64 {
+        let mut bytes = [0u8; 8];
+        let tail = &self.bytes[at.min(self.bytes.len())..];
+        bytes[..tail.len()].copy_from_slice(tail);
+        u64::from_le_bytes(bytes)
     }
 
     /// Every reference, one byte each.
