@@ -59,8 +59,11 @@ fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usiz
     );
 }
 
+/// A generated mesh, through a PLY file of its own (tests run in parallel).
 fn generated(kind: reducem::gen::Kind, triangles: u64) -> Mesh {
-    let path = temp_path(&format!("quantized-{kind:?}.ply"));
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let path = temp_path(&format!("quantized-{kind:?}-{n}.ply"));
     reducem::gen::generate(kind, triangles, 2, &path).expect("generate");
     reducem::input::read_mesh(&path).expect("read")
 }

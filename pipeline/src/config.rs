@@ -75,7 +75,7 @@ impl Default for ChunkConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct StripConfig {
     pub max_length: usize,
-    /// Default 2 (the paper's), or [`reducem::build::GRID_LEAF_WINDOWS`] for grid vertices.
+    /// Default [`reducem::build::PIPELINE_LEAF_WINDOWS`] (8; the paper's is 2).
     pub leaf_triangles: Option<usize>,
     pub sah_bins: usize,
 }
@@ -213,12 +213,11 @@ impl Config {
 
     pub fn build_params(&self) -> reducem::build::BuildParams {
         let grid = self.vertices.encoding == VertexEncodingName::Grid;
-        let default_leaf = match grid {
-            true => reducem::build::GRID_LEAF_WINDOWS,
-            false => reducem::build::BuildParams::default().leaf_windows,
-        };
         let mut params = reducem::build::BuildParams {
-            leaf_windows: self.strip.leaf_triangles.unwrap_or(default_leaf),
+            leaf_windows: self
+                .strip
+                .leaf_triangles
+                .unwrap_or(reducem::build::PIPELINE_LEAF_WINDOWS),
             grid_bits: grid.then_some(self.vertices.grid_bits),
             ..Default::default()
         };

@@ -1,5 +1,5 @@
 //! Section 7: what vertex precision costs. The sweep mesh lossless and with vertices on grids of
-//! 12 to 24 bits (the pipeline's grid preset: leaves of [`GRID_LEAF_WINDOWS`] windows): the
+//! 12 to 24 bits (the pipeline's default leaves of [`PIPELINE_LEAF_WINDOWS`] windows): the
 //! position error against bytes per triangle and speed. Then the tolerance weld on a copy of the
 //! mesh whose shared vertices were perturbed ([`crate::gen::perturbed_copies`], the paper's
 //! Boeing 777 case): strip length, bytes and speed without and with it.
@@ -11,7 +11,7 @@ use super::plot::{self, Axis, Plot, Series};
 use super::speed::Speed;
 use super::sweeps::Subject;
 use super::Sizes;
-use crate::build::{BuildParams, GRID_LEAF_WINDOWS};
+use crate::build::{BuildParams, PIPELINE_LEAF_WINDOWS};
 use crate::geometry::distance;
 use crate::input::{weld_within_tolerance, WeldStats};
 use crate::inspect::FileStats;
@@ -42,17 +42,14 @@ pub fn precision(
     work: &Path,
     sizes: &Sizes,
 ) -> anyhow::Result<Vec<PrecisionRow>> {
-    let lossless = std::iter::once((None, BuildParams::default()));
-    let grids = GRID_BITS.iter().map(|&bits| {
-        let params = BuildParams {
-            grid_bits: Some(bits),
-            leaf_windows: GRID_LEAF_WINDOWS,
-            ..BuildParams::default()
-        };
-        (Some(bits), params)
-    });
-    lossless
-        .chain(grids)
+    let params = |grid_bits| BuildParams {
+        grid_bits,
+        leaf_windows: PIPELINE_LEAF_WINDOWS,
+        ..BuildParams::default()
+    };
+    std::iter::once(None)
+        .chain(GRID_BITS.iter().map(|&bits| Some(bits)))
+        .map(|grid_bits| (grid_bits, params(grid_bits)))
         .map(|(grid_bits, params)| {
             let (converted, speed) =
                 subject.measure(&params, TraceOptions::default(), work, sizes)?;
@@ -164,8 +161,9 @@ pub fn section(
     let speed_path = plot::draw(&speed, plots_dir)?;
     let markdown = format!(
         "## 7. Vertex precision\n\n\
-         The sweep mesh with lossless f32 vertices (leaf 2) and with vertices on one grid over \
-         the model (`[vertices] encoding = \"grid\"`, leaf {GRID_LEAF_WINDOWS}), traced with \
+         The sweep mesh with lossless f32 vertices and with vertices on one grid over the model \
+         (`[vertices] encoding = \"grid\"`), both with the pipeline's leaves of \
+         {PIPELINE_LEAF_WINDOWS} windows, traced with \
          the same rays. The error is the distance from each input \
          vertex to where the file stores it, over the bounds' diagonal (`reducem inspect`); a \
          grid cell is the step on every axis, so the error is at most √3/2 cells.\n\n{}{}{}{}",
