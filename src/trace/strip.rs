@@ -35,6 +35,8 @@
 //! and culling compares inclusively against [`Closest::reach`], a little beyond the closest hit,
 //! so ties resolve the same way whatever the visiting order.
 
+use arrayvec::ArrayVec;
+
 use super::prepared::{max_not_nan, min_not_nan, PreparedRay, FAR_INFLATION};
 use wide::f32x8;
 
@@ -42,7 +44,8 @@ use super::watertight::{candidate_lanes, edge, edge_lanes, resolve, RayPoints};
 use crate::format::reader::StripView;
 use crate::format::vertices::{StripVertices, VertexAccess};
 
-/// Deepest strip kd-tree: intervals halve, and a strip has fewer than 2^16 windows.
+/// Most deferred subtrees: one per level of the deepest strip kd-tree (intervals halve, and a
+/// strip has fewer than 2^16 windows).
 const STRIP_STACK: usize = 20;
 
 /// The closest hit so far, with its weights in strip order (corners `s[k], s[k+1], s[k+2]`).
@@ -108,7 +111,7 @@ type TraceArgs<'a, 'v> = (&'a StripView<'v>, u32, f32, f32, &'a mut Closest);
 
 /// A subtree of the strip's kd-tree and the ray's parameter interval in it. The subtree covers
 /// buckets `[first, end)`, bucket `b` being windows `b * leaf_windows ..` (the last one shorter).
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Pending {
     node: u32,
     first: u32,
@@ -162,8 +165,7 @@ impl StripQuery<'_> {
         let windows = view.window_count();
         let leaf = self.leaf_windows;
         let ray = self.ray;
-        let mut stack = [Pending::default(); STRIP_STACK];
-        let mut depth = 0;
+        let mut stack = ArrayVec::<Pending, STRIP_STACK>::new();
         let mut current = Pending {
             node: 0,
             first: 0,
@@ -210,8 +212,7 @@ impl StripQuery<'_> {
                 let far_entered = far.t_near <= far.t_far && far.t_near <= closest.reach;
                 if near.t_near <= near.t_far {
                     if far_entered {
-                        stack[depth] = far;
-                        depth += 1;
+                        stack.push(far);
                     }
                     current = near;
                     continue;
@@ -222,12 +223,11 @@ impl StripQuery<'_> {
                 }
             }
             loop {
-                if depth == 0 {
+                let Some(deferred) = stack.pop() else {
                     return false;
-                }
-                depth -= 1;
-                if stack[depth].t_near <= closest.reach {
-                    current = stack[depth];
+                };
+                if deferred.t_near <= closest.reach {
+                    current = deferred;
                     break;
                 }
             }

@@ -15,6 +15,7 @@
 //! a leaf is then a function of the leaf's box and the closest hit so far alone, as it was with
 //! the binary hierarchy, whatever the path to it.
 
+use arrayvec::ArrayVec;
 use wide::f32x4;
 
 use super::prepared::{PreparedRay, WideRay};
@@ -147,44 +148,38 @@ impl Deferred {
 /// Deferred entries kept inline. A traversal defers at most three children per level, and
 /// real trees are a few dozen levels deep at most; the reader admits
 /// [`MAX_TOP_DEPTH`](crate::format::MAX_TOP_DEPTH) levels, whose worst case spills to the heap
-/// rather than making every ray zero a stack of hundreds of entries.
+/// rather than making every ray carry a stack of hundreds of entries.
 const INLINE_DEFERRED: usize = 32;
 
-/// The stack of deferred children.
+/// The stack of deferred children: inline (never zeroed: an `ArrayVec` leaves unused entries
+/// uninitialized, which saved a 512-byte memset per ray), then spilled to the heap.
 pub struct DeferStack<T> {
-    inline: [T; INLINE_DEFERRED],
-    len: usize,
+    inline: ArrayVec<T, INLINE_DEFERRED>,
     spill: Vec<T>,
 }
 
-impl<T: Copy + Default> Default for DeferStack<T> {
+impl<T> Default for DeferStack<T> {
     #[inline(always)]
     fn default() -> DeferStack<T> {
         DeferStack {
-            inline: [T::default(); INLINE_DEFERRED],
-            len: 0,
+            inline: ArrayVec::new(),
             spill: Vec::new(),
         }
     }
 }
 
-impl<T: Copy> DeferStack<T> {
+impl<T> DeferStack<T> {
     #[inline(always)]
     pub fn push(&mut self, entry: T) {
-        match self.inline.get_mut(self.len) {
-            Some(slot) => *slot = entry,
-            None => self.spill.push(entry),
+        if let Err(full) = self.inline.try_push(entry) {
+            self.spill.push(full.element());
         }
-        self.len += 1;
     }
 
+    /// The entry pushed last: spilled entries are newer than every inline one.
     #[inline(always)]
     pub fn pop(&mut self) -> Option<T> {
-        self.len = self.len.checked_sub(1)?;
-        self.inline
-            .get(self.len)
-            .copied()
-            .or_else(|| self.spill.pop())
+        self.spill.pop().or_else(|| self.inline.pop())
     }
 }
 
