@@ -22,7 +22,9 @@ use clap::Parser;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use reducem::baseline::TriangleBvh;
-use reducem::build::{convert_mesh, BuildParams};
+use reducem::build::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS};
+use reducem::format::VERSION_MAJOR;
+use reducem::stripify::StripifyParams;
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::render::residency;
@@ -48,6 +50,13 @@ struct Args {
     runs: usize,
     #[arg(long, value_delimiter = ',', default_value = "1,2")]
     threads: Vec<usize>,
+    /// Strip-RT's maximum strip length for the converted file (the paper's 60; shorter strips
+    /// trace faster and take more bytes).
+    #[arg(long, default_value_t = StripifyParams::default().max_length)]
+    max_strip_length: usize,
+    /// Strip kd-tree leaf size of the converted file (the pipeline's default).
+    #[arg(long, default_value_t = PIPELINE_LEAF_WINDOWS)]
+    leaf_windows: usize,
     /// ReduceM's `TraceOptions::subtree_windows`.
     #[arg(long, default_value_t = TraceOptions::default().subtree_windows)]
     subtree_windows: usize,
@@ -76,22 +85,31 @@ fn main() -> anyhow::Result<()> {
     let name = format!("{}-{}", kind_name(args.kind), args.triangles);
     // Loaded only when needed, so that tuning runs on a cached file trace and nothing else.
     let mut mesh = None;
-    let model = args
-        .model
-        .clone()
-        .unwrap_or_else(|| args.dir.join(format!("{name}.rdm")));
+    let (length, leaf) = (args.max_strip_length, args.leaf_windows);
+    let model = args.model.clone().unwrap_or_else(|| {
+        args.dir
+            .join(format!("{name}-length{length}-leaf{leaf}-v{VERSION_MAJOR}.rdm"))
+    });
     if !model.exists() {
         let started = Instant::now();
         let mesh = mesh.insert(load_mesh(args.kind, args.triangles, &args.dir)?);
-        convert_mesh(mesh, &BuildParams::default(), &model)?;
+        let mut params = BuildParams {
+            leaf_windows: leaf,
+            ..BuildParams::default()
+        };
+        params.stripify.max_length = length;
+        convert_mesh(mesh, &params, &model)?;
         println!("converted in {:.1} s", started.elapsed().as_secs_f64());
     }
     let file = ReducemFile::open(&model)?;
     println!(
-        "{name}: {} triangles, {} strips, file {:.1} MiB; {}x{} pixels, AO {} samples, median of {} runs",
+        "{name}: {} triangles, {} strips (max length {}, leaf {}), file {:.1} MiB ({:.2} B/tri); {}x{} pixels, AO {} samples, median of {} runs",
         file.header().triangle_count,
         file.strip_count(),
+        file.header().max_strip_length,
+        file.leaf_windows(),
         mib(file.file_bytes()),
+        file.file_bytes() as f64 / file.header().triangle_count.max(1) as f64,
         args.size,
         args.size,
         args.ao_samples,

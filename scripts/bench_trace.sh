@@ -2,7 +2,9 @@
 # Tracing benchmark (not a test): ReduceM vs the in-project SAH BVH baseline and, when Debian's
 # libembree-dev (Embree 3) is installed, Embree through the `embree` cargo feature, on the same
 # rays. Prints Mrays/s for primary rays and 16-sample AO at 1024x1024 on 1 and 2 threads (median
-# of 3 runs) and memory. Meshes and converted files are cached in /tmp/reducem-bench.
+# of 3 runs) and memory, then ReduceM alone on the speed setting (`[strip] max_length =
+# FAST_LENGTH`, default 16: shorter strips, more bytes). Meshes and converted files are cached in
+# /tmp/reducem-bench.
 #
 #   scripts/bench_trace.sh                      # scan at 1M and 10M triangles
 #   TRIANGLES=1000000 scripts/bench_trace.sh    # one size
@@ -19,4 +21,7 @@ cargo build --release --example bench_trace "${features[@]}"
 for triangles in ${TRIANGLES:-1000000 10000000}; do
     cargo run --quiet --release --example bench_trace "${features[@]}" -- \
         --kind scan --triangles "$triangles" "$@"
+    cargo run --quiet --release --example bench_trace "${features[@]}" -- \
+        --kind scan --triangles "$triangles" --reducem-only \
+        --max-strip-length "${FAST_LENGTH:-16}" "$@"
 done
