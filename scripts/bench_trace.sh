@@ -12,7 +12,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 features=()
-if ldconfig -p 2>/dev/null | grep -q 'libembree3\.so'; then
+# (Not `ldconfig -p | grep -q`: grep exits at the first match, ldconfig dies of SIGPIPE, and
+# pipefail turns that into "not found".)
+if [ -f /usr/include/embree3/rtcore.h ]; then
     features=(--features embree)
 else
     echo "libembree-dev not found (apt-get install -y libembree-dev): benchmarking without Embree"
