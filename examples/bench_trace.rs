@@ -23,12 +23,12 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use reducem::baseline::TriangleBvh;
 use reducem::build::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS};
-use reducem::format::VERSION_MAJOR;
-use reducem::stripify::StripifyParams;
 use reducem::format::reader::ReducemFile;
+use reducem::format::VERSION_MAJOR;
 use reducem::geometry::Point;
 use reducem::render::residency;
 use reducem::render::sampling::Surface;
+use reducem::stripify::StripifyParams;
 use reducem::trace::{Ray, TraceOptions, Tracer};
 use reducem::workload::engines::{Baseline, Engine, ReduceM};
 use reducem::workload::{kind_name, load_mesh, median_timed, RaySet};
@@ -87,8 +87,9 @@ fn main() -> anyhow::Result<()> {
     let mut mesh = None;
     let (length, leaf) = (args.max_strip_length, args.leaf_windows);
     let model = args.model.clone().unwrap_or_else(|| {
-        args.dir
-            .join(format!("{name}-length{length}-leaf{leaf}-v{VERSION_MAJOR}.rdm"))
+        args.dir.join(format!(
+            "{name}-length{length}-leaf{leaf}-v{VERSION_MAJOR}.rdm"
+        ))
     });
     if !model.exists() {
         let started = Instant::now();

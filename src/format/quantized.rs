@@ -51,10 +51,10 @@ impl AxisWordLayout {
     /// block shorter than the words reads as zero-extended.
     #[inline(always)]
     pub fn read(self, block: &[u8]) -> [AxisWord; 3] {
-        let mut head = [0u8; 16];
-        let available = block.len().min(16);
-        head[..available].copy_from_slice(&block[..available]);
-        let stream = u128::from_le_bytes(head);
+        let stream = match block.get(..16) {
+            Some(head) => u128::from_le_bytes(head.try_into().unwrap_or_default()),
+            None => zero_extended(block),
+        };
         match self {
             AxisWordLayout::Words => {
                 std::array::from_fn(|a| AxisWord::from_u32((stream >> (32 * a)) as u32))
@@ -106,6 +106,14 @@ impl AxisWord {
         }
         Ok(())
     }
+}
+
+/// The first 16 bytes of a block shorter than that, zero-extended.
+#[cold]
+fn zero_extended(block: &[u8]) -> u128 {
+    let mut head = [0u8; 16];
+    head[..block.len()].copy_from_slice(block);
+    u128::from_le_bytes(head)
 }
 
 /// Bits of one vertex's offsets.
