@@ -98,14 +98,9 @@ impl<'a> References<'a> {
     /// Reference `k` (below [`References::len`]).
     #[inline(always)]
     pub fn get(&self, k: usize) -> u8 {
-        if self.width == 8 {
-            return self.bytes[k];
-        }
-        let bit = k * self.width as usize;
-        let first = bit / 8;
-        let next = self.bytes.get(first + 1).copied().unwrap_or(0);
-        let pair = u16::from_le_bytes([self.bytes[first], next]);
-        ((pair >> (bit % 8)) & ((1 << self.width) - 1)) as u8
+        let mut one = [0u8];
+        self.read_into(k, &mut one);
+        one[0]
     }
 
     /// References `first .. first + out.len()` into `out`. Packed references are read with
@@ -181,6 +176,7 @@ mod tests {
                 assert_eq!(bytes.len(), packed_bytes(count, vertices));
                 let view = References::packed(&bytes, count, vertices);
                 assert_eq!(view.to_vec(), references, "{vertices} vertices, {count}");
+                assert!((0..count).all(|k| view.get(k) == references[k]));
                 let mut tail = [0u8; 3];
                 view.read_into(count - 3, &mut tail);
                 assert_eq!(tail, references[count - 3..]);
