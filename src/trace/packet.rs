@@ -24,8 +24,7 @@ use wide::f32x8;
 use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION};
 use super::strip::Closest;
 use super::top::{
-    for_each_bit, order_keys, sort_by_key, trace_leaf, trace_ray, DeferStack, Deferred,
-    NodeGridLanes, TraceNode,
+    for_each_bit, order_keys, sort_by_key, trace_ray, DeferStack, NodeGridLanes, TraceNode,
 };
 use super::{Ray, Tracer};
 use crate::format::reader::TopNodes;
@@ -256,8 +255,10 @@ fn traverse_nodes<N: TraceNode>(
     }
 }
 
-/// Each active lane traverses the leaf's strips alone; returns the lanes that found an
-/// occluder when `any_hit` is set.
+/// Each active lane traverses the leaf's strips alone, strip after strip, so that each strip is
+/// viewed once for the packet; returns the lanes that found an occluder when `any_hit` is set.
+/// A lane visits the strips in the order and with the bounds its ray alone would
+/// ([`super::top::trace_leaf`]).
 fn trace_leaf_lanes(
     tracer: &Tracer,
     lanes: &Lanes,
@@ -268,17 +269,25 @@ fn trace_leaf_lanes(
     let t_near = leaf.t_near.to_array();
     let t_far = leaf.t_far.to_array();
     let mut finished = 0;
-    for_each_bit(leaf.mask, |lane| {
-        let deferred = Deferred {
-            child: leaf.child,
-            kind: leaf.kind,
-            t_near: t_near[lane],
-            t_far: t_far[lane],
-        };
-        let query = tracer.query(&lanes.rays[lane], any_hit);
-        if trace_leaf(tracer.file(), &query, &deferred, &mut closest[lane]) {
-            finished |= 1 << lane;
+    let mut active = leaf.mask;
+    for strip in leaf.child..leaf.child + leaf.kind {
+        let view = tracer.file().strip(strip as usize);
+        for_each_bit(active, |lane| {
+            let closest = &mut closest[lane];
+            let t_far = t_far[lane].min(closest.reach);
+            if t_near[lane] > t_far {
+                active &= !(1 << lane);
+                return;
+            }
+            let query = tracer.query(&lanes.rays[lane], any_hit);
+            if query.trace(&view, strip, t_near[lane], t_far, closest) {
+                finished |= 1 << lane;
+                active &= !(1 << lane);
+            }
+        });
+        if active == 0 {
+            break;
         }
-    });
+    }
     finished
 }
