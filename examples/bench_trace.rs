@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use reducem::baseline::TriangleBvh;
 use reducem::build::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS};
 use reducem::format::reader::ReducemFile;
-use reducem::format::VERSION_MAJOR;
+use reducem::format::{VERSION_MAJOR, VERSION_MINOR};
 use reducem::geometry::Point;
 use reducem::render::residency;
 use reducem::render::sampling::Surface;
@@ -88,7 +88,7 @@ fn main() -> anyhow::Result<()> {
     let (length, leaf) = (args.max_strip_length, args.leaf_windows);
     let model = args.model.clone().unwrap_or_else(|| {
         args.dir.join(format!(
-            "{name}-length{length}-leaf{leaf}-v{VERSION_MAJOR}.rdm"
+            "{name}-length{length}-leaf{leaf}-v{VERSION_MAJOR}.{VERSION_MINOR}.rdm"
         ))
     });
     if !model.exists() {

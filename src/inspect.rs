@@ -4,8 +4,8 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use crate::format::reader::ReducemFile;
-use crate::format::{SectionKind, VertexEncoding, HEADER_PAGE};
+use crate::format::reader::{ReducemFile, TopNodes};
+use crate::format::{GridNode, SectionKind, TopNode, VertexEncoding, HEADER_PAGE};
 use crate::geometry::distance;
 
 /// What `reducem inspect --json` prints. Field names are a contract with other tools.
@@ -20,8 +20,11 @@ pub struct FileStats {
     pub stored_vertices: u64,
     /// Stored copies that exist only to encode the strip hierarchies.
     pub hierarchy_vertices: u64,
-    /// Top-level nodes (4-wide, 128 bytes each since format 2).
+    /// Top-level nodes (4-wide).
     pub top_nodes: u64,
+    /// Bytes per top-level node: 128 for f32 boxes, 64 for grid nodes (grid files, and
+    /// lossless files since format 2.4).
+    pub top_node_bytes: u64,
     pub leaf_triangles: u32,
     pub file_bytes: u64,
     pub bytes_per_triangle: f64,
@@ -84,6 +87,10 @@ pub fn file_stats(file: &ReducemFile) -> FileStats {
         stored_vertices: header.stored_vertex_count,
         hierarchy_vertices: header.hierarchy_vertex_count,
         top_nodes: file.top_nodes().len() as u64,
+        top_node_bytes: match file.top_nodes() {
+            TopNodes::F32(_) => size_of::<TopNode>() as u64,
+            TopNodes::Grid(..) => size_of::<GridNode>() as u64,
+        },
         leaf_triangles: header.leaf_windows,
         file_bytes: file.file_bytes(),
         bytes_per_triangle: ratio(file.file_bytes(), header.triangle_count),

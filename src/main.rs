@@ -179,9 +179,10 @@ fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<(
         stats.hierarchy_overhead_pct
     );
     println!(
-        "  top level          {} nodes of {} children",
+        "  top level          {} nodes of {} children, {} bytes each",
         stats.top_nodes,
-        reducem::format::TOP_WIDTH
+        reducem::format::TOP_WIDTH,
+        stats.top_node_bytes
     );
     println!(
         "  vertices stored as {}",

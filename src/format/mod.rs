@@ -24,9 +24,9 @@ pub const VERSION_MAJOR: u16 = 2;
 /// Incremented on compatible additions; readers accept any minor of their major. Minor 1 added
 /// the [`PrecisionRecord`] and the grid vertex encoding, minor 2 grid top-level nodes
 /// ([`GridNode`], `vertex_encoding` 2), minor 3 packed references in grid files
-/// (`vertex_encoding` 3). Writers write the lowest minor that has what the file uses
-/// ([`VertexEncoding::minor`]), so a lossless file is the same bytes as from a 2.1 writer.
-pub const VERSION_MINOR: u16 = 3;
+/// (`vertex_encoding` 3), minor 4 grid top-level nodes in lossless files (`vertex_encoding` 4).
+/// Writers write the lowest minor that has what the file uses ([`VertexEncoding::minor`]).
+pub const VERSION_MINOR: u16 = 4;
 /// Written as a little-endian u32; a reader on a big-endian host sees `0x0403_0201`.
 pub const ENDIAN_MARKER: u32 = 0x0102_0304;
 /// Sections start at multiples of this, so each can be mapped and paged on its own.
@@ -54,6 +54,11 @@ pub enum VertexEncoding {
     /// As [`VertexEncoding::GridNodes`], with references packed at the bits each strip's vertex
     /// count needs ([`references`]). Since format 2.3; older readers reject the value.
     GridPackedReferences = 3,
+    /// Lossless f32 vertices as [`VertexEncoding::F32`], with top-level nodes on a node grid
+    /// over the model bounds ([`GridNode`], 64 bytes instead of [`TopNode`]'s 128: a node is one
+    /// cache line, and the file 1 to 2 bytes per triangle smaller). Node boxes are bounds, not
+    /// geometry, so rounding them outward loses nothing. Since format 2.4.
+    F32GridNodes = 4,
 }
 
 impl VertexEncoding {
@@ -63,6 +68,7 @@ impl VertexEncoding {
             1 => Some(VertexEncoding::Grid),
             2 => Some(VertexEncoding::GridNodes),
             3 => Some(VertexEncoding::GridPackedReferences),
+            4 => Some(VertexEncoding::F32GridNodes),
             _ => None,
         }
     }
@@ -71,7 +77,7 @@ impl VertexEncoding {
     /// only.
     pub fn name(self) -> &'static str {
         match self {
-            VertexEncoding::F32 => "f32",
+            VertexEncoding::F32 | VertexEncoding::F32GridNodes => "f32",
             _ => "grid",
         }
     }
@@ -80,7 +86,9 @@ impl VertexEncoding {
     pub fn has_grid_nodes(self) -> bool {
         matches!(
             self,
-            VertexEncoding::GridNodes | VertexEncoding::GridPackedReferences
+            VertexEncoding::GridNodes
+                | VertexEncoding::GridPackedReferences
+                | VertexEncoding::F32GridNodes
         )
     }
 
@@ -91,6 +99,7 @@ impl VertexEncoding {
             VertexEncoding::Grid => 1,
             VertexEncoding::GridNodes => 2,
             VertexEncoding::GridPackedReferences => 3,
+            VertexEncoding::F32GridNodes => 4,
         }
     }
 }
@@ -157,7 +166,7 @@ pub const SECTION_COUNT: usize = SectionKind::ALL.len();
 /// | 8..10 | `version_major`, 10..12 `version_minor` |
 /// | 12..16 | `endian_marker` = 0x01020304 |
 /// | 16..20 | `header_bytes` = 208 |
-/// | 20..24 | `vertex_encoding` ([`VertexEncoding`]): 0 f32, 1 grid |
+/// | 20..24 | `vertex_encoding` ([`VertexEncoding`]): 0 f32, 1 to 3 grid, 4 f32 with grid nodes |
 /// | 24..28 | `leaf_windows`: strip kd-tree leaf size in windows (1..=255) |
 /// | 28..32 | `max_strip_length` used by the build (informational) |
 /// | 32..40 | `triangle_count`: real (non-swap) triangles |
@@ -207,9 +216,9 @@ pub const PRECISION_OFFSET: usize = 208;
 /// | bytes | field |
 /// |---|---|
 /// | 208..212 | `grid_bits`: bits per axis of the grid (1..=24); 0 for f32 vertices |
-/// | 212..216 | `node_shift`: the [`GridNode`] boxes' cell is `grid_cell * 2^node_shift` (vertex encoding 2); zero otherwise |
-/// | 216..228 | `grid_origin` f32×3: the position of grid point (0, 0, 0) |
-/// | 228..232 | `grid_cell` f32: grid step on every axis, a power of two; 0 for f32 vertices |
+/// | 212..216 | `node_shift`: the [`GridNode`] boxes' cell is `grid_cell * 2^node_shift` (vertex encodings 2 and 3); zero otherwise |
+/// | 216..228 | `grid_origin` f32×3: the position of grid point (0, 0, 0); with vertex encoding 4, of the node grid's |
+/// | 228..232 | `grid_cell` f32: grid step on every axis, a power of two; with vertex encoding 4 the node grid's step; 0 for other f32 files |
 /// | 232..240 | `error_max` f64: largest distance from an input vertex (after welding) to its stored position |
 /// | 240..248 | `error_rms` f64: root mean square of the same distances |
 /// | 248..252 | `weld_tolerance` f32: input vertices closer than this were merged; 0 = bit-identical only |
@@ -405,8 +414,13 @@ impl GridNode {
             let (min, max) = node.slot_box(slot);
             for axis in 0..3 {
                 let outside = || format!("box {min:?}..{max:?} outside the node grid {grid:?}");
-                out.min[axis][slot] = grid.floor(min[axis], axis).ok_or_else(outside)?;
-                out.max[axis][slot] = grid.ceil(max[axis], axis).ok_or_else(outside)?;
+                let low = grid.floor(min[axis], axis).ok_or_else(outside)?;
+                let high = grid.ceil(max[axis], axis).ok_or_else(outside)?;
+                // Where the cell is below the coordinates' ulp (a small model far from the
+                // origin), several points decode to one value, and a flat box's floor may
+                // pass its ceiling; both then decode to that value, so the ceiling serves.
+                out.min[axis][slot] = low.min(high);
+                out.max[axis][slot] = high;
             }
             let (tag, index) = match node.slot(slot) {
                 TopSlot::Internal(child) => (GRID_LINK_INTERNAL, child),

@@ -898,16 +898,16 @@ impl Checker<'_> {
                 format!("f32 vertices with a {}-bit grid", precision.grid_bits),
             )),
             VertexEncoding::F32 => Ok((VertexLayout::F32, None)),
+            VertexEncoding::F32GridNodes => {
+                Ok((VertexLayout::F32, Some(self.lossless_node_grid(precision)?)))
+            }
             _ => {
                 let grid = precision.grid();
                 if !(1..=MAX_GRID_BITS).contains(&grid.bits) {
                     let detail = format!("grid of {} bits outside 1..={MAX_GRID_BITS}", grid.bits);
                     return Err(self.invalid("header", at(0), detail));
                 }
-                let power_of_two = grid.cell.is_normal()
-                    && grid.cell > 0.0
-                    && grid.cell.to_bits() & 0x007f_ffff == 0;
-                if !power_of_two {
+                if !is_power_of_two(grid.cell) {
                     let detail = format!("grid cell {} is not a power of two", grid.cell);
                     return Err(self.invalid("header", at(20), detail));
                 }
@@ -935,6 +935,39 @@ impl Checker<'_> {
                 Ok((layout, node_grid))
             }
         }
+    }
+
+    /// The node grid of a lossless file with grid nodes (vertex encoding 4): its origin and
+    /// cell in the precision record's grid fields, checked as a grid's, with no vertex grid
+    /// (`grid_bits` 0) and no shift.
+    fn lossless_node_grid(&self, precision: &PrecisionRecord) -> Result<NodeGrid, FormatError> {
+        let at = |field: usize| (PRECISION_OFFSET + field) as u64;
+        if precision.grid_bits != 0 {
+            let detail = format!("f32 vertices with a {}-bit grid", precision.grid_bits);
+            return Err(self.invalid("header", at(0), detail));
+        }
+        if precision.node_shift != 0 {
+            let detail = format!("node shift {} in a lossless file", precision.node_shift);
+            return Err(self.invalid("header", at(4), detail));
+        }
+        let base = Grid {
+            bits: 0,
+            origin: precision.grid_origin,
+            cell: precision.grid_cell,
+        };
+        if !is_power_of_two(base.cell) {
+            let detail = format!("node grid cell {} is not a power of two", base.cell);
+            return Err(self.invalid("header", at(20), detail));
+        }
+        NodeGrid::new(&base, 0)
+            .filter(|node| node.origin.iter().all(|c| c.is_finite()))
+            .ok_or_else(|| {
+                let detail = format!(
+                    "node grid from {:?} in steps of {} is not finite",
+                    base.origin, base.cell
+                );
+                self.invalid("header", at(8), detail)
+            })
     }
 
     /// The section ranges, checked; `node_bytes` is the top-level node record's size.
@@ -986,4 +1019,10 @@ impl Checker<'_> {
         }
         Ok(ranges)
     }
+}
+
+/// Whether `cell` is a positive normal power of two (grid cells are, so that `q * cell` is
+/// exact).
+fn is_power_of_two(cell: f32) -> bool {
+    cell.is_normal() && cell > 0.0 && cell.to_bits() & 0x007f_ffff == 0
 }

@@ -29,16 +29,22 @@ pub struct FileInfo {
     pub bounds: Aabb,
     /// The grid the vertices were snapped to; `None` for lossless f32 vertices.
     pub grid: Option<Grid>,
+    /// Keep a lossless file's top-level nodes as 128-byte f32 [`TopNode`]s (the format 2.0
+    /// layout) instead of 64-byte grid nodes; grid files always have grid nodes.
+    pub f32_nodes: bool,
     pub weld: WeldStats,
 }
 
 impl FileInfo {
     /// The grid of the top-level node boxes: for grid vertices, the finest node grid over the
-    /// (decoded) bounds, which hold every strip box; `None` for lossless files, whose nodes
-    /// stay f32 [`TopNode`]s.
+    /// (decoded) bounds, which hold every strip box; for lossless files, the finest power-of-two
+    /// grid of 2^16 points over the bounds ([`lossless_node_grid`]), or `None` (f32
+    /// [`TopNode`]s) when `f32_nodes` asks for them or no finite grid covers the bounds.
     pub fn node_grid(&self) -> io::Result<Option<NodeGrid>> {
         let Some(grid) = self.grid else {
-            return Ok(None);
+            return Ok((!self.f32_nodes)
+                .then(|| lossless_node_grid(&self.bounds))
+                .flatten());
         };
         NodeGrid::over(&grid, &self.bounds)
             .map(Some)
@@ -48,12 +54,24 @@ impl FileInfo {
             })
     }
 
-    fn vertex_encoding(&self) -> VertexEncoding {
-        match self.grid {
-            None => VertexEncoding::F32,
-            Some(_) => VertexEncoding::GridPackedReferences,
-        }
+    fn vertex_encoding(&self) -> io::Result<VertexEncoding> {
+        Ok(match (self.grid, self.node_grid()?) {
+            (Some(_), _) => VertexEncoding::GridPackedReferences,
+            (None, Some(_)) => VertexEncoding::F32GridNodes,
+            (None, None) => VertexEncoding::F32,
+        })
     }
+}
+
+/// The node grid of a lossless file: that of a 16-bit model grid over `bounds`, recorded with
+/// shift 0 (the precision record holds its own origin and cell). `None` for an empty model or
+/// when no finite grid covers the bounds (coordinates near `f32::MAX`).
+fn lossless_node_grid(bounds: &Aabb) -> Option<NodeGrid> {
+    if bounds.is_empty() {
+        return None;
+    }
+    let node = NodeGrid::over(&Grid::over(bounds, u16::BITS), bounds)?;
+    Some(NodeGrid { shift: 0, ..node })
 }
 
 /// Writes top-level nodes (of the f32 wide tree) in the file's record: as they are, or as
@@ -71,7 +89,7 @@ pub fn write_nodes(
         .enumerate()
         .map(|(index, node)| {
             GridNode::encode(node, grid).map_err(|detail| {
-                let detail = format!("top-level node {index}: {detail} in a format 2.2 grid node");
+                let detail = format!("top-level node {index}: {detail} in a grid node");
                 io::Error::new(io::ErrorKind::InvalidData, detail)
             })
         })
@@ -138,7 +156,7 @@ fn write_sections(
     for (entry, kind) in entries.iter_mut().zip(SectionKind::ALL) {
         *entry = out.section(kind, |w| source.write_section(kind, w))?;
     }
-    let header = header(info, source.strip_count(), entries);
+    let header = header(info, source.strip_count(), entries)?;
     file.seek(SeekFrom::Start(0))?;
     file.write_all(bytemuck::bytes_of(&header))?;
     file.seek(SeekFrom::Start(PRECISION_OFFSET as u64))?;
@@ -146,18 +164,24 @@ fn write_sections(
 }
 
 fn precision(info: &FileInfo) -> io::Result<PrecisionRecord> {
-    let grid = info.grid.unwrap_or(Grid {
-        bits: 0,
-        origin: [0.0; 3],
-        cell: 0.0,
-    });
+    let node_grid = info.node_grid()?;
+    let (grid_bits, node_shift, grid_origin, grid_cell) = match (info.grid, node_grid) {
+        (Some(grid), node) => (
+            grid.bits,
+            node.map_or(0, |n| n.shift),
+            grid.origin,
+            grid.cell,
+        ),
+        (None, Some(node)) => (0, 0, node.origin, node.cell),
+        (None, None) => (0, 0, [0.0; 3], 0.0),
+    };
     let error = &info.stats.quantization;
     let weld = &info.weld.displacement;
     Ok(PrecisionRecord {
-        grid_bits: grid.bits,
-        node_shift: info.node_grid()?.map_or(0, |node| node.shift),
-        grid_origin: grid.origin,
-        grid_cell: grid.cell,
+        grid_bits,
+        node_shift,
+        grid_origin,
+        grid_cell,
         error_max: error.max,
         error_rms: error.rms(),
         weld_tolerance: info.weld.tolerance,
@@ -221,16 +245,21 @@ fn too_large(what: &str) -> io::Error {
     )
 }
 
-fn header(info: &FileInfo, strip_count: u64, sections: [SectionEntry; SECTION_COUNT]) -> Header {
+fn header(
+    info: &FileInfo,
+    strip_count: u64,
+    sections: [SectionEntry; SECTION_COUNT],
+) -> io::Result<Header> {
+    let encoding = info.vertex_encoding()?;
     let mut header = Header {
         magic: MAGIC,
         version_major: VERSION_MAJOR,
-        // The lowest minor with what the file uses: 2.1 for lossless files (the precision
-        // record), so that they stay readable by 2.1 readers byte for byte.
-        version_minor: info.vertex_encoding().minor().max(1),
+        // The lowest minor with what the file uses: 2.1 for lossless files with f32 nodes (the
+        // precision record), so that they stay readable by 2.1 readers byte for byte.
+        version_minor: encoding.minor().max(1),
         endian_marker: ENDIAN_MARKER,
         header_bytes: std::mem::size_of::<Header>() as u32,
-        vertex_encoding: info.vertex_encoding() as u32,
+        vertex_encoding: encoding as u32,
         leaf_windows: info.leaf_windows as u32,
         max_strip_length: info.max_strip_length as u32,
         triangle_count: info.stats.triangles,
@@ -246,7 +275,7 @@ fn header(info: &FileInfo, strip_count: u64, sections: [SectionEntry; SECTION_CO
     };
     header.header_checksum =
         xxhash_rust::xxh3::xxh3_64(&bytemuck::bytes_of(&header)[..HEADER_CHECKSUMMED_BYTES]);
-    header
+    Ok(header)
 }
 
 /// Sequential writer that aligns sections and hashes them as they pass.
