@@ -279,12 +279,41 @@ impl<'a> GridVertices<'a> {
     #[inline(always)]
     pub fn grid_point(&self, index: usize) -> [u32; 3] {
         if self.stride > ONE_WORD_BITS {
-            return [
-                self.grid_coordinate(index, 0),
-                self.grid_coordinate(index, 1),
-                self.grid_coordinate(index, 2),
-            ];
+            return [0, 1, 2].map(|axis| self.grid_coordinate(index, axis));
         }
+        self.grid_point_in_word(index)
+    }
+
+    /// The grid points of the first `used` vertices `indices` name, one array per axis, as
+    /// [`GridVertices::grid_point`] gives them (later entries are 0); whether a vertex fits one
+    /// load is decided once for all of them.
+    #[inline(always)]
+    pub fn grid_points<const N: usize>(&self, indices: &[u8; N], used: usize) -> [[u32; N]; 3] {
+        let mut points = [[0; N]; 3];
+        let mut store = |position: usize, q: [u32; 3]| {
+            for axis in 0..3 {
+                points[axis][position] = q[axis];
+            }
+        };
+        let indices = indices.iter().take(used).enumerate();
+        if self.stride > ONE_WORD_BITS {
+            for (position, &index) in indices {
+                store(
+                    position,
+                    [0, 1, 2].map(|axis| self.grid_coordinate(index as usize, axis)),
+                );
+            }
+        } else {
+            for (position, &index) in indices {
+                store(position, self.grid_point_in_word(index as usize));
+            }
+        }
+        points
+    }
+
+    /// [`GridVertices::grid_point`] of a vertex of at most [`ONE_WORD_BITS`] bits.
+    #[inline(always)]
+    fn grid_point_in_word(&self, index: usize) -> [u32; 3] {
         let bit = self.base_bit as usize + index * self.stride as usize;
         let at = bit >> 3;
         let word = match self.bytes.get(at..at + 8) {

@@ -12,10 +12,11 @@
 //!
 //! Design choices:
 //! * The test is split into [`RaySpace::transform`], [`edge`] and [`resolve`] so the strip
-//!   intersector transforms each strip vertex once per interval and evaluates each strip edge
-//!   once for the two windows that share it (paper 3.2: "testing rays against all the edges that
-//!   are directly defined by the triangle strip"). [`intersect_triangle`] composes the same
-//!   pieces for one triangle; it is the brute-force reference of the tests.
+//!   intersector can run the transform and the edges of eight windows in SIMD lanes, reading
+//!   each strip vertex once per block (paper 3.2: "testing rays against all the edges that are
+//!   directly defined by the triangle strip"), and finish only the rare candidate windows in
+//!   scalar code. [`intersect_triangle`] composes the same pieces for one triangle; it is the
+//!   brute-force reference of the tests.
 //! * Corner weights are passed in *strip order*; the facing of the triangle does not matter
 //!   because both facings are accepted, and sums are formed so that a triangle gives bit-identical
 //!   `t` whichever of its two windings is used (see [`resolve`]).
