@@ -45,6 +45,7 @@ use super::prepared::{max_not_nan, min_not_nan, PreparedRay, FAR_INFLATION};
 use wide::f32x8;
 
 use super::watertight::{candidate_lanes, edge_lanes, resolve};
+use crate::format::implicit_tree::buckets;
 use crate::format::reader::StripView;
 use crate::format::vertices::{StripVertices, VertexAccess};
 
@@ -177,7 +178,7 @@ impl StripQuery<'_> {
         let mut current = Pending {
             node: 0,
             first: 0,
-            end: windows.div_ceil(leaf) as u32,
+            end: buckets(windows, leaf) as u32,
             t_near,
             t_far,
         };
