@@ -175,14 +175,16 @@ pub fn edge_lanes(p: &RayPoints, q: &RayPoints) -> f32x8 {
     q.x * p.y - q.y * p.x
 }
 
-/// Lanes whose three edge weights could make a hit: all of one sign, or one exactly zero (which
-/// [`resolve`] settles in f64). Every lane [`resolve`] accepts is among them; a lane with a NaN
-/// weight is not, and [`resolve`] would reject it too.
+/// Lanes whose three edge weights could make a hit: all of one sign (the smallest positive or
+/// the largest negative), or one exactly zero (which [`resolve`] settles in f64). Every lane
+/// [`resolve`] accepts is among them. A lane with a NaN weight and no zero one may be too (the
+/// minimum and maximum do not order NaN), and [`resolve`] rejects it: its sum, and so its `t`,
+/// is NaN, or its other weights have opposite signs.
 #[inline(always)]
 pub fn candidate_lanes(w: [f32x8; 3]) -> u32 {
     let zero = f32x8::ZERO;
-    let positive = w[0].simd_gt(zero) & w[1].simd_gt(zero) & w[2].simd_gt(zero);
-    let negative = w[0].simd_lt(zero) & w[1].simd_lt(zero) & w[2].simd_lt(zero);
+    let positive = w[0].fast_min(w[1]).fast_min(w[2]).simd_gt(zero);
+    let negative = w[0].fast_max(w[1]).fast_max(w[2]).simd_lt(zero);
     let on_edge = w[0].simd_eq(zero) | w[1].simd_eq(zero) | w[2].simd_eq(zero);
     (positive | negative | on_edge).to_bitmask()
 }
