@@ -14,10 +14,11 @@
 //! leaf, is intersected at once (the paper's "external parameter"), eight windows at a time in
 //! SIMD lanes: the block's references are read as one fixed-size array and its strip positions
 //! gathered once; lanes shifted by 0, 1 and 2 positions are the windows' three corners, each
-//! moved to ray space, and window `k` evaluates the short edges `(s[k], s[k+1])`,
-//! `(s[k+1], s[k+2])` and the long edge `(s[k], s[k+2])`, with no branch on the geometry until a
-//! window's three edges agree, which is rare; those windows finish in the scalar [`resolve`],
-//! bit-identical to the single-triangle test. A position is transformed, and a short edge
+//! moved to ray space (x and y; the depth only for the rare candidate windows), and window `k`
+//! evaluates the short edges `(s[k], s[k+1])`, `(s[k+1], s[k+2])` and the long edge
+//! `(s[k], s[k+2])`, with no branch on the geometry until a window's three edges agree, which is
+//! rare; those windows finish in the scalar [`resolve`], bit-identical to the single-triangle
+//! test. A position is transformed, and a short edge
 //! evaluated, once per window that uses it (up to three and two times): the same operations on
 //! the same inputs give the same bits, and the repeated arithmetic costs fewer instructions than
 //! transforming once and shifting the results across lanes through memory, as the block first
@@ -44,7 +45,7 @@ use arrayvec::ArrayVec;
 use super::prepared::{max_not_nan, min_not_nan, PreparedRay, FAR_INFLATION};
 use wide::f32x8;
 
-use super::watertight::{candidate_lanes, edge_lanes, resolve};
+use super::watertight::{candidate_lanes, edge_lanes, resolve, RayPoint};
 use crate::format::implicit_tree::buckets;
 use crate::format::reader::StripView;
 use crate::format::vertices::{StripVertices, VertexAccess};
@@ -313,7 +314,10 @@ impl StripQuery<'_> {
             if !is_real_window(&references[lane..lane + 3]) {
                 continue;
             }
-            let c = corners.map(|points| points.lane(lane));
+            let c: [RayPoint; 3] = std::array::from_fn(|corner| {
+                let depth = self.ray.space.depth_as::<KZ>(model[2][lane + corner]);
+                corners[corner].point(lane, depth)
+            });
             let w = weights.map(|w| w[lane]);
             if let Some(hit) = resolve(&c, w, self.ray.tmin, closest.t) {
                 closest.offer(hit.t, index, (first + lane) as u16, hit.weights);

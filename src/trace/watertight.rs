@@ -124,32 +124,34 @@ impl RaySpace {
     }
 }
 
-/// Eight ray-space points in structure-of-arrays form, lane `i` being what
-/// [`RaySpace::transform`] gives for the `i`-th model point.
+/// The ray-space x and y of eight points in structure-of-arrays form, lane `i` being what
+/// [`RaySpace::transform`] gives for the `i`-th model point. The depth z is left out: only the
+/// edge functions run on all lanes, and the rare candidate lanes get their depth from
+/// [`RaySpace::depth_as`].
 #[derive(Clone, Copy, Debug)]
 pub struct RayPoints {
     pub x: f32x8,
     pub y: f32x8,
-    pub z: f32x8,
 }
 
 impl RayPoints {
-    /// Lane `lane` as a single point.
+    /// Lane `lane` as a single point of depth `z`.
     #[inline(always)]
-    pub fn lane(&self, lane: usize) -> RayPoint {
+    pub fn point(&self, lane: usize, z: f32) -> RayPoint {
         RayPoint {
             x: self.x.as_array()[lane],
             y: self.y.as_array()[lane],
-            z: self.z.as_array()[lane],
+            z,
         }
     }
 }
 
 impl RaySpace {
-    /// [`RaySpace::transform_as`] of eight points at once, given their coordinates on the
-    /// ray-space axes `[KX, KY, KZ]` (`along_x[i]` is point `i`'s model coordinate `KX`). The
-    /// same operations in the same order, lanewise, so every lane is bit-identical to the scalar
-    /// transform (IEEE multiplication and subtraction, no fused multiply-add).
+    /// [`RaySpace::transform_as`] of eight points at once, x and y only, given their
+    /// coordinates on the ray-space axes `[KX, KY, KZ]` (`along_x[i]` is point `i`'s model
+    /// coordinate `KX`). The same operations in the same order, lanewise, so every lane is
+    /// bit-identical to the scalar transform (IEEE multiplication and subtraction, no fused
+    /// multiply-add).
     #[inline(always)]
     pub fn transform_lanes<const KX: usize, const KY: usize, const KZ: usize>(
         &self,
@@ -164,8 +166,15 @@ impl RaySpace {
         RayPoints {
             x: ax - f32x8::splat(self.shear_x) * az,
             y: ay - f32x8::splat(self.shear_y) * az,
-            z: f32x8::splat(self.scale_z) * az,
         }
+    }
+
+    /// The ray-space z of a point whose model coordinate on axis `KZ` is `along_z`: the same
+    /// operations as [`RaySpace::transform_as`], so the same bits.
+    #[inline(always)]
+    pub fn depth_as<const KZ: usize>(&self, along_z: f32) -> f32 {
+        debug_assert_eq!(self.axes[2], KZ);
+        self.scale_z * (along_z - self.origin[KZ])
     }
 }
 
