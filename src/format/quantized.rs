@@ -279,20 +279,63 @@ impl<'a> GridVertices<'a> {
     #[inline(always)]
     pub fn grid_point(&self, index: usize) -> [u32; 3] {
         if self.stride > ONE_WORD_BITS {
-            return [
-                self.grid_coordinate(index, 0),
-                self.grid_coordinate(index, 1),
-                self.grid_coordinate(index, 2),
-            ];
+            return [0, 1, 2].map(|axis| self.grid_coordinate(index, axis));
         }
+        self.grid_point_in_word(index)
+    }
+
+    /// The grid points of the first `used` vertices `indices` name, one array per axis, as
+    /// [`GridVertices::grid_point`] gives them (later entries are arbitrary grid points);
+    /// whether a vertex fits one load is decided once for all of them.
+    #[inline(always)]
+    pub fn grid_points<const N: usize>(&self, indices: &[u8; N], used: usize) -> [[u32; N]; 3] {
+        let mut points = [[0; N]; 3];
+        if self.stride > ONE_WORD_BITS {
+            for (position, &index) in indices.iter().enumerate().take(used) {
+                for (axis, coordinates) in points.iter_mut().enumerate() {
+                    coordinates[position] = self.grid_coordinate(index as usize, axis);
+                }
+            }
+            return points;
+        }
+        // First every vertex's word, then every axis over all words: the axis loops have fixed
+        // lengths and uniform shifts, which the compiler unrolls and vectorizes, rather than
+        // one long loop body that keeps three axes' fields live.
+        let mut words = [0u64; N];
+        for (word, &index) in words.iter_mut().zip(indices).take(used) {
+            *word = self.vertex_word(index as usize);
+        }
+        for (axis, coordinates) in points.iter_mut().enumerate() {
+            for (coordinate, &word) in coordinates.iter_mut().zip(&words) {
+                *coordinate = self.axis_of_word(word, axis);
+            }
+        }
+        points
+    }
+
+    /// [`GridVertices::grid_point`] of a vertex of at most [`ONE_WORD_BITS`] bits.
+    #[inline(always)]
+    fn grid_point_in_word(&self, index: usize) -> [u32; 3] {
+        let word = self.vertex_word(index);
+        [0, 1, 2].map(|axis| self.axis_of_word(word, axis))
+    }
+
+    /// The bits of vertex `index` (of at most [`ONE_WORD_BITS`]), from bit 0.
+    #[inline(always)]
+    fn vertex_word(&self, index: usize) -> u64 {
         let bit = self.base_bit as usize + index * self.stride as usize;
         let at = bit >> 3;
         let word = match self.bytes.get(at..at + 8) {
             Some(bytes) => u64::from_le_bytes(bytes.try_into().unwrap_or_default()),
             None => self.last_word(at),
-        } >> (bit & 7);
-        let axis = |a: usize| self.anchor[a] + ((word >> self.first_bit[a]) as u32 & self.mask[a]);
-        [axis(0), axis(1), axis(2)]
+        };
+        word >> (bit & 7)
+    }
+
+    /// Grid coordinate on `axis` of the vertex whose bits are `word`.
+    #[inline(always)]
+    fn axis_of_word(&self, word: u64, axis: usize) -> u32 {
+        self.anchor[axis] + ((word >> self.first_bit[axis]) as u32 & self.mask[axis])
     }
 
     /// The bytes from `at` to the end of the block, zero-extended to eight.

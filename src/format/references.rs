@@ -18,6 +18,9 @@
 /// Bits of packed references one 8-byte load holds: 64 less a shift of at most 7.
 const BITS_PER_LOAD: usize = 57;
 
+/// References of any width (at most 8 bits) one load of [`BITS_PER_LOAD`] bits holds.
+const REFERENCES_PER_LOAD: usize = BITS_PER_LOAD / 8;
+
 /// Bytes a packed reference area has at least.
 pub const MIN_PACKED_BYTES: usize = 3;
 
@@ -124,6 +127,60 @@ impl<'a> References<'a> {
         }
     }
 
+    /// References `first .. first + N` (`first` below [`References::len`]), positions past the
+    /// last reference holding 0, which names a vertex every strip has. One byte per reference
+    /// is one fixed-size copy when the block lies inside the stored bytes: a copy of a length
+    /// known at compile time is a couple of loads, not a call to `memcpy`.
+    #[inline(always)]
+    pub fn read_block<const N: usize>(&self, first: usize) -> [u8; N] {
+        if self.width == 8 {
+            return match self.bytes.get(first..).and_then(|rest| rest.first_chunk()) {
+                Some(&block) => block,
+                None => self.read_last_byte_block(first),
+            };
+        }
+        self.read_partial_block(first)
+    }
+
+    /// [`References::read_block`] of one byte per reference at the strip's end: eight
+    /// references per load, with no per-reference work and no `memcpy` of a variable length.
+    #[inline(always)]
+    fn read_last_byte_block<const N: usize>(&self, first: usize) -> [u8; N] {
+        let mut block = [0u8; N];
+        let available = self.count - first;
+        for (chunk, slots) in block.chunks_mut(8).enumerate() {
+            let start = chunk * 8;
+            let kept = available.saturating_sub(start).min(8) as u32;
+            // The bytes past the last reference are other data: masked off (read as vertex 0).
+            let word = self.load(first + start) & u64::MAX.checked_shr(64 - 8 * kept).unwrap_or(0);
+            slots.copy_from_slice(&word.to_le_bytes()[..slots.len()]);
+        }
+        block
+    }
+
+    /// [`References::read_block`] up to the last reference, through one load per
+    /// [`REFERENCES_PER_LOAD`] references whatever their width: for a block of fixed size, a
+    /// fixed number of loads and no division by the width.
+    #[inline(always)]
+    fn read_partial_block<const N: usize>(&self, first: usize) -> [u8; N] {
+        let mut block = [0u8; N];
+        let available = self.count - first;
+        let width = self.width as usize;
+        let mask = (1u64 << width) - 1;
+        for (chunk, slots) in block.chunks_mut(REFERENCES_PER_LOAD).enumerate() {
+            let start = chunk * REFERENCES_PER_LOAD;
+            let bit = (first + start) * width;
+            // Bits past the last reference are padding or other data: masked off so that
+            // they read as vertex 0. At most 7 * 8 bits are kept: the shift stays below 64.
+            let kept = available.saturating_sub(start).min(REFERENCES_PER_LOAD) * width;
+            let stream = (self.load(bit / 8) >> (bit % 8)) & ((1u64 << kept) - 1);
+            for (k, slot) in slots.iter_mut().enumerate() {
+                *slot = ((stream >> (k * width)) & mask) as u8;
+            }
+        }
+        block
+    }
+
     /// The 8 bytes from `at`, zero-extended past the end.
     #[inline(always)]
     fn load(&self, at: usize) -> u64 {
@@ -133,12 +190,24 @@ impl<'a> References<'a> {
         }
     }
 
-    #[cold]
+    /// [`References::load`] past the last eight bytes: those shifted down, so that a strip's
+    /// last block costs a shift rather than a byte copy. Areas shorter than eight bytes (a few
+    /// references) are assembled byte by byte.
+    #[inline]
     fn load_tail(&self, at: usize) -> u64 {
-        let mut bytes = [0u8; 8];
-        let tail = &self.bytes[at.min(self.bytes.len())..];
-        bytes[..tail.len()].copy_from_slice(tail);
-        u64::from_le_bytes(bytes)
+        match self.bytes.len().checked_sub(8) {
+            Some(start) => {
+                let last: [u8; 8] = self.bytes[start..].try_into().unwrap_or_default();
+                // `at > start`: the eight bytes from `at` pass the end.
+                u64::from_le_bytes(last)
+                    .checked_shr(8 * (at - start) as u32)
+                    .unwrap_or(0)
+            }
+            None => self.bytes[at.min(self.bytes.len())..]
+                .iter()
+                .rev()
+                .fold(0, |word, &byte| (word << 8) | byte as u64),
+        }
     }
 
     /// Every reference, one byte each.
@@ -180,8 +249,22 @@ mod tests {
                 let mut tail = [0u8; 3];
                 view.read_into(count - 3, &mut tail);
                 assert_eq!(tail, references[count - 3..]);
+                let block: [u8; 10] = view.read_block(count - 3);
+                assert_eq!(block[..3], references[count - 3..]);
+                assert_eq!(block[3..], [0; 7]);
             }
         }
+    }
+
+    #[test]
+    fn byte_blocks_read_whole_or_zero_padded() {
+        let references: Vec<u8> = (0..12).map(|k| k * 3).collect();
+        let view = References::bytes(&references);
+        let whole: [u8; 10] = view.read_block(2);
+        assert_eq!(whole, references[2..12]);
+        let tail: [u8; 10] = view.read_block(5);
+        assert_eq!(tail[..7], references[5..]);
+        assert_eq!(tail[7..], [0; 3]);
     }
 
     #[test]

@@ -16,11 +16,13 @@ pub trait VertexAccess: Copy {
     fn coordinate(&self, index: usize, axis: usize) -> f32;
 
     /// The coordinates on axes `KX`, `KY` and `KZ` of the vertices `references` name, one lane
-    /// per reference (`N`, a multiple of 8, at least `references.len()`); later lanes hold
-    /// some position, not to be used. Bit-identical to [`VertexAccess::point`].
+    /// per reference (`N` at least 8). Bit-identical to [`VertexAccess::point`] in the first
+    /// `used` lanes; later lanes may hold any value (an encoding whose vertices are costly to
+    /// read skips them).
     fn gather<const KX: usize, const KY: usize, const KZ: usize, const N: usize>(
         &self,
-        references: &[u8],
+        references: &[u8; N],
+        used: usize,
     ) -> [[f32; N]; 3];
 }
 
@@ -35,17 +37,21 @@ impl VertexAccess for &[Point] {
         self[index][axis]
     }
 
+    /// Every lane: an f32 vertex is three loads, cheaper than a loop of unknown length.
     #[inline(always)]
     fn gather<const KX: usize, const KY: usize, const KZ: usize, const N: usize>(
         &self,
-        references: &[u8],
+        references: &[u8; N],
+        _used: usize,
     ) -> [[f32; N]; 3] {
+        // A loop over a fixed count: unrolled, and the zero fill is overwritten entirely, so
+        // it is never stored.
         let mut model = [[0.0f32; N]; 3];
         for (position, &reference) in references.iter().enumerate() {
-            let vertex = &self[reference as usize];
-            model[0][position] = vertex[KX];
-            model[1][position] = vertex[KY];
-            model[2][position] = vertex[KZ];
+            let vertex = self[reference as usize];
+            for (k, axis) in [KX, KY, KZ].into_iter().enumerate() {
+                model[k][position] = vertex[axis];
+            }
         }
         model
     }
@@ -64,29 +70,27 @@ impl VertexAccess for GridVertices<'_> {
 
     /// Grid points first, then [`crate::format::grid::Grid::decode_axis`] eight lanes at a
     /// time: the same two IEEE operations (an exact conversion, a product, a sum), so the same
-    /// bits as one vertex at a time.
+    /// bits as one vertex at a time. Only the `used` lanes are read: a grid vertex costs a
+    /// dozen operations, and blocks at a leaf's end are short.
     #[inline(always)]
     fn gather<const KX: usize, const KY: usize, const KZ: usize, const N: usize>(
         &self,
-        references: &[u8],
+        references: &[u8; N],
+        used: usize,
     ) -> [[f32; N]; 3] {
-        let mut points = [[0i32; N]; 3];
-        for (position, &reference) in references.iter().enumerate() {
-            let q = self.grid_point(reference as usize);
-            // Grid coordinates are below 2^24: exact as i32 and as f32.
-            points[0][position] = q[KX] as i32;
-            points[1][position] = q[KY] as i32;
-            points[2][position] = q[KZ] as i32;
-        }
+        let points = self.grid_points(references, used);
         let grid = self.grid();
+        let cell = f32x8::splat(grid.cell);
         let mut model = [[0.0f32; N]; 3];
         for (k, axis) in [KX, KY, KZ].into_iter().enumerate() {
             let origin = f32x8::splat(grid.origin[axis]);
-            let cell = f32x8::splat(grid.cell);
-            for lane in (0..N).step_by(8) {
-                let q: [i32; 8] = points[k][lane..lane + 8].try_into().unwrap_or_default();
+            // Eight lanes at a time, the last eight overlapping the previous ones when `N` is not
+            // a multiple of 8: decoding a lane twice writes the same bits twice.
+            for start in (0..N).step_by(8).map(|start| start.min(N - 8)) {
+                // Grid coordinates are below 2^24: exact as i32 and as f32.
+                let q: [i32; 8] = std::array::from_fn(|lane| points[axis][start + lane] as i32);
                 let decoded = origin + f32x8::from_i32x8(i32x8::from(q)) * cell;
-                model[k][lane..lane + 8].copy_from_slice(decoded.as_array());
+                model[k][start..start + 8].copy_from_slice(decoded.as_array());
             }
         }
         model

@@ -12,14 +12,19 @@
 //!
 //! An interval of at most [`TraceOptions::subtree_windows`](super::TraceOptions) windows, or a
 //! leaf, is intersected at once (the paper's "external parameter"), eight windows at a time in
-//! SIMD lanes: the block's strip positions are moved to ray space once each, and every strip edge
-//! is evaluated once: window `k` uses the short edges `(s[k], s[k+1])`, `(s[k+1], s[k+2])` and the
-//! long edge `(s[k], s[k+2])`, and shares its second short edge with window `k + 1`. So a strip
-//! costs two edge functions per window, with no branch on the geometry until a window's three
-//! edges agree, which is rare; those windows finish in the scalar [`resolve`], bit-identical to
-//! the single-triangle test. (The SIMD block replaced a scalar loop that skipped the long edge
-//! when the short ones already separated the ray: fewer operations, but the skip was a
-//! data-dependent branch mispredicted about half the time.)
+//! SIMD lanes: the block's references are read as one fixed-size array and its strip positions
+//! gathered once; lanes shifted by 0, 1 and 2 positions are the windows' three corners, each
+//! moved to ray space (x and y; the depth only for the rare candidate windows), and window `k`
+//! evaluates the short edges `(s[k], s[k+1])`, `(s[k+1], s[k+2])` and the long edge
+//! `(s[k], s[k+2])`, with no branch on the geometry until a window's three edges agree, which is
+//! rare; those windows finish in the scalar [`resolve`], bit-identical to the single-triangle
+//! test. A position is transformed, and a short edge
+//! evaluated, once per window that uses it (up to three and two times): the same operations on
+//! the same inputs give the same bits, and the repeated arithmetic costs fewer instructions than
+//! transforming once and shifting the results across lanes through memory, as the block first
+//! did. (The SIMD block replaced a scalar loop that skipped the long edge when the short ones
+//! already separated the ray: fewer operations, but the skip was a data-dependent branch
+//! mispredicted about half the time.)
 //!
 //! Cost: the traversal is a flat loop over a fixed stack, with nodes numbered in buckets of
 //! `leaf_windows` windows (see [`crate::format::implicit_tree`]) so that splitting a node and
@@ -40,7 +45,8 @@ use arrayvec::ArrayVec;
 use super::prepared::{max_not_nan, min_not_nan, PreparedRay, FAR_INFLATION};
 use wide::f32x8;
 
-use super::watertight::{candidate_lanes, edge, edge_lanes, resolve, RayPoints};
+use super::watertight::{candidate_lanes, edge_lanes, resolve, RayPoint};
+use crate::format::implicit_tree::buckets;
 use crate::format::reader::StripView;
 use crate::format::vertices::{StripVertices, VertexAccess};
 
@@ -156,7 +162,11 @@ impl StripQuery<'_> {
         }
     }
 
-    /// [`StripQuery::trace`] for a ray whose ray-space axes are `[KX, KY, KZ]`.
+    /// [`StripQuery::trace`] for a ray whose ray-space axes are `[KX, KY, KZ]`. Never inlined:
+    /// the twelve instantiations (six axis orders, two encodings) are each compiled on their
+    /// own rather than some into [`StripQuery::trace`], whose size then swayed how well the
+    /// others were optimized.
+    #[inline(never)]
     fn trace_as<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
         &self,
         vertices: V,
@@ -169,7 +179,7 @@ impl StripQuery<'_> {
         let mut current = Pending {
             node: 0,
             first: 0,
-            end: windows.div_ceil(leaf) as u32,
+            end: buckets(windows, leaf) as u32,
             t_near,
             t_far,
         };
@@ -259,41 +269,12 @@ impl StripQuery<'_> {
         found
     }
 
-    /// The ray-space x, y and z of the block's positions (`references`, at most `BLOCK + 2`),
-    /// each vertex transformed once; lanes past the block's end are not used (and may be left
-    /// untransformed).
-    #[inline(always)]
-    fn ray_space_points<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
-        &self,
-        vertices: V,
-        references: &[u8],
-    ) -> [[f32; 2 * BLOCK]; 3] {
-        let model = vertices.gather::<KX, KY, KZ, { 2 * BLOCK }>(references);
-        let mut points = [[0.0f32; 2 * BLOCK]; 3];
-        // A block of at most six windows has no position in the second half.
-        for half in [0, BLOCK]
-            .into_iter()
-            .filter(|&half| half < references.len())
-        {
-            let transformed = self.ray.space.transform_lanes::<KX, KY, KZ>(
-                lanes_from(&model[0], half),
-                lanes_from(&model[1], half),
-                lanes_from(&model[2], half),
-            );
-            let lanes = [transformed.x, transformed.y, transformed.z];
-            for (axis, values) in lanes.iter().enumerate() {
-                points[axis][half..half + BLOCK].copy_from_slice(values.as_array());
-            }
-        }
-        points
-    }
-
     /// Intersects the `count <= BLOCK` windows from `first`, lane `k` being window
-    /// `first + k`: the block's `count + 2` positions are moved to ray space once, read back
-    /// shifted by 0, 1 and 2 positions as the windows' three corners, and every short edge is
-    /// evaluated once and read as one window's leading and the previous one's trailing edge; no
-    /// branch depends on the geometry. The rare lanes whose edges all agree go through the
-    /// scalar [`resolve`], which sees bit-identical inputs to the single-triangle test.
+    /// `first + k`: the block's `BLOCK + 2` positions are gathered once, read as lanes shifted
+    /// by 0, 1 and 2 positions as the windows' three corners, and each corner is moved to ray
+    /// space and each edge evaluated in lanes; no branch depends on the geometry. The rare lanes
+    /// whose edges all agree go through the scalar [`resolve`], which sees bit-identical inputs
+    /// to the single-triangle test.
     #[inline(always)]
     fn intersect_block<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
         &self,
@@ -301,28 +282,25 @@ impl StripQuery<'_> {
         index: u32,
         closest: &mut Closest,
     ) -> bool {
-        let mut block_references = [0u8; BLOCK + 2];
-        let references = &mut block_references[..count + 2];
-        view.references.read_into(first, references);
-        let references = &*references;
-        let points = self.ray_space_points::<V, KX, KY, KZ>(vertices, references);
-        let corner = |shift: usize| RayPoints {
-            x: lanes_from(&points[0], shift),
-            y: lanes_from(&points[1], shift),
-            z: lanes_from(&points[2], shift),
+        let references: [u8; BLOCK + 2] = view.references.read_block(first);
+        let model = vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(&references, count + 2);
+        // A position is transformed once per corner it is in (up to three times) rather than
+        // once and then shifted through memory: the arithmetic is cheaper than storing lanes and
+        // reloading them misaligned, and every copy of a vertex has the same bits.
+        let corner = |shift: usize| {
+            self.ray.space.transform_lanes::<KX, KY, KZ>(
+                lanes_from(&model[0], shift),
+                lanes_from(&model[1], shift),
+                lanes_from(&model[2], shift),
+            )
         };
         let corners = [corner(0), corner(1), corner(2)];
-        // Short edge `j` joins positions `j` and `j + 1`: window `k` leads with short edge `k`
-        // and trails with `k + 1`, which leads window `k + 1`.
-        let mut short_edges = [0.0f32; BLOCK + 1];
-        short_edges[..BLOCK].copy_from_slice(edge_lanes(&corners[0], &corners[1]).as_array());
-        if count == BLOCK {
-            short_edges[BLOCK] = edge(&corners[1].lane(BLOCK - 1), &corners[2].lane(BLOCK - 1));
-        }
+        // Window `k`'s short edges are also windows `k - 1`'s and `k + 1`'s, but evaluating them
+        // again in the lanes where they are needed is cheaper than shifting them across lanes.
         let weights = [
-            lanes_from(&short_edges, 1),
+            edge_lanes(&corners[1], &corners[2]),
             edge_lanes(&corners[2], &corners[0]),
-            lanes_from(&short_edges, 0),
+            edge_lanes(&corners[0], &corners[1]),
         ];
         let mut candidates = candidate_lanes(weights) & ((1 << count) - 1);
         if candidates == 0 {
@@ -336,7 +314,10 @@ impl StripQuery<'_> {
             if !is_real_window(&references[lane..lane + 3]) {
                 continue;
             }
-            let c = corners.map(|points| points.lane(lane));
+            let c: [RayPoint; 3] = std::array::from_fn(|corner| {
+                let depth = self.ray.space.depth_as::<KZ>(model[2][lane + corner]);
+                corners[corner].point(lane, depth)
+            });
             let w = weights.map(|w| w[lane]);
             if let Some(hit) = resolve(&c, w, self.ray.tmin, closest.t) {
                 closest.offer(hit.t, index, (first + lane) as u16, hit.weights);

@@ -12,10 +12,11 @@
 //!
 //! Design choices:
 //! * The test is split into [`RaySpace::transform`], [`edge`] and [`resolve`] so the strip
-//!   intersector transforms each strip vertex once per interval and evaluates each strip edge
-//!   once for the two windows that share it (paper 3.2: "testing rays against all the edges that
-//!   are directly defined by the triangle strip"). [`intersect_triangle`] composes the same
-//!   pieces for one triangle; it is the brute-force reference of the tests.
+//!   intersector can run the transform and the edges of eight windows in SIMD lanes, reading
+//!   each strip vertex once per block (paper 3.2: "testing rays against all the edges that are
+//!   directly defined by the triangle strip"), and finish only the rare candidate windows in
+//!   scalar code. [`intersect_triangle`] composes the same pieces for one triangle; it is the
+//!   brute-force reference of the tests.
 //! * Corner weights are passed in *strip order*; the facing of the triangle does not matter
 //!   because both facings are accepted, and sums are formed so that a triangle gives bit-identical
 //!   `t` whichever of its two windings is used (see [`resolve`]).
@@ -123,32 +124,34 @@ impl RaySpace {
     }
 }
 
-/// Eight ray-space points in structure-of-arrays form, lane `i` being what
-/// [`RaySpace::transform`] gives for the `i`-th model point.
+/// The ray-space x and y of eight points in structure-of-arrays form, lane `i` being what
+/// [`RaySpace::transform`] gives for the `i`-th model point. The depth z is left out: only the
+/// edge functions run on all lanes, and the rare candidate lanes get their depth from
+/// [`RaySpace::depth_as`].
 #[derive(Clone, Copy, Debug)]
 pub struct RayPoints {
     pub x: f32x8,
     pub y: f32x8,
-    pub z: f32x8,
 }
 
 impl RayPoints {
-    /// Lane `lane` as a single point.
+    /// Lane `lane` as a single point of depth `z`.
     #[inline(always)]
-    pub fn lane(&self, lane: usize) -> RayPoint {
+    pub fn point(&self, lane: usize, z: f32) -> RayPoint {
         RayPoint {
             x: self.x.as_array()[lane],
             y: self.y.as_array()[lane],
-            z: self.z.as_array()[lane],
+            z,
         }
     }
 }
 
 impl RaySpace {
-    /// [`RaySpace::transform_as`] of eight points at once, given their coordinates on the
-    /// ray-space axes `[KX, KY, KZ]` (`along_x[i]` is point `i`'s model coordinate `KX`). The
-    /// same operations in the same order, lanewise, so every lane is bit-identical to the scalar
-    /// transform (IEEE multiplication and subtraction, no fused multiply-add).
+    /// [`RaySpace::transform_as`] of eight points at once, x and y only, given their
+    /// coordinates on the ray-space axes `[KX, KY, KZ]` (`along_x[i]` is point `i`'s model
+    /// coordinate `KX`). The same operations in the same order, lanewise, so every lane is
+    /// bit-identical to the scalar transform (IEEE multiplication and subtraction, no fused
+    /// multiply-add).
     #[inline(always)]
     pub fn transform_lanes<const KX: usize, const KY: usize, const KZ: usize>(
         &self,
@@ -163,8 +166,15 @@ impl RaySpace {
         RayPoints {
             x: ax - f32x8::splat(self.shear_x) * az,
             y: ay - f32x8::splat(self.shear_y) * az,
-            z: f32x8::splat(self.scale_z) * az,
         }
+    }
+
+    /// The ray-space z of a point whose model coordinate on axis `KZ` is `along_z`: the same
+    /// operations as [`RaySpace::transform_as`], so the same bits.
+    #[inline(always)]
+    pub fn depth_as<const KZ: usize>(&self, along_z: f32) -> f32 {
+        debug_assert_eq!(self.axes[2], KZ);
+        self.scale_z * (along_z - self.origin[KZ])
     }
 }
 
@@ -174,14 +184,16 @@ pub fn edge_lanes(p: &RayPoints, q: &RayPoints) -> f32x8 {
     q.x * p.y - q.y * p.x
 }
 
-/// Lanes whose three edge weights could make a hit: all of one sign, or one exactly zero (which
-/// [`resolve`] settles in f64). Every lane [`resolve`] accepts is among them; a lane with a NaN
-/// weight is not, and [`resolve`] would reject it too.
+/// Lanes whose three edge weights could make a hit: all of one sign (the smallest positive or
+/// the largest negative), or one exactly zero (which [`resolve`] settles in f64). Every lane
+/// [`resolve`] accepts is among them. A lane with a NaN weight and no zero one may be too (the
+/// minimum and maximum do not order NaN), and [`resolve`] rejects it: its sum, and so its `t`,
+/// is NaN, or its other weights have opposite signs.
 #[inline(always)]
 pub fn candidate_lanes(w: [f32x8; 3]) -> u32 {
     let zero = f32x8::ZERO;
-    let positive = w[0].simd_gt(zero) & w[1].simd_gt(zero) & w[2].simd_gt(zero);
-    let negative = w[0].simd_lt(zero) & w[1].simd_lt(zero) & w[2].simd_lt(zero);
+    let positive = w[0].fast_min(w[1]).fast_min(w[2]).simd_gt(zero);
+    let negative = w[0].fast_max(w[1]).fast_max(w[2]).simd_lt(zero);
     let on_edge = w[0].simd_eq(zero) | w[1].simd_eq(zero) | w[2].simd_eq(zero);
     (positive | negative | on_edge).to_bitmask()
 }
