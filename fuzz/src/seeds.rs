@@ -32,6 +32,16 @@ pub fn write_seeds(corpus: &Path) -> std::io::Result<()> {
         &reducem.join("leaf1.rdm"),
     )
     .map_err(std::io::Error::other)?;
+    let f32_nodes = BuildParams {
+        f32_nodes: true,
+        ..BuildParams::default()
+    };
+    convert_mesh(
+        &octahedron_sphere(2),
+        &f32_nodes,
+        &reducem.join("sphere-f32-nodes.rdm"),
+    )
+    .map_err(std::io::Error::other)?;
     convert_mesh(
         &Mesh::default(),
         &BuildParams::default(),
