@@ -43,9 +43,10 @@ pub struct BuildParams {
     /// Bits per axis of the model grid vertices are snapped to; `None` stores f32 copies
     /// (lossless, the default).
     pub grid_bits: Option<u32>,
-    /// Keep a lossless file's top-level nodes as 128-byte f32 records instead of 64-byte grid
-    /// nodes (see [`crate::format::VertexEncoding::F32GridNodes`]); for tests of that layout.
-    pub f32_nodes: bool,
+    /// Store a lossless file's top-level nodes as 64-byte grid nodes instead of 128-byte f32
+    /// records (see [`crate::format::VertexEncoding::F32GridNodes`]): 1 to 2 bytes less per
+    /// triangle, about 12% slower AO rays. Grid files always have grid nodes.
+    pub grid_nodes: bool,
 }
 
 impl Default for BuildParams {
@@ -55,7 +56,7 @@ impl Default for BuildParams {
             leaf_windows: 2,
             top_level: TopLevelParams::default(),
             grid_bits: None,
-            f32_nodes: false,
+            grid_nodes: false,
         }
     }
 }
@@ -271,7 +272,7 @@ pub fn write_chunk(
         max_strip_length: params.stripify.max_length,
         bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
         grid: chunk.grid,
-        f32_nodes: params.f32_nodes,
+        grid_nodes: params.grid_nodes,
         weld: WeldStats::default(),
     };
     write_file(out, &info, &top, &chunk.strips)?;

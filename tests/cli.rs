@@ -138,21 +138,22 @@ fn inspect_json_reports_the_grid_and_the_position_error() {
     let output = reducem(&["inspect", lossless.to_str().unwrap(), "--json"]);
     let stats: serde_json::Value = serde_json::from_slice(&output.stdout).expect("one JSON object");
     assert_eq!(stats["vertex_encoding"], "f32");
-    assert_eq!(stats["format_version"], "2.4");
-    assert_eq!(stats["top_node_bytes"], 64);
+    assert_eq!(stats["format_version"], "2.1");
+    assert_eq!(stats["top_node_bytes"], 128);
     assert_eq!(stats["grid_bits"], 0);
     assert_eq!(stats["position_error_max"], 0.0);
 
-    let f32_nodes = temp_path("cli-inspect-f32-nodes.rdm");
+    let grid_nodes = temp_path("cli-inspect-f32-grid-nodes.rdm");
     let params = BuildParams {
-        f32_nodes: true,
+        grid_nodes: true,
         ..BuildParams::default()
     };
-    convert_mesh(&mesh, &params, &f32_nodes).expect("convert");
-    let output = reducem(&["inspect", f32_nodes.to_str().unwrap(), "--json"]);
+    convert_mesh(&mesh, &params, &grid_nodes).expect("convert");
+    let output = reducem(&["inspect", grid_nodes.to_str().unwrap(), "--json"]);
     let stats: serde_json::Value = serde_json::from_slice(&output.stdout).expect("one JSON object");
-    assert_eq!(stats["format_version"], "2.1");
-    assert_eq!(stats["top_node_bytes"], 128);
+    assert_eq!(stats["vertex_encoding"], "f32");
+    assert_eq!(stats["format_version"], "2.4");
+    assert_eq!(stats["top_node_bytes"], 64);
 }
 
 #[test]

@@ -9,15 +9,14 @@ use reducem::decode;
 use reducem::format::reader::{FormatError, ReducemFile};
 use reducem::format::{PrecisionRecord, SectionKind, HEADER_PAGE, PRECISION_OFFSET};
 
-/// A lossless torus as this writer writes it: f32 vertices, grid top-level nodes (format 2.4).
 fn valid_file_bytes(name: &str) -> Vec<u8> {
     file_bytes(name, &BuildParams::default())
 }
 
-/// A lossless torus with 128-byte f32 top-level nodes, the format 2.0 layout.
-fn f32_node_file_bytes(name: &str) -> Vec<u8> {
+/// A lossless torus with 64-byte grid top-level nodes (format 2.4).
+fn grid_node_file_bytes(name: &str) -> Vec<u8> {
     let params = BuildParams {
-        f32_nodes: true,
+        grid_nodes: true,
         ..BuildParams::default()
     };
     file_bytes(name, &params)
@@ -179,7 +178,7 @@ fn rejection(name: &str, bytes: &[u8]) -> String {
 #[test]
 fn crafted_node_links_are_rejected_naming_node_and_byte() {
     const INTERNAL: u32 = 1 << 31;
-    let bytes = f32_node_file_bytes("crafted-nodes-source.rdm");
+    let bytes = valid_file_bytes("crafted-nodes-source.rdm");
     let (node, slot) = find_slot(&bytes, |kind| kind == INTERNAL);
     let child_field = CHILD_FIELD + 4 * slot;
     let named = |message: &str, at: usize| {
@@ -238,7 +237,7 @@ fn crafted_node_links_are_rejected_naming_node_and_byte() {
 #[test]
 fn crafted_leaves_and_empty_slots_are_rejected() {
     const INTERNAL: u32 = 1 << 31;
-    let bytes = f32_node_file_bytes("crafted-leaves-source.rdm");
+    let bytes = valid_file_bytes("crafted-leaves-source.rdm");
     let strips = u64::from_le_bytes(bytes[40..48].try_into().unwrap()) as u32;
 
     // A leaf running past the strip records.
@@ -547,7 +546,7 @@ fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
         message.contains("at byte 212") && message.contains("node grid"),
         "{message}"
     );
-    let lossless = f32_node_file_bytes("node-shift-f32-source.rdm");
+    let lossless = valid_file_bytes("node-shift-f32-source.rdm");
     let shifted = with_precision(&lossless, |r| r.node_shift = 1);
     let message = open_error("node-shift-f32.rdm", &shifted);
     assert!(
@@ -561,7 +560,7 @@ fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
 /// of an older minor are each rejected, naming the byte.
 #[test]
 fn lossless_grid_nodes_need_format_2_4_and_a_well_formed_node_grid() {
-    let bytes = valid_file_bytes("lossless-grid-nodes-source.rdm");
+    let bytes = grid_node_file_bytes("lossless-grid-nodes-source.rdm");
     assert_eq!(&bytes[10..12], &4u16.to_le_bytes());
     assert_eq!(&bytes[20..24], &4u32.to_le_bytes());
     let mut claimed_2_3 = bytes.clone();

@@ -177,16 +177,16 @@ fn grid_nodes_and_f32_nodes_give_bit_identical_hits() {
         for p in &mut mesh.positions {
             *p = p.map(|c| c + offset);
         }
-        let open = |f32_nodes: bool| {
-            let path = temp_path(&format!("nodes-{name}-{f32_nodes}.rdm"));
+        let open = |grid_nodes: bool| {
+            let path = temp_path(&format!("nodes-{name}-{grid_nodes}.rdm"));
             let params = BuildParams {
-                f32_nodes,
+                grid_nodes,
                 ..BuildParams::default()
             };
             convert_mesh(&mesh, &params, &path).expect("convert");
             ReducemFile::open(&path).expect("open")
         };
-        let (grid_nodes, f32_nodes) = (open(false), open(true));
+        let (grid_nodes, f32_nodes) = (open(true), open(false));
         let node_bytes = |file: &ReducemFile| file.section_bytes(SectionKind::TopNodes).len();
         assert_eq!(2 * node_bytes(&grid_nodes), node_bytes(&f32_nodes));
         let mut rng = SplitMix64::new(17);

@@ -68,7 +68,7 @@ fn write_chain(chunk: &EncodedChunk, levels: usize, name: &str) -> std::path::Pa
         bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
         grid: chunk.grid,
         // The chain's internal boxes reach beyond the model bounds, which a node grid covers.
-        f32_nodes: true,
+        grid_nodes: false,
         weld: Default::default(),
     };
     let path = temp_path(name);

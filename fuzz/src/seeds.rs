@@ -32,14 +32,14 @@ pub fn write_seeds(corpus: &Path) -> std::io::Result<()> {
         &reducem.join("leaf1.rdm"),
     )
     .map_err(std::io::Error::other)?;
-    let f32_nodes = BuildParams {
-        f32_nodes: true,
+    let grid_nodes = BuildParams {
+        grid_nodes: true,
         ..BuildParams::default()
     };
     convert_mesh(
         &octahedron_sphere(2),
-        &f32_nodes,
-        &reducem.join("sphere-f32-nodes.rdm"),
+        &grid_nodes,
+        &reducem.join("sphere-grid-nodes.rdm"),
     )
     .map_err(std::io::Error::other)?;
     convert_mesh(

@@ -57,7 +57,8 @@ pub enum VertexEncoding {
     /// Lossless f32 vertices as [`VertexEncoding::F32`], with top-level nodes on a node grid
     /// over the model bounds ([`GridNode`], 64 bytes instead of [`TopNode`]'s 128: a node is one
     /// cache line, and the file 1 to 2 bytes per triangle smaller). Node boxes are bounds, not
-    /// geometry, so rounding them outward loses nothing. Since format 2.4.
+    /// geometry, so rounding them outward loses nothing; decoding them costs speed, so writers
+    /// write this encoding on request only. Since format 2.4.
     F32GridNodes = 4,
 }
 

@@ -29,20 +29,21 @@ pub struct FileInfo {
     pub bounds: Aabb,
     /// The grid the vertices were snapped to; `None` for lossless f32 vertices.
     pub grid: Option<Grid>,
-    /// Keep a lossless file's top-level nodes as 128-byte f32 [`TopNode`]s (the format 2.0
-    /// layout) instead of 64-byte grid nodes; grid files always have grid nodes.
-    pub f32_nodes: bool,
+    /// Store a lossless file's top-level nodes as 64-byte grid nodes (format 2.4) instead of
+    /// 128-byte f32 [`TopNode`]s; grid files always have grid nodes.
+    pub grid_nodes: bool,
     pub weld: WeldStats,
 }
 
 impl FileInfo {
     /// The grid of the top-level node boxes: for grid vertices, the finest node grid over the
-    /// (decoded) bounds, which hold every strip box; for lossless files, the finest power-of-two
-    /// grid of 2^16 points over the bounds ([`lossless_node_grid`]), or `None` (f32
-    /// [`TopNode`]s) when `f32_nodes` asks for them or no finite grid covers the bounds.
+    /// (decoded) bounds, which hold every strip box; for lossless files with `grid_nodes`, the
+    /// finest power-of-two grid of 2^16 points over the bounds ([`lossless_node_grid`]);
+    /// otherwise, or when no finite grid covers the bounds, `None` (f32 [`TopNode`]s).
     pub fn node_grid(&self) -> io::Result<Option<NodeGrid>> {
         let Some(grid) = self.grid else {
-            return Ok((!self.f32_nodes)
+            return Ok(self
+                .grid_nodes
                 .then(|| lossless_node_grid(&self.bounds))
                 .flatten());
         };

@@ -292,7 +292,7 @@ pub fn write_encoded_strips(
         max_strip_length: 1000,
         bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
         grid,
-        f32_nodes: false,
+        grid_nodes: false,
         weld: Default::default(),
     };
     write_file(path, &info, &top, encoded).expect("write file");

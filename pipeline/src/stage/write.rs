@@ -29,7 +29,7 @@ pub fn output_path(job: &Job) -> PathBuf {
 pub fn fingerprint(job: &Job, hierarchy: &Hierarchy) -> Fingerprint {
     Fingerprint::new()
         .with("hierarchy_stage", &hierarchy.digest)
-        .with("strip.f32_nodes", job.config.strip.f32_nodes)
+        .with("strip.grid_nodes", job.config.strip.grid_nodes)
         .with("output.path", output_path(job).display())
 }
 
@@ -52,7 +52,7 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         max_strip_length: job.config.strip.max_length,
         bounds: merged.bounds(),
         grid: merged.grid,
-        f32_nodes: job.config.strip.f32_nodes,
+        grid_nodes: job.config.strip.grid_nodes,
         weld: merged.weld,
     };
     let mut source = Spliced::new(job, merged, hierarchy, info.node_grid()?)?;
