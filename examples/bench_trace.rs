@@ -57,6 +57,9 @@ struct Args {
     /// Strip kd-tree leaf size of the converted file (the pipeline's default).
     #[arg(long, default_value_t = PIPELINE_LEAF_WINDOWS)]
     leaf_windows: usize,
+    /// Convert with 64-byte grid top-level nodes (`[strip] grid_nodes`): fewer bytes, slower.
+    #[arg(long)]
+    grid_nodes: bool,
     /// ReduceM's `TraceOptions::subtree_windows`.
     #[arg(long, default_value_t = TraceOptions::default().subtree_windows)]
     subtree_windows: usize,
@@ -86,9 +89,10 @@ fn main() -> anyhow::Result<()> {
     // Loaded only when needed, so that tuning runs on a cached file trace and nothing else.
     let mut mesh = None;
     let (length, leaf) = (args.max_strip_length, args.leaf_windows);
+    let nodes = if args.grid_nodes { "-grid-nodes" } else { "" };
     let model = args.model.clone().unwrap_or_else(|| {
         args.dir.join(format!(
-            "{name}-length{length}-leaf{leaf}-v{VERSION_MAJOR}.{VERSION_MINOR}.rdm"
+            "{name}-length{length}-leaf{leaf}{nodes}-v{VERSION_MAJOR}.{VERSION_MINOR}.rdm"
         ))
     });
     if !model.exists() {
@@ -96,6 +100,7 @@ fn main() -> anyhow::Result<()> {
         let mesh = mesh.insert(load_mesh(args.kind, args.triangles, &args.dir)?);
         let mut params = BuildParams {
             leaf_windows: leaf,
+            grid_nodes: args.grid_nodes,
             ..BuildParams::default()
         };
         params.stripify.max_length = length;
