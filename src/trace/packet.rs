@@ -19,6 +19,7 @@
 //! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
 //! not depend on the order (see [`super::top`]).
 
+use arrayvec::ArrayVec;
 use wide::f32x8;
 
 use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION};
@@ -139,8 +140,8 @@ impl Lanes {
     ) -> Option<PacketDeferred> {
         let boxes = node.boxes(decoder);
         let keys = order_keys(&boxes.0, &boxes.1, &self.rays[0].negative);
-        let mut entered = [(0.0, PacketDeferred::default()); TOP_WIDTH];
-        let mut count = 0;
+        // Not an array of defaults: filling four 128-byte entries cost some 80 stores a node.
+        let mut entered = ArrayVec::<(f32, PacketDeferred), TOP_WIDTH>::new();
         let occupied = node.occupied_mask();
         for slot in (0..TOP_WIDTH).take_while(|&slot| occupied & (1 << slot) != 0) {
             let (t_near, t_far, mask) = self.clip_slot(&boxes, slot, limit);
@@ -155,12 +156,10 @@ impl Lanes {
                     t_near,
                     t_far,
                 };
-                entered[count] = (key, child);
-                count += 1;
+                entered.push((key, child));
             }
         }
-        let entered = &mut entered[..count];
-        sort_by_key(entered);
+        sort_by_key(&mut entered);
         entered.iter().skip(1).rev().for_each(|e| stack.push(e.1));
         entered.first().map(|e| e.1)
     }
@@ -215,19 +214,20 @@ fn traverse_nodes<N: TraceNode>(
 ) {
     let mut finished = 0u32;
     let mut stack = DeferStack::default();
+    // The lanes' culling bounds change only at leaves: gathered once per leaf, not per node.
+    let mut limit = bounds(closest, finished);
     // The root has no box: every lane starts with its own interval.
     let mut current = PacketDeferred {
         child: 0,
         kind: INTERNAL_CHILD,
         mask: packet_mask,
         t_near: lanes.tmin,
-        t_far: bounds(closest, finished),
+        t_far: limit,
     };
     loop {
         if current.mask != 0 {
             if current.kind == INTERNAL_CHILD {
                 let node = &nodes[current.child as usize];
-                let limit = bounds(closest, finished);
                 if let Some(nearest) =
                     lanes.enter_children(node, decoder, current.mask, limit, &mut stack)
                 {
@@ -236,16 +236,14 @@ fn traverse_nodes<N: TraceNode>(
                 }
             } else {
                 finished |= trace_leaf_lanes(tracer, lanes, &current, any_hit, closest);
+                limit = bounds(closest, finished);
             }
         }
         loop {
             let Some(deferred) = stack.pop() else {
                 return;
             };
-            let alive = deferred
-                .t_near
-                .simd_le(bounds(closest, finished))
-                .to_bitmask();
+            let alive = deferred.t_near.simd_le(limit).to_bitmask();
             let mask = deferred.mask & alive;
             if mask != 0 {
                 current = PacketDeferred { mask, ..deferred };
