@@ -338,6 +338,15 @@ fn with_precision(bytes: &[u8], edit: impl FnOnce(&mut PrecisionRecord)) -> Vec<
     edited
 }
 
+/// `bytes` with the header claiming format minor `minor`, its checksum resealed.
+fn claiming_minor(bytes: &[u8], minor: u16) -> Vec<u8> {
+    let mut claimed = bytes.to_vec();
+    claimed[10..12].copy_from_slice(&minor.to_le_bytes());
+    let checksum = xxhash_rust::xxh3::xxh3_64(&claimed[..200]);
+    claimed[200..208].copy_from_slice(&checksum.to_le_bytes());
+    claimed
+}
+
 fn open_error(name: &str, bytes: &[u8]) -> String {
     open_bytes(name, bytes)
         .err()
@@ -531,11 +540,7 @@ fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
     let bytes = grid_file_bytes("grid-nodes-version-source.rdm");
     assert_eq!(&bytes[10..12], &3u16.to_le_bytes());
     assert_eq!(&bytes[20..24], &3u32.to_le_bytes());
-    let mut claimed_2_2 = bytes.clone();
-    claimed_2_2[10..12].copy_from_slice(&2u16.to_le_bytes());
-    let checksum = xxhash_rust::xxh3::xxh3_64(&claimed_2_2[..200]);
-    claimed_2_2[200..208].copy_from_slice(&checksum.to_le_bytes());
-    let message = open_error("grid-nodes-2.2.rdm", &claimed_2_2);
+    let message = open_error("grid-nodes-2.2.rdm", &claiming_minor(&bytes, 2));
     assert!(
         message.contains("at byte 20") && message.contains("needs format 2.3"),
         "{message}"
@@ -563,11 +568,7 @@ fn lossless_grid_nodes_need_format_2_4_and_a_well_formed_node_grid() {
     let bytes = grid_node_file_bytes("lossless-grid-nodes-source.rdm");
     assert_eq!(&bytes[10..12], &4u16.to_le_bytes());
     assert_eq!(&bytes[20..24], &4u32.to_le_bytes());
-    let mut claimed_2_3 = bytes.clone();
-    claimed_2_3[10..12].copy_from_slice(&3u16.to_le_bytes());
-    let checksum = xxhash_rust::xxh3::xxh3_64(&claimed_2_3[..200]);
-    claimed_2_3[200..208].copy_from_slice(&checksum.to_le_bytes());
-    let message = open_error("lossless-grid-nodes-2.3.rdm", &claimed_2_3);
+    let message = open_error("lossless-grid-nodes-2.3.rdm", &claiming_minor(&bytes, 3));
     assert!(
         message.contains("at byte 20") && message.contains("needs format 2.4"),
         "{message}"
