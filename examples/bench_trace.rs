@@ -29,7 +29,8 @@ use reducem::geometry::Point;
 use reducem::render::residency;
 use reducem::render::sampling::Surface;
 use reducem::stripify::StripifyParams;
-use reducem::trace::{Ray, TraceOptions, Tracer};
+use reducem::trace::ray_file::encode_rays;
+use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
 use reducem::workload::engines::{Baseline, Engine, ReduceM};
 use reducem::workload::{kind_name, load_mesh, median_timed, RaySet};
 
@@ -74,6 +75,10 @@ struct Args {
     /// alone (`scripts/bench_quantized.sh`).
     #[arg(long)]
     model: Option<PathBuf>,
+    /// Also write the rays as `reducem query` ray files, `primary.rays` and `ao.rays` in this
+    /// directory, for the whole-process comparison of `scripts/bench_trace.sh`.
+    #[arg(long)]
+    write_rays: Option<PathBuf>,
     /// Where generated meshes and converted files are cached between runs.
     #[arg(long, default_value = "/tmp/reducem-bench")]
     dir: PathBuf,
@@ -130,6 +135,11 @@ fn main() -> anyhow::Result<()> {
     if args.check_ao {
         check_origins(&file, &rays.primary);
     }
+    if let Some(dir) = &args.write_rays {
+        std::fs::create_dir_all(dir)?;
+        std::fs::write(dir.join("primary.rays"), encode_rays(&rays.primary))?;
+        std::fs::write(dir.join("ao.rays"), encode_rays(&rays.ambient_occlusion))?;
+    }
 
     let mut answers = Answers::new();
     for packets in [true, false] {
@@ -138,6 +148,7 @@ fn main() -> anyhow::Result<()> {
             TraceOptions {
                 packets,
                 subtree_windows: args.subtree_windows,
+                kernel: Kernel::from_env()?,
             },
         );
         let name = if packets { "packets" } else { "single" };

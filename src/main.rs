@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use reducem::format::reader::ReducemFile;
-use reducem::trace::{ray_file, TraceOptions, Tracer};
+use reducem::trace::{ray_file, Kernel, TraceOptions, Tracer};
 
 #[derive(Parser)]
 #[command(
@@ -128,13 +128,21 @@ fn report(
 }
 
 fn query(path: &Path, rays: &Path, output: &Path, occluded: bool) -> anyhow::Result<()> {
-    let rays = ray_file::read_rays(rays)?;
-    let file = ReducemFile::open(path)?;
-    let tracer = Tracer::new(&file, TraceOptions::default());
+    let kernel = Kernel::from_env()?;
+    // Opening validates the model and reading parses the rays: both on every core, together.
+    let (rays, file) = rayon::join(|| ray_file::read_rays(rays), || ReducemFile::open(path));
+    let (rays, file) = (rays?, file?);
+    let tracer = Tracer::new(
+        &file,
+        TraceOptions {
+            kernel,
+            ..TraceOptions::default()
+        },
+    );
     let bytes = if occluded {
-        ray_file::encode_occlusion(&tracer.occluded_batch(&rays))
+        ray_file::trace_occlusion(&tracer, &rays)
     } else {
-        ray_file::encode_hits(&tracer.intersect_batch(&rays))
+        ray_file::trace_hits(&tracer, &rays)
     };
     ray_file::write_atomically(output, &bytes)
         .with_context(|| format!("writing {}", output.display()))

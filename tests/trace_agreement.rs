@@ -13,7 +13,7 @@ use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
-use reducem::trace::{Ray, TraceOptions, Tracer};
+use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
 
 /// Checks one ray against the reference; returns whether it hit.
 fn check_ray(tracer: &Tracer, ray: &Ray) -> bool {
@@ -126,10 +126,14 @@ fn check_mesh_on_grid(mesh: &Mesh, name: &str, bits: u32) {
 
 fn check_files(mesh: &Mesh, name: &str, files: &[&ReducemFile]) {
     for &file in files {
-        for subtree_windows in [1, 4, 64] {
+        for (subtree_windows, kernel) in [1, 4, 64]
+            .into_iter()
+            .flat_map(|size| Kernel::supported().into_iter().map(move |k| (size, k)))
+        {
             let options = TraceOptions {
                 subtree_windows,
                 packets: false,
+                kernel,
             };
             let tracer = Tracer::new(file, options);
             let mut hits = 0;

@@ -56,24 +56,25 @@ fn assert_reported_triangle_hit(file: &ReducemFile, ray: &Ray, hit: &Hit, name: 
 }
 
 fn check_rays_on(file: &ReducemFile, rays: &[Ray], name: &str) -> usize {
-    let single = Tracer::new(
-        file,
-        TraceOptions {
-            packets: false,
-            ..TraceOptions::default()
-        },
-    );
-    let packets = Tracer::new(file, TraceOptions::default());
-    let hits = single.intersect_batch(rays);
-    let packet_hits = packets.intersect_batch(rays);
-    let occluded = packets.occluded_batch(rays);
+    let variants = tracer_variants(file);
+    let hits = variants[0].1.intersect_batch(rays);
+    for (variant, tracer) in &variants {
+        let variant_hits = tracer.intersect_batch(rays);
+        let occluded = tracer.occluded_batch(rays);
+        for (i, ray) in rays.iter().enumerate() {
+            assert_eq!(
+                hit_bits(&hits[i]),
+                hit_bits(&variant_hits[i]),
+                "{name}: {variant} differs for {ray:?}"
+            );
+            assert_eq!(
+                occluded[i],
+                hits[i].is_some(),
+                "{name}: {variant} occluded {ray:?}"
+            );
+        }
+    }
     for (i, ray) in rays.iter().enumerate() {
-        assert_eq!(
-            hit_bits(&hits[i]),
-            hit_bits(&packet_hits[i]),
-            "{name}: packet differs for {ray:?}"
-        );
-        assert_eq!(occluded[i], hits[i].is_some(), "{name}: occluded {ray:?}");
         let reference = brute_force(file, ray);
         assert_eq!(
             hits[i].is_some(),

@@ -24,6 +24,10 @@ pub trait VertexAccess: Copy {
         references: &[u8; N],
         used: usize,
     ) -> [[f32; N]; 3];
+
+    /// The f32 vertices themselves when the encoding is lossless, for kernels that gather
+    /// them straight into registers.
+    fn lossless(&self) -> Option<&[Point]>;
 }
 
 impl VertexAccess for &[Point] {
@@ -54,6 +58,11 @@ impl VertexAccess for &[Point] {
             }
         }
         model
+    }
+
+    #[inline(always)]
+    fn lossless(&self) -> Option<&[Point]> {
+        Some(self)
     }
 }
 
@@ -94,6 +103,11 @@ impl VertexAccess for GridVertices<'_> {
             }
         }
         model
+    }
+
+    #[inline(always)]
+    fn lossless(&self) -> Option<&[Point]> {
+        None
     }
 }
 

@@ -19,6 +19,9 @@
 //! This module is read side only: it uses `format`, `geometry` and `strip`, nothing from the
 //! build side or the pipeline.
 
+#[cfg(target_arch = "x86_64")]
+mod avx2;
+pub mod kernel;
 pub mod packet;
 pub mod prepared;
 pub mod ray_file;
@@ -30,6 +33,7 @@ use rayon::prelude::*;
 
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
+pub use kernel::Kernel;
 use prepared::PreparedRay;
 use strip::{Closest, StripQuery};
 
@@ -67,6 +71,8 @@ pub struct TraceOptions {
     pub subtree_windows: usize,
     /// Trace batches as packets of [`packet::PACKET_WIDTH`] rays at the top level.
     pub packets: bool,
+    /// The SIMD kernel (by default the fastest this CPU runs; see [`Kernel::from_env`]).
+    pub kernel: Kernel,
 }
 
 impl Default for TraceOptions {
@@ -74,6 +80,7 @@ impl Default for TraceOptions {
         TraceOptions {
             subtree_windows: 8,
             packets: true,
+            kernel: Kernel::detect(),
         }
     }
 }
@@ -161,6 +168,7 @@ impl<'f> Tracer<'f> {
             leaf_windows: self.file.leaf_windows(),
             subtree_windows: self.options.subtree_windows,
             any_hit,
+            kernel: self.options.kernel,
         }
     }
 

@@ -5,13 +5,20 @@
 //! byte per ray, 1 when occluded. A ray file is validated whole before anything is traced, and
 //! every defect names the file, the ray and the byte offset of the offending field. Output is
 //! written to a temporary file and renamed, so a failed run leaves no partial output.
+//!
+//! A batch job spends much of its time outside the tracer unless the files are handled in
+//! parallel too: the ray file is mapped and parsed on every core, and the answers are traced
+//! straight into the output bytes, chunk by chunk, on every core, with no per-ray `Hit` vector
+//! in between; the output is then written with one call.
 
-use std::fs;
+use std::fs::File;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
-use super::{Hit, Ray};
-use crate::atomic;
+use rayon::prelude::*;
+
+use super::{Hit, Ray, Tracer};
+use crate::{atomic, mapping};
 
 /// Bytes per ray record.
 pub const RAY_BYTES: usize = 32;
@@ -47,16 +54,22 @@ pub enum RayFileError {
     },
 }
 
-/// Reads and validates the ray file at `path`.
+/// Reads and validates the ray file at `path` (mapped, parsed on every core).
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>, RayFileError> {
-    let bytes = fs::read(path).map_err(|source| RayFileError::Io {
+    let io_error = |source| RayFileError::Io {
         path: path.to_path_buf(),
         source,
-    })?;
+    };
+    let file = File::open(path).map_err(io_error)?;
+    if file.metadata().map_err(io_error)?.len() == 0 {
+        return Ok(Vec::new());
+    }
+    let bytes = mapping::map_file(&file).map_err(io_error)?;
     parse_rays(path, &bytes)
 }
 
-/// Validates `bytes` as a ray file (`path` is only for messages).
+/// Validates `bytes` as a ray file (`path` is only for messages). The error names the first
+/// invalid ray, whatever the thread count.
 pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>, RayFileError> {
     if !bytes.len().is_multiple_of(RAY_BYTES) {
         let ray = bytes.len() / RAY_BYTES;
@@ -67,18 +80,27 @@ pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>, RayFileError> {
             offset: ray * RAY_BYTES,
         });
     }
-    bytes
+    let parsed = bytes
+        .par_chunks_exact(RAY_BYTES)
+        .map(parse_ray)
+        .collect::<Result<Vec<Ray>, _>>();
+    parsed.map_err(|_| first_invalid_ray(path, bytes))
+}
+
+/// The error of the first invalid ray of `bytes`, which has one (found again in file order:
+/// a parallel collect stops at any invalid ray, not necessarily the first).
+fn first_invalid_ray(path: &Path, bytes: &[u8]) -> RayFileError {
+    let (index, (field, detail)) = bytes
         .chunks_exact(RAY_BYTES)
         .enumerate()
-        .map(|(index, record)| {
-            parse_ray(record).map_err(|(field, detail)| RayFileError::Invalid {
-                path: path.to_path_buf(),
-                ray: index,
-                offset: index * RAY_BYTES + field * 4,
-                detail,
-            })
-        })
-        .collect()
+        .find_map(|(index, record)| parse_ray(record).err().map(|error| (index, error)))
+        .expect("a ray file that failed to parse has an invalid ray");
+    RayFileError::Invalid {
+        path: path.to_path_buf(),
+        ray: index,
+        offset: index * RAY_BYTES + field * 4,
+        detail,
+    }
 }
 
 /// One record; on error, the offending field and what is wrong with it.
@@ -134,22 +156,60 @@ pub fn encode_rays(rays: &[Ray]) -> Vec<u8> {
     bytes
 }
 
+/// Bytes per hit record.
+pub const HIT_BYTES: usize = 16;
+
+/// Rays traced and encoded by one task of [`trace_hits`] and [`trace_occlusion`]: large enough
+/// to amortize scheduling and keep packets of consecutive rays, small enough to balance.
+const QUERY_CHUNK: usize = 4096;
+
 /// `t nx ny nz` per ray; a miss is `+inf 0 0 0`.
 pub fn encode_hits(hits: &[Option<Hit>]) -> Vec<u8> {
-    let mut bytes = Vec::with_capacity(hits.len() * 16);
-    for hit in hits {
+    let mut bytes = vec![0; hits.len() * HIT_BYTES];
+    encode_hits_into(hits, &mut bytes);
+    bytes
+}
+
+/// [`encode_hits`] into `bytes` (`HIT_BYTES` per hit).
+fn encode_hits_into(hits: &[Option<Hit>], bytes: &mut [u8]) {
+    for (hit, record) in hits.iter().zip(bytes.chunks_exact_mut(HIT_BYTES)) {
         let fields = match hit {
             Some(hit) => [hit.t, hit.normal[0], hit.normal[1], hit.normal[2]],
             None => [f32::INFINITY, 0.0, 0.0, 0.0],
         };
-        bytes.extend(fields.iter().flat_map(|x| x.to_le_bytes()));
+        for (field, out) in fields.iter().zip(record.chunks_exact_mut(4)) {
+            out.copy_from_slice(&field.to_le_bytes());
+        }
     }
-    bytes
 }
 
 /// One byte per ray, 1 when occluded.
 pub fn encode_occlusion(occluded: &[bool]) -> Vec<u8> {
     occluded.iter().map(|&o| o as u8).collect()
+}
+
+/// The hit file's bytes for `rays`: traced and encoded chunk by chunk on every core.
+pub fn trace_hits(tracer: &Tracer, rays: &[Ray]) -> Vec<u8> {
+    let mut bytes = vec![0; rays.len() * HIT_BYTES];
+    bytes
+        .par_chunks_mut(QUERY_CHUNK * HIT_BYTES)
+        .zip(rays.par_chunks(QUERY_CHUNK))
+        .for_each(|(out, rays)| encode_hits_into(&tracer.intersect_chunk(rays), out));
+    bytes
+}
+
+/// The occlusion file's bytes for `rays`, as [`trace_hits`] makes the hit file's.
+pub fn trace_occlusion(tracer: &Tracer, rays: &[Ray]) -> Vec<u8> {
+    let mut bytes = vec![0; rays.len()];
+    bytes
+        .par_chunks_mut(QUERY_CHUNK)
+        .zip(rays.par_chunks(QUERY_CHUNK))
+        .for_each(|(out, rays)| {
+            for (byte, occluded) in out.iter_mut().zip(tracer.occluded_chunk(rays)) {
+                *byte = occluded as u8;
+            }
+        });
+    bytes
 }
 
 /// Writes `bytes` to a temporary file beside `path` and renames it into place.

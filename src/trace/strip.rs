@@ -45,10 +45,25 @@ use arrayvec::ArrayVec;
 use super::prepared::{max_not_nan, min_not_nan, PreparedRay, FAR_INFLATION};
 use wide::f32x8;
 
-use super::watertight::{candidate_lanes, edge_lanes, resolve, RayPoint};
+use super::kernel::Kernel;
+use super::watertight::{candidate_lanes, edge_lanes, resolve, RayPoint, RaySpace};
 use crate::format::implicit_tree::buckets;
 use crate::format::reader::StripView;
 use crate::format::vertices::{StripVertices, VertexAccess};
+
+/// Calls `$query.$entry::<V, KX, KY, KZ>` for the ray's ray-space axes.
+macro_rules! by_axes {
+    ($query:expr, $entry:ident, $vertices:expr, $args:expr) => {
+        match $query.ray.space.axes() {
+            [1, 2, 0] => $query.$entry::<V, 1, 2, 0>($vertices, $args),
+            [2, 1, 0] => $query.$entry::<V, 2, 1, 0>($vertices, $args),
+            [2, 0, 1] => $query.$entry::<V, 2, 0, 1>($vertices, $args),
+            [0, 2, 1] => $query.$entry::<V, 0, 2, 1>($vertices, $args),
+            [0, 1, 2] => $query.$entry::<V, 0, 1, 2>($vertices, $args),
+            _ => $query.$entry::<V, 1, 0, 2>($vertices, $args),
+        }
+    };
+}
 
 /// Most deferred subtrees: one per level of the deepest strip kd-tree (intervals halve, and a
 /// strip has fewer than 2^16 windows).
@@ -109,6 +124,8 @@ pub struct StripQuery<'a> {
     pub subtree_windows: usize,
     /// Stop at the first hit in range (shadow and occlusion rays).
     pub any_hit: bool,
+    /// The SIMD kernel of the strip blocks; one this CPU lacks runs as the baseline.
+    pub kernel: Kernel,
 }
 
 /// A strip traversal's strip, its file position, the ray's parameter interval and the closest
@@ -149,25 +166,59 @@ impl StripQuery<'_> {
         }
     }
 
-    /// [`StripQuery::trace`] with the strip's vertices read through `vertices`.
+    /// [`StripQuery::trace`] with the strip's vertices read through `vertices`, on the query's
+    /// kernel.
     #[inline(always)]
     fn trace_with<V: VertexAccess>(&self, vertices: V, args: TraceArgs) -> bool {
-        match self.ray.space.axes() {
-            [1, 2, 0] => self.trace_as::<V, 1, 2, 0>(vertices, args),
-            [2, 1, 0] => self.trace_as::<V, 2, 1, 0>(vertices, args),
-            [2, 0, 1] => self.trace_as::<V, 2, 0, 1>(vertices, args),
-            [0, 2, 1] => self.trace_as::<V, 0, 2, 1>(vertices, args),
-            [0, 1, 2] => self.trace_as::<V, 0, 1, 2>(vertices, args),
-            _ => self.trace_as::<V, 1, 0, 2>(vertices, args),
+        #[cfg(target_arch = "x86_64")]
+        if self.kernel == Kernel::Avx2 && std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked just above.
+            return unsafe { self.trace_avx2(vertices, args) };
         }
+        by_axes!(self, trace_as_sse2, vertices, args)
     }
 
-    /// [`StripQuery::trace`] for a ray whose ray-space axes are `[KX, KY, KZ]`. Never inlined:
-    /// the twelve instantiations (six axis orders, two encodings) are each compiled on their
-    /// own rather than some into [`StripQuery::trace`], whose size then swayed how well the
-    /// others were optimized.
+    /// [`StripQuery::trace_with`] compiled for AVX2, down to the blocks.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn trace_avx2<V: VertexAccess>(&self, vertices: V, args: TraceArgs) -> bool {
+        by_axes!(self, trace_as_avx2, vertices, args)
+    }
+
+    /// [`StripQuery::trace`] for a ray whose ray-space axes are `[KX, KY, KZ]`, baseline
+    /// kernel. Never inlined: the twelve instantiations per kernel (six axis orders, two
+    /// encodings) are each compiled on their own rather than some into [`StripQuery::trace`],
+    /// whose size then swayed how well the others were optimized.
     #[inline(never)]
-    fn trace_as<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+    fn trace_as_sse2<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        vertices: V,
+        args: TraceArgs,
+    ) -> bool {
+        self.traverse::<Sse2Blocks, V, KX, KY, KZ>(vertices, args)
+    }
+
+    /// [`StripQuery::trace_as_sse2`] compiled for AVX2 with the AVX2 blocks.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    fn trace_as_avx2<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+        &self,
+        vertices: V,
+        args: TraceArgs,
+    ) -> bool {
+        self.traverse::<Avx2Blocks, V, KX, KY, KZ>(vertices, args)
+    }
+
+    /// The strip kd-tree traversal with blocks intersected by `K`.
+    #[inline(always)]
+    fn traverse<
+        K: BlockKernel,
+        V: VertexAccess,
+        const KX: usize,
+        const KY: usize,
+        const KZ: usize,
+    >(
         &self,
         vertices: V,
         (view, index, t_near, t_far, closest): TraceArgs,
@@ -189,7 +240,8 @@ impl StripQuery<'_> {
             let lo = first * leaf;
             let hi = (end * leaf).min(windows);
             if end - first == 1 || hi - lo <= self.subtree_windows {
-                let found = self.intersect::<V, KX, KY, KZ>(vertices, view, index, lo, hi, closest);
+                let found =
+                    self.intersect::<K, V, KX, KY, KZ>(vertices, view, index, lo, hi, closest);
                 if found && self.any_hit {
                     return true;
                 }
@@ -246,7 +298,13 @@ impl StripQuery<'_> {
 
     /// Intersects windows `[lo, hi)` in blocks of [`BLOCK`] windows.
     #[inline(always)]
-    fn intersect<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+    fn intersect<
+        K: BlockKernel,
+        V: VertexAccess,
+        const KX: usize,
+        const KY: usize,
+        const KZ: usize,
+    >(
         &self,
         vertices: V,
         view: &StripView,
@@ -259,7 +317,7 @@ impl StripQuery<'_> {
         for first in (lo..hi).step_by(BLOCK) {
             let count = BLOCK.min(hi - first);
             let block = (vertices, view, first, count);
-            if self.intersect_block::<V, KX, KY, KZ>(block, index, closest) {
+            if self.intersect_block::<K, V, KX, KY, KZ>(block, index, closest) {
                 found = true;
                 if self.any_hit {
                     return true;
@@ -270,25 +328,96 @@ impl StripQuery<'_> {
     }
 
     /// Intersects the `count <= BLOCK` windows from `first`, lane `k` being window
-    /// `first + k`: the block's `BLOCK + 2` positions are gathered once, read as lanes shifted
-    /// by 0, 1 and 2 positions as the windows' three corners, and each corner is moved to ray
-    /// space and each edge evaluated in lanes; no branch depends on the geometry. The rare lanes
-    /// whose edges all agree go through the scalar [`resolve`], which sees bit-identical inputs
-    /// to the single-triangle test.
+    /// `first + k`: the kernel `K` finds the candidate lanes ([`BlockEdges`]) with no branch on
+    /// the geometry, and the rare lanes whose edges all agree go through the scalar
+    /// [`resolve`], which sees bit-identical inputs to the single-triangle test.
     #[inline(always)]
-    fn intersect_block<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+    fn intersect_block<
+        K: BlockKernel,
+        V: VertexAccess,
+        const KX: usize,
+        const KY: usize,
+        const KZ: usize,
+    >(
         &self,
         (vertices, view, first, count): (V, &StripView, usize, usize),
         index: u32,
         closest: &mut Closest,
     ) -> bool {
         let references: [u8; BLOCK + 2] = view.references.read_block(first);
-        let model = vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(&references, count + 2);
+        let edges = K::edges::<V, KX, KY, KZ>(&self.ray.space, vertices, &references, count);
+        let mut candidates = edges.candidates;
+        let mut found = false;
+        while candidates != 0 {
+            let lane = candidates.trailing_zeros() as usize;
+            candidates &= candidates - 1;
+            if !is_real_window(&references[lane..lane + 3]) {
+                continue;
+            }
+            let c: [RayPoint; 3] = std::array::from_fn(|corner| {
+                let along_z = vertices.coordinate(references[lane + corner] as usize, KZ);
+                RayPoint {
+                    x: edges.x[corner][lane],
+                    y: edges.y[corner][lane],
+                    z: self.ray.space.depth_as::<KZ>(along_z),
+                }
+            });
+            let w = edges.weights.map(|w| w[lane]);
+            if let Some(hit) = resolve(&c, w, self.ray.tmin, closest.t) {
+                closest.offer(hit.t, index, (first + lane) as u16, hit.weights);
+                found = true;
+                if self.any_hit {
+                    return true;
+                }
+            }
+        }
+        found
+    }
+}
+
+/// What a kernel computes for a block of windows: the candidate lanes (see
+/// [`candidate_lanes`]) and, only when there are any, every lane's ray-space corners `[corner]`
+/// and edge weights `[corner]`, each lane holding what the scalar test computes for its window.
+#[derive(Clone, Copy, Default)]
+pub struct BlockEdges {
+    pub candidates: u32,
+    pub x: [[f32; BLOCK]; 3],
+    pub y: [[f32; BLOCK]; 3],
+    pub weights: [[f32; BLOCK]; 3],
+}
+
+/// One way of computing [`BlockEdges`].
+trait BlockKernel {
+    /// The block whose `BLOCK + 2` strip references are `references`; lanes past `count` are
+    /// not candidates.
+    fn edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+        space: &RaySpace,
+        vertices: V,
+        references: &[u8; BLOCK + 2],
+        count: usize,
+    ) -> BlockEdges;
+}
+
+/// The baseline kernel: `wide`'s eight lanes (two SSE2 operations each on x86-64). The block's
+/// `BLOCK + 2` positions are gathered once into an array and read as lanes shifted by 0, 1 and
+/// 2 positions as the windows' three corners; each corner is moved to ray space (x and y) and
+/// each edge evaluated in lanes.
+struct Sse2Blocks;
+
+impl BlockKernel for Sse2Blocks {
+    #[inline(always)]
+    fn edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+        space: &RaySpace,
+        vertices: V,
+        references: &[u8; BLOCK + 2],
+        count: usize,
+    ) -> BlockEdges {
+        let model = vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(references, count + 2);
         // A position is transformed once per corner it is in (up to three times) rather than
         // once and then shifted through memory: the arithmetic is cheaper than storing lanes and
         // reloading them misaligned, and every copy of a vertex has the same bits.
         let corner = |shift: usize| {
-            self.ray.space.transform_lanes::<KX, KY, KZ>(
+            space.transform_lanes::<KX, KY, KZ>(
                 lanes_from(&model[0], shift),
                 lanes_from(&model[1], shift),
                 lanes_from(&model[2], shift),
@@ -302,37 +431,41 @@ impl StripQuery<'_> {
             edge_lanes(&corners[2], &corners[0]),
             edge_lanes(&corners[0], &corners[1]),
         ];
-        let mut candidates = candidate_lanes(weights) & ((1 << count) - 1);
+        let candidates = candidate_lanes(weights) & ((1 << count) - 1);
         if candidates == 0 {
-            return false;
+            return BlockEdges::default();
         }
-        let weights = weights.map(f32x8::to_array);
-        let mut found = false;
-        while candidates != 0 {
-            let lane = candidates.trailing_zeros() as usize;
-            candidates &= candidates - 1;
-            if !is_real_window(&references[lane..lane + 3]) {
-                continue;
-            }
-            let c: [RayPoint; 3] = std::array::from_fn(|corner| {
-                let depth = self.ray.space.depth_as::<KZ>(model[2][lane + corner]);
-                corners[corner].point(lane, depth)
-            });
-            let w = weights.map(|w| w[lane]);
-            if let Some(hit) = resolve(&c, w, self.ray.tmin, closest.t) {
-                closest.offer(hit.t, index, (first + lane) as u16, hit.weights);
-                found = true;
-                if self.any_hit {
-                    return true;
-                }
-            }
+        BlockEdges {
+            candidates,
+            x: corners.map(|c| c.x.to_array()),
+            y: corners.map(|c| c.y.to_array()),
+            weights: weights.map(f32x8::to_array),
         }
-        found
+    }
+}
+
+/// The AVX2 kernel ([`super::avx2`]).
+#[cfg(target_arch = "x86_64")]
+struct Avx2Blocks;
+
+#[cfg(target_arch = "x86_64")]
+impl BlockKernel for Avx2Blocks {
+    #[inline(always)]
+    fn edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+        space: &RaySpace,
+        vertices: V,
+        references: &[u8; BLOCK + 2],
+        count: usize,
+    ) -> BlockEdges {
+        // SAFETY: `Avx2Blocks` is private to this module and used only by
+        // `StripQuery::trace_as_avx2`, which runs only once AVX2 was detected
+        // (`StripQuery::trace_with`).
+        unsafe { super::avx2::block_edges::<V, KX, KY, KZ>(space, vertices, references, count) }
     }
 }
 
 /// Windows intersected together: one `f32x8` lane each.
-const BLOCK: usize = 8;
+pub const BLOCK: usize = 8;
 
 /// Lanes `shift..shift + BLOCK` of `values`.
 #[inline(always)]

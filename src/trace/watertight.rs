@@ -169,6 +169,20 @@ impl RaySpace {
         }
     }
 
+    /// The ray origin's coordinates on the ray-space axes `[KX, KY, KZ]`, for kernels that run
+    /// [`RaySpace::transform_lanes`] in other registers.
+    #[inline(always)]
+    pub fn origin_on<const KX: usize, const KY: usize, const KZ: usize>(&self) -> [f32; 3] {
+        debug_assert_eq!(self.axes, [KX, KY, KZ]);
+        [self.origin[KX], self.origin[KY], self.origin[KZ]]
+    }
+
+    /// The shear factors of ray-space x and y, for the same kernels.
+    #[inline(always)]
+    pub fn shears(&self) -> (f32, f32) {
+        (self.shear_x, self.shear_y)
+    }
+
     /// The ray-space z of a point whose model coordinate on axis `KZ` is `along_z`: the same
     /// operations as [`RaySpace::transform_as`], so the same bits.
     #[inline(always)]

@@ -17,7 +17,7 @@ pub use reducem::splitmix::SplitMix64;
 use reducem::strip;
 use reducem::toplevel::{self, TopLevelParams};
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
-use reducem::trace::{Hit, Ray, TraceOptions, Tracer};
+use reducem::trace::{Hit, Kernel, Ray, TraceOptions, Tracer};
 
 /// A fresh path in the system temp dir, unique per test and process.
 pub fn temp_path(name: &str) -> PathBuf {
@@ -443,24 +443,39 @@ pub fn canonical_sorted(triangles: impl Iterator<Item = [Point; 3]>) -> Vec<[[u3
     all
 }
 
-/// Rays from every `inside` point at every vertex and edge midpoint all hit; returns the count.
+/// Every tracer configuration whose answers must agree bit for bit: each kernel this CPU runs
+/// ([`Kernel::supported`]), single rays and packets; the baseline kernel's single rays first.
+pub fn tracer_variants(file: &ReducemFile) -> Vec<(String, Tracer<'_>)> {
+    let mut variants = Vec::new();
+    for kernel in Kernel::supported() {
+        for packets in [false, true] {
+            let options = TraceOptions {
+                packets,
+                kernel,
+                ..TraceOptions::default()
+            };
+            let name = format!("{kernel} {}", if packets { "packets" } else { "single" });
+            variants.push((name, Tracer::new(file, options)));
+        }
+    }
+    variants
+}
+
+/// Rays from every `inside` point at every vertex and edge midpoint all hit, with every
+/// [`tracer_variants`] configuration; returns the count.
 pub fn assert_closed(file: &ReducemFile, mesh: &Mesh, inside: &[Point], what: &str) -> usize {
     let targets = vertex_and_edge_targets(mesh);
     let mut traced = 0;
-    for packets in [false, true] {
-        let tracer = Tracer::new(
-            file,
-            TraceOptions {
-                packets,
-                ..TraceOptions::default()
-            },
-        );
+    for (variant, tracer) in tracer_variants(file) {
         for &origin in inside {
             let rays: Vec<Ray> = targets.iter().map(|&t| ray_towards(origin, t)).collect();
             let hits = tracer.intersect_batch(&rays);
             let occluded = tracer.occluded_batch(&rays);
             for ((ray, hit), occluded) in rays.iter().zip(&hits).zip(&occluded) {
-                assert!(hit.is_some() && *occluded, "{what}: {ray:?} escaped");
+                assert!(
+                    hit.is_some() && *occluded,
+                    "{what} ({variant}): {ray:?} escaped"
+                );
             }
             traced += 2 * rays.len();
         }

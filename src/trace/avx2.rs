@@ -1,0 +1,166 @@
+//! The AVX2 kernel of the strip block (see [`super::strip`]): eight windows in one 256-bit
+//! register per quantity, lossless vertices gathered straight into registers.
+//!
+//! The baseline kernel assembles the block's corners in a stack array (scalar stores) and then
+//! loads them as lanes, and those wide loads of freshly stored scalars stall on store
+//! forwarding (the two hottest instructions in a profile of AO rays). Here each of the nine
+//! corner-coordinate vectors of a lossless block is one `vgatherdps` indexed by the block's
+//! references; grid vertices are decoded as in the baseline and loaded. The arithmetic is the
+//! baseline's, operation for operation (`vsubps`, `vmulps`, `vminps`, `vmaxps`, compares), never
+//! fused, so every lane has the same bits as the baseline kernel and the scalar test.
+//!
+//! Every function here is compiled for AVX2 (`#[target_feature]`), so it can only be called
+//! from code that is itself compiled for AVX2 or, through `unsafe`, after
+//! [`Kernel::Avx2`](super::kernel::Kernel) was detected.
+
+use std::arch::x86_64::*;
+
+use super::strip::{BlockEdges, BLOCK};
+use super::watertight::RaySpace;
+use crate::format::vertices::VertexAccess;
+
+/// [`BlockEdges`] of the block whose `BLOCK + 2` strip references are `references`; lanes past
+/// `count` are not candidates.
+#[target_feature(enable = "avx2")]
+#[inline]
+pub fn block_edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+    space: &RaySpace,
+    vertices: V,
+    references: &[u8; BLOCK + 2],
+    count: usize,
+) -> BlockEdges {
+    let model = match vertices.lossless() {
+        Some(points) => transpose_corners::<KX, KY, KZ>(points, references),
+        None => load_corners(&vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(references, count + 2)),
+    };
+    let origin = space.origin_on::<KX, KY, KZ>().map(|o| _mm256_set1_ps(o));
+    let (shear_x, shear_y) = space.shears();
+    let (shear_x, shear_y) = (_mm256_set1_ps(shear_x), _mm256_set1_ps(shear_y));
+    // `RaySpace::transform_lanes`, lanewise the same operations.
+    let corners = model.map(|[x, y, z]| {
+        let ax = _mm256_sub_ps(x, origin[0]);
+        let ay = _mm256_sub_ps(y, origin[1]);
+        let az = _mm256_sub_ps(z, origin[2]);
+        [
+            _mm256_sub_ps(ax, _mm256_mul_ps(shear_x, az)),
+            _mm256_sub_ps(ay, _mm256_mul_ps(shear_y, az)),
+        ]
+    });
+    // `watertight::edge_lanes`: q.x * p.y - q.y * p.x.
+    let edge = |p: &[__m256; 2], q: &[__m256; 2]| {
+        _mm256_sub_ps(_mm256_mul_ps(q[0], p[1]), _mm256_mul_ps(q[1], p[0]))
+    };
+    let weights = [
+        edge(&corners[1], &corners[2]),
+        edge(&corners[2], &corners[0]),
+        edge(&corners[0], &corners[1]),
+    ];
+    let candidates = candidate_lanes(&weights) & ((1 << count) - 1);
+    let mut edges = BlockEdges {
+        candidates,
+        ..BlockEdges::default()
+    };
+    if candidates != 0 {
+        for (k, [x, y]) in corners.iter().enumerate() {
+            store(&mut edges.x[k], *x);
+            store(&mut edges.y[k], *y);
+            store(&mut edges.weights[k], weights[k]);
+        }
+    }
+    edges
+}
+
+/// `watertight::candidate_lanes` lanewise: `vminps`/`vmaxps` are the baseline's `minps`/`maxps`
+/// on eight lanes (the second operand where either is NaN).
+#[target_feature(enable = "avx2")]
+#[inline]
+fn candidate_lanes(w: &[__m256; 3]) -> u32 {
+    let zero = _mm256_setzero_ps();
+    let min = _mm256_min_ps(_mm256_min_ps(w[0], w[1]), w[2]);
+    let max = _mm256_max_ps(_mm256_max_ps(w[0], w[1]), w[2]);
+    let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(min, zero);
+    let negative = _mm256_cmp_ps::<_CMP_LT_OQ>(max, zero);
+    let on_edge = _mm256_or_ps(
+        _mm256_or_ps(
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[0], zero),
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[1], zero),
+        ),
+        _mm256_cmp_ps::<_CMP_EQ_OQ>(w[2], zero),
+    );
+    let any = _mm256_or_ps(_mm256_or_ps(positive, negative), on_edge);
+    _mm256_movemask_ps(any) as u32
+}
+
+/// The block's corners `[shift][axis]` (axes in ray-space order `KX, KY, KZ`): lane `k` of shift
+/// `s` is coordinate `axis` of vertex `references[k + s]` of the f32 vertices. Each vertex is one
+/// 16-byte load, and each shift's eight vertices are transposed in registers: no lane goes
+/// through memory (gathers measured slower on AMD Zen, scalar stores stall the lane loads).
+#[target_feature(enable = "avx2")]
+#[inline]
+fn transpose_corners<const KX: usize, const KY: usize, const KZ: usize>(
+    points: &[[f32; 3]],
+    references: &[u8; BLOCK + 2],
+) -> [[__m256; 3]; 3] {
+    let flat = points.as_flattened();
+    let vertex: [__m128; BLOCK + 2] =
+        std::array::from_fn(|k| load_vertex(flat, references[k] as usize));
+    std::array::from_fn(|shift| {
+        let v = &vertex[shift..shift + BLOCK];
+        // Row `k` holds vertex `k` in its low half and vertex `k + 4` in its high half; a 4×4
+        // transpose per half then gives x, y, z of vertices 0-3 | 4-7.
+        let row: [__m256; 4] = std::array::from_fn(|k| _mm256_set_m128(v[k + 4], v[k]));
+        let xy01 = _mm256_unpacklo_ps(row[0], row[1]);
+        let xy23 = _mm256_unpacklo_ps(row[2], row[3]);
+        let zw01 = _mm256_unpackhi_ps(row[0], row[1]);
+        let zw23 = _mm256_unpackhi_ps(row[2], row[3]);
+        let model = [
+            _mm256_shuffle_ps::<0b01_00_01_00>(xy01, xy23),
+            _mm256_shuffle_ps::<0b11_10_11_10>(xy01, xy23),
+            _mm256_shuffle_ps::<0b01_00_01_00>(zw01, zw23),
+        ];
+        [model[KX], model[KY], model[KZ]]
+    })
+}
+
+/// Vertex `index` of the flattened f32 vertices as `[x, y, z, any]`. A strip has at least
+/// three vertices, so four floats can always be read: the last vertex is read one float early
+/// and moved down. An index past the vertices (only in a corrupt file, which opening rejects)
+/// reads the last four floats rather than out of bounds.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn load_vertex(flat: &[f32], index: usize) -> __m128 {
+    let start = (3 * index).min(flat.len().saturating_sub(4));
+    let lanes: &[f32; 4] = flat[start..].first_chunk().expect("four floats");
+    // SAFETY: `lanes` is four f32 (16 bytes), what the unaligned load reads; SSE is enabled.
+    let four = unsafe { _mm_loadu_ps(lanes.as_ptr()) };
+    if start == 3 * index {
+        four
+    } else {
+        _mm_permute_ps::<0b00_11_10_01>(four)
+    }
+}
+
+/// The baseline's decoded block (`[axis][position]`) as `[shift][axis]` lanes.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn load_corners(model: &[[f32; BLOCK + 2]; 3]) -> [[__m256; 3]; 3] {
+    std::array::from_fn(|shift| std::array::from_fn(|axis| load(&model[axis], shift)))
+}
+
+/// Lanes `shift .. shift + BLOCK` of `values`.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn load(values: &[f32; BLOCK + 2], shift: usize) -> __m256 {
+    let lanes: &[f32; BLOCK] = values[shift..shift + BLOCK]
+        .first_chunk()
+        .expect("BLOCK lanes");
+    // SAFETY: `lanes` is eight f32 (32 bytes), what the unaligned load reads; AVX is enabled.
+    unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
+}
+
+#[target_feature(enable = "avx2")]
+#[inline]
+fn store(lanes: &mut [f32; BLOCK], value: __m256) {
+    // SAFETY: `lanes` is eight f32 (32 bytes), what the unaligned store writes; AVX is enabled.
+    unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), value) }
+}

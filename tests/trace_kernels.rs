@@ -1,0 +1,96 @@
+//! Every tracer kernel this CPU runs gives the baseline kernel's answers bit for bit, single
+//! rays and packets, on every `gen` kind, lossless and on a grid, for camera rays, AO rays from
+//! the hits and rays aimed at vertices and edge midpoints. (Closed-mesh escapes and the
+//! extreme-geometry suite run per kernel through `common::tracer_variants`.)
+
+mod common;
+
+use common::*;
+use reducem::build::{convert_mesh, BuildParams};
+use reducem::format::reader::ReducemFile;
+use reducem::gen::{generate, Kind};
+use reducem::input::read_mesh;
+use reducem::trace::{Kernel, Ray};
+use reducem::workload::RaySet;
+
+const KINDS: [Kind; 6] = [
+    Kind::Scan,
+    Kind::Terrain,
+    Kind::Isosurface,
+    Kind::Cad,
+    Kind::Soup,
+    Kind::Sphere,
+];
+
+/// Camera rays, 4 AO rays per hit and rays aimed at a few hundred vertices and edge midpoints.
+fn probe_rays(file: &ReducemFile, mesh: &reducem::mesh::Mesh) -> Vec<Ray> {
+    let set = RaySet::new(file, 48, 4);
+    let (min, max) = (file.header().bounds_min, file.header().bounds_max);
+    let outside: [f32; 3] = std::array::from_fn(|a| max[a] + (max[a] - min[a]) + 1.0);
+    let aimed = vertex_and_edge_targets(mesh)
+        .into_iter()
+        .step_by(7)
+        .take(600)
+        .map(|target| ray_towards(outside, target));
+    set.primary
+        .into_iter()
+        .chain(set.ambient_occlusion)
+        .chain(aimed)
+        .collect()
+}
+
+fn check_kind(kind: Kind, grid_bits: Option<u32>) {
+    let name = format!(
+        "{kind:?}-{}",
+        grid_bits.map_or("f32".into(), |b| b.to_string())
+    );
+    let ply = temp_path(&format!("kernels-{name}.ply"));
+    generate(kind, 6000, 5, &ply).expect("generate");
+    let mesh = read_mesh(&ply).expect("read");
+    let path = temp_path(&format!("kernels-{name}.rdm"));
+    let params = BuildParams {
+        grid_bits,
+        ..BuildParams::default()
+    };
+    convert_mesh(&mesh, &params, &path).expect("convert");
+    let file = ReducemFile::open(&path).expect("open");
+    let rays = probe_rays(&file, &mesh);
+    let variants = tracer_variants(&file);
+    let (_, baseline) = &variants[0];
+    let hits = baseline.intersect_batch(&rays);
+    let occluded = baseline.occluded_batch(&rays);
+    assert!(
+        hits.iter().filter(|h| h.is_some()).count() > rays.len() / 10,
+        "{name}: too few hits for a meaningful comparison"
+    );
+    for (variant, tracer) in &variants[1..] {
+        let variant_hits = tracer.intersect_batch(&rays);
+        let variant_occluded = tracer.occluded_batch(&rays);
+        for (i, ray) in rays.iter().enumerate() {
+            assert_eq!(
+                hit_bits(&hits[i]),
+                hit_bits(&variant_hits[i]),
+                "{name}: {variant} hit differs for {ray:?}"
+            );
+            assert_eq!(
+                occluded[i], variant_occluded[i],
+                "{name}: {variant} occlusion differs for {ray:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn every_kernel_agrees_on_lossless_files() {
+    println!("kernels compared: {:?}", Kernel::supported());
+    for kind in KINDS {
+        check_kind(kind, None);
+    }
+}
+
+#[test]
+fn every_kernel_agrees_on_grid_files() {
+    for kind in KINDS {
+        check_kind(kind, Some(16));
+    }
+}
