@@ -22,7 +22,7 @@ use clap::Parser;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use reducem::baseline::TriangleBvh;
-use reducem::build::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS};
+use reducem::build::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS, PIPELINE_MAX_STRIP_LENGTH};
 use reducem::format::reader::ReducemFile;
 use reducem::format::{VERSION_MAJOR, VERSION_MINOR};
 use reducem::geometry::Point;
@@ -51,9 +51,9 @@ struct Args {
     runs: usize,
     #[arg(long, value_delimiter = ',', default_value = "1,2")]
     threads: Vec<usize>,
-    /// Strip-RT's maximum strip length for the converted file (the paper's 60; shorter strips
-    /// trace faster and take more bytes).
-    #[arg(long, default_value_t = StripifyParams::default().max_length)]
+    /// Strip-RT's maximum strip length for the converted file (the pipeline's default; the
+    /// paper's is 60; shorter strips trace faster and take more bytes).
+    #[arg(long, default_value_t = PIPELINE_MAX_STRIP_LENGTH)]
     max_strip_length: usize,
     /// Strip kd-tree leaf size of the converted file (the pipeline's default).
     #[arg(long, default_value_t = PIPELINE_LEAF_WINDOWS)]

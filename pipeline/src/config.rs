@@ -74,6 +74,7 @@ impl Default for ChunkConfig {
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct StripConfig {
+    /// Default [`reducem::build::PIPELINE_MAX_STRIP_LENGTH`] (20; the paper's is 60).
     pub max_length: usize,
     /// Default [`reducem::build::PIPELINE_LEAF_WINDOWS`] (8; the paper's is 2).
     pub leaf_triangles: Option<usize>,
@@ -87,7 +88,7 @@ pub struct StripConfig {
 impl Default for StripConfig {
     fn default() -> Self {
         StripConfig {
-            max_length: 60,
+            max_length: reducem::build::PIPELINE_MAX_STRIP_LENGTH,
             leaf_triangles: None,
             sah_bins: 16,
             grid_nodes: false,

@@ -149,7 +149,7 @@ fn a_config_change_reruns_only_the_stages_it_affects() {
         String::from_utf8_lossy(&run(&["status", config.to_str().unwrap()]).stdout).to_string();
     assert!(text.contains("chunk                done"), "{text}");
     assert!(
-        text.contains("strip/chunk-000000   stale: strip.max_length changed from 60 to 30"),
+        text.contains("strip/chunk-000000   stale: strip.max_length changed from 20 to 30"),
         "{text}"
     );
     assert!(
@@ -232,7 +232,7 @@ fn a_run_dying_while_writing_leaves_the_previous_output_untouched() {
     let before = fs::read(dir.join("out.rdm")).unwrap();
     // A changed config forces new outputs; a 64-block file-size limit stops the run while it
     // writes them (like a full disk, but independent of the user's privileges).
-    let config = job(&dir, "\n[strip]\nmax_length = 20\n");
+    let config = job(&dir, "\n[strip]\nmax_length = 30\n");
     let output = Command::new("sh")
         .args([
             "-c",
