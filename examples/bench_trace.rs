@@ -28,7 +28,6 @@ use reducem::format::{VERSION_MAJOR, VERSION_MINOR};
 use reducem::geometry::Point;
 use reducem::render::residency;
 use reducem::render::sampling::Surface;
-use reducem::stripify::StripifyParams;
 use reducem::trace::ray_file::encode_rays;
 use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
 use reducem::workload::engines::{Baseline, Engine, ReduceM};
