@@ -5,8 +5,9 @@
 //!
 //! Build side: [`input`] reads meshes, [`stripify`] is Strip-RT (paper 4.1), [`encode`] builds the
 //! per-strip implicit kd-trees (paper 3.2), [`toplevel`] the global hierarchy, [`build`] ties them
-//! together per chunk and [`format::writer`] writes the file. Read side: [`format::reader`] maps
-//! and validates a file; it depends on nothing from the build side.
+//! together per chunk and lays the strips out for [`format::writer`], which writes the file.
+//! Read side: [`format::reader`] maps and validates a file. [`format`] depends on nothing from
+//! the build side.
 
 pub mod atomic;
 pub mod baseline;

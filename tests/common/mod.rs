@@ -4,12 +4,13 @@
 
 use std::path::{Path, PathBuf};
 
+use reducem::build::write_file;
 use reducem::build::ChunkStats;
 use reducem::decode;
 use reducem::encode::{encode_strip, split_strip, EncodedStrip, Positions};
 use reducem::format::grid::Grid;
 use reducem::format::reader::ReducemFile;
-use reducem::format::writer::{write_file, FileInfo};
+use reducem::format::writer::FileInfo;
 use reducem::geometry::{is_degenerate, Aabb, Point};
 use reducem::mesh::Mesh;
 use reducem::quantize::quantize_mesh;

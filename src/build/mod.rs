@@ -2,22 +2,27 @@
 //!
 //! "One mesh chunk in memory → encoded strips with bounds". Converting a mesh that fits in
 //! memory is the one-chunk case: [`encode_chunk`], then [`crate::toplevel::build`] over the strip
-//! bounds, then [`crate::format::writer::write_file`].
+//! bounds, then [`write_file`] ([`in_memory`]).
+
+mod in_memory;
 
 use std::path::Path;
 
 use rayon::prelude::*;
 
 use crate::encode::{encode_strip, split_strip, EncodedStrip, Positions};
+use crate::format::counts::WeldStats;
 use crate::format::grid::{Grid, MAX_GRID_BITS};
-use crate::format::writer::{write_file, FileInfo, WriteError};
-use crate::geometry::{Aabb, Displacement};
-use crate::input::WeldStats;
+use crate::format::writer::{FileInfo, WriteError};
+use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 use crate::quantize::quantize_mesh;
 use crate::strip;
 use crate::stripify::{stripify, Stripification, StripifyParams};
 use crate::toplevel::{self, TopLevelParams};
+
+pub use crate::format::counts::ChunkStats;
+pub use in_memory::write_file;
 
 /// Strip kd-tree leaf size the pipeline uses unless the config sets one; [`BuildParams`] keeps
 /// the paper's 2.
@@ -104,33 +109,6 @@ pub struct EncodedChunk {
     pub stats: ChunkStats,
     /// The grid the vertices were snapped to; `None` for f32 vertices.
     pub grid: Option<Grid>,
-}
-
-/// Counts over one chunk; they add up over chunks.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ChunkStats {
-    pub triangles: u64,
-    pub dropped_triangles: u64,
-    /// Distinct mesh vertices referenced by the chunk's strips (after welding, and for grid
-    /// vertices after merging those that snap to one grid point).
-    pub input_vertices: u64,
-    pub stored_vertices: u64,
-    pub hierarchy_vertices: u64,
-    pub max_strip_length: u64,
-    /// Input vertex → stored position; empty for f32 vertices, which do not move.
-    pub quantization: Displacement,
-}
-
-impl ChunkStats {
-    pub fn add(&mut self, other: &ChunkStats) {
-        self.triangles += other.triangles;
-        self.dropped_triangles += other.dropped_triangles;
-        self.input_vertices += other.input_vertices;
-        self.stored_vertices += other.stored_vertices;
-        self.hierarchy_vertices += other.hierarchy_vertices;
-        self.max_strip_length = self.max_strip_length.max(other.max_strip_length);
-        self.quantization.add(&other.quantization);
-    }
 }
 
 /// Runs Strip-RT and strip encoding over a chunk that is the whole model.
