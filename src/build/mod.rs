@@ -1,10 +1,12 @@
 //! Conversion of one mesh chunk into encoded strips: the core API the pipeline runs per chunk.
 //!
 //! "One mesh chunk in memory → encoded strips with bounds". Converting a mesh that fits in
-//! memory is the one-chunk case: [`encode_chunk`], then [`crate::toplevel::build`] over the strip
-//! bounds, then [`write_file`] ([`in_memory`]).
+//! memory is the one-chunk case: [`encode_chunk`], then [`ChunkLayout::new`] (the chunk's top
+//! level over the strip bounds and the strip-record [`layout`]), then [`write_layout`]. The
+//! pipeline's stages call the same functions per chunk.
 
 mod in_memory;
+pub mod layout;
 
 use std::path::Path;
 
@@ -19,10 +21,11 @@ use crate::mesh::Mesh;
 use crate::quantize::quantize_mesh;
 use crate::strip;
 use crate::stripify::{stripify, Stripification, StripifyParams};
-use crate::toplevel::{self, TopLevelParams};
+use crate::toplevel::TopLevelParams;
 
 pub use crate::format::counts::ChunkStats;
-pub use in_memory::write_file;
+pub use in_memory::{write_file, write_layout};
+pub use layout::ChunkLayout;
 
 /// Strip kd-tree leaf size the pipeline uses unless the config sets one; [`BuildParams`] keeps
 /// the paper's 2.
@@ -242,17 +245,20 @@ pub fn write_chunk(
     params: &BuildParams,
     out: &Path,
 ) -> Result<ChunkStats, WriteError> {
-    let bounds = strip_bounds(&chunk.strips);
-    let top = toplevel::build(&bounds, &params.top_level);
+    let layout =
+        ChunkLayout::new(&chunk.strips, &params.top_level).map_err(|source| WriteError {
+            path: out.to_path_buf(),
+            source,
+        })?;
     let info = FileInfo {
         stats: chunk.stats,
         leaf_windows: params.leaf_windows,
         max_strip_length: params.stripify.max_length,
-        bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
+        bounds: layout.bounds,
         grid: chunk.grid,
         grid_nodes: params.grid_nodes,
         weld: WeldStats::default(),
     };
-    write_file(out, &info, &top, &chunk.strips)?;
+    write_layout(out, &info, &layout, &chunk.strips)?;
     Ok(chunk.stats)
 }

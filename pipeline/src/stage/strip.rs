@@ -1,12 +1,11 @@
-//! Stage *strip*: adjacency, Strip-RT, strip encoding and the chunk's own top-level hierarchy
-//! (`reducem::build`, `reducem::toplevel`), chunks in parallel on the rayon pool. Each chunk is
+//! Stage *strip*: adjacency, Strip-RT, strip encoding, the chunk's own top-level hierarchy and
+//! its strip-record layout (`reducem::build`), chunks in parallel on the rayon pool. Each chunk is
 //! a unit of its own in the manifest, so a killed run keeps every chunk it finished. Memory is
 //! about threads × one chunk ([`for_each_unit`]).
 
 use anyhow::Context;
-use reducem::build::{encode_chunk_on, strip_bounds};
-use reducem::format::StripRecord;
-use reducem::toplevel::{self, TopLevelParams};
+use reducem::build::{encode_chunk_on, ChunkLayout};
+use reducem::toplevel::TopLevelParams;
 
 use crate::chunk_io::{self, StripChunkHeader};
 use crate::fingerprint::Fingerprint;
@@ -116,37 +115,18 @@ fn strip_one(job: &Job, chunked: &Chunked, chunk: usize) -> anyhow::Result<()> {
     let grid = params.grid(&chunked.bounds());
     let encoded = encode_chunk_on(&mesh, &params, grid.as_ref());
     drop(mesh);
-    let bounds = strip_bounds(&encoded.strips);
-    let top = toplevel::build(&bounds, &TopLevelParams::default());
-    let mut records = Vec::with_capacity(encoded.strips.len());
-    let mut word = 0u32;
-    for &s in &top.strip_order {
-        let strip = &encoded.strips[s as usize];
-        records.push(StripRecord {
-            data_word: word,
-            vertex_count: strip.vertex_count,
-            reference_count: strip.reference_count,
-        });
-        word += strip.block.len() as u32 / 4;
-    }
-    let blocks: Vec<&[u8]> = top
-        .strip_order
-        .iter()
-        .map(|&s| encoded.strips[s as usize].block.as_slice())
-        .collect();
-    let chunk_bounds = bounds
-        .iter()
-        .fold(reducem::geometry::Aabb::EMPTY, |a, b| a.union(b));
+    let layout = ChunkLayout::new(&encoded.strips, &params.top_level)?;
     let header = StripChunkHeader::new(
         &encoded.stats,
-        &chunk_bounds,
-        top.nodes.len(),
-        records.len(),
-        word as usize * 4,
+        &layout.bounds,
+        layout.top.nodes.len(),
+        layout.records.len(),
+        layout.data_bytes as usize,
     );
+    let blocks: Vec<&[u8]> = layout.blocks(&encoded.strips).collect();
     let path = job.work.file(&strip_chunk(chunk));
     reducem::atomic::write_atomically(&path, |out| {
-        chunk_io::write_strips(out, &header, &top.nodes, &records, &blocks)
+        chunk_io::write_strips(out, &header, &layout.top.nodes, &layout.records, &blocks)
     })
     .with_context(|| format!("writing {}", path.display()))
 }
