@@ -23,6 +23,7 @@ mod embree_peer;
 pub mod machine;
 pub mod markdown;
 pub mod memory;
+pub mod memory_parts;
 pub mod plot;
 pub mod precision;
 pub mod speed;

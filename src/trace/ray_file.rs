@@ -10,7 +10,7 @@ use std::fs;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
-use super::{Hit, Ray};
+use super::ray::{Hit, Ray};
 use crate::atomic;
 
 /// Bytes per ray record.

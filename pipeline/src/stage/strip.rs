@@ -11,9 +11,8 @@ use crate::chunk_io::{self, StripChunkHeader};
 use crate::fingerprint::Fingerprint;
 use crate::lock::ChunkLock;
 use crate::manifest::Freshness;
-use crate::run::Shard;
 use crate::stage::chunk::Chunked;
-use crate::stage::{for_each_unit, Job};
+use crate::stage::{for_each_unit, Job, Shard, StageName, UpstreamPending};
 use crate::workdir::{mesh_chunk, strip_chunk};
 
 /// The manifest key of one chunk's unit.
@@ -89,8 +88,8 @@ pub fn run(job: &Job, chunked: &Chunked, shard: Shard) -> anyhow::Result<String>
     job.reload_manifest();
     let still_pending = pending_chunks(job, chunked, shard);
     if let Some(&first) = still_pending.first() {
-        return Err(crate::run::UpstreamPending {
-            needed: crate::run::StageName::Strip,
+        return Err(UpstreamPending {
+            needed: StageName::Strip,
             reason: format!(
                 "{} chunks of this shard are held by another task, first {first}",
                 still_pending.len()
