@@ -1,0 +1,742 @@
+//! Validation of a file at open: header and section table first ([`Checker`]), then strip
+//! records and blocks and the top-level nodes through bounded windows of the file
+//! ([`Windows`]), so that every view in [`super`] stays in bounds afterwards.
+
+use std::fs::File;
+use std::mem::size_of;
+use std::ops::Range;
+use std::path::Path;
+
+use memmap2::Mmap;
+use rayon::prelude::*;
+
+use super::super::grid::{Grid, NodeGrid, MAX_GRID_BITS};
+use super::super::implicit_tree::internal_nodes;
+use super::super::quantized::{vertex_part_bytes, AxisWord};
+use super::super::{
+    axis_bytes, GridNode, Header, NodeRecord, PrecisionRecord, SectionKind, StripRecord, TopNode,
+    TopSlot, VertexEncoding, ENDIAN_MARKER, F32_VERTEX_BYTES, HEADER_CHECKSUMMED_BYTES,
+    HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH, PRECISION_CHECKSUMMED_BYTES,
+    PRECISION_OFFSET, SECTION_ALIGN, TOP_WIDTH, VERSION_MAJOR,
+};
+use super::{section_slot, strip_view, FormatError, ReducemFile, StripView, VertexLayout};
+use crate::mapping::{map_file, map_range};
+
+/// Maps and validates the file at `path` ([`ReducemFile::open`]).
+pub(super) fn open(path: &Path) -> Result<ReducemFile, FormatError> {
+    let io_error = |source| FormatError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = File::open(path).map_err(io_error)?;
+    let file_len = file.metadata().map_err(io_error)?.len();
+    let head = match file_len >= HEADER_PAGE {
+        true => Some(map_range(&file, 0, HEADER_PAGE as usize).map_err(io_error)?),
+        false => None,
+    };
+    let checker = Checker {
+        path,
+        head: head.as_deref().unwrap_or_default(),
+        file_len,
+    };
+    let header = checker.header()?;
+    let precision = checker.precision(&header)?;
+    let (layout, node_grid) = checker.layout(&header, &precision)?;
+    let sections = checker.sections(&header, node_bytes(node_grid.is_some()))?;
+    let map = map_file(&file).map_err(io_error)?;
+    if map.len() as u64 != file_len {
+        let detail = "the file changed size while it was being opened".to_string();
+        return Err(checker.invalid("file", 0, detail));
+    }
+    let opened = ReducemFile {
+        path: path.to_path_buf(),
+        map,
+        header,
+        precision,
+        layout,
+        node_grid,
+        sections,
+    };
+    let windows = Windows {
+        file: &file,
+        opened: &opened,
+    };
+    windows.validate_strips()?;
+    windows.validate_nodes()?;
+    Ok(opened)
+}
+
+/// Bytes of the file mapped at a time while validating.
+pub const VALIDATION_WINDOW: usize = 64 << 20;
+
+/// Validation of the sections through bounded windows of the file.
+struct Windows<'a> {
+    file: &'a File,
+    opened: &'a ReducemFile,
+}
+
+impl Windows<'_> {
+    fn map(&self, offset: u64, length: usize) -> Result<Mmap, FormatError> {
+        map_range(self.file, offset, length).map_err(|source| FormatError::Io {
+            path: self.opened.path.clone(),
+            source,
+        })
+    }
+
+    fn section(&self, kind: SectionKind) -> Range<u64> {
+        let range = &self.opened.sections[section_slot(kind)];
+        range.start as u64..range.end as u64
+    }
+
+    /// Checks every strip record, its block bounds, reference indices and split axes, and that
+    /// the real triangles add up to the header's count.
+    fn validate_strips(&self) -> Result<(), FormatError> {
+        let opened = self.opened;
+        let records = self.section(SectionKind::StripRecords);
+        let count = (records.end - records.start) / RECORD_BYTES;
+        if count != opened.header.strip_count {
+            return Err(opened.invalid(
+                "strip_records",
+                records.start,
+                format!(
+                    "{count} records, header says {} strips",
+                    opened.header.strip_count
+                ),
+            ));
+        }
+        let batch = (VALIDATION_WINDOW as u64 / RECORD_BYTES).max(1);
+        let mut triangles = 0;
+        for first in (0..count).step_by(batch as usize) {
+            let length = batch.min(count - first) * RECORD_BYTES;
+            let window = self.map(records.start + first * RECORD_BYTES, length as usize)?;
+            let records: &[StripRecord] = bytemuck::try_cast_slice(&window)
+                .map_err(|_| opened.invalid("strip_records", records.start, "misaligned".into()))?;
+            triangles += self.validate_record_batch(first as usize, records)?;
+        }
+        if triangles != opened.header.triangle_count {
+            return Err(opened.invalid(
+                "header",
+                32,
+                format!(
+                    "{triangles} triangles in strips, header says {}",
+                    opened.header.triangle_count
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Validates consecutive records, mapping their blocks in spans of at most one window.
+    fn validate_record_batch(
+        &self,
+        first: usize,
+        records: &[StripRecord],
+    ) -> Result<u64, FormatError> {
+        let data = self.section(SectionKind::StripData);
+        let data_len = data.end - data.start;
+        let shape = BlockShape {
+            leaf_windows: self.opened.leaf_windows(),
+            layout: self.opened.layout,
+        };
+        let mut triangles = 0;
+        let mut start = 0;
+        while start < records.len() {
+            let mut span = shape
+                .extent(&records[start], data_len)
+                .map_err(|defect| self.strip_error(first + start, defect))?;
+            let mut end = start + 1;
+            while let Some(next) = records.get(end) {
+                let Ok(block) = shape.extent(next, data_len) else {
+                    break;
+                };
+                let joined = span.start.min(block.start)..span.end.max(block.end);
+                if joined.end - joined.start > VALIDATION_WINDOW as u64 {
+                    break;
+                }
+                span = joined;
+                end += 1;
+            }
+            let window = self.map(data.start + span.start, (span.end - span.start) as usize)?;
+            triangles += records[start..end]
+                .par_iter()
+                .enumerate()
+                .map(|(i, record)| {
+                    shape
+                        .check(&window, span.start, record, data_len)
+                        .map_err(|defect| self.strip_error(first + start + i, defect))
+                })
+                .try_reduce(|| 0u64, |a, b| Ok(a + b))?;
+            start = end;
+        }
+        Ok(triangles)
+    }
+
+    fn strip_error(&self, index: usize, (offset, detail): StripDefect) -> FormatError {
+        let opened = self.opened;
+        let offset = offset.map_or(
+            opened.section_offset(SectionKind::StripRecords) + index as u64 * RECORD_BYTES,
+            |o| opened.section_offset(SectionKind::StripData) + o,
+        );
+        opened.invalid("strip_data", offset, format!("strip {index}: {detail}"))
+    }
+
+    /// Checks that the nodes form one tree in preorder within the depth limit, with every slot
+    /// well formed and leaf strip ranges inside the record array; every node but the root has
+    /// exactly one parent, before it in the array, so traversal terminates and indexes nothing
+    /// out of bounds.
+    fn validate_nodes(&self) -> Result<(), FormatError> {
+        match self.opened.node_grid {
+            None => self.validate_nodes_of::<TopNode>(),
+            Some(_) => self.validate_nodes_of::<GridNode>(),
+        }
+    }
+
+    fn validate_nodes_of<N: NodeRecord>(&self) -> Result<(), FormatError> {
+        let section = self.section(SectionKind::TopNodes);
+        let node_bytes = size_of::<N>() as u64;
+        let count = ((section.end - section.start) / node_bytes) as usize;
+        let mut tree = TreeCheck {
+            opened: self.opened,
+            node_bytes,
+            depth: vec![u8::MAX; count],
+            leaf_strips: 0,
+        };
+        tree.depth[0] = 0;
+        let batch = (VALIDATION_WINDOW as u64 / node_bytes).max(1) as usize;
+        for first in (0..count).step_by(batch) {
+            let length = batch.min(count - first) as u64 * node_bytes;
+            let window = self.map(section.start + first as u64 * node_bytes, length as usize)?;
+            let nodes: &[N] = bytemuck::try_cast_slice(&window).map_err(|_| {
+                self.opened
+                    .invalid("top_nodes", section.start, "misaligned".into())
+            })?;
+            for (i, node) in nodes.iter().enumerate() {
+                tree.check(first + i, node)?;
+            }
+        }
+        tree.finish()
+    }
+}
+
+const RECORD_BYTES: u64 = std::mem::size_of::<StripRecord>() as u64;
+
+/// Bytes of one top-level node record: [`GridNode`] with a node grid, else [`TopNode`].
+fn node_bytes(grid_nodes: bool) -> u64 {
+    match grid_nodes {
+        true => size_of::<GridNode>() as u64,
+        false => size_of::<TopNode>() as u64,
+    }
+}
+
+/// The one-parent, depth and strip-count bookkeeping of [`Windows::validate_nodes`].
+struct TreeCheck<'a> {
+    opened: &'a ReducemFile,
+    node_bytes: u64,
+    depth: Vec<u8>,
+    /// Strips over all leaves so far.
+    leaf_strips: u64,
+}
+
+impl TreeCheck<'_> {
+    fn fail(&self, index: usize, field: u64, detail: String) -> FormatError {
+        self.opened.invalid(
+            "top_nodes",
+            self.opened.section_offset(SectionKind::TopNodes)
+                + index as u64 * self.node_bytes
+                + field,
+            format!("node {index}: {detail}"),
+        )
+    }
+
+    fn check<N: NodeRecord>(&mut self, index: usize, node: &N) -> Result<(), FormatError> {
+        if self.depth[index] == u8::MAX {
+            return Err(self.fail(index, 0, "has no parent".into()));
+        }
+        let occupied = node.occupied();
+        let empty_model = index == 0 && self.opened.header.strip_count == 0;
+        if occupied == 0 && !empty_model {
+            return Err(self.fail(index, N::KIND_FIELD, "has no children".into()));
+        }
+        for slot in 0..TOP_WIDTH {
+            self.check_slot(index, node, slot, slot >= occupied)?;
+        }
+        Ok(())
+    }
+
+    fn check_slot<N: NodeRecord>(
+        &mut self,
+        index: usize,
+        node: &N,
+        slot: usize,
+        empty: bool,
+    ) -> Result<(), FormatError> {
+        let child_field = N::CHILD_FIELD + N::LINK_STRIDE * slot as u64;
+        let kind_field = N::KIND_FIELD + N::LINK_STRIDE * slot as u64;
+        if empty {
+            if !node.is_exactly_empty(slot) {
+                let detail = format!(
+                    "slot {slot} follows an empty slot but is not the exact empty slot ({})",
+                    N::EMPTY_SLOT
+                );
+                return Err(self.fail(index, kind_field, detail));
+            }
+            return Ok(());
+        }
+        if let Some((axis, field)) = node.inverted_axis(slot) {
+            let detail = format!("slot {slot}: box minimum above its maximum on axis {axis}");
+            return Err(self.fail(index, field, detail));
+        }
+        match node.slot(slot) {
+            TopSlot::Internal(child) => self.adopt(index, slot, child as usize, child_field),
+            TopSlot::Leaf { first, count } => {
+                let strips = self.opened.header.strip_count;
+                let end = first as u64 + count as u64;
+                if end > strips {
+                    let detail = format!("slot {slot}: strips {first}..{end} outside 0..{strips}");
+                    return Err(self.fail(index, child_field, detail));
+                }
+                self.leaf_strips += count as u64;
+                Ok(())
+            }
+            TopSlot::Invalid(kind) => Err(self.fail(
+                index,
+                kind_field,
+                format!("slot {slot}: kind {kind:#x} is neither internal nor a strip count"),
+            )),
+            TopSlot::Empty => unreachable!("occupied slots come before the first empty one"),
+        }
+    }
+
+    /// Records node `child` as the child of node `index` in `slot`.
+    fn adopt(
+        &mut self,
+        index: usize,
+        slot: usize,
+        child: usize,
+        field: u64,
+    ) -> Result<(), FormatError> {
+        let nodes = self.depth.len();
+        if child <= index || child >= nodes {
+            let detail = format!("slot {slot}: child {child} outside {}..{nodes}", index + 1);
+            return Err(self.fail(index, field, detail));
+        }
+        let child_depth = self.depth[index] + 1;
+        if child_depth as usize > MAX_TOP_DEPTH {
+            return Err(self.fail(index, field, format!("deeper than {MAX_TOP_DEPTH} levels")));
+        }
+        if self.depth[child] != u8::MAX {
+            let detail = format!("slot {slot}: child {child} has a second parent");
+            return Err(self.fail(index, field, detail));
+        }
+        self.depth[child] = child_depth;
+        Ok(())
+    }
+
+    /// The leaves must hold as many strips as the file has: every strip is reachable.
+    fn finish(&self) -> Result<(), FormatError> {
+        let strips = self.opened.header.strip_count;
+        if self.leaf_strips != strips {
+            let detail = format!(
+                "leaves hold {} strips, the file has {strips}",
+                self.leaf_strips
+            );
+            return Err(self.fail(0, 0, detail));
+        }
+        Ok(())
+    }
+}
+
+/// A defect in a strip: the data-section offset where it is (if known) and what is wrong.
+type StripDefect = (Option<u64>, String);
+
+/// What a strip block's length depends on besides its record.
+struct BlockShape {
+    leaf_windows: usize,
+    layout: VertexLayout,
+}
+
+impl BlockShape {
+    /// Checks a record's counts and returns its kd-tree's internal node count.
+    fn nodes(&self, record: &StripRecord) -> Result<usize, StripDefect> {
+        let vertices = record.vertex_count as usize;
+        let references = record.reference_count as usize;
+        if !(3..=MAX_STRIP_VERTICES).contains(&vertices) || references < 3 {
+            return Err((
+                None,
+                format!("{vertices} vertices and {references} references"),
+            ));
+        }
+        let nodes = internal_nodes(references - 2, self.leaf_windows);
+        if 2 * nodes > vertices {
+            let detail = format!(
+                "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
+                2 * nodes
+            );
+            return Err((None, detail));
+        }
+        Ok(nodes)
+    }
+
+    /// Bytes of the block with vertices of `vertex_bytes`.
+    fn length(&self, record: &StripRecord, nodes: usize, vertex_bytes: usize) -> u64 {
+        let references = self.layout.reference_bytes(
+            record.reference_count as usize,
+            record.vertex_count as usize,
+        );
+        (vertex_bytes + axis_bytes(nodes) + references) as u64
+    }
+
+    /// A byte range of the strip-data section that holds the record's block: exact for f32
+    /// vertices; for grid vertices, whose length the block's own axis words give, the longest
+    /// the block could be, cut at the section end.
+    fn extent(&self, record: &StripRecord, data_len: u64) -> Result<Range<u64>, StripDefect> {
+        let nodes = self.nodes(record)?;
+        let count = record.vertex_count as usize;
+        let (shortest, longest) = match self.layout {
+            VertexLayout::F32 => {
+                let length = self.length(record, nodes, count * F32_VERTEX_BYTES);
+                (length, length)
+            }
+            VertexLayout::Grid { grid, packed } => {
+                let words_layout = VertexLayout::axis_words(&grid, packed);
+                let widest = [AxisWord {
+                    anchor: 0,
+                    width: grid.bits,
+                }; 3];
+                (
+                    self.length(record, nodes, words_layout.bits().div_ceil(8)),
+                    self.length(
+                        record,
+                        nodes,
+                        vertex_part_bytes(count, &widest, words_layout),
+                    ),
+                )
+            }
+        };
+        let start = record.data_word as u64 * 4;
+        if start + shortest > data_len {
+            return Err(past_the_end(start, shortest, data_len));
+        }
+        Ok(start..(start + longest).min(data_len))
+    }
+
+    /// Validates a strip's block inside `window` (which starts at `window_start` in the
+    /// section, and holds the block's [`BlockShape::extent`]); returns its real-triangle count.
+    fn check(
+        &self,
+        window: &[u8],
+        window_start: u64,
+        record: &StripRecord,
+        data_len: u64,
+    ) -> Result<u64, StripDefect> {
+        let nodes = self.nodes(record)?;
+        let start = record.data_word as u64 * 4;
+        let available = &window[(start - window_start) as usize..];
+        let vertex_bytes = match self.layout {
+            VertexLayout::F32 => record.vertex_count as usize * F32_VERTEX_BYTES,
+            VertexLayout::Grid { grid, packed } => {
+                let words_layout = VertexLayout::axis_words(&grid, packed);
+                let words = words_layout.read(available);
+                for (axis, word) in words.iter().enumerate() {
+                    let at = (axis * words_layout.bits() / 3 / 8) as u64;
+                    word.check(grid.bits)
+                        .map_err(|detail| (Some(start + at), detail))?;
+                }
+                vertex_part_bytes(record.vertex_count as usize, &words, words_layout)
+            }
+        };
+        let length = self.length(record, nodes, vertex_bytes);
+        if start + length > data_len {
+            return Err(past_the_end(start, length, data_len));
+        }
+        let local = StripRecord {
+            data_word: 0,
+            ..*record
+        };
+        let view = strip_view(
+            &available[..length as usize],
+            &local,
+            self.leaf_windows,
+            &self.layout,
+        );
+        check_view(&view, start + length, nodes)
+    }
+}
+
+fn past_the_end(start: u64, length: u64, data_len: u64) -> StripDefect {
+    let detail = format!("block of {length} bytes runs past the section end {data_len}");
+    (Some(start), detail)
+}
+
+/// Checks references and split axes of a block ending at section offset `block_end`; returns
+/// its real-triangle count.
+fn check_view(view: &StripView, block_end: u64, nodes: usize) -> Result<u64, StripDefect> {
+    let vertices = view.vertices.len();
+    let references = view.references.to_vec();
+    if let Some(position) = references.iter().position(|&r| r as usize >= vertices) {
+        let area_start = block_end - view.references.stored_bytes() as u64;
+        let offset = area_start + view.references.byte_of(position) as u64;
+        let detail = format!(
+            "reference {position} is {} out of range ({vertices} vertices)",
+            references[position]
+        );
+        return Err((Some(offset), detail));
+    }
+    if let Some(node) = (0..nodes).find(|&n| view.axis(n) > 2) {
+        let axes_start = block_end - (view.references.stored_bytes() + view.axes.len()) as u64;
+        return Err((Some(axes_start), format!("node {node} has split axis 3")));
+    }
+    Ok(crate::strip::triangles(&references).count() as u64)
+}
+
+/// Header and section-table checks, before anything else is trusted.
+struct Checker<'a> {
+    path: &'a Path,
+    /// The first page of the file (all of it when shorter).
+    head: &'a [u8],
+    file_len: u64,
+}
+
+impl Checker<'_> {
+    fn invalid(&self, section: &'static str, offset: u64, detail: String) -> FormatError {
+        FormatError::Invalid {
+            path: self.path.to_path_buf(),
+            section,
+            offset,
+            detail,
+        }
+    }
+
+    fn header(&self) -> Result<Header, FormatError> {
+        if self.file_len < HEADER_PAGE {
+            let detail = format!(
+                "file is {} bytes, the header page alone is {HEADER_PAGE}",
+                self.file_len
+            );
+            return Err(self.invalid("header", 0, detail));
+        }
+        let header: Header = bytemuck::pod_read_unaligned(&self.head[..size_of::<Header>()]);
+        if header.magic != MAGIC {
+            return Err(self.invalid("header", 0, "not a ReduceM file (bad magic)".into()));
+        }
+        if header.endian_marker != ENDIAN_MARKER {
+            let detail = format!(
+                "endianness marker {:#010x}: written on or read on a big-endian host",
+                header.endian_marker
+            );
+            return Err(self.invalid("header", 12, detail));
+        }
+        if header.version_major != VERSION_MAJOR {
+            let advice = if header.version_major < VERSION_MAJOR {
+                "an older format (version 1 had binary top-level nodes): convert the mesh again"
+            } else {
+                "a newer format: use a newer reducem"
+            };
+            let detail = format!(
+                "format version {}.{}, this reader reads {VERSION_MAJOR}.x; {advice}",
+                header.version_major, header.version_minor
+            );
+            return Err(self.invalid("header", 8, detail));
+        }
+        let checksum = xxhash_rust::xxh3::xxh3_64(&self.head[..HEADER_CHECKSUMMED_BYTES]);
+        if checksum != header.header_checksum || header.header_bytes as usize != size_of::<Header>()
+        {
+            return Err(self.invalid(
+                "header",
+                HEADER_CHECKSUMMED_BYTES as u64,
+                "header checksum mismatch".into(),
+            ));
+        }
+        if !(1..=255).contains(&header.leaf_windows) {
+            return Err(self.invalid(
+                "header",
+                24,
+                format!("leaf size {} outside 1..=255", header.leaf_windows),
+            ));
+        }
+        Ok(header)
+    }
+
+    /// The precision record of a format 2.1 file, checksum checked; zeros for 2.0.
+    fn precision(&self, header: &Header) -> Result<PrecisionRecord, FormatError> {
+        if header.version_minor == 0 {
+            return Ok(PrecisionRecord::default());
+        }
+        let bytes = &self.head[PRECISION_OFFSET..PRECISION_OFFSET + size_of::<PrecisionRecord>()];
+        let record: PrecisionRecord = bytemuck::pod_read_unaligned(bytes);
+        if record.computed_checksum() != record.checksum {
+            return Err(self.invalid(
+                "header",
+                (PRECISION_OFFSET + PRECISION_CHECKSUMMED_BYTES) as u64,
+                "precision record checksum mismatch".into(),
+            ));
+        }
+        Ok(record)
+    }
+
+    /// The vertex layout the header and precision record describe, checked: a grid has 1 to 24
+    /// bits, a power-of-two cell and finite corners, so that every grid point decodes to a
+    /// finite position; f32 vertices have no grid.
+    fn layout(
+        &self,
+        header: &Header,
+        precision: &PrecisionRecord,
+    ) -> Result<(VertexLayout, Option<NodeGrid>), FormatError> {
+        let at = |field: usize| (PRECISION_OFFSET + field) as u64;
+        let Some(encoding) = VertexEncoding::from_u32(header.vertex_encoding) else {
+            return Err(self.invalid(
+                "header",
+                20,
+                format!("unknown vertex encoding {}", header.vertex_encoding),
+            ));
+        };
+        if header.version_minor < encoding.minor() {
+            let detail = format!(
+                "vertex encoding {} needs format 2.{} or later",
+                header.vertex_encoding,
+                encoding.minor()
+            );
+            return Err(self.invalid("header", 20, detail));
+        }
+        if !encoding.has_grid_nodes() && precision.node_shift != 0 {
+            let detail = format!(
+                "node shift {} without grid top-level nodes",
+                precision.node_shift
+            );
+            return Err(self.invalid("header", at(4), detail));
+        }
+        match encoding {
+            VertexEncoding::F32 if precision.grid_bits != 0 => Err(self.invalid(
+                "header",
+                at(0),
+                format!("f32 vertices with a {}-bit grid", precision.grid_bits),
+            )),
+            VertexEncoding::F32 => Ok((VertexLayout::F32, None)),
+            VertexEncoding::F32GridNodes => {
+                Ok((VertexLayout::F32, Some(self.lossless_node_grid(precision)?)))
+            }
+            _ => {
+                let grid = precision.grid();
+                if !(1..=MAX_GRID_BITS).contains(&grid.bits) {
+                    let detail = format!("grid of {} bits outside 1..={MAX_GRID_BITS}", grid.bits);
+                    return Err(self.invalid("header", at(0), detail));
+                }
+                if !is_power_of_two(grid.cell) {
+                    let detail = format!("grid cell {} is not a power of two", grid.cell);
+                    return Err(self.invalid("header", at(20), detail));
+                }
+                let far = grid.far_corner();
+                if !grid.origin.iter().chain(&far).all(|c| c.is_finite()) {
+                    let detail = format!(
+                        "grid from {:?} in steps of {} is not finite",
+                        grid.origin, grid.cell
+                    );
+                    return Err(self.invalid("header", at(8), detail));
+                }
+                let node_grid = if encoding.has_grid_nodes() {
+                    let shift = precision.node_shift;
+                    let node_grid = NodeGrid::new(&grid, shift).ok_or_else(|| {
+                        let detail =
+                            format!("node grid of cell {} * 2^{shift} is not finite", grid.cell);
+                        self.invalid("header", at(4), detail)
+                    })?;
+                    Some(node_grid)
+                } else {
+                    None
+                };
+                let packed = encoding == VertexEncoding::GridPackedReferences;
+                let layout = VertexLayout::Grid { grid, packed };
+                Ok((layout, node_grid))
+            }
+        }
+    }
+
+    /// The node grid of a lossless file with grid nodes (vertex encoding 4): its origin and
+    /// cell in the precision record's grid fields, checked as a grid's, with no vertex grid
+    /// (`grid_bits` 0) and no shift.
+    fn lossless_node_grid(&self, precision: &PrecisionRecord) -> Result<NodeGrid, FormatError> {
+        let at = |field: usize| (PRECISION_OFFSET + field) as u64;
+        if precision.grid_bits != 0 {
+            let detail = format!("f32 vertices with a {}-bit grid", precision.grid_bits);
+            return Err(self.invalid("header", at(0), detail));
+        }
+        if precision.node_shift != 0 {
+            let detail = format!("node shift {} in a lossless file", precision.node_shift);
+            return Err(self.invalid("header", at(4), detail));
+        }
+        let base = Grid {
+            bits: 0,
+            origin: precision.grid_origin,
+            cell: precision.grid_cell,
+        };
+        if !is_power_of_two(base.cell) {
+            let detail = format!("node grid cell {} is not a power of two", base.cell);
+            return Err(self.invalid("header", at(20), detail));
+        }
+        NodeGrid::new(&base, 0)
+            .filter(|node| node.origin.iter().all(|c| c.is_finite()))
+            .ok_or_else(|| {
+                let detail = format!(
+                    "node grid from {:?} in steps of {} is not finite",
+                    base.origin, base.cell
+                );
+                self.invalid("header", at(8), detail)
+            })
+    }
+
+    /// The section ranges, checked; `node_bytes` is the top-level node record's size.
+    fn sections(&self, header: &Header, node_bytes: u64) -> Result<[Range<usize>; 3], FormatError> {
+        let mut previous_end = HEADER_PAGE;
+        let mut ranges = [0..0, 0..0, 0..0];
+        for (slot, kind) in SectionKind::ALL.into_iter().enumerate() {
+            let entry = &header.sections[slot];
+            let table_offset = 104 + slot as u64 * 32;
+            let end = entry.offset.saturating_add(entry.length);
+            let record = match kind {
+                SectionKind::TopNodes => node_bytes,
+                SectionKind::StripRecords => RECORD_BYTES,
+                SectionKind::StripData => 4,
+            };
+            let detail = if entry.kind != kind as u32 {
+                Some(format!(
+                    "section {slot} has kind {}, expected {}",
+                    entry.kind, kind as u32
+                ))
+            } else if !entry.offset.is_multiple_of(SECTION_ALIGN) || entry.offset < previous_end {
+                Some(format!(
+                    "{} offset {} is unaligned or overlaps",
+                    kind.name(),
+                    entry.offset
+                ))
+            } else if end > self.file_len {
+                Some(format!(
+                    "{} ends at {end}, past the file end {}",
+                    kind.name(),
+                    self.file_len
+                ))
+            } else if !entry.length.is_multiple_of(record)
+                || (kind == SectionKind::TopNodes && entry.length == 0)
+            {
+                Some(format!(
+                    "{} length {} is not a positive multiple of {record}",
+                    kind.name(),
+                    entry.length
+                ))
+            } else {
+                None
+            };
+            if let Some(detail) = detail {
+                return Err(self.invalid("section table", table_offset, detail));
+            }
+            ranges[slot] = entry.offset as usize..end as usize;
+            previous_end = end;
+        }
+        Ok(ranges)
+    }
+}
+
+/// Whether `cell` is a positive normal power of two (grid cells are, so that `q * cell` is
+/// exact).
+fn is_power_of_two(cell: f32) -> bool {
+    cell.is_normal() && cell > 0.0 && cell.to_bits() & 0x007f_ffff == 0
+}
