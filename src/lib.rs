@@ -9,7 +9,6 @@
 //! Read side: [`format::reader`] maps and validates a file. [`format`] depends on nothing from
 //! the build side.
 
-pub mod atomic;
 pub mod baseline;
 pub mod build;
 pub mod chunking;
@@ -17,18 +16,16 @@ pub mod decode;
 pub mod encode;
 pub mod format;
 pub mod gen;
-pub mod geometry;
 pub mod input;
 pub mod inspect;
-pub mod mapping;
 pub mod mesh;
 pub mod quantize;
 pub mod render;
 #[cfg(feature = "report")]
 pub mod report;
 pub mod splitmix;
-pub mod strip;
 pub mod stripify;
 pub mod toplevel;
-pub mod trace;
 pub mod workload;
+
+pub use reducem_core::{atomic, geometry, mapping, strip, trace};

@@ -32,7 +32,8 @@ impl ChunkStats {
 }
 
 /// What a tolerance weld did.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct WeldStats {
     /// 0 when only bit-identical positions were welded.
     pub tolerance: f32,

@@ -274,7 +274,7 @@ fn section_slot(kind: SectionKind) -> usize {
 
 /// Views a strip's block; the record has been validated by [`BlockShape::check`].
 #[inline]
-pub(crate) fn strip_view<'a>(
+pub fn strip_view<'a>(
     data: &'a [u8],
     record: &StripRecord,
     leaf_windows: usize,
