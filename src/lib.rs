@@ -9,6 +9,8 @@
 //! Read side: [`format::reader`] maps and validates a file. [`format`] depends on nothing from
 //! the build side.
 
+#![deny(unsafe_code)]
+
 pub mod baseline;
 pub mod build;
 pub mod chunking;

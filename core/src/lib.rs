@@ -7,6 +7,8 @@
 //! temporary-and-rename write the ray files use. Nothing here knows how a file is built: the
 //! `reducem` crate holds the build side and re-exports this crate under its own paths.
 
+#![deny(unsafe_code)]
+
 pub mod atomic;
 pub mod format;
 pub mod geometry;

@@ -19,6 +19,7 @@
 
 pub mod accuracy;
 #[cfg(feature = "embree")]
+#[allow(unsafe_code)]
 mod embree_peer;
 pub mod machine;
 pub mod markdown;
