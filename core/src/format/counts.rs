@@ -6,6 +6,7 @@ use crate::geometry::Displacement;
 
 /// Counts over one chunk; they add up over chunks.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct ChunkStats {
     pub triangles: u64,
     pub dropped_triangles: u64,
