@@ -80,7 +80,7 @@ impl BuildParams {
         }
         if !(1..=255).contains(&self.leaf_windows) {
             return Err(format!(
-                "strip leaf_triangles {} is outside 1..=255",
+                "strip leaf_windows {} is outside 1..=255",
                 self.leaf_windows
             ));
         }

@@ -26,6 +26,7 @@ pub fn fingerprint(job: &Job, chunked: &Chunked, chunk: usize) -> Fingerprint {
         .with("chunk_stage", &chunked.digest)
         .with("chunk", chunk)
         .with("strip.max_length", strip.max_length)
+        // Named before `[strip] leaf_windows` was; kept so existing work directories stay fresh.
         .with(
             "strip.leaf_triangles",
             job.config.build_params().leaf_windows,
