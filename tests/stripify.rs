@@ -12,7 +12,7 @@ use reducem::geometry::is_degenerate;
 use reducem::mesh::Mesh;
 use reducem::strip;
 use reducem::stripify::adjacency::{Adjacency, NO_NEIGHBOUR};
-use reducem::stripify::partition::Hierarchy;
+use reducem::stripify::partition::TriangleTree;
 use reducem::stripify::{stripify, Stripification, StripifyParams};
 
 // ---------------------------------------------------------------------------------------------
@@ -99,7 +99,7 @@ fn stripify_checked(mesh: &Mesh, params: &StripifyParams) -> Stripification {
         );
     }
     let adjacency = Adjacency::build(mesh);
-    Hierarchy::build(mesh, &adjacency.kept, params.sah_bins)
+    TriangleTree::build(mesh, &adjacency.kept, params.sah_bins)
         .validate()
         .unwrap();
     result
@@ -364,7 +364,7 @@ fn deterministic_across_runs_and_thread_counts() {
 fn hierarchy_validates_on_large_parallel_build() {
     let mesh = torus(200, 100);
     let adjacency = Adjacency::build(&mesh);
-    let hierarchy = with_threads(2, || Hierarchy::build(&mesh, &adjacency.kept, 16));
+    let hierarchy = with_threads(2, || TriangleTree::build(&mesh, &adjacency.kept, 16));
     hierarchy.validate().unwrap();
     assert_eq!(hierarchy.node_count(), 2 * mesh.triangles.len() - 1);
 }

@@ -78,7 +78,7 @@ impl Stripification {
 /// Deterministic: the same mesh and parameters give identical strips for any rayon thread count.
 pub fn stripify(mesh: &Mesh, params: &StripifyParams) -> Stripification {
     let adjacency = adjacency::Adjacency::build(mesh);
-    let hierarchy = partition::Hierarchy::build(mesh, &adjacency.kept, params.sah_bins);
+    let hierarchy = partition::TriangleTree::build(mesh, &adjacency.kept, params.sah_bins);
     let paths = ordering::order(&adjacency, &hierarchy, params.max_length);
     drop(hierarchy);
     Stripification {

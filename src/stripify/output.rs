@@ -140,7 +140,7 @@ impl StripWriter<'_> {
 mod tests {
     use super::*;
     use crate::stripify::ordering::{order, tests::random_grid};
-    use crate::stripify::partition::Hierarchy;
+    use crate::stripify::partition::TriangleTree;
 
     /// The path from `start` as a triangle list.
     fn walk(writer: &StripWriter, start: u32) -> Vec<u32> {
@@ -171,7 +171,7 @@ mod tests {
         for seed in 1..8 {
             let mesh = random_grid(30, seed);
             let adjacency = Adjacency::build(&mesh);
-            let hierarchy = Hierarchy::build(&mesh, &adjacency.kept, 8);
+            let hierarchy = TriangleTree::build(&mesh, &adjacency.kept, 8);
             let paths = order(&adjacency, &hierarchy, 60);
             let writer = StripWriter {
                 mesh: &mesh,
