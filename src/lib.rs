@@ -3,11 +3,12 @@
 //! Implements Lauterbach, Yoon, Tang and Manocha, "ReduceM: Interactive and Memory Efficient Ray
 //! Tracing of Large Models" (EGSR 2008). `docs/ARCHITECTURE.md` maps the paper's concepts to modules.
 //!
-//! Build side: [`input`] reads meshes, [`stripify`] is Strip-RT (paper 4.1), [`encode`] builds the
-//! per-strip implicit kd-trees (paper 3.2), [`toplevel`] the global hierarchy, [`build`] ties them
-//! together per chunk and lays the strips out for [`format::writer`], which writes the file.
-//! Read side: [`format::reader`] maps and validates a file. [`format`] depends on nothing from
-//! the build side.
+//! Build side: [`input`] reads meshes, [`stripify`] is Strip-RT (paper 4.1), [`strip_encoding`]
+//! builds the per-strip implicit kd-trees (paper 3.2), [`toplevel`] the global hierarchy,
+//! [`build`] ties them together per chunk and lays the strips out for [`format::writer`], which
+//! writes the file. Read side: the crate `reducem-core`, re-exported here as [`format`] (with
+//! [`format::reader`], which maps and validates a file), [`trace`], [`geometry`], [`strip`],
+//! [`mapping`] and [`atomic`]; it depends on nothing from the build side.
 
 #![deny(unsafe_code)]
 
@@ -15,7 +16,6 @@ pub mod baseline;
 pub mod build;
 pub mod chunking;
 pub mod decode;
-pub mod encode;
 pub mod format;
 pub mod gen;
 pub mod input;
@@ -26,6 +26,7 @@ pub mod render;
 #[cfg(feature = "report")]
 pub mod report;
 pub mod splitmix;
+pub mod strip_encoding;
 pub mod stripify;
 pub mod toplevel;
 pub mod workload;

@@ -5,10 +5,10 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use super::layout::{strip_records, ChunkLayout, DataWords};
-use crate::encode::EncodedStrip;
 use crate::format::grid::NodeGrid;
 use crate::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource, WriteError};
 use crate::format::{SectionKind, StripRecord};
+use crate::strip_encoding::EncodedStrip;
 use crate::toplevel::TopLevel;
 
 /// Writes `strips` (indexed by the top level's `strip_order`) as a ReduceM file at `path`.

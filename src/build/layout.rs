@@ -6,9 +6,9 @@
 use std::io;
 
 use super::strip_bounds;
-use crate::encode::EncodedStrip;
 use crate::format::{StripRecord, VERSION_MAJOR};
 use crate::geometry::Aabb;
+use crate::strip_encoding::EncodedStrip;
 use crate::toplevel::{self, TopLevel, TopLevelParams};
 
 /// A chunk laid out for a file: its own top level, and its strips' records in that top level's

@@ -12,7 +12,6 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use crate::encode::{encode_strip, split_strip, EncodedStrip, Positions};
 use crate::format::counts::WeldStats;
 use crate::format::grid::{Grid, MAX_GRID_BITS};
 use crate::format::writer::{FileInfo, WriteError};
@@ -20,6 +19,7 @@ use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 use crate::quantize::quantize_mesh;
 use crate::strip;
+use crate::strip_encoding::{encode_strip, split_strip, EncodedStrip, Positions};
 use crate::stripify::{stripify, Stripification, StripifyParams};
 use crate::toplevel::TopLevelParams;
 
