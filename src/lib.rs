@@ -7,7 +7,7 @@
 //! builds the per-strip implicit kd-trees (paper 3.2), [`toplevel`] the global hierarchy,
 //! [`build`] ties them together per chunk and lays the strips out for [`format::writer`], which
 //! writes the file. Read side: the crate `reducem-core`, re-exported here as [`format`] (with
-//! [`format::reader`], which maps and validates a file), [`trace`], [`geometry`], [`strip`],
+//! [`format::reader`], which maps and validates a file), [`trace`], [`geometry`], [`strip_windows`],
 //! [`mapping`] and [`atomic`]; it depends on nothing from the build side.
 
 #![deny(unsafe_code)]
@@ -31,4 +31,4 @@ pub mod stripify;
 pub mod toplevel;
 pub mod workload;
 
-pub use reducem_core::{atomic, geometry, mapping, strip, trace};
+pub use reducem_core::{atomic, geometry, mapping, strip_windows, trace};

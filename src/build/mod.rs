@@ -18,8 +18,8 @@ use crate::format::writer::{FileInfo, WriteError};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 use crate::quantize::quantize_mesh;
-use crate::strip;
 use crate::strip_encoding::{encode_strip, split_strip, EncodedStrip, Positions};
+use crate::strip_windows;
 use crate::stripify::{stripify, Stripification, StripifyParams};
 use crate::toplevel::TopLevelParams;
 
@@ -176,7 +176,7 @@ fn encode_strips(
         stats.hierarchy_vertices += s.hierarchy_copies as u64;
     }
     for references in &stripification.strips {
-        let length = strip::triangles(references).count() as u64;
+        let length = strip_windows::triangles(references).count() as u64;
         stats.triangles += length;
         stats.max_strip_length = stats.max_strip_length.max(length);
     }

@@ -21,7 +21,7 @@
 //! swaps between interior triangles.
 //!
 //! Winding needs no bookkeeping: adjacency only links neighbours that traverse their shared
-//! edge in opposite directions, and under the parity rule of [`crate::strip`] a new triangle
+//! edge in opposite directions, and under the parity rule of [`crate::strip_windows`] a new triangle
 //! entering through the oppositely traversed edge decodes in its input winding, with or without
 //! a swap (the swap shifts the window parity and reverses the edge at the same time).
 //!
@@ -182,7 +182,7 @@ mod tests {
             for end in (0..adjacency.kept.len() as u32).filter(|&t| paths.is_end(t)) {
                 let start = writer.start_of(end);
                 let strip = writer.strip_from(start);
-                let real = crate::strip::triangles(&strip).count();
+                let real = crate::strip_windows::triangles(&strip).count();
                 let path = walk(&writer, start);
                 assert_eq!(strip.len() - 2 - real, predicted_swaps(&adjacency, &path));
                 swaps += strip.len() - 2 - real;

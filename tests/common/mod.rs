@@ -14,8 +14,8 @@ use reducem::geometry::{is_degenerate, Aabb, Point};
 use reducem::mesh::Mesh;
 use reducem::quantize::quantize_mesh;
 pub use reducem::splitmix::SplitMix64;
-use reducem::strip;
 use reducem::strip_encoding::{encode_strip, split_strip, EncodedStrip, Positions};
+use reducem::strip_windows;
 use reducem::toplevel::{self, TopLevelParams};
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
 use reducem::trace::{Hit, Ray, TraceOptions, Tracer};
@@ -268,7 +268,9 @@ pub fn write_positioned_strips(
             }
         }
     }
-    let triangles = strips.iter().map(|s| strip::triangles(s).count() as u64);
+    let triangles = strips
+        .iter()
+        .map(|s| strip_windows::triangles(s).count() as u64);
     write_encoded_strips(&encoded, grid, triangles.sum(), leaf_windows, path);
 }
 

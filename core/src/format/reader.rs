@@ -158,12 +158,13 @@ impl StripView<'_> {
     pub fn window_points(&self, k: usize) -> Option<[Point; 3]> {
         let mut corners = [0u8; 3];
         self.references.read_into(k, &mut corners);
-        crate::strip::window_corners(corners, k).map(|t| t.map(|r| self.vertices.point(r as usize)))
+        crate::strip_windows::window_corners(corners, k)
+            .map(|t| t.map(|r| self.vertices.point(r as usize)))
     }
 
     /// The real triangles' references in strip order and input winding.
     pub fn triangles(&self) -> Vec<[u8; 3]> {
-        crate::strip::triangles(&self.references.to_vec()).collect()
+        crate::strip_windows::triangles(&self.references.to_vec()).collect()
     }
 }
 

@@ -16,8 +16,8 @@
 //!   result does not depend on visiting order, packet width or thread count. Packets run the
 //!   same per-ray arithmetic as single rays and give bit-identical hits.
 //!
-//! This module is read side only: it uses `format`, `geometry` and `strip`, nothing from the
-//! build side or the pipeline.
+//! This module is read side only: it uses `format`, `geometry` and `strip_windows`, nothing
+//! from the build side or the pipeline.
 
 pub mod packet;
 pub mod prepared;

@@ -26,6 +26,6 @@ pub struct Hit {
     pub normal: Point,
     /// File position of the strip.
     pub strip: u32,
-    /// Window of the strip (its triangle is decoded by [`crate::strip::window_triangle`]).
+    /// Window of the strip (its triangle is decoded by [`crate::strip_windows::window_triangle`]).
     pub window: u16,
 }

@@ -486,7 +486,7 @@ fn check_view(view: &StripView, block_end: u64, nodes: usize) -> Result<u64, Str
         let axes_start = block_end - (view.references.stored_bytes() + view.axes.len()) as u64;
         return Err((Some(axes_start), format!("node {node} has split axis 3")));
     }
-    Ok(crate::strip::triangles(&references).count() as u64)
+    Ok(crate::strip_windows::triangles(&references).count() as u64)
 }
 
 /// Header and section-table checks, before anything else is trusted.
