@@ -1,12 +1,12 @@
 //! Opens a ReduceM file by mapping it and validating it once, and views it in place.
 //!
 //! Opening is cheap (one linear pass over records, references and nodes, no copy of the
-//! geometry) and strict: every offset, count, index and child link is checked ([`validate`]),
-//! and a short or inconsistent file is an error, never a default. After a successful open,
-//! traversal can index the mapping through the views here ([`ReducemFile::strip`],
-//! [`ReducemFile::top_nodes`]) without further checks and cannot read out of bounds, even on a
-//! crafted file. Checksums are verified only on request ([`ReducemFile::verify_checksums`]),
-//! since hashing pages in the whole file.
+//! geometry) and strict: every offset, count, index and child link is checked
+//! (`reader/validate.rs`), and a short or inconsistent file is an error, never a default. After a
+//! successful open, traversal can index the mapping through the views here
+//! ([`ReducemFile::strip`], [`ReducemFile::top_nodes`]) without further checks and cannot read
+//! out of bounds, even on a crafted file. Checksums are verified only on request
+//! ([`ReducemFile::verify_checksums`]), since hashing pages in the whole file.
 //!
 //! This module is the read side: it depends on the format definitions only, never on the build
 //! side, the pipeline, PLY input, progress or channel code.
@@ -273,7 +273,9 @@ fn section_slot(kind: SectionKind) -> usize {
     kind as usize - 1
 }
 
-/// Views a strip's block; the record has been validated by [`BlockShape::check`].
+/// Views a strip's block. The record must be one an opened [`ReducemFile`] holds (validated at
+/// open by `BlockShape::check` in `reader/validate.rs`) or describe a block the build side just
+/// encoded; any other record may panic on a slice bound.
 #[inline]
 pub fn strip_view<'a>(
     data: &'a [u8],
