@@ -125,6 +125,7 @@ fn main() -> anyhow::Result<()> {
         args.ao_samples,
         args.runs
     );
+    println!("  model: {}", model.display());
     let rays = RaySet::new(&file, args.size, args.ao_samples);
     println!(
         "  {} primary rays, {} AO rays",
@@ -141,23 +142,25 @@ fn main() -> anyhow::Result<()> {
     }
 
     let mut answers = Answers::new();
-    for packets in [true, false] {
-        let tracer = Tracer::new(
-            &file,
-            TraceOptions {
-                packets,
-                subtree_windows: args.subtree_windows,
-                kernel: Kernel::from_env()?,
-            },
-        );
-        let name = if packets { "packets" } else { "single" };
-        run_engine(
-            &format!("reducem ({name})"),
-            &ReduceM(tracer),
-            &rays,
-            &args,
-            &mut answers,
-        );
+    for kernel in kernels()? {
+        for packets in [true, false] {
+            let tracer = Tracer::new(
+                &file,
+                TraceOptions {
+                    packets,
+                    subtree_windows: args.subtree_windows,
+                    kernel,
+                },
+            );
+            let name = if packets { "packets" } else { "single" };
+            run_engine(
+                &format!("reducem {kernel} {name}"),
+                &ReduceM(tracer),
+                &rays,
+                &args,
+                &mut answers,
+            );
+        }
     }
     let memory = residency::measure(&model, file.file_bytes());
     println!(
@@ -203,6 +206,14 @@ fn main() -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The kernel `REDUCEM_KERNEL` names, else every kernel this CPU runs.
+fn kernels() -> anyhow::Result<Vec<Kernel>> {
+    if std::env::var_os(reducem::trace::kernel::KERNEL_VARIABLE).is_some() {
+        return Ok(vec![Kernel::from_env()?]);
+    }
+    Ok(Kernel::supported())
+}
+
 fn mib(bytes: u64) -> f64 {
     bytes as f64 / (1024.0 * 1024.0)
 }
@@ -223,7 +234,7 @@ fn run_engine(name: &str, engine: &dyn Engine, rays: &RaySet, args: &Args, answe
         let (primary_seconds, hits) = trace(&rays.primary, &|c| engine.count_hits(c));
         let (ao_seconds, occluded) = trace(&rays.ambient_occlusion, &|c| engine.count_occluded(c));
         println!(
-            "  {name:<20} {threads} thread(s): primary {:>7.2} Mrays/s ({hits} hits), AO {:>7.2} Mrays/s ({occluded} occluded)",
+            "  {name:<22} {threads} thread(s): primary {:>7.2} Mrays/s ({hits} hits), AO {:>7.2} Mrays/s ({occluded} occluded)",
             rays.primary.len() as f64 / primary_seconds / 1e6,
             rays.ambient_occlusion.len() as f64 / ao_seconds / 1e6,
         );

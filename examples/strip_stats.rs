@@ -75,7 +75,7 @@ fn main() {
     let windows: usize = result
         .strips
         .iter()
-        .map(|s| reducem::strip::window_count(s.len()))
+        .map(|s| reducem::strip_windows::window_count(s.len()))
         .sum();
     println!(
         "{kind} {real} triangles: {} strips, average length {:.2}, windows/triangle {:.4}, \

@@ -10,7 +10,7 @@
 #   scripts/bench_quantized.sh                         # scan at 10M triangles
 #   TRIANGLES=1000000 scripts/bench_quantized.sh       # another size
 #   BITS="12 16 20 24" PASSES=1 scripts/bench_quantized.sh
-#   EXTRA_TOML=$'[strip]\nleaf_triangles = 2' ...      # appended to every job's config
+#   EXTRA_TOML=$'[strip]\nleaf_windows = 2' ...      # appended to every job's config
 #
 # The input PLY is shared with the other benchmarks in $BENCH_DIR (default /tmp/reducem-bench);
 # converted files and work directories go to $BENCH_DIR/quantized.

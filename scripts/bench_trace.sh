@@ -1,14 +1,23 @@
 #!/usr/bin/env bash
 # Tracing benchmark (not a test): ReduceM vs the in-project SAH BVH baseline and, when Debian's
 # libembree-dev (Embree 3) is installed, Embree through the `embree` cargo feature, on the same
-# rays. Prints Mrays/s for primary rays and 16-sample AO at 1024x1024 on 1 and 2 threads (median
-# of 3 runs) and memory, then ReduceM alone on the speed setting (`[strip] max_length =
-# FAST_LENGTH`, default 16: shorter strips, more bytes). Meshes and converted files are cached in
-# /tmp/reducem-bench.
+# rays. Meshes, converted files and ray files are cached in /tmp/reducem-bench.
+#
+# Per model size it prints:
+#   * trace only: Mrays/s for primary rays and 16-sample AO at 1024x1024 on 1 and 2 threads
+#     (median of 3 runs), ReduceM once per tracer kernel this CPU runs (sse2, avx2), the
+#     baseline and Embree, and memory; the default conversion settings (the pipeline's);
+#   * the same for ReduceM alone on the speed setting (`[strip] max_length = FAST_LENGTH`,
+#     default 16: shorter strips, more bytes);
+#   * whole process: `reducem query` on the same rays as ray files (open, read, trace, write),
+#     median wall time of 3 runs per thread count, as Mrays/s: compare with Embree's trace-only
+#     figure above, which is what a batch job would pay on top of reading and building;
+#   * with CALLGRIND=1: instructions per AO ray (callgrind, the first 100k AO rays, 1 thread,
+#     per kernel; the tracer's inclusive count divided by the rays).
 #
 #   scripts/bench_trace.sh                      # scan at 1M and 10M triangles
 #   TRIANGLES=1000000 scripts/bench_trace.sh    # one size
-#   scripts/bench_trace.sh --runs 5 --size 512  # extra arguments go to the benchmark
+#   scripts/bench_trace.sh --runs 5 --size 512  # extra arguments go to the trace-only benchmark
 set -euo pipefail
 cd "$(dirname "$0")/.."
 features=()
@@ -20,10 +29,69 @@ else
     echo "libembree-dev not found (apt-get install -y libembree-dev): benchmarking without Embree"
 fi
 cargo build --release --example bench_trace "${features[@]}"
+cargo build --release --bin reducem
+bench=target/release/examples/bench_trace
+reducem=target/release/reducem
+dir=/tmp/reducem-bench
+
+# Median wall seconds of three runs of the command.
+median_seconds() {
+    local times=()
+    for _ in 1 2 3; do
+        local start end
+        start=$(date +%s.%N)
+        "$@" > /dev/null
+        end=$(date +%s.%N)
+        times+=("$(awk "BEGIN { print $end - $start }")")
+    done
+    printf '%s\n' "${times[@]}" | sort -g | sed -n 2p
+}
+
+# `reducem query` on the ray files of `rays_dir` against `model`, per thread count.
+whole_process() {
+    local model=$1 rays_dir=$2
+    local primary_rays ao_rays
+    primary_rays=$(($(stat -c %s "$rays_dir/primary.rays") / 32))
+    ao_rays=$(($(stat -c %s "$rays_dir/ao.rays") / 32))
+    for threads in 1 2; do
+        local primary ao
+        primary=$(RAYON_NUM_THREADS=$threads median_seconds \
+            "$reducem" query "$model" --rays "$rays_dir/primary.rays" -o "$rays_dir/primary.hits")
+        ao=$(RAYON_NUM_THREADS=$threads median_seconds \
+            "$reducem" query "$model" --rays "$rays_dir/ao.rays" -o "$rays_dir/ao.occluded" --occluded)
+        awk -v t="$threads" -v pr="$primary_rays" -v p="$primary" -v ar="$ao_rays" -v a="$ao" \
+            'BEGIN { printf "  reducem query (whole process) %s thread(s): primary %7.2f Mrays/s (%.3f s), AO %7.2f Mrays/s (%.3f s)\n", t, pr / p / 1e6, p, ar / a / 1e6, a }'
+    done
+}
+
+# Instructions per AO ray under callgrind, per kernel.
+instructions_per_ao_ray() {
+    local model=$1 rays_dir=$2
+    head -c 3200000 "$rays_dir/ao.rays" > "$rays_dir/ao-100k.rays"
+    for kernel in sse2 avx2; do
+        local out="$rays_dir/callgrind.$kernel"
+        if ! REDUCEM_KERNEL=$kernel RAYON_NUM_THREADS=1 valgrind --tool=callgrind \
+            --callgrind-out-file="$out" "$reducem" query "$model" --rays "$rays_dir/ao-100k.rays" \
+            -o "$rays_dir/ao-100k.occluded" --occluded > /dev/null 2>&1; then
+            echo "  $kernel: not run (unsupported here, or valgrind missing)"
+            continue
+        fi
+        local traced
+        traced=$(callgrind_annotate --inclusive=yes "$out" | grep 'Tracer::occluded_chunk \[' |
+            awk '{gsub(",", "", $1); print $1}')
+        echo "  instructions per AO ray ($kernel, callgrind, 100k rays): $((traced / 100000))"
+    done
+}
+
 for triangles in ${TRIANGLES:-1000000 10000000}; do
-    cargo run --quiet --release --example bench_trace "${features[@]}" -- \
-        --kind scan --triangles "$triangles" "$@"
-    cargo run --quiet --release --example bench_trace "${features[@]}" -- \
-        --kind scan --triangles "$triangles" --reducem-only \
+    rays_dir="$dir/rays-scan-$triangles"
+    log="$dir/bench-scan-$triangles.log"
+    "$bench" --kind scan --triangles "$triangles" --write-rays "$rays_dir" "$@" | tee "$log"
+    "$bench" --kind scan --triangles "$triangles" --reducem-only \
         --max-strip-length "${FAST_LENGTH:-16}" "$@"
+    model=$(sed -n 's/^  model: //p' "$log")
+    whole_process "$model" "$rays_dir"
+    if [[ ${CALLGRIND-} == 1 ]]; then
+        instructions_per_ao_ray "$model" "$rays_dir"
+    fi
 done

@@ -3,31 +3,33 @@
 //! Implements Lauterbach, Yoon, Tang and Manocha, "ReduceM: Interactive and Memory Efficient Ray
 //! Tracing of Large Models" (EGSR 2008). `docs/ARCHITECTURE.md` maps the paper's concepts to modules.
 //!
-//! Build side: [`input`] reads meshes, [`stripify`] is Strip-RT (paper 4.1), [`encode`] builds the
-//! per-strip implicit kd-trees (paper 3.2), [`toplevel`] the global hierarchy, [`build`] ties them
-//! together per chunk and [`format::writer`] writes the file. Read side: [`format::reader`] maps
-//! and validates a file; it depends on nothing from the build side.
+//! Build side: [`input`] reads meshes, [`stripify`] is Strip-RT (paper 4.1), [`strip_encoding`]
+//! builds the per-strip implicit kd-trees (paper 3.2), [`toplevel`] the global hierarchy,
+//! [`build`] ties them together per chunk and lays the strips out for [`format::writer`], which
+//! writes the file. Read side: the crate `reducem-core`, re-exported here as
+//! [`format`](mod@format) (with [`format::reader`], which maps and validates a file), [`trace`],
+//! [`geometry`], [`strip_windows`], [`mapping`] and [`atomic`]; it depends on nothing from the
+//! build side.
 
-pub mod atomic;
+#![deny(unsafe_code)]
+
 pub mod baseline;
 pub mod build;
 pub mod chunking;
 pub mod decode;
-pub mod encode;
 pub mod format;
 pub mod gen;
-pub mod geometry;
 pub mod input;
 pub mod inspect;
-pub mod mapping;
 pub mod mesh;
 pub mod quantize;
 pub mod render;
 #[cfg(feature = "report")]
 pub mod report;
 pub mod splitmix;
-pub mod strip;
+pub mod strip_encoding;
 pub mod stripify;
 pub mod toplevel;
-pub mod trace;
 pub mod workload;
+
+pub use reducem_core::{atomic, geometry, mapping, strip_windows, trace};

@@ -8,13 +8,13 @@ use common::*;
 use reducem::build::{convert_mesh, encode_chunk, encode_chunk_on, BuildParams};
 use reducem::chunking::local_mesh;
 use reducem::decode;
-use reducem::encode::{self, EncodedStrip};
 use reducem::format::grid::Grid;
 use reducem::format::reader::{ReducemFile, VertexLayout};
 use reducem::geometry::{distance, Point};
 use reducem::input::weld_within_tolerance;
 use reducem::inspect::file_stats;
 use reducem::mesh::Mesh;
+use reducem::strip_encoding::{self, EncodedStrip};
 use reducem::trace::{Ray, TraceOptions, Tracer};
 
 fn grid_params(bits: u32, leaf_windows: usize) -> BuildParams {
@@ -38,7 +38,7 @@ fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usiz
     let chunk = encode_chunk(mesh, &params);
     let layout = chunk.grid.into();
     for (i, strip) in chunk.strips.iter().enumerate() {
-        encode::validate(strip, leaf_windows, &layout)
+        strip_encoding::validate(strip, leaf_windows, &layout)
             .unwrap_or_else(|e| panic!("{name} at {bits} bits: strip {i}: {e}"));
     }
     let file = convert_on_grid(mesh, &params, &format!("{name}-{bits}-{leaf_windows}.rdm"));

@@ -14,7 +14,7 @@ use reducem::format::reader::ReducemFile;
 use reducem::mesh::Mesh;
 use reducem::report::stripifier::{limit_length, meshopt_stripification};
 use reducem::report::{self, memory, sweeps, ReportConfig, ReportData, Scale, Written};
-use reducem::{decode, strip};
+use reducem::{decode, strip_windows};
 
 /// One tiny run shared by the tests that read its output.
 fn tiny_report() -> &'static (ReportData, Written) {
@@ -206,7 +206,7 @@ fn assert_meshopt_round_trip(name: &str, mesh: &Mesh, max_length: usize) {
     let stripification = meshopt_stripification(mesh, max_length);
     for s in &stripification.strips {
         assert!(
-            strip::triangles(s).count() <= max_length,
+            strip_windows::triangles(s).count() <= max_length,
             "{name}: strip too long"
         );
     }
@@ -241,13 +241,16 @@ fn meshopt_strips_round_trip_losslessly() {
 fn length_limit_keeps_every_windows_winding() {
     // Windows 1 and 2 are swaps, the others real triangles.
     let strip = [0, 1, 2, 2, 3, 4, 5, 6];
-    let original: Vec<_> = strip::triangles(&strip).collect();
+    let original: Vec<_> = strip_windows::triangles(&strip).collect();
     for max_length in 1..=6 {
         let pieces = limit_length(&strip, max_length);
-        let rejoined: Vec<_> = pieces.iter().flat_map(|p| strip::triangles(p)).collect();
+        let rejoined: Vec<_> = pieces
+            .iter()
+            .flat_map(|p| strip_windows::triangles(p))
+            .collect();
         assert_eq!(rejoined, original, "max_length {max_length}");
         assert!(pieces
             .iter()
-            .all(|p| strip::triangles(p).count() <= max_length));
+            .all(|p| strip_windows::triangles(p).count() <= max_length));
     }
 }

@@ -7,12 +7,12 @@ use common::{canonical_sorted, expected_triangles, grid, temp_path, torus};
 use reducem::build::{convert_mesh, encode_chunk, strip_bounds, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::mesh::Mesh;
-use reducem::{decode, encode, toplevel};
+use reducem::{decode, strip_encoding, toplevel};
 
 fn assert_round_trip(name: &str, mesh: &Mesh, params: &BuildParams) {
     let chunk = encode_chunk(mesh, params);
     for (i, strip) in chunk.strips.iter().enumerate() {
-        encode::validate(strip, params.leaf_windows, &chunk.grid.into())
+        strip_encoding::validate(strip, params.leaf_windows, &chunk.grid.into())
             .unwrap_or_else(|e| panic!("{name}: strip {i}: {e}"));
     }
     let bounds = strip_bounds(&chunk.strips);

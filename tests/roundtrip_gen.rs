@@ -8,7 +8,7 @@ use reducem::build::{convert_mesh, encode_chunk, strip_bounds, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::gen::{generate, Kind};
 use reducem::input::read_mesh;
-use reducem::{decode, encode, toplevel};
+use reducem::{decode, strip_encoding, toplevel};
 
 fn round_trip(kind: Kind, triangles: u64, params: &BuildParams) {
     let name = format!("{kind:?}-{triangles}-{}", params.leaf_windows);
@@ -17,7 +17,7 @@ fn round_trip(kind: Kind, triangles: u64, params: &BuildParams) {
     let mesh = read_mesh(&ply).expect("read");
     let chunk = encode_chunk(&mesh, params);
     for (i, strip) in chunk.strips.iter().enumerate() {
-        encode::validate(strip, params.leaf_windows, &chunk.grid.into())
+        strip_encoding::validate(strip, params.leaf_windows, &chunk.grid.into())
             .unwrap_or_else(|e| panic!("{name}: strip {i}: {e}"));
     }
     let bounds = strip_bounds(&chunk.strips);

@@ -10,9 +10,9 @@ use common::{grid, icosphere, torus};
 use proptest::prelude::*;
 use reducem::geometry::is_degenerate;
 use reducem::mesh::Mesh;
-use reducem::strip;
+use reducem::strip_windows;
 use reducem::stripify::adjacency::{Adjacency, NO_NEIGHBOUR};
-use reducem::stripify::partition::Hierarchy;
+use reducem::stripify::partition::TriangleTree;
 use reducem::stripify::{stripify, Stripification, StripifyParams};
 
 // ---------------------------------------------------------------------------------------------
@@ -79,7 +79,12 @@ fn sorted_canonical(triangles: impl Iterator<Item = [u32; 3]>) -> Vec<[u32; 3]> 
 fn stripify_checked(mesh: &Mesh, params: &StripifyParams) -> Stripification {
     let result = stripify(mesh, params);
     let expected = sorted_canonical(mesh.triangles.iter().copied().filter(|&t| is_kept(mesh, t)));
-    let produced = sorted_canonical(result.strips.iter().flat_map(|s| strip::triangles(s)));
+    let produced = sorted_canonical(
+        result
+            .strips
+            .iter()
+            .flat_map(|s| strip_windows::triangles(s)),
+    );
     assert_eq!(
         produced, expected,
         "strips must hold exactly the kept triangles, winding kept"
@@ -88,7 +93,7 @@ fn stripify_checked(mesh: &Mesh, params: &StripifyParams) -> Stripification {
     assert_eq!(result.dropped_triangles, dropped as u64);
     let max_length = params.max_length.max(1);
     for s in &result.strips {
-        let real = strip::triangles(s).count();
+        let real = strip_windows::triangles(s).count();
         assert!(
             (1..=max_length).contains(&real),
             "strip with {real} triangles, max {max_length}"
@@ -99,7 +104,7 @@ fn stripify_checked(mesh: &Mesh, params: &StripifyParams) -> Stripification {
         );
     }
     let adjacency = Adjacency::build(mesh);
-    Hierarchy::build(mesh, &adjacency.kept, params.sah_bins)
+    TriangleTree::build(mesh, &adjacency.kept, params.sah_bins)
         .validate()
         .unwrap();
     result
@@ -364,7 +369,7 @@ fn deterministic_across_runs_and_thread_counts() {
 fn hierarchy_validates_on_large_parallel_build() {
     let mesh = torus(200, 100);
     let adjacency = Adjacency::build(&mesh);
-    let hierarchy = with_threads(2, || Hierarchy::build(&mesh, &adjacency.kept, 16));
+    let hierarchy = with_threads(2, || TriangleTree::build(&mesh, &adjacency.kept, 16));
     hierarchy.validate().unwrap();
     assert_eq!(hierarchy.node_count(), 2 * mesh.triangles.len() - 1);
 }
@@ -446,7 +451,7 @@ fn swaps_per_triangle(result: &Stripification) -> f64 {
     let windows: usize = result
         .strips
         .iter()
-        .map(|s| strip::window_count(s.len()))
+        .map(|s| strip_windows::window_count(s.len()))
         .sum();
     let real = result.triangle_count();
     (windows - real) as f64 / real as f64

@@ -5,9 +5,10 @@
 mod common;
 
 use common::*;
+use reducem::build::write_file;
 use reducem::build::{encode_chunk, strip_bounds, BuildParams, EncodedChunk};
 use reducem::format::reader::ReducemFile;
-use reducem::format::writer::{write_file, FileInfo};
+use reducem::format::writer::FileInfo;
 use reducem::format::{TopNode, INTERNAL_CHILD, MAX_TOP_DEPTH};
 use reducem::geometry::Aabb;
 use reducem::stripify::StripifyParams;

@@ -103,7 +103,22 @@ impl StripChunkHeader {
         }
     }
 
-    pub fn quantization(&self) -> Displacement {
+    /// The chunk's counts, as [`StripChunkHeader::new`] stored them.
+    pub fn chunk_stats(&self) -> ChunkStats {
+        let [triangles, dropped_triangles, input_vertices, stored_vertices, hierarchy_vertices, max_strip_length] =
+            self.stats;
+        ChunkStats {
+            triangles,
+            dropped_triangles,
+            input_vertices,
+            stored_vertices,
+            hierarchy_vertices,
+            max_strip_length,
+            quantization: self.quantization(),
+        }
+    }
+
+    fn quantization(&self) -> Displacement {
         Displacement {
             count: self.error_count,
             max: self.error[0],

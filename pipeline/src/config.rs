@@ -76,8 +76,11 @@ impl Default for ChunkConfig {
 pub struct StripConfig {
     /// Default [`reducem::build::PIPELINE_MAX_STRIP_LENGTH`] (20; the paper's is 60).
     pub max_length: usize,
-    /// Default [`reducem::build::PIPELINE_LEAF_WINDOWS`] (8; the paper's is 2).
-    pub leaf_triangles: Option<usize>,
+    /// Strip kd-tree leaf size in windows, as the file header and the library name it. Default
+    /// [`reducem::build::PIPELINE_LEAF_WINDOWS`] (8; the paper's is 2). Configs written before
+    /// the rename say `leaf_triangles`, which is still accepted.
+    #[serde(alias = "leaf_triangles")]
+    pub leaf_windows: Option<usize>,
     pub sah_bins: usize,
     /// Lossless files: store the top-level nodes as 64-byte grid nodes (format 2.4) instead of
     /// 128-byte f32 records: 1 to 2 bytes less per triangle, about 12% slower AO rays (each
@@ -89,7 +92,7 @@ impl Default for StripConfig {
     fn default() -> Self {
         StripConfig {
             max_length: reducem::build::PIPELINE_MAX_STRIP_LENGTH,
-            leaf_triangles: None,
+            leaf_windows: None,
             sah_bins: 16,
             grid_nodes: false,
         }
@@ -222,7 +225,7 @@ impl Config {
         let mut params = reducem::build::BuildParams {
             leaf_windows: self
                 .strip
-                .leaf_triangles
+                .leaf_windows
                 .unwrap_or(reducem::build::PIPELINE_LEAF_WINDOWS),
             grid_bits: grid.then_some(self.vertices.grid_bits),
             ..Default::default()

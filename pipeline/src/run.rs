@@ -8,7 +8,6 @@
 //! it exclusively.
 
 use std::path::Path;
-use std::str::FromStr;
 use std::time::Instant;
 
 use anyhow::Context;
@@ -21,6 +20,7 @@ use crate::stage::chunk::Chunked;
 use crate::stage::hierarchy::Hierarchy;
 use crate::stage::merge::Merged;
 use crate::stage::{chunk, hierarchy, merge, strip, write, Job};
+pub use crate::stage::{Shard, StageName, UpstreamPending};
 use crate::workdir::WorkDir;
 
 /// What to do when another run holds the work directory.
@@ -30,57 +30,6 @@ pub enum IfLocked {
     Fail,
     /// Exit at once with code 0 (for cron jobs that overlap by design).
     Skip,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
-pub enum StageName {
-    Chunk,
-    Strip,
-    Merge,
-    Hierarchy,
-    Write,
-}
-
-/// Shard `index` of `count`: the strip stage's chunks `c` with `c % count == index`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Shard {
-    pub index: usize,
-    pub count: usize,
-}
-
-impl Shard {
-    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
-
-    /// From `SLURM_ARRAY_TASK_ID` and `SLURM_ARRAY_TASK_COUNT` when both are set.
-    pub fn from_slurm_env() -> anyhow::Result<Shard> {
-        match (
-            std::env::var("SLURM_ARRAY_TASK_ID"),
-            std::env::var("SLURM_ARRAY_TASK_COUNT"),
-        ) {
-            (Ok(index), Ok(count)) => format!("{index}/{count}").parse().map_err(|e: String| {
-                anyhow::anyhow!("SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT: {e}")
-            }),
-            _ => Ok(Shard::WHOLE),
-        }
-    }
-
-    pub fn owns(&self, chunk: usize) -> bool {
-        chunk % self.count == self.index
-    }
-}
-
-impl FromStr for Shard {
-    type Err = String;
-
-    fn from_str(text: &str) -> Result<Shard, String> {
-        let parsed = text
-            .split_once('/')
-            .and_then(|(i, n)| Some((i.trim().parse().ok()?, n.trim().parse().ok()?)));
-        match parsed {
-            Some((index, count)) if index < count => Ok(Shard { index, count }),
-            _ => Err(format!("shard {text:?} is not I/N with 0 <= I < N")),
-        }
-    }
 }
 
 pub struct RunOptions {
@@ -94,14 +43,6 @@ pub struct RunOptions {
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
 pub struct UsageError(pub String);
-
-/// A stage was asked for before the stages it needs were done.
-#[derive(Debug, thiserror::Error)]
-#[error("stage {needed:?} is not done yet ({reason}); run it first")]
-pub struct UpstreamPending {
-    pub needed: StageName,
-    pub reason: String,
-}
 
 pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
     let started = Instant::now();

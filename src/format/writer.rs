@@ -1,5 +1,8 @@
 //! Writes a ReduceM file: sections first, header last, through [`crate::atomic`], so a crash or
 //! a full disk leaves any earlier file at the destination untouched.
+//!
+//! The sections come from a [`SectionSource`]: the build side's in-memory model, or the
+//! pipeline's strip chunks. This module knows the records only, nothing of how they were built.
 
 use std::fs::File;
 use std::io::{self, BufWriter, Seek, SeekFrom, Write};
@@ -7,18 +10,15 @@ use std::path::{Path, PathBuf};
 
 use xxhash_rust::xxh3::Xxh3;
 
+use super::counts::{ChunkStats, WeldStats};
 use super::grid::{Grid, NodeGrid};
 use super::{
-    align_up, GridNode, Header, PrecisionRecord, SectionEntry, SectionKind, StripRecord, TopNode,
+    align_up, GridNode, Header, PrecisionRecord, SectionEntry, SectionKind, TopNode,
     VertexEncoding, ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, PRECISION_OFFSET,
     SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR,
 };
 use crate::atomic::write_atomically;
-use crate::build::ChunkStats;
-use crate::encode::EncodedStrip;
 use crate::geometry::Aabb;
-use crate::input::WeldStats;
-use crate::toplevel::TopLevel;
 
 /// What the header records about the build besides the sections.
 #[derive(Clone, Debug, PartialEq)]
@@ -113,27 +113,6 @@ pub trait SectionSource {
     fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()>;
 }
 
-/// Writes `strips` (indexed by the top level's `strip_order`) as a ReduceM file at `path`.
-pub fn write_file(
-    path: &Path,
-    info: &FileInfo,
-    top: &TopLevel,
-    strips: &[EncodedStrip],
-) -> Result<(), WriteError> {
-    let error = |source| WriteError {
-        path: path.to_path_buf(),
-        source,
-    };
-    let records = strip_records(top, strips).map_err(error)?;
-    let mut source = InMemory {
-        top,
-        node_grid: info.node_grid().map_err(error)?,
-        strips,
-        records,
-    };
-    write_streaming(path, info, &mut source)
-}
-
 /// Writes a ReduceM file whose sections come from `source`, atomically.
 pub fn write_streaming(
     path: &Path,
@@ -192,58 +171,6 @@ fn precision(info: &FileInfo) -> io::Result<PrecisionRecord> {
         ..PrecisionRecord::default()
     }
     .sealed())
-}
-
-/// The sections of a model converted in memory.
-struct InMemory<'a> {
-    top: &'a TopLevel,
-    node_grid: Option<NodeGrid>,
-    strips: &'a [EncodedStrip],
-    records: Vec<StripRecord>,
-}
-
-impl SectionSource for InMemory<'_> {
-    fn strip_count(&self) -> u64 {
-        self.strips.len() as u64
-    }
-
-    fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()> {
-        match kind {
-            SectionKind::TopNodes => write_nodes(out, &self.top.nodes, self.node_grid.as_ref()),
-            SectionKind::StripRecords => out.write_all(bytemuck::cast_slice(&self.records)),
-            SectionKind::StripData => self
-                .top
-                .strip_order
-                .iter()
-                .try_for_each(|&s| out.write_all(&self.strips[s as usize].block)),
-        }
-    }
-}
-
-/// Records in file order. Blocks are padded to 4 bytes, so offsets are counted in words.
-fn strip_records(top: &TopLevel, strips: &[EncodedStrip]) -> io::Result<Vec<StripRecord>> {
-    let mut word = 0u64;
-    top.strip_order
-        .iter()
-        .map(|&s| {
-            let strip = &strips[s as usize];
-            let record = StripRecord {
-                data_word: u32::try_from(word)
-                    .map_err(|_| too_large("strip data exceeds 16 GiB"))?,
-                vertex_count: strip.vertex_count,
-                reference_count: strip.reference_count,
-            };
-            word += strip.block.len() as u64 / 4;
-            Ok(record)
-        })
-        .collect()
-}
-
-fn too_large(what: &str) -> io::Error {
-    io::Error::new(
-        io::ErrorKind::FileTooLarge,
-        format!("{what}: too large for format version {VERSION_MAJOR}"),
-    )
 }
 
 fn header(

@@ -7,9 +7,10 @@
 //! being computed, which keeps the output deterministic and the memory
 //! bounded by a few chunks.
 //!
-//! The file is written to a hidden temporary next to the target and renamed
-//! over it only after a complete, synced write, so an earlier good output is
-//! never replaced by a partial one; the temporary is removed on any failure.
+//! The file is written to a hidden temporary next to the target and moved over
+//! it only after a complete, synced write ([`crate::atomic::replace`], which
+//! also syncs the directory), so an earlier good output is never replaced by a
+//! partial one; the temporary is removed on any failure.
 
 use std::fs::{self, File};
 use std::io::{self, BufWriter, Write};
@@ -19,6 +20,7 @@ use anyhow::{ensure, Context, Result};
 use rayon::prelude::*;
 
 use super::GenSummary;
+use crate::atomic;
 
 /// Where a generator writes and the `comment` line naming what it wrote.
 pub struct Target<'a> {
@@ -95,7 +97,7 @@ impl PlyWriter {
             declared.vertices
         );
         let temporary = TemporaryFile {
-            path: temporary_path(target.path),
+            path: atomic::temporary_path(target.path),
             keep: false,
         };
         let file = File::create(&temporary.path)
@@ -167,18 +169,11 @@ impl PlyWriter {
         );
         self.file.flush()?;
         self.file.get_ref().sync_all()?;
-        fs::rename(&self.temporary.path, &self.target)
+        atomic::replace(&self.temporary.path, &self.target)
             .with_context(|| format!("cannot move output into {}", self.target.display()))?;
         self.temporary.keep = true;
         Ok(self.written)
     }
-}
-
-fn temporary_path(target: &Path) -> PathBuf {
-    let name = target
-        .file_name()
-        .map_or_else(|| "mesh".into(), |name| name.to_string_lossy().into_owned());
-    target.with_file_name(format!(".{name}.{}.partial", std::process::id()))
 }
 
 /// Produces chunks in parallel batches and hands them to `consume` in chunk

@@ -16,11 +16,12 @@ mod weld;
 
 use std::path::Path;
 
+pub use crate::format::counts::WeldStats;
 pub use error::{InputError, InputErrorKind, Location};
 pub use obj::read_obj;
 pub use ply::PlyFile;
 pub use stream::PlyStream;
-pub use tolerance_weld::{tolerance_representatives, weld_within_tolerance, WeldStats};
+pub use tolerance_weld::{tolerance_representatives, weld_within_tolerance};
 pub use weld::{weld_identical_positions, weld_identical_positions_kept};
 
 use crate::mesh::Mesh;

@@ -19,17 +19,9 @@
 
 use std::collections::HashMap;
 
-use crate::geometry::{distance, Displacement, Point};
+use crate::format::counts::WeldStats;
+use crate::geometry::{distance, Point};
 use crate::mesh::Mesh;
-
-/// What a tolerance weld did.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct WeldStats {
-    /// 0 when only bit-identical positions were welded.
-    pub tolerance: f32,
-    /// How far the merged vertices moved (`count` is the number merged into another).
-    pub displacement: Displacement,
-}
 
 /// For every vertex, the kept vertex it merges into (itself when kept).
 pub fn tolerance_representatives(positions: &[Point], tolerance: f32) -> (Vec<u32>, WeldStats) {

@@ -14,7 +14,7 @@ use std::time::Instant;
 
 use embree::{sys, Device, Scene, SceneFlags};
 
-use super::memory::MemoryParts;
+use super::memory_parts::MemoryParts;
 use super::speed::{self, Speed};
 use super::Sizes;
 use crate::mesh::Mesh;

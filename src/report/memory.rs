@@ -14,6 +14,7 @@ use std::collections::BTreeSet;
 use std::path::Path;
 
 use super::markdown::{figure, mib, number, Section, Table};
+use super::memory_parts::MemoryParts;
 use super::plot::{self, Axis, Plot, Series};
 use super::speed::{self, Speed};
 use super::{Sizes, MEMORY_KINDS};
@@ -32,24 +33,6 @@ pub const PAPER_TRIANGLE_BYTES: u64 = 40;
 const VERTEX_BYTES: u64 = 12;
 /// Bytes of one indexed triangle (three u32).
 const INDEXED_TRIANGLE_BYTES: u64 = 12;
-
-/// Bytes of one representation by part; the parts sum to the total.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct MemoryParts {
-    pub vertices: u64,
-    /// Triangle data: strips and strip hierarchies for ReduceM, triangles for the others.
-    pub triangles: u64,
-    /// The hierarchy over everything: ReduceM's top level, a BVH's tree.
-    pub hierarchy: u64,
-    /// File header and section padding; Embree's allocations beyond its buffers.
-    pub other: u64,
-}
-
-impl MemoryParts {
-    pub fn total(&self) -> u64 {
-        self.vertices + self.triangles + self.hierarchy + self.other
-    }
-}
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct MemoryRow {

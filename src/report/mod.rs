@@ -19,10 +19,12 @@
 
 pub mod accuracy;
 #[cfg(feature = "embree")]
+#[allow(unsafe_code)]
 mod embree_peer;
 pub mod machine;
 pub mod markdown;
 pub mod memory;
+pub mod memory_parts;
 pub mod plot;
 pub mod precision;
 pub mod speed;

@@ -3,7 +3,7 @@
 //!
 //! The peer is meshoptimizer's stripifier (the `meshopt` crate), run the way a rasterizer would:
 //! vertex-cache optimization first, then `stripify` with restart indices. Its strips are turned
-//! into this project's convention ([`crate::strip`]) and then encoded, given a top level and
+//! into this project's convention ([`crate::strip_windows`]) and then encoded, given a top level and
 //! written exactly as Strip-RT's ([`crate::build::encode_stripification`],
 //! [`crate::build::write_chunk`]). The conventions agree within a restart-delimited strip:
 //! meshoptimizer's window `k` is `(s[k], s[k+1], s[k+2])`, odd windows flipped, windows with a
@@ -23,7 +23,7 @@ use crate::build::{encode_stripification, write_chunk, BuildParams};
 use crate::format::reader::ReducemFile;
 use crate::inspect::{file_stats, FileStats};
 use crate::mesh::Mesh;
-use crate::strip::{window_count, window_triangle};
+use crate::strip_windows::{window_count, window_triangle};
 use crate::stripify::adjacency::is_dropped;
 use crate::stripify::Stripification;
 use crate::trace::{TraceOptions, Tracer};

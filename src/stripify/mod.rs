@@ -49,7 +49,7 @@ impl Default for StripifyParams {
 /// The strips of one mesh chunk.
 #[derive(Clone, Debug, Default)]
 pub struct Stripification {
-    /// Each strip as mesh vertex indices, swaps included; decoded by the rules in [`crate::strip`].
+    /// Each strip as mesh vertex indices, swaps included; decoded by the rules in [`crate::strip_windows`].
     pub strips: Vec<Vec<u32>>,
     /// Triangles dropped because they repeat a vertex or have zero area.
     pub dropped_triangles: u64,
@@ -60,7 +60,7 @@ impl Stripification {
     pub fn triangle_count(&self) -> usize {
         self.strips
             .iter()
-            .map(|s| crate::strip::triangles(s).count())
+            .map(|s| crate::strip_windows::triangles(s).count())
             .sum()
     }
 
@@ -78,7 +78,7 @@ impl Stripification {
 /// Deterministic: the same mesh and parameters give identical strips for any rayon thread count.
 pub fn stripify(mesh: &Mesh, params: &StripifyParams) -> Stripification {
     let adjacency = adjacency::Adjacency::build(mesh);
-    let hierarchy = partition::Hierarchy::build(mesh, &adjacency.kept, params.sah_bins);
+    let hierarchy = partition::TriangleTree::build(mesh, &adjacency.kept, params.sah_bins);
     let paths = ordering::order(&adjacency, &hierarchy, params.max_length);
     drop(hierarchy);
     Stripification {

@@ -61,7 +61,7 @@
 use rayon::prelude::*;
 
 use super::adjacency::{Adjacency, NO_NEIGHBOUR};
-use super::partition::Hierarchy;
+use super::partition::TriangleTree;
 
 /// Marks an unused path link slot.
 pub const NO_LINK: u32 = u32::MAX;
@@ -125,7 +125,7 @@ impl Candidate {
 /// The ordering state; see the module docs for the representation.
 struct Sequences<'a> {
     adjacency: &'a Adjacency,
-    hierarchy: &'a Hierarchy,
+    hierarchy: &'a TriangleTree,
     max_length: u32,
     paths: Paths,
     /// Sequence length, valid at sequence ends.
@@ -139,7 +139,7 @@ struct Sequences<'a> {
 }
 
 /// Greedily merges all triangles into sequences of at most `max_length` (at least 1) triangles.
-pub fn order(adjacency: &Adjacency, hierarchy: &Hierarchy, max_length: usize) -> Paths {
+pub fn order(adjacency: &Adjacency, hierarchy: &TriangleTree, max_length: usize) -> Paths {
     let mut sequences = Sequences::new(adjacency, hierarchy, max_length);
     // Ascending, which `retain` preserves; candidate collection relies on it.
     let mut active: Vec<u32> = (0..adjacency.kept.len() as u32).collect();
@@ -167,7 +167,7 @@ const COLLECTION_BLOCK: usize = 4096;
 
 impl<'a> Sequences<'a> {
     /// Every triangle a sequence of its own.
-    fn new(adjacency: &'a Adjacency, hierarchy: &'a Hierarchy, max_length: usize) -> Self {
+    fn new(adjacency: &'a Adjacency, hierarchy: &'a TriangleTree, max_length: usize) -> Self {
         let n = adjacency.kept.len();
         Sequences {
             adjacency,
@@ -470,7 +470,7 @@ pub(super) mod tests {
         for seed in 1..6 {
             let mesh = random_grid(24, seed);
             let adjacency = Adjacency::build(&mesh);
-            let hierarchy = Hierarchy::build(&mesh, &adjacency.kept, 8);
+            let hierarchy = TriangleTree::build(&mesh, &adjacency.kept, 8);
             let mut sequences = Sequences::new(&adjacency, &hierarchy, 40);
             let mut rng = XorShift(seed * 7919);
             let (mut predicted, mut round) = (0, 0);

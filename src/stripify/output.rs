@@ -21,7 +21,7 @@
 //! swaps between interior triangles.
 //!
 //! Winding needs no bookkeeping: adjacency only links neighbours that traverse their shared
-//! edge in opposite directions, and under the parity rule of [`crate::strip`] a new triangle
+//! edge in opposite directions, and under the parity rule of [`crate::strip_windows`] a new triangle
 //! entering through the oppositely traversed edge decodes in its input winding, with or without
 //! a swap (the swap shifts the window parity and reverses the edge at the same time).
 //!
@@ -140,7 +140,7 @@ impl StripWriter<'_> {
 mod tests {
     use super::*;
     use crate::stripify::ordering::{order, tests::random_grid};
-    use crate::stripify::partition::Hierarchy;
+    use crate::stripify::partition::TriangleTree;
 
     /// The path from `start` as a triangle list.
     fn walk(writer: &StripWriter, start: u32) -> Vec<u32> {
@@ -171,7 +171,7 @@ mod tests {
         for seed in 1..8 {
             let mesh = random_grid(30, seed);
             let adjacency = Adjacency::build(&mesh);
-            let hierarchy = Hierarchy::build(&mesh, &adjacency.kept, 8);
+            let hierarchy = TriangleTree::build(&mesh, &adjacency.kept, 8);
             let paths = order(&adjacency, &hierarchy, 60);
             let writer = StripWriter {
                 mesh: &mesh,
@@ -182,7 +182,7 @@ mod tests {
             for end in (0..adjacency.kept.len() as u32).filter(|&t| paths.is_end(t)) {
                 let start = writer.start_of(end);
                 let strip = writer.strip_from(start);
-                let real = crate::strip::triangles(&strip).count();
+                let real = crate::strip_windows::triangles(&strip).count();
                 let path = walk(&writer, start);
                 assert_eq!(strip.len() - 2 - real, predicted_swaps(&adjacency, &path));
                 swaps += strip.len() - 2 - real;

@@ -53,9 +53,11 @@ pub struct NodeLinks {
     pub depth: u32,
 }
 
-/// The SAH object hierarchy over the kept (local) triangles.
+/// The SAH object hierarchy over the kept (local) triangles, down to single triangles: what
+/// Strip-RT orders by. Named a tree to keep it apart from the top-level hierarchy over strips
+/// (`toplevel`) and the pipeline's hierarchy stage.
 #[derive(Clone, Debug, Default)]
-pub struct Hierarchy {
+pub struct TriangleTree {
     /// Per node id; internal nodes are `0..n-1`, leaves `n-1..2n-1` (see the module docs).
     nodes: Vec<NodeLinks>,
     /// Leaf node of each local triangle.
@@ -104,13 +106,13 @@ struct SplitScratch {
     right_costs: Vec<f64>,
 }
 
-impl Hierarchy {
+impl TriangleTree {
     /// Builds the hierarchy over `kept` mesh triangles (local triangle `i` is mesh triangle
     /// `kept[i]`). `sah_bins` below 2 is treated as 2.
-    pub fn build(mesh: &Mesh, kept: &[u32], sah_bins: usize) -> Hierarchy {
+    pub fn build(mesh: &Mesh, kept: &[u32], sah_bins: usize) -> TriangleTree {
         let n = kept.len();
         if n == 0 {
-            return Hierarchy::default();
+            return TriangleTree::default();
         }
         let mut refs: Vec<TriangleRef> = kept
             .par_iter()
@@ -142,7 +144,7 @@ impl Hierarchy {
         for (position, r) in refs.iter().enumerate() {
             leaf_of_triangle[r.triangle as usize] = (n - 1 + position) as u32;
         }
-        Hierarchy {
+        TriangleTree {
             nodes,
             leaf_of_triangle,
         }

@@ -4,17 +4,18 @@
 
 use std::path::{Path, PathBuf};
 
+use reducem::build::write_file;
 use reducem::build::ChunkStats;
 use reducem::decode;
-use reducem::encode::{encode_strip, split_strip, EncodedStrip, Positions};
 use reducem::format::grid::Grid;
 use reducem::format::reader::ReducemFile;
-use reducem::format::writer::{write_file, FileInfo};
+use reducem::format::writer::FileInfo;
 use reducem::geometry::{is_degenerate, Aabb, Point};
 use reducem::mesh::Mesh;
 use reducem::quantize::quantize_mesh;
 pub use reducem::splitmix::SplitMix64;
-use reducem::strip;
+use reducem::strip_encoding::{encode_strip, split_strip, EncodedStrip, Positions};
+use reducem::strip_windows;
 use reducem::toplevel::{self, TopLevelParams};
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
 use reducem::trace::{Hit, Kernel, Ray, TraceOptions, Tracer};
@@ -267,7 +268,9 @@ pub fn write_positioned_strips(
             }
         }
     }
-    let triangles = strips.iter().map(|s| strip::triangles(s).count() as u64);
+    let triangles = strips
+        .iter()
+        .map(|s| strip_windows::triangles(s).count() as u64);
     write_encoded_strips(&encoded, grid, triangles.sum(), leaf_windows, path);
 }
 

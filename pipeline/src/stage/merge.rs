@@ -6,7 +6,7 @@
 use anyhow::Context;
 use reducem::build::ChunkStats;
 use reducem::format::grid::Grid;
-use reducem::geometry::{Aabb, Displacement};
+use reducem::geometry::Aabb;
 use reducem::input::WeldStats;
 use serde::{Deserialize, Serialize};
 
@@ -26,9 +26,9 @@ pub struct ChunkSummary {
     pub data_bytes: u64,
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
-    /// triangles, dropped, input vertices, stored vertices, hierarchy vertices, max strip length.
-    pub stats: [u64; 6],
-    pub quantization: Displacement,
+    /// The chunk's counts, by name (before, a positional array of six and the quantization
+    /// beside it).
+    pub stats: ChunkStats,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -44,17 +44,7 @@ impl Merged {
     pub fn stats(&self) -> ChunkStats {
         let mut total = ChunkStats::default();
         for chunk in &self.chunks {
-            let [triangles, dropped_triangles, input_vertices, stored_vertices, hierarchy_vertices, max_strip_length] =
-                chunk.stats;
-            total.add(&ChunkStats {
-                triangles,
-                dropped_triangles,
-                input_vertices,
-                stored_vertices,
-                hierarchy_vertices,
-                max_strip_length,
-                quantization: chunk.quantization,
-            });
+            total.add(&chunk.stats);
         }
         total
     }
@@ -72,8 +62,15 @@ impl Merged {
     }
 }
 
+/// Version of the merge table's JSON: 2 names the counts of each chunk. A table of an older
+/// version does not parse, so its fingerprint differs and the stage reruns (it reads only the
+/// chunk headers).
+const TABLE_VERSION: u32 = 2;
+
 pub fn fingerprint(strip_digest: &str) -> Fingerprint {
-    Fingerprint::new().with("strip_stage", strip_digest)
+    Fingerprint::new()
+        .with("strip_stage", strip_digest)
+        .with("merge.table_version", TABLE_VERSION)
 }
 
 pub fn fresh_result(job: &Job, fingerprint: &Fingerprint) -> Option<Merged> {
@@ -106,8 +103,7 @@ pub fn run(job: &Job, chunked: &Chunked, strip_digest: &str) -> anyhow::Result<M
             data_bytes: header.data_bytes,
             bounds_min: header.bounds_min,
             bounds_max: header.bounds_max,
-            stats: header.stats,
-            quantization: header.quantization(),
+            stats: header.chunk_stats(),
         });
         progress.advance(1);
     }

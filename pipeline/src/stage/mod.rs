@@ -10,6 +10,7 @@ pub mod write;
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::str::FromStr;
 use std::sync::Mutex;
 
 use anyhow::Context;
@@ -19,6 +20,66 @@ use crate::fingerprint::Fingerprint;
 use crate::manifest::{Freshness, Manifest};
 use crate::progress::Progress;
 use crate::workdir::WorkDir;
+
+/// The stages, in run order, as `--stage` names them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
+pub enum StageName {
+    Chunk,
+    Strip,
+    Merge,
+    Hierarchy,
+    Write,
+}
+
+/// Shard `index` of `count`: the strip stage's chunks `c` with `c % count == index`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Shard {
+    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
+
+    /// From `SLURM_ARRAY_TASK_ID` and `SLURM_ARRAY_TASK_COUNT` when both are set.
+    pub fn from_slurm_env() -> anyhow::Result<Shard> {
+        match (
+            std::env::var("SLURM_ARRAY_TASK_ID"),
+            std::env::var("SLURM_ARRAY_TASK_COUNT"),
+        ) {
+            (Ok(index), Ok(count)) => format!("{index}/{count}").parse().map_err(|e: String| {
+                anyhow::anyhow!("SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT: {e}")
+            }),
+            _ => Ok(Shard::WHOLE),
+        }
+    }
+
+    pub fn owns(&self, chunk: usize) -> bool {
+        chunk % self.count == self.index
+    }
+}
+
+impl FromStr for Shard {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Shard, String> {
+        let parsed = text
+            .split_once('/')
+            .and_then(|(i, n)| Some((i.trim().parse().ok()?, n.trim().parse().ok()?)));
+        match parsed {
+            Some((index, count)) if index < count => Ok(Shard { index, count }),
+            _ => Err(format!("shard {text:?} is not I/N with 0 <= I < N")),
+        }
+    }
+}
+
+/// A stage was asked for before the stages it needs were done.
+#[derive(Debug, thiserror::Error)]
+#[error("stage {needed:?} is not done yet ({reason}); run it first")]
+pub struct UpstreamPending {
+    pub needed: StageName,
+    pub reason: String,
+}
 
 /// What every stage works with.
 pub struct Job<'a> {

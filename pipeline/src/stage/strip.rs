@@ -1,20 +1,18 @@
-//! Stage *strip*: adjacency, Strip-RT, strip encoding and the chunk's own top-level hierarchy
-//! (`reducem::build`, `reducem::toplevel`), chunks in parallel on the rayon pool. Each chunk is
+//! Stage *strip*: adjacency, Strip-RT, strip encoding, the chunk's own top-level hierarchy and
+//! its strip-record layout (`reducem::build`), chunks in parallel on the rayon pool. Each chunk is
 //! a unit of its own in the manifest, so a killed run keeps every chunk it finished. Memory is
 //! about threads × one chunk ([`for_each_unit`]).
 
 use anyhow::Context;
-use reducem::build::{encode_chunk_on, strip_bounds};
-use reducem::format::StripRecord;
-use reducem::toplevel::{self, TopLevelParams};
+use reducem::build::{encode_chunk_on, ChunkLayout};
+use reducem::toplevel::TopLevelParams;
 
 use crate::chunk_io::{self, StripChunkHeader};
 use crate::fingerprint::Fingerprint;
 use crate::lock::ChunkLock;
 use crate::manifest::Freshness;
-use crate::run::Shard;
 use crate::stage::chunk::Chunked;
-use crate::stage::{for_each_unit, Job};
+use crate::stage::{for_each_unit, Job, Shard, StageName, UpstreamPending};
 use crate::workdir::{mesh_chunk, strip_chunk};
 
 /// The manifest key of one chunk's unit.
@@ -28,6 +26,7 @@ pub fn fingerprint(job: &Job, chunked: &Chunked, chunk: usize) -> Fingerprint {
         .with("chunk_stage", &chunked.digest)
         .with("chunk", chunk)
         .with("strip.max_length", strip.max_length)
+        // Named before `[strip] leaf_windows` was; kept so existing work directories stay fresh.
         .with(
             "strip.leaf_triangles",
             job.config.build_params().leaf_windows,
@@ -90,8 +89,8 @@ pub fn run(job: &Job, chunked: &Chunked, shard: Shard) -> anyhow::Result<String>
     job.reload_manifest();
     let still_pending = pending_chunks(job, chunked, shard);
     if let Some(&first) = still_pending.first() {
-        return Err(crate::run::UpstreamPending {
-            needed: crate::run::StageName::Strip,
+        return Err(UpstreamPending {
+            needed: StageName::Strip,
             reason: format!(
                 "{} chunks of this shard are held by another task, first {first}",
                 still_pending.len()
@@ -116,37 +115,18 @@ fn strip_one(job: &Job, chunked: &Chunked, chunk: usize) -> anyhow::Result<()> {
     let grid = params.grid(&chunked.bounds());
     let encoded = encode_chunk_on(&mesh, &params, grid.as_ref());
     drop(mesh);
-    let bounds = strip_bounds(&encoded.strips);
-    let top = toplevel::build(&bounds, &TopLevelParams::default());
-    let mut records = Vec::with_capacity(encoded.strips.len());
-    let mut word = 0u32;
-    for &s in &top.strip_order {
-        let strip = &encoded.strips[s as usize];
-        records.push(StripRecord {
-            data_word: word,
-            vertex_count: strip.vertex_count,
-            reference_count: strip.reference_count,
-        });
-        word += strip.block.len() as u32 / 4;
-    }
-    let blocks: Vec<&[u8]> = top
-        .strip_order
-        .iter()
-        .map(|&s| encoded.strips[s as usize].block.as_slice())
-        .collect();
-    let chunk_bounds = bounds
-        .iter()
-        .fold(reducem::geometry::Aabb::EMPTY, |a, b| a.union(b));
+    let layout = ChunkLayout::new(&encoded.strips, &params.top_level)?;
     let header = StripChunkHeader::new(
         &encoded.stats,
-        &chunk_bounds,
-        top.nodes.len(),
-        records.len(),
-        word as usize * 4,
+        &layout.bounds,
+        layout.top.nodes.len(),
+        layout.records.len(),
+        layout.data_bytes as usize,
     );
+    let blocks: Vec<&[u8]> = layout.blocks(&encoded.strips).collect();
     let path = job.work.file(&strip_chunk(chunk));
     reducem::atomic::write_atomically(&path, |out| {
-        chunk_io::write_strips(out, &header, &top.nodes, &records, &blocks)
+        chunk_io::write_strips(out, &header, &layout.top.nodes, &layout.records, &blocks)
     })
     .with_context(|| format!("writing {}", path.display()))
 }

@@ -6,6 +6,7 @@ use std::io::{self, Write};
 use std::path::PathBuf;
 
 use anyhow::Context;
+use reducem::build::layout::{rebase_records, DataWords};
 use reducem::format::grid::NodeGrid;
 use reducem::format::reader::ReducemFile;
 use reducem::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource};
@@ -89,12 +90,10 @@ impl<'a> Spliced<'a> {
         node_grid: Option<NodeGrid>,
     ) -> anyhow::Result<Spliced<'a>> {
         let mut data_word_base = vec![0u32; merged.chunks.len()];
-        let mut words = 0u64;
+        let mut words = DataWords::default();
         for step in &hierarchy.steps {
             if let Step::Chunk { index, .. } = *step {
-                data_word_base[index] =
-                    u32::try_from(words).context("strip data exceeds 16 GiB")?;
-                words += merged.chunks[index].data_bytes / 4;
+                data_word_base[index] = words.place(merged.chunks[index].data_bytes)?;
             }
         }
         Ok(Spliced {
@@ -150,9 +149,7 @@ impl SectionSource for Spliced<'_> {
             }),
             SectionKind::StripRecords => self.chunks().try_for_each(|(index, _, _)| {
                 let mut records = self.chunk(index)?.records()?;
-                for record in &mut records {
-                    record.data_word += self.data_word_base[index];
-                }
+                rebase_records(&mut records, self.data_word_base[index])?;
                 out.write_all(bytemuck::cast_slice(&records))
             }),
             SectionKind::StripData => self

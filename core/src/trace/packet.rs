@@ -23,11 +23,12 @@ use arrayvec::ArrayVec;
 use wide::f32x8;
 
 use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION};
+use super::ray::Ray;
 use super::strip::Closest;
 use super::top::{
     for_each_bit, order_keys, sort_by_key, trace_ray, DeferStack, NodeGridLanes, TraceNode,
 };
-use super::{Ray, Tracer};
+use super::Tracer;
 use crate::format::reader::TopNodes;
 use crate::format::{INTERNAL_CHILD, TOP_WIDTH};
 

@@ -112,7 +112,8 @@ pub fn distance(a: &Point, b: &Point) -> f64 {
 /// How far a set of points moved (from the input to where they are stored, or to the vertex
 /// they were welded into): count, largest distance and sum of squares, which add up over
 /// chunks in a fixed order, so the totals do not depend on the thread count.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Displacement {
     pub count: u64,
     pub max: f64,

@@ -31,7 +31,7 @@ use crate::format::reader::VertexLayout;
 use crate::format::references::pack;
 use crate::format::{align_up, axis_bytes, quantized, MAX_STRIP_VERTICES};
 use crate::geometry::{Aabb, Point};
-use crate::strip::window_count;
+use crate::strip_windows::window_count;
 
 /// The vertices strips are encoded from.
 #[derive(Clone, Copy, Debug)]
@@ -88,7 +88,7 @@ impl fmt::Display for TooManyVertices {
     }
 }
 
-/// Encodes one strip given as mesh vertex indices (swaps included, see [`crate::strip`]).
+/// Encodes one strip given as mesh vertex indices (swaps included, see [`crate::strip_windows`]).
 pub fn encode_strip(
     references: &[u32],
     positions: Positions,

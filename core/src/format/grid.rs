@@ -27,7 +27,8 @@ use crate::geometry::{Aabb, Point};
 pub const MAX_GRID_BITS: u32 = 24;
 
 /// A cubic grid of `2^bits` points per axis from `origin` in steps of `cell`.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub struct Grid {
     pub bits: u32,
     pub origin: Point,

@@ -17,7 +17,8 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
-use super::{Hit, Ray, Tracer};
+use super::ray::{Hit, Ray};
+use super::Tracer;
 use crate::{atomic, mapping};
 
 /// Bytes per ray record.

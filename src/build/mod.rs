@@ -1,23 +1,31 @@
 //! Conversion of one mesh chunk into encoded strips: the core API the pipeline runs per chunk.
 //!
 //! "One mesh chunk in memory → encoded strips with bounds". Converting a mesh that fits in
-//! memory is the one-chunk case: [`encode_chunk`], then [`crate::toplevel::build`] over the strip
-//! bounds, then [`crate::format::writer::write_file`].
+//! memory is the one-chunk case: [`encode_chunk`], then [`ChunkLayout::new`] (the chunk's top
+//! level over the strip bounds and the strip-record [`layout`]), then [`write_layout`]. The
+//! pipeline's stages call the same functions per chunk.
+
+mod in_memory;
+pub mod layout;
 
 use std::path::Path;
 
 use rayon::prelude::*;
 
-use crate::encode::{encode_strip, split_strip, EncodedStrip, Positions};
+use crate::format::counts::WeldStats;
 use crate::format::grid::{Grid, MAX_GRID_BITS};
-use crate::format::writer::{write_file, FileInfo, WriteError};
-use crate::geometry::{Aabb, Displacement};
-use crate::input::WeldStats;
+use crate::format::writer::{FileInfo, WriteError};
+use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 use crate::quantize::quantize_mesh;
-use crate::strip;
+use crate::strip_encoding::{encode_strip, split_strip, EncodedStrip, Positions};
+use crate::strip_windows;
 use crate::stripify::{stripify, Stripification, StripifyParams};
-use crate::toplevel::{self, TopLevelParams};
+use crate::toplevel::TopLevelParams;
+
+pub use crate::format::counts::ChunkStats;
+pub use in_memory::{write_file, write_layout};
+pub use layout::ChunkLayout;
 
 /// Strip kd-tree leaf size the pipeline uses unless the config sets one; [`BuildParams`] keeps
 /// the paper's 2.
@@ -85,7 +93,7 @@ impl BuildParams {
         }
         if !(1..=255).contains(&self.leaf_windows) {
             return Err(format!(
-                "strip leaf_triangles {} is outside 1..=255",
+                "strip leaf_windows {} is outside 1..=255",
                 self.leaf_windows
             ));
         }
@@ -117,33 +125,6 @@ pub struct EncodedChunk {
     pub stats: ChunkStats,
     /// The grid the vertices were snapped to; `None` for f32 vertices.
     pub grid: Option<Grid>,
-}
-
-/// Counts over one chunk; they add up over chunks.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct ChunkStats {
-    pub triangles: u64,
-    pub dropped_triangles: u64,
-    /// Distinct mesh vertices referenced by the chunk's strips (after welding, and for grid
-    /// vertices after merging those that snap to one grid point).
-    pub input_vertices: u64,
-    pub stored_vertices: u64,
-    pub hierarchy_vertices: u64,
-    pub max_strip_length: u64,
-    /// Input vertex → stored position; empty for f32 vertices, which do not move.
-    pub quantization: Displacement,
-}
-
-impl ChunkStats {
-    pub fn add(&mut self, other: &ChunkStats) {
-        self.triangles += other.triangles;
-        self.dropped_triangles += other.dropped_triangles;
-        self.input_vertices += other.input_vertices;
-        self.stored_vertices += other.stored_vertices;
-        self.hierarchy_vertices += other.hierarchy_vertices;
-        self.max_strip_length = self.max_strip_length.max(other.max_strip_length);
-        self.quantization.add(&other.quantization);
-    }
 }
 
 /// Runs Strip-RT and strip encoding over a chunk that is the whole model.
@@ -208,7 +189,7 @@ fn encode_strips(
         stats.hierarchy_vertices += s.hierarchy_copies as u64;
     }
     for references in &stripification.strips {
-        let length = strip::triangles(references).count() as u64;
+        let length = strip_windows::triangles(references).count() as u64;
         stats.triangles += length;
         stats.max_strip_length = stats.max_strip_length.max(length);
     }
@@ -277,17 +258,20 @@ pub fn write_chunk(
     params: &BuildParams,
     out: &Path,
 ) -> Result<ChunkStats, WriteError> {
-    let bounds = strip_bounds(&chunk.strips);
-    let top = toplevel::build(&bounds, &params.top_level);
+    let layout =
+        ChunkLayout::new(&chunk.strips, &params.top_level).map_err(|source| WriteError {
+            path: out.to_path_buf(),
+            source,
+        })?;
     let info = FileInfo {
         stats: chunk.stats,
         leaf_windows: params.leaf_windows,
         max_strip_length: params.stripify.max_length,
-        bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
+        bounds: layout.bounds,
         grid: chunk.grid,
         grid_nodes: params.grid_nodes,
         weld: WeldStats::default(),
     };
-    write_file(out, &info, &top, &chunk.strips)?;
+    write_layout(out, &info, &layout, &chunk.strips)?;
     Ok(chunk.stats)
 }

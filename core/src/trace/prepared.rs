@@ -23,8 +23,8 @@
 //! [`max_not_nan_x4`] family in place of [`max_not_nan`].
 use wide::{f32x4, f32x8};
 
+use super::ray::Ray;
 use super::watertight::RaySpace;
-use super::Ray;
 use crate::geometry::Point;
 
 /// `1 + 2^-20`: above `1 + 2γ₃ ≈ 1 + 3.6e-7` with room for the rounding of the product itself.

@@ -1,6 +1,8 @@
 //! Atomic file replacement: every output of the project is written through here, so a crash, a
 //! kill or a full disk never leaves a half-written file under a final name, and never destroys an
-//! earlier good file.
+//! earlier good file. Outputs written in one call use [`write_atomically`]; a writer that streams
+//! its output over many calls (`pipeline gen`) writes to [`temporary_path`], syncs it and moves it
+//! into place with [`replace`].
 
 use std::fs::{self, File};
 use std::io::{self, BufWriter, Write};
@@ -23,10 +25,7 @@ pub fn write_atomically(
     body: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
 ) -> io::Result<()> {
     let temporary = temporary_path(path);
-    let result = write_and_sync(&temporary, body).and_then(|()| {
-        fs::rename(&temporary, path)?;
-        sync_directory(path)
-    });
+    let result = write_and_sync(&temporary, body).and_then(|()| replace(&temporary, path));
     if result.is_err() {
         let _ = fs::remove_file(&temporary);
     }
@@ -41,6 +40,13 @@ fn write_and_sync(
     body(&mut out)?;
     out.flush()?;
     out.into_inner().map_err(|e| e.into_error())?.sync_all()
+}
+
+/// Renames the synced `temporary` over `path` and fsyncs the directory, so that the rename
+/// itself survives a crash.
+pub fn replace(temporary: &Path, path: &Path) -> io::Result<()> {
+    fs::rename(temporary, path)?;
+    sync_directory(path)
 }
 
 fn sync_directory(path: &Path) -> io::Result<()> {

@@ -9,21 +9,73 @@
 //! baseline's, operation for operation (`vsubps`, `vmulps`, `vminps`, `vmaxps`, compares), never
 //! fused, so every lane has the same bits as the baseline kernel and the scalar test.
 //!
-//! Every function here is compiled for AVX2 (`#[target_feature]`), so it can only be called
-//! from code that is itself compiled for AVX2 or, through `unsafe`, after
-//! [`Kernel::Avx2`](super::kernel::Kernel) was detected.
+//! This is the tracer's one kernel module with `unsafe`: [`trace`] checks that the CPU has AVX2
+//! before it enters the functions compiled for it (`#[target_feature]`), and the loads and
+//! stores below read and write arrays of exactly their width.
+
+#![allow(unsafe_code)]
 
 use std::arch::x86_64::*;
 
-use super::strip::{BlockEdges, BLOCK};
+use super::strip::{by_axes, BlockEdges, BlockKernel, StripQuery, TraceArgs, BLOCK};
 use super::watertight::RaySpace;
 use crate::format::vertices::VertexAccess;
+
+/// [`StripQuery::trace`]'s strip traversal compiled for AVX2 with AVX2 blocks; the arguments
+/// back when this CPU lacks AVX2.
+#[inline(always)]
+pub(super) fn trace<'a, 'v, V: VertexAccess>(
+    query: &StripQuery,
+    vertices: V,
+    args: TraceArgs<'a, 'v>,
+) -> Result<bool, TraceArgs<'a, 'v>> {
+    if !std::is_x86_feature_detected!("avx2") {
+        return Err(args);
+    }
+    // SAFETY: the CPU supports AVX2, checked just above.
+    Ok(unsafe { trace_detected(query, vertices, args) })
+}
+
+/// [`trace`] once AVX2 is known to be there: down to the blocks, everything is compiled for it.
+#[target_feature(enable = "avx2")]
+fn trace_detected<V: VertexAccess>(query: &StripQuery, vertices: V, args: TraceArgs) -> bool {
+    by_axes!(trace_as, query, vertices, args)
+}
+
+/// The strip traversal for a ray whose ray-space axes are `[KX, KY, KZ]`; never inlined, as
+/// the baseline kernel's (`StripQuery::trace_as_sse2`).
+#[target_feature(enable = "avx2")]
+#[inline(never)]
+fn trace_as<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+    query: &StripQuery,
+    vertices: V,
+    args: TraceArgs,
+) -> bool {
+    query.traverse::<Avx2Blocks, V, KX, KY, KZ>(vertices, args)
+}
+
+/// The AVX2 blocks, as a [`BlockKernel`] for the shared traversal.
+struct Avx2Blocks;
+
+impl BlockKernel for Avx2Blocks {
+    #[inline(always)]
+    fn edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+        space: &RaySpace,
+        vertices: V,
+        references: &[u8; BLOCK + 2],
+        count: usize,
+    ) -> BlockEdges {
+        // SAFETY: `Avx2Blocks` is private to this module and used only by `trace_as`, which
+        // runs only once AVX2 was detected (`trace`).
+        unsafe { block_edges::<V, KX, KY, KZ>(space, vertices, references, count) }
+    }
+}
 
 /// [`BlockEdges`] of the block whose `BLOCK + 2` strip references are `references`; lanes past
 /// `count` are not candidates.
 #[target_feature(enable = "avx2")]
 #[inline]
-pub fn block_edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+fn block_edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
     space: &RaySpace,
     vertices: V,
     references: &[u8; BLOCK + 2],

@@ -51,19 +51,20 @@ use crate::format::implicit_tree::buckets;
 use crate::format::reader::StripView;
 use crate::format::vertices::{StripVertices, VertexAccess};
 
-/// Calls `$query.$entry::<V, KX, KY, KZ>` for the ray's ray-space axes.
+/// Calls `$entry::<V, KX, KY, KZ>($query, ..)` for the query's ray-space axes.
 macro_rules! by_axes {
-    ($query:expr, $entry:ident, $vertices:expr, $args:expr) => {
+    ($($entry:ident)::+, $query:expr, $vertices:expr, $args:expr) => {
         match $query.ray.space.axes() {
-            [1, 2, 0] => $query.$entry::<V, 1, 2, 0>($vertices, $args),
-            [2, 1, 0] => $query.$entry::<V, 2, 1, 0>($vertices, $args),
-            [2, 0, 1] => $query.$entry::<V, 2, 0, 1>($vertices, $args),
-            [0, 2, 1] => $query.$entry::<V, 0, 2, 1>($vertices, $args),
-            [0, 1, 2] => $query.$entry::<V, 0, 1, 2>($vertices, $args),
-            _ => $query.$entry::<V, 1, 0, 2>($vertices, $args),
+            [1, 2, 0] => $($entry)::+::<V, 1, 2, 0>($query, $vertices, $args),
+            [2, 1, 0] => $($entry)::+::<V, 2, 1, 0>($query, $vertices, $args),
+            [2, 0, 1] => $($entry)::+::<V, 2, 0, 1>($query, $vertices, $args),
+            [0, 2, 1] => $($entry)::+::<V, 0, 2, 1>($query, $vertices, $args),
+            [0, 1, 2] => $($entry)::+::<V, 0, 1, 2>($query, $vertices, $args),
+            _ => $($entry)::+::<V, 1, 0, 2>($query, $vertices, $args),
         }
     };
 }
+pub(super) use by_axes;
 
 /// Most deferred subtrees: one per level of the deepest strip kd-tree (intervals halve, and a
 /// strip has fewer than 2^16 windows).
@@ -130,7 +131,7 @@ pub struct StripQuery<'a> {
 
 /// A strip traversal's strip, its file position, the ray's parameter interval and the closest
 /// hit so far.
-type TraceArgs<'a, 'v> = (&'a StripView<'v>, u32, f32, f32, &'a mut Closest);
+pub(super) type TraceArgs<'a, 'v> = (&'a StripView<'v>, u32, f32, f32, &'a mut Closest);
 
 /// A subtree of the strip's kd-tree and the ray's parameter interval in it. The subtree covers
 /// buckets `[first, end)`, bucket `b` being windows `b * leaf_windows ..` (the last one shorter).
@@ -171,18 +172,14 @@ impl StripQuery<'_> {
     #[inline(always)]
     fn trace_with<V: VertexAccess>(&self, vertices: V, args: TraceArgs) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if self.kernel == Kernel::Avx2 && std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked just above.
-            return unsafe { self.trace_avx2(vertices, args) };
-        }
-        by_axes!(self, trace_as_sse2, vertices, args)
-    }
-
-    /// [`StripQuery::trace_with`] compiled for AVX2, down to the blocks.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn trace_avx2<V: VertexAccess>(&self, vertices: V, args: TraceArgs) -> bool {
-        by_axes!(self, trace_as_avx2, vertices, args)
+        let args = match self.kernel {
+            Kernel::Avx2 => match super::avx2::trace(self, vertices, args) {
+                Ok(found) => return found,
+                Err(args) => args,
+            },
+            Kernel::Sse2 => args,
+        };
+        by_axes!(Self::trace_as_sse2, self, vertices, args)
     }
 
     /// [`StripQuery::trace`] for a ray whose ray-space axes are `[KX, KY, KZ]`, baseline
@@ -198,21 +195,9 @@ impl StripQuery<'_> {
         self.traverse::<Sse2Blocks, V, KX, KY, KZ>(vertices, args)
     }
 
-    /// [`StripQuery::trace_as_sse2`] compiled for AVX2 with the AVX2 blocks.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline(never)]
-    fn trace_as_avx2<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
-        &self,
-        vertices: V,
-        args: TraceArgs,
-    ) -> bool {
-        self.traverse::<Avx2Blocks, V, KX, KY, KZ>(vertices, args)
-    }
-
     /// The strip kd-tree traversal with blocks intersected by `K`.
     #[inline(always)]
-    fn traverse<
+    pub(super) fn traverse<
         K: BlockKernel,
         V: VertexAccess,
         const KX: usize,
@@ -387,7 +372,7 @@ pub struct BlockEdges {
 }
 
 /// One way of computing [`BlockEdges`].
-trait BlockKernel {
+pub(super) trait BlockKernel {
     /// The block whose `BLOCK + 2` strip references are `references`; lanes past `count` are
     /// not candidates.
     fn edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
@@ -441,26 +426,6 @@ impl BlockKernel for Sse2Blocks {
             y: corners.map(|c| c.y.to_array()),
             weights: weights.map(f32x8::to_array),
         }
-    }
-}
-
-/// The AVX2 kernel ([`super::avx2`]).
-#[cfg(target_arch = "x86_64")]
-struct Avx2Blocks;
-
-#[cfg(target_arch = "x86_64")]
-impl BlockKernel for Avx2Blocks {
-    #[inline(always)]
-    fn edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
-        space: &RaySpace,
-        vertices: V,
-        references: &[u8; BLOCK + 2],
-        count: usize,
-    ) -> BlockEdges {
-        // SAFETY: `Avx2Blocks` is private to this module and used only by
-        // `StripQuery::trace_as_avx2`, which runs only once AVX2 was detected
-        // (`StripQuery::trace_with`).
-        unsafe { super::avx2::block_edges::<V, KX, KY, KZ>(space, vertices, references, count) }
     }
 }
 

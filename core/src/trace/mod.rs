@@ -16,14 +16,15 @@
 //!   result does not depend on visiting order, packet width or thread count. Packets run the
 //!   same per-ray arithmetic as single rays and give bit-identical hits.
 //!
-//! This module is read side only: it uses `format`, `geometry` and `strip`, nothing from the
-//! build side or the pipeline.
+//! This module is read side only: it uses `format`, `geometry` and `strip_windows`, nothing
+//! from the build side or the pipeline.
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
 pub mod kernel;
 pub mod packet;
 pub mod prepared;
+pub mod ray;
 pub mod ray_file;
 pub mod strip;
 pub mod top;
@@ -37,31 +38,7 @@ pub use kernel::Kernel;
 use prepared::PreparedRay;
 use strip::{Closest, StripQuery};
 
-/// A ray `origin + t * direction` for `t` in `[tmin, tmax]`; `tmin >= 0`, direction non-zero
-/// (need not be unit length: `t` is in units of the direction).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Ray {
-    pub origin: Point,
-    pub direction: Point,
-    pub tmin: f32,
-    pub tmax: f32,
-}
-
-/// The closest intersection of a ray.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hit {
-    pub t: f32,
-    /// Barycentric weights of the triangle's second and third corners in input winding: the hit
-    /// point is `(1 - u - v) * v0 + u * v1 + v * v2`.
-    pub u: f32,
-    pub v: f32,
-    /// Unit geometric normal `normalize((v1 - v0) × (v2 - v0))` in input winding.
-    pub normal: Point,
-    /// File position of the strip.
-    pub strip: u32,
-    /// Window of the strip (its triangle is decoded by [`crate::strip::window_triangle`]).
-    pub window: u16,
-}
+pub use ray::{Hit, Ray};
 
 /// Tuning of the traversal. Results do not depend on it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,0 +1,316 @@
+//! Opens a ReduceM file by mapping it and validating it once, and views it in place.
+//!
+//! Opening is cheap (one linear pass over records, references and nodes, no copy of the
+//! geometry) and strict: every offset, count, index and child link is checked
+//! (`reader/validate.rs`), and a short or inconsistent file is an error, never a default. After a
+//! successful open, traversal can index the mapping through the views here
+//! ([`ReducemFile::strip`], [`ReducemFile::top_nodes`]) without further checks and cannot read
+//! out of bounds, even on a crafted file. Checksums are verified only on request
+//! ([`ReducemFile::verify_checksums`]), since hashing pages in the whole file.
+//!
+//! This module is the read side: it depends on the format definitions only, never on the build
+//! side, the pipeline, PLY input, progress or channel code.
+
+mod validate;
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use memmap2::Mmap;
+
+use super::grid::{Grid, NodeGrid};
+use super::implicit_tree::internal_nodes;
+use super::quantized::{vertex_part_bytes, AxisWordLayout, GridVertices};
+use super::references::{packed_bytes, References};
+use super::vertices::StripVertices;
+use super::{
+    axis_bytes, GridNode, Header, PrecisionRecord, SectionKind, StripRecord, TopNode,
+    F32_VERTEX_BYTES,
+};
+use crate::geometry::Point;
+
+pub use validate::VALIDATION_WINDOW;
+
+/// Why a file could not be opened, with the file and the byte offset of the defect.
+#[derive(Debug, thiserror::Error)]
+pub enum FormatError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}: {section} at byte {offset}: {detail}", path.display())]
+    Invalid {
+        path: PathBuf,
+        section: &'static str,
+        offset: u64,
+        detail: String,
+    },
+}
+
+/// A mapped, validated ReduceM file.
+pub struct ReducemFile {
+    path: PathBuf,
+    map: Mmap,
+    header: Header,
+    precision: PrecisionRecord,
+    layout: VertexLayout,
+    /// The grid of [`GridNode`] boxes; `None` for f32 [`TopNode`]s.
+    node_grid: Option<NodeGrid>,
+    sections: [Range<usize>; 3],
+}
+
+/// The top-level nodes of a file, in the record its vertex encoding implies.
+#[derive(Clone, Copy, Debug)]
+pub enum TopNodes<'a> {
+    F32(&'a [TopNode]),
+    Grid(&'a [GridNode], NodeGrid),
+}
+
+impl TopNodes<'_> {
+    pub fn len(&self) -> usize {
+        match self {
+            TopNodes::F32(nodes) => nodes.len(),
+            TopNodes::Grid(nodes, _) => nodes.len(),
+        }
+    }
+
+    /// Never true for an opened file, whose root always exists.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// How a file's strip blocks store vertices and references: what viewing a block needs besides
+/// the block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum VertexLayout {
+    /// f32 vertices, 1-byte references.
+    F32,
+    /// Grid vertices. `packed` since format 2.3: axis words at the grid's bits
+    /// ([`AxisWordLayout::Packed`]) and references at the strip's ([`super::references`]);
+    /// before, u32 axis words and one byte per reference.
+    Grid { grid: Grid, packed: bool },
+}
+
+impl From<Option<Grid>> for VertexLayout {
+    /// The layout the writer gives vertices on `grid` (or f32 ones without).
+    fn from(grid: Option<Grid>) -> VertexLayout {
+        grid.map_or(VertexLayout::F32, |grid| VertexLayout::Grid {
+            grid,
+            packed: true,
+        })
+    }
+}
+
+impl VertexLayout {
+    /// How the axis words of a grid block are stored.
+    fn axis_words(grid: &Grid, packed: bool) -> AxisWordLayout {
+        match packed {
+            true => AxisWordLayout::Packed {
+                grid_bits: grid.bits,
+            },
+            false => AxisWordLayout::Words,
+        }
+    }
+
+    /// Bytes of a block's `count` references with `vertices` vertices.
+    fn reference_bytes(&self, count: usize, vertices: usize) -> usize {
+        match self {
+            VertexLayout::Grid { packed: true, .. } => packed_bytes(count, vertices),
+            _ => count,
+        }
+    }
+
+    /// The references in `bytes` (exactly [`VertexLayout::reference_bytes`] long).
+    fn references<'a>(&self, bytes: &'a [u8], count: usize, vertices: usize) -> References<'a> {
+        match self {
+            VertexLayout::Grid { packed: true, .. } => References::packed(bytes, count, vertices),
+            _ => References::bytes(bytes),
+        }
+    }
+}
+
+/// One strip's block, viewed in place.
+#[derive(Clone, Copy, Debug)]
+pub struct StripView<'a> {
+    pub vertices: StripVertices<'a>,
+    /// Split axes, 2 bits per internal node.
+    pub axes: &'a [u8],
+    /// References into `vertices`, swaps included.
+    pub references: References<'a>,
+}
+
+impl StripView<'_> {
+    pub fn window_count(&self) -> usize {
+        self.references.len() - 2
+    }
+
+    /// Split axis of internal node `node`.
+    #[inline]
+    pub fn axis(&self, node: usize) -> usize {
+        ((self.axes[node / 4] >> (2 * (node % 4))) & 3) as usize
+    }
+
+    /// Corners of window `k` in input winding, or `None` for a swap.
+    #[inline]
+    pub fn window_points(&self, k: usize) -> Option<[Point; 3]> {
+        let mut corners = [0u8; 3];
+        self.references.read_into(k, &mut corners);
+        crate::strip_windows::window_corners(corners, k)
+            .map(|t| t.map(|r| self.vertices.point(r as usize)))
+    }
+
+    /// The real triangles' references in strip order and input winding.
+    pub fn triangles(&self) -> Vec<[u8; 3]> {
+        crate::strip_windows::triangles(&self.references.to_vec()).collect()
+    }
+}
+
+impl ReducemFile {
+    /// Validates the file at `path` and maps it.
+    ///
+    /// Validation reads the file through bounded windows ([`VALIDATION_WINDOW`]) that are
+    /// unmapped as it goes, and traversal gets a fresh mapping of the same (never modified in
+    /// place) file: opening a 6 GB model costs tens of megabytes of resident memory, and the
+    /// resident set after a frame is only the pages rays really reached.
+    pub fn open(path: &Path) -> Result<ReducemFile, FormatError> {
+        validate::open(path)
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// The precision record (zeros for a format 2.0 file: lossless, nothing welded).
+    pub fn precision(&self) -> &PrecisionRecord {
+        &self.precision
+    }
+
+    pub fn vertex_layout(&self) -> &VertexLayout {
+        &self.layout
+    }
+
+    pub fn file_bytes(&self) -> u64 {
+        self.map.len() as u64
+    }
+
+    /// Strip kd-tree leaf size in windows.
+    pub fn leaf_windows(&self) -> usize {
+        self.header.leaf_windows as usize
+    }
+
+    pub fn section_bytes(&self, kind: SectionKind) -> &[u8] {
+        &self.map[self.sections[section_slot(kind)].clone()]
+    }
+
+    pub fn top_nodes(&self) -> TopNodes<'_> {
+        let bytes = self.section_bytes(SectionKind::TopNodes);
+        match self.node_grid {
+            None => TopNodes::F32(bytemuck::cast_slice(bytes)),
+            Some(grid) => TopNodes::Grid(bytemuck::cast_slice(bytes), grid),
+        }
+    }
+
+    pub fn strip_records(&self) -> &[StripRecord] {
+        bytemuck::cast_slice(self.section_bytes(SectionKind::StripRecords))
+    }
+
+    pub fn strip_count(&self) -> usize {
+        self.strip_records().len()
+    }
+
+    /// The strip at file position `index` (`index < strip_count()`).
+    #[inline]
+    pub fn strip(&self, index: usize) -> StripView<'_> {
+        strip_view(
+            self.section_bytes(SectionKind::StripData),
+            &self.strip_records()[index],
+            self.leaf_windows(),
+            &self.layout,
+        )
+    }
+
+    /// Hashes every section and compares with the header's checksums.
+    pub fn verify_checksums(&self) -> Result<(), FormatError> {
+        for (slot, kind) in SectionKind::ALL.into_iter().enumerate() {
+            let entry = &self.header.sections[slot];
+            let actual = xxhash_rust::xxh3::xxh3_64(self.section_bytes(kind));
+            if actual != entry.checksum {
+                return Err(self.invalid(
+                    kind.name(),
+                    entry.offset,
+                    format!(
+                        "checksum {actual:#018x} does not match the header's {:#018x}",
+                        entry.checksum
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn invalid(&self, section: &'static str, offset: u64, detail: String) -> FormatError {
+        FormatError::Invalid {
+            path: self.path.clone(),
+            section,
+            offset,
+            detail,
+        }
+    }
+
+    fn section_offset(&self, kind: SectionKind) -> u64 {
+        self.header.sections[section_slot(kind)].offset
+    }
+}
+
+fn section_slot(kind: SectionKind) -> usize {
+    kind as usize - 1
+}
+
+/// Views a strip's block. The record must be one an opened [`ReducemFile`] holds (validated at
+/// open by `BlockShape::check` in `reader/validate.rs`) or describe a block the build side just
+/// encoded; any other record may panic on a slice bound.
+#[inline]
+pub fn strip_view<'a>(
+    data: &'a [u8],
+    record: &StripRecord,
+    leaf_windows: usize,
+    layout: &VertexLayout,
+) -> StripView<'a> {
+    let start = record.data_word as usize * 4;
+    let count = record.vertex_count as usize;
+    let references = record.reference_count as usize;
+    let axes_length = axis_bytes(internal_nodes(references - 2, leaf_windows));
+    let reference_bytes = layout.reference_bytes(references, count);
+    let (vertices, vertex_end) = match layout {
+        VertexLayout::F32 => {
+            let end = start + count * F32_VERTEX_BYTES;
+            (
+                StripVertices::F32(bytemuck::cast_slice(&data[start..end])),
+                end,
+            )
+        }
+        VertexLayout::Grid { grid, packed } => {
+            let words_layout = VertexLayout::axis_words(grid, *packed);
+            let words = words_layout.read(&data[start..]);
+            let end = start + vertex_part_bytes(count, &words, words_layout);
+            let block_end = end + axes_length + reference_bytes;
+            let block = &data[start..block_end];
+            let vertices = GridVertices::new(block, (&words, words_layout), count, grid);
+            (StripVertices::Grid(vertices), end)
+        }
+    };
+    let axes_end = vertex_end + axes_length;
+    let reference_area = &data[axes_end..axes_end + reference_bytes];
+    StripView {
+        vertices,
+        axes: &data[vertex_end..axes_end],
+        references: layout.references(reference_area, references, count),
+    }
+}

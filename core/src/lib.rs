@@ -1,0 +1,17 @@
+//! The read side of ReduceM (Lauterbach et al., EGSR 2008): a file is mapped, validated once at
+//! open and traced in place, paging in only what rays reach.
+//!
+//! [`format`](mod@format) holds the on-disk records, the counts a header holds, and the reader with its
+//! validation; [`mapping`] the one memory mapping; [`geometry`] and [`strip_windows`] the shared
+//! conventions (boxes, strip windows); [`trace`] the tracer and its ray files; [`atomic`] the
+//! temporary-and-rename write the ray files use. Nothing here knows how a file is built: the
+//! `reducem` crate holds the build side and re-exports this crate under its own paths.
+
+#![deny(unsafe_code)]
+
+pub mod atomic;
+pub mod format;
+pub mod geometry;
+pub mod mapping;
+pub mod strip_windows;
+pub mod trace;

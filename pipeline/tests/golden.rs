@@ -1,0 +1,114 @@
+//! Files stay byte-identical across refactorings: every generator kind, converted in memory
+//! (`reducem::build::convert_mesh`) and by the staged job in several chunks, with f32 vertices,
+//! grid vertices and f32 vertices with grid nodes, hashes to the value recorded when the test was
+//! written (at 7bca529). A deliberate format or build change updates the table (the failure
+//! prints the new values). `soup` hashes as `scan` does: it is scan's surface with unshared
+//! vertices, which the bit-identical weld joins again.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use reducem::build::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS};
+use reducem::gen::{generate, Kind};
+use reducem::input::read_mesh;
+
+const TRIANGLES: u64 = 6_000;
+const CHUNK_TRIANGLES: u64 = 2_000;
+
+/// XXH3-64 of each output: (kind, vertices, in-memory file, staged file).
+#[rustfmt::skip]
+const RECORDED: [(&str, &str, u64, u64); 18] = [
+    ("scan", "f32", 0xe5f2191d8311bc1e, 0x4cd85468f9fa9b08),
+    ("scan", "grid", 0x838f50a6e1469988, 0xb565e751c1ad468d),
+    ("scan", "f32-grid-nodes", 0x4fbb92265c3e5ae5, 0x3de1052474eb2017),
+    ("terrain", "f32", 0x9650c524ffdf0b50, 0xc6ce6bee181f7aca),
+    ("terrain", "grid", 0x86b8cb8e9e139673, 0x6c2986d6c71b3392),
+    ("terrain", "f32-grid-nodes", 0x7380ca9ceb72cfa0, 0x232462f5557f36a0),
+    ("isosurface", "f32", 0xc1a4b2b37f70be1a, 0x119ce36651a1fdfe),
+    ("isosurface", "grid", 0xdb5695fe7575f7d9, 0xeec3a96292d7c663),
+    ("isosurface", "f32-grid-nodes", 0x8f954c1a23bba5c2, 0x33261fce5ed52f3c),
+    ("cad", "f32", 0xe53dd5db1dbb3f60, 0x05e5716c49aae130),
+    ("cad", "grid", 0xc8d15e199ac4e55e, 0xe43d4ea2bbf74dc9),
+    ("cad", "f32-grid-nodes", 0xabf4e238ca228177, 0xa4c94c8fdb4d40af),
+    ("soup", "f32", 0xe5f2191d8311bc1e, 0x4cd85468f9fa9b08),
+    ("soup", "grid", 0x838f50a6e1469988, 0xb565e751c1ad468d),
+    ("soup", "f32-grid-nodes", 0x4fbb92265c3e5ae5, 0x3de1052474eb2017),
+    ("sphere", "f32", 0x81ddd2ebae834dde, 0x1afec757ea95b170),
+    ("sphere", "grid", 0xcfd4d39b5a29080f, 0xd8aef3ea5250b4e0),
+    ("sphere", "f32-grid-nodes", 0x0ed781ac63baf212, 0xfd96f083cedb05dc),
+];
+
+fn temp_dir() -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pipeline-golden-{}", std::process::id()));
+    let _ = fs::remove_dir_all(&dir);
+    fs::create_dir_all(&dir).expect("temp dir");
+    dir
+}
+
+fn kind(name: &str) -> Kind {
+    <Kind as clap::ValueEnum>::from_str(name, true).expect("kind")
+}
+
+/// The build parameters of the staged job's config for `vertices`.
+fn params(vertices: &str) -> BuildParams {
+    BuildParams {
+        leaf_windows: PIPELINE_LEAF_WINDOWS,
+        grid_bits: (vertices == "grid").then_some(20),
+        grid_nodes: vertices == "f32-grid-nodes",
+        ..BuildParams::default()
+    }
+}
+
+/// The staged job with the in-memory path's strip length (the paper's 60, the pipeline's default
+/// when the hashes were recorded).
+fn staged(dir: &Path, input: &Path, vertices: &str, out: &Path) {
+    let config = dir.join("job.toml");
+    let encoding = if vertices == "grid" { "grid" } else { "f32" };
+    let body = format!(
+        "[input]\npath = {input:?}\n\n[output]\npath = {out:?}\n\n[chunk]\nmax_triangles = \
+         {CHUNK_TRIANGLES}\n\n[strip]\nmax_length = 60\ngrid_nodes = {}\n\n[vertices]\nencoding = \"{encoding}\"\n",
+        vertices == "f32-grid-nodes"
+    );
+    fs::write(&config, body).expect("config");
+    let output = Command::new(env!("CARGO_BIN_EXE_pipeline"))
+        .args(["run", config.to_str().unwrap(), "--log-format", "plain"])
+        .output()
+        .expect("run pipeline");
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
+fn hash(path: &Path) -> u64 {
+    xxhash_rust::xxh3::xxh3_64(&fs::read(path).expect("read output"))
+}
+
+#[test]
+fn outputs_match_the_recorded_hashes() {
+    let dir = temp_dir();
+    let mut actual = Vec::new();
+    for &(kind_name, vertices, _, _) in &RECORDED {
+        let input = dir.join(format!("{kind_name}.ply"));
+        if !input.exists() {
+            generate(kind(kind_name), TRIANGLES, 3, &input).expect("generate");
+        }
+        let in_memory = dir.join(format!("{kind_name}-{vertices}-memory.rdm"));
+        let mesh = read_mesh(&input).expect("read");
+        convert_mesh(&mesh, &params(vertices), &in_memory).expect("convert");
+        let chunked = dir.join(format!("{kind_name}-{vertices}-staged.rdm"));
+        staged(&dir, &input, vertices, &chunked);
+        actual.push((kind_name, vertices, hash(&in_memory), hash(&chunked)));
+    }
+    let table: String = actual
+        .iter()
+        .map(|(k, v, m, s)| format!("    ({k:?}, {v:?}, {m:#018x}, {s:#018x}),\n"))
+        .collect();
+    assert!(
+        actual == RECORDED,
+        "outputs differ from the recorded hashes; now:\n{table}"
+    );
+    let _ = fs::remove_dir_all(&dir);
+}
