@@ -14,6 +14,7 @@ pub mod build;
 pub mod chunking;
 pub mod decode;
 pub mod encode;
+pub mod exit_code;
 pub mod format;
 pub mod gen;
 pub mod geometry;

@@ -2,17 +2,22 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use reducem::format::reader::ReducemFile;
-use reducem::trace::{ray_file, TraceOptions, Tracer};
+use reducem::atomic;
+use reducem::exit_code::{self, UsageError};
+use reducem::format::reader::{FormatError, ReducemFile};
+use reducem::trace::ray_file::{self, RayFileError};
+use reducem::trace::{Ray, TraceOptions, Tracer};
 
 #[derive(Parser)]
 #[command(
     name = "reducem",
     version,
-    about = "Inspect, decode, query and render ReduceM files"
+    about = "Inspect, decode, query and render ReduceM files",
+    after_help = exit_code::HELP
 )]
 struct Cli {
     #[command(subcommand)]
@@ -23,6 +28,7 @@ struct Cli {
 enum Command {
     /// Print the statistics of a ReduceM file.
     Inspect {
+        /// The ReduceM file.
         file: PathBuf,
         /// One JSON object instead of text.
         #[arg(long)]
@@ -34,28 +40,41 @@ enum Command {
     /// Write every encoded triangle, in input winding, as binary little-endian PLY (positions as
     /// stored: the quantized ones for a grid file).
     Decode {
+        /// The ReduceM file.
         file: PathBuf,
+        /// The PLY file to write (replaced atomically; never the input itself).
         #[arg(short, long)]
         output: PathBuf,
     },
     /// Trace a binary ray file (f32 x 8 per ray: origin, direction, tmin, tmax) and write the
     /// closest hits (f32 x 4 per ray: t, normal; t = inf on a miss) or, with --occluded, one byte
-    /// per ray (1 = occluded).
+    /// per ray (1 = occluded). Prints a summary line on stderr.
     Query {
+        /// The ReduceM file.
         file: PathBuf,
+        /// The ray file to trace.
         #[arg(long)]
         rays: PathBuf,
+        /// The hit or occlusion file to write (replaced atomically; never an input).
         #[arg(short, long)]
         output: PathBuf,
+        /// Answer occlusion (any hit within [tmin, tmax]) instead of the closest hit.
         #[arg(long)]
         occluded: bool,
+        /// What an invalid ray (NaN, zero direction, tmin > tmax) does: reject the whole file,
+        /// or be answered as a miss (counted in the summary).
+        #[arg(long, value_enum, default_value_t = InvalidRays::Reject)]
+        invalid_rays: InvalidRays,
     },
     /// Render an image of the model as a scene file describes it, tracing only the effects the
-    /// scene asks for.
+    /// scene asks for. Every scene key, its default and unit: docs/SCENES.md.
     Render {
+        /// The ReduceM file.
         file: PathBuf,
+        /// The scene file (TOML; see docs/SCENES.md and configs/scenes/).
         #[arg(long)]
         scene: PathBuf,
+        /// The PNG image to write (replaced atomically; never an input).
         #[arg(short, long)]
         output: PathBuf,
         /// Print the report as one JSON object.
@@ -68,6 +87,7 @@ enum Command {
         /// Mesh and image sizes: tiny (seconds), medium (minutes), full (about 30 minutes).
         #[arg(long, value_enum, default_value = "full")]
         scale: reducem::report::Scale,
+        /// Directory of the report (REPORT.md, plots, images).
         #[arg(long, default_value = "report")]
         out: PathBuf,
         /// Generated meshes (kept between runs) and converted files.
@@ -76,20 +96,71 @@ enum Command {
     },
 }
 
+/// `reducem query --invalid-rays`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum InvalidRays {
+    /// One invalid ray rejects the whole ray file (exit code 65), before anything is traced.
+    Reject,
+    /// Each invalid ray is answered as a miss (not occluded); the summary counts them.
+    Miss,
+}
+
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) => {
+            let code = if error.use_stderr() {
+                exit_code::USAGE
+            } else {
+                exit_code::SUCCESS
+            };
+            let _ = error.print();
+            return ExitCode::from(code);
+        }
+    };
+    match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("reducem: {error:#}");
-            ExitCode::FAILURE
+            eprintln!("reducem: error: {error:#}");
+            ExitCode::from(exit_code_of(&error))
         }
     }
+}
+
+/// Classifies an error by the typed errors in its chain (the table in `exit_code`).
+fn exit_code_of(error: &anyhow::Error) -> u8 {
+    for cause in error.chain() {
+        if cause.is::<UsageError>() {
+            return exit_code::USAGE;
+        }
+        if cause.is::<reducem::render::scene::SceneError>() {
+            return exit_code::CONFIG;
+        }
+        match cause.downcast_ref::<FormatError>() {
+            Some(FormatError::Io { .. }) => return exit_code::IO,
+            Some(FormatError::Invalid { .. }) => return exit_code::BAD_INPUT,
+            None => {}
+        }
+        match cause.downcast_ref::<RayFileError>() {
+            Some(RayFileError::Io { .. }) => return exit_code::IO,
+            Some(_) => return exit_code::BAD_INPUT,
+            None => {}
+        }
+        if cause.is::<reducem::input::InputError>() {
+            return exit_code::BAD_INPUT;
+        }
+        if cause.is::<std::io::Error>() || cause.is::<reducem::render::image::ImageError>() {
+            return exit_code::IO;
+        }
+    }
+    exit_code::INTERNAL
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Inspect { file, json, verify } => inspect(&file, json, verify),
         Command::Decode { file, output } => {
+            check_output(&output, &[&file])?;
             let opened = ReducemFile::open(&file)?;
             reducem::decode::write_ply(&opened, &output)
                 .with_context(|| format!("writing {}", output.display()))
@@ -99,16 +170,37 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             rays,
             output,
             occluded,
-        } => query(&file, &rays, &output, occluded),
+            invalid_rays,
+        } => {
+            check_output(&output, &[&file, &rays])?;
+            query(&file, &rays, &output, occluded, invalid_rays)
+        }
         Command::Render {
             file,
             scene,
             output,
             json,
-        } => render(&file, &scene, &output, json),
+        } => {
+            check_output(&output, &[&file, &scene])?;
+            render(&file, &scene, &output, json)
+        }
         #[cfg(feature = "report")]
         Command::Report { scale, out, work } => report(scale, out, work),
     }
+}
+
+/// Refuses, before any work, an output that is one of the command's inputs (by path, symlink or
+/// hard link) or that cannot be written (a directory; a missing or read-only directory).
+fn check_output(output: &Path, inputs: &[&Path]) -> anyhow::Result<()> {
+    if let Some(input) = inputs.iter().find(|input| atomic::same_file(output, input)) {
+        anyhow::bail!(UsageError(format!(
+            "output {} is the input {} (the same file); writing it would destroy the input, \
+             so choose another output path",
+            output.display(),
+            input.display()
+        )));
+    }
+    atomic::check_writable(output).with_context(|| format!("output {}", output.display()))
 }
 
 #[cfg(feature = "report")]
@@ -127,17 +219,99 @@ fn report(
     Ok(())
 }
 
-fn query(path: &Path, rays: &Path, output: &Path, occluded: bool) -> anyhow::Result<()> {
-    let rays = ray_file::read_rays(rays)?;
+fn query(
+    path: &Path,
+    rays_path: &Path,
+    output: &Path,
+    occluded: bool,
+    invalid_rays: InvalidRays,
+) -> anyhow::Result<()> {
+    let rays = match invalid_rays {
+        InvalidRays::Reject => ray_file::read_rays(rays_path)?
+            .into_iter()
+            .map(Some)
+            .collect(),
+        InvalidRays::Miss => {
+            let read = ray_file::read_rays_allowing_invalid(rays_path)?;
+            if let Some(first) = &read.first_invalid {
+                eprintln!(
+                    "reducem: query: {} invalid rays answered as misses (first: {first})",
+                    read.invalid
+                );
+            }
+            read.rays
+        }
+    };
     let file = ReducemFile::open(path)?;
     let tracer = Tracer::new(&file, TraceOptions::default());
-    let bytes = if occluded {
-        ray_file::encode_occlusion(&tracer.occluded_batch(&rays))
-    } else {
-        ray_file::encode_hits(&tracer.intersect_batch(&rays))
+    let started = Instant::now();
+    let answers = trace_valid(&rays, |valid| {
+        if occluded {
+            Answers::Occluded(tracer.occluded_batch(valid))
+        } else {
+            Answers::Hits(tracer.intersect_batch(valid))
+        }
+    });
+    let seconds = started.elapsed().as_secs_f64();
+    let bytes = match &answers {
+        Answers::Occluded(occluded) => ray_file::encode_occlusion(occluded),
+        Answers::Hits(hits) => ray_file::encode_hits(hits),
     };
     ray_file::write_atomically(output, &bytes)
-        .with_context(|| format!("writing {}", output.display()))
+        .with_context(|| format!("writing {}", output.display()))?;
+    eprintln!("{}", query_summary(&rays, &answers, seconds));
+    Ok(())
+}
+
+/// The answers of a query, one per ray of the file.
+enum Answers {
+    Hits(Vec<Option<reducem::trace::Hit>>),
+    Occluded(Vec<bool>),
+}
+
+/// Traces the valid rays in one batch and answers every invalid one (`None`) as a miss.
+fn trace_valid(rays: &[Option<Ray>], trace: impl FnOnce(&[Ray]) -> Answers) -> Answers {
+    let valid: Vec<Ray> = rays.iter().flatten().copied().collect();
+    let traced = trace(&valid);
+    if valid.len() == rays.len() {
+        return traced;
+    }
+    match traced {
+        Answers::Hits(hits) => Answers::Hits(scatter(rays, hits, None)),
+        Answers::Occluded(occluded) => Answers::Occluded(scatter(rays, occluded, false)),
+    }
+}
+
+/// Places the answers of the valid rays at their positions, `miss` at the invalid ones.
+fn scatter<T: Clone>(rays: &[Option<Ray>], answers: Vec<T>, miss: T) -> Vec<T> {
+    let mut answers = answers.into_iter();
+    rays.iter()
+        .map(|ray| match ray {
+            Some(_) => answers.next().unwrap_or_else(|| miss.clone()),
+            None => miss.clone(),
+        })
+        .collect()
+}
+
+/// One line of `key=value` fields, so that scripts can parse it and later fields (the tracing
+/// kernel, say) can be appended without breaking them.
+fn query_summary(rays: &[Option<Ray>], answers: &Answers, seconds: f64) -> String {
+    let hits = match answers {
+        Answers::Hits(hits) => hits.iter().flatten().count(),
+        Answers::Occluded(occluded) => occluded.iter().filter(|&&o| o).count(),
+    };
+    let invalid = rays.iter().filter(|ray| ray.is_none()).count();
+    let traced = rays.len() - invalid;
+    let mrays = if seconds > 0.0 {
+        traced as f64 / seconds / 1e6
+    } else {
+        0.0
+    };
+    format!(
+        "reducem: query: rays={} invalid={invalid} hits={hits} seconds={seconds:.6} \
+         mrays_per_s={mrays:.3}",
+        rays.len()
+    )
 }
 
 fn render(path: &Path, scene: &Path, output: &Path, json: bool) -> anyhow::Result<()> {
@@ -221,4 +395,24 @@ fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<(
         println!("  checksums          ok");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    #[test]
+    fn every_argument_of_every_command_has_a_description() {
+        let command = super::Cli::command();
+        for subcommand in command.get_subcommands() {
+            for argument in subcommand.get_arguments() {
+                assert!(
+                    argument.get_help().is_some(),
+                    "reducem {} {} has no description",
+                    subcommand.get_name(),
+                    argument.get_id()
+                );
+            }
+        }
+    }
 }

@@ -1,5 +1,6 @@
 //! The `reducem` command-line contract: `inspect --json` keys and consistency (the precision
-//! keys included), `decode` output for lossless and grid files.
+//! keys included), `decode` output for lossless and grid files, outputs that would overwrite an
+//! input or cannot be written refused before any work, exit codes and `--help`.
 
 mod common;
 
@@ -180,4 +181,200 @@ fn decode_writes_the_quantized_triangles_of_a_grid_file() {
         canonical_sorted(decoded_triangles),
         expected_triangles(&quantized)
     );
+}
+
+/// A small converted model at `temp_path(name)`.
+fn small_model(name: &str) -> std::path::PathBuf {
+    let path = temp_path(name);
+    convert_mesh(&torus(12, 6), &BuildParams::default(), &path).expect("convert");
+    path
+}
+
+/// A scene that renders the model in a few pixels.
+fn small_scene(name: &str) -> std::path::PathBuf {
+    let path = temp_path(name);
+    std::fs::write(
+        &path,
+        "[image]\nwidth = 8\nheight = 8\n[camera]\nauto = true\n",
+    )
+    .unwrap();
+    path
+}
+
+/// Runs `args`, expects `code` and a message naming `output` and `input`, and checks `input`
+/// still holds `before`.
+fn assert_refused(args: &[&str], output: &std::path::Path, input: &std::path::Path, before: &[u8]) {
+    let result = reducem(args);
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(64), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "output {} is the input {}",
+            output.display(),
+            input.display()
+        )),
+        "{stderr}"
+    );
+    assert!(std::fs::read(input).unwrap() == before, "the input changed");
+    assert!(result.stdout.is_empty(), "work was done: {result:?}");
+}
+
+#[test]
+fn an_output_that_is_an_input_is_refused_and_the_input_kept() {
+    let model = small_model("cli-same.rdm");
+    let before = std::fs::read(&model).unwrap();
+    let model_arg = model.to_str().unwrap();
+    assert_refused(
+        &["decode", model_arg, "-o", model_arg],
+        &model,
+        &model,
+        &before,
+    );
+
+    let scene = small_scene("cli-same-scene.toml");
+    let scene_text = std::fs::read(&scene).unwrap();
+    let scene_arg = scene.to_str().unwrap();
+    let render = ["render", model_arg, "--scene", scene_arg, "-o"];
+    assert_refused(
+        &[&render[..], &[model_arg]].concat(),
+        &model,
+        &model,
+        &before,
+    );
+    assert_refused(
+        &[&render[..], &[scene_arg]].concat(),
+        &scene,
+        &scene,
+        &scene_text,
+    );
+
+    let symlink = temp_path("cli-same-symlink.rdm");
+    let _ = std::fs::remove_file(&symlink);
+    std::os::unix::fs::symlink(&model, &symlink).unwrap();
+    let symlink_arg = symlink.to_str().unwrap();
+    assert_refused(
+        &[&render[..], &[symlink_arg]].concat(),
+        &symlink,
+        &model,
+        &before,
+    );
+
+    let rays = temp_path("cli-same.rays");
+    let ray = reducem::trace::Ray {
+        origin: [0.0, 0.0, 5.0],
+        direction: [0.0, 0.0, -1.0],
+        tmin: 0.0,
+        tmax: f32::INFINITY,
+    };
+    let ray_bytes = reducem::trace::ray_file::encode_rays(&[ray]);
+    std::fs::write(&rays, &ray_bytes).unwrap();
+    let hard_link = temp_path("cli-same-hard-link.rays");
+    let _ = std::fs::remove_file(&hard_link);
+    std::fs::hard_link(&rays, &hard_link).unwrap();
+    let (rays_arg, link_arg) = (rays.to_str().unwrap(), hard_link.to_str().unwrap());
+    let query = ["query", model_arg, "--rays", rays_arg, "-o", link_arg];
+    assert_refused(&query, &hard_link, &rays, &ray_bytes);
+}
+
+#[test]
+fn an_output_that_cannot_be_written_fails_before_the_work_with_74() {
+    let model = small_model("cli-unwritable.rdm");
+    let scene = small_scene("cli-unwritable-scene.toml");
+    let directory = temp_path("cli-unwritable-dir");
+    std::fs::create_dir_all(&directory).unwrap();
+    let missing = temp_path("cli-missing-dir/image.png");
+    for output in [&directory, &missing] {
+        let result = reducem(&[
+            "render",
+            model.to_str().unwrap(),
+            "--scene",
+            scene.to_str().unwrap(),
+            "-o",
+            output.to_str().unwrap(),
+        ]);
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(74), "{stderr}");
+        assert!(
+            stderr.contains(&format!("output {}", output.display())),
+            "{stderr}"
+        );
+        assert!(
+            result.stdout.is_empty(),
+            "rendered before failing: {result:?}"
+        );
+    }
+    let stderr = String::from_utf8_lossy(
+        &reducem(&[
+            "decode",
+            model.to_str().unwrap(),
+            "-o",
+            directory.to_str().unwrap(),
+        ])
+        .stderr,
+    )
+    .to_string();
+    assert!(stderr.contains("is a directory"), "{stderr}");
+    assert!(!missing.parent().unwrap().exists());
+}
+
+#[test]
+fn exit_codes_follow_the_one_table() {
+    assert_eq!(reducem(&[]).status.code(), Some(64));
+    assert_eq!(reducem(&["inspect"]).status.code(), Some(64));
+    assert_eq!(reducem(&["render", "--bogus"]).status.code(), Some(64));
+    assert_eq!(reducem(&["--version"]).status.code(), Some(0));
+    let corrupt = temp_path("cli-exit-corrupt.rdm");
+    std::fs::write(&corrupt, b"not a reducem file").unwrap();
+    assert_eq!(
+        reducem(&["inspect", corrupt.to_str().unwrap()])
+            .status
+            .code(),
+        Some(65)
+    );
+    let missing = temp_path("cli-exit-missing.rdm");
+    let result = reducem(&["inspect", missing.to_str().unwrap()]);
+    assert_eq!(result.status.code(), Some(74));
+    assert!(String::from_utf8_lossy(&result.stderr).contains("cli-exit-missing.rdm"));
+
+    let model = small_model("cli-exit-scene.rdm");
+    let scene = temp_path("cli-exit-bad-scene.toml");
+    std::fs::write(
+        &scene,
+        "[image]\nwidth = 0\nheight = 8\n[camera]\nauto = true\n",
+    )
+    .unwrap();
+    let image = temp_path("cli-exit-scene.png");
+    let result = reducem(&[
+        "render",
+        model.to_str().unwrap(),
+        "--scene",
+        scene.to_str().unwrap(),
+        "-o",
+        image.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(78), "{stderr}");
+    assert!(
+        stderr.contains("cli-exit-bad-scene.toml") && stderr.contains("image"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn help_shows_the_exit_codes_and_render_help_the_scene_documentation() {
+    let help = String::from_utf8_lossy(&reducem(&["--help"]).stdout).to_string();
+    for line in [
+        "Exit codes",
+        "64  usage",
+        "65  bad input",
+        "74  I/O",
+        "78  configuration",
+    ] {
+        assert!(help.contains(line), "{line} missing in {help}");
+    }
+    let render = String::from_utf8_lossy(&reducem(&["render", "--help"]).stdout).to_string();
+    assert!(render.contains("docs/SCENES.md"), "{render}");
+    assert!(std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("docs/SCENES.md")
+        .is_file());
 }

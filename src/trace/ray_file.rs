@@ -58,27 +58,70 @@ pub fn read_rays(path: &Path) -> Result<Vec<Ray>, RayFileError> {
 
 /// Validates `bytes` as a ray file (`path` is only for messages).
 pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>, RayFileError> {
-    if !bytes.len().is_multiple_of(RAY_BYTES) {
-        let ray = bytes.len() / RAY_BYTES;
-        return Err(RayFileError::Truncated {
-            path: path.to_path_buf(),
-            size: bytes.len(),
-            ray,
-            offset: ray * RAY_BYTES,
-        });
-    }
+    check_length(path, bytes)?;
     bytes
         .chunks_exact(RAY_BYTES)
         .enumerate()
-        .map(|(index, record)| {
-            parse_ray(record).map_err(|(field, detail)| RayFileError::Invalid {
-                path: path.to_path_buf(),
-                ray: index,
-                offset: index * RAY_BYTES + field * 4,
-                detail,
-            })
-        })
+        .map(|(index, record)| parse_record(path, index, record))
         .collect()
+}
+
+/// A ray file read with invalid rays allowed (`reducem query --invalid-rays miss`).
+#[derive(Debug)]
+pub struct RaysWithInvalid {
+    /// Every record in order, `None` for an invalid one.
+    pub rays: Vec<Option<Ray>>,
+    pub invalid: usize,
+    /// The defect of the first invalid ray, for the report.
+    pub first_invalid: Option<RayFileError>,
+}
+
+/// Reads the ray file at `path` like [`read_rays`], except that an invalid ray (NaN, zero
+/// direction, bad interval) does not reject the file; a truncated file still does.
+pub fn read_rays_allowing_invalid(path: &Path) -> Result<RaysWithInvalid, RayFileError> {
+    let bytes = fs::read(path).map_err(|source| RayFileError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    check_length(path, &bytes)?;
+    let mut read = RaysWithInvalid {
+        rays: Vec::with_capacity(bytes.len() / RAY_BYTES),
+        invalid: 0,
+        first_invalid: None,
+    };
+    for (index, record) in bytes.chunks_exact(RAY_BYTES).enumerate() {
+        match parse_record(path, index, record) {
+            Ok(ray) => read.rays.push(Some(ray)),
+            Err(defect) => {
+                read.rays.push(None);
+                read.invalid += 1;
+                read.first_invalid.get_or_insert(defect);
+            }
+        }
+    }
+    Ok(read)
+}
+
+fn check_length(path: &Path, bytes: &[u8]) -> Result<(), RayFileError> {
+    if bytes.len().is_multiple_of(RAY_BYTES) {
+        return Ok(());
+    }
+    let ray = bytes.len() / RAY_BYTES;
+    Err(RayFileError::Truncated {
+        path: path.to_path_buf(),
+        size: bytes.len(),
+        ray,
+        offset: ray * RAY_BYTES,
+    })
+}
+
+fn parse_record(path: &Path, index: usize, record: &[u8]) -> Result<Ray, RayFileError> {
+    parse_ray(record).map_err(|(field, detail)| RayFileError::Invalid {
+        path: path.to_path_buf(),
+        ray: index,
+        offset: index * RAY_BYTES + field * 4,
+        detail,
+    })
 }
 
 /// One record; on error, the offending field and what is wrong with it.
