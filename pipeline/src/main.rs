@@ -8,6 +8,7 @@ mod input;
 mod interrupt;
 mod lock;
 mod manifest;
+mod preflight;
 mod progress;
 mod run;
 mod stage;
@@ -18,6 +19,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use reducem::exit_code as exit;
 use reducem::gen;
 
 /// mimalloc returns freed chunk memory to the system promptly; with glibc's per-thread arenas
@@ -26,21 +28,12 @@ use reducem::gen;
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-/// Exit codes (sysexits.h values, as batch schedulers expect).
-mod exit {
-    pub const USAGE: u8 = 64;
-    pub const BAD_INPUT: u8 = 65;
-    pub const INTERNAL: u8 = 70;
-    pub const IO: u8 = 74;
-    pub const TEMPORARY: u8 = 75;
-    pub const CONFIG: u8 = 78;
-}
-
 #[derive(Parser)]
 #[command(
     name = "pipeline",
     version,
-    about = "Convert massive meshes to ReduceM files"
+    about = "Convert massive meshes to ReduceM files",
+    after_help = exit::HELP
 )]
 struct Cli {
     #[command(subcommand)]
@@ -51,6 +44,7 @@ struct Cli {
 enum Command {
     /// Run (or resume) the conversion described by CONFIG.
     Run {
+        /// The job's configuration file (TOML; see README.md, Configuration).
         config: PathBuf,
         /// Progress bars on a terminal, plain log lines otherwise; or force one.
         #[arg(long, value_enum, default_value_t = progress::LogFormat::Auto)]
@@ -67,16 +61,26 @@ enum Command {
         shard: Option<run::Shard>,
     },
     /// List stages and chunks as done, pending or stale, with the reason.
-    Status { config: PathBuf },
-    /// Remove the work directory of CONFIG.
-    Clean { config: PathBuf },
+    Status {
+        /// The job's configuration file.
+        config: PathBuf,
+    },
+    /// Remove the work directory of CONFIG (only one that pipeline made).
+    Clean {
+        /// The job's configuration file.
+        config: PathBuf,
+    },
     /// Stream a synthetic mesh to binary PLY.
     Gen {
+        /// The kind of mesh.
         kind: gen::Kind,
+        /// About how many triangles (each kind rounds to its own structure).
         #[arg(long)]
         triangles: u64,
+        /// The PLY file to write.
         #[arg(short, long)]
         output: PathBuf,
+        /// Seed of the generator: the same seed gives the same mesh.
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
@@ -166,4 +170,24 @@ fn exit_code(error: &anyhow::Error) -> u8 {
         }
     }
     exit::INTERNAL
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    #[test]
+    fn every_argument_of_every_command_has_a_description() {
+        let command = super::Cli::command();
+        for subcommand in command.get_subcommands() {
+            for argument in subcommand.get_arguments() {
+                assert!(
+                    argument.get_help().is_some(),
+                    "pipeline {} {} has no description",
+                    subcommand.get_name(),
+                    argument.get_id()
+                );
+            }
+        }
+    }
 }

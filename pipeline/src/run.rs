@@ -13,9 +13,10 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use crate::config::Config;
+use crate::config::{Config, ConfigError};
 use crate::input;
 use crate::lock::{LockedError, WorkLock};
+use crate::preflight;
 use crate::progress::{LogFormat, Progress};
 use crate::stage::chunk::Chunked;
 use crate::stage::hierarchy::Hierarchy;
@@ -109,6 +110,10 @@ pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
     if options.shard != Shard::WHOLE && options.stage != Some(StageName::Strip) {
         anyhow::bail!(UsageError("--shard applies to --stage strip only".into()));
     }
+    if let Some(message) = preflight::unsafe_paths(&config, config_path) {
+        return Err(ConfigError::new(config_path, message).into());
+    }
+    preflight::prepare_output(&config)?;
     let work = WorkDir::new(config.work_dir());
     work.create()
         .with_context(|| format!("creating {}", work.root().display()))?;
@@ -215,13 +220,17 @@ fn built_hierarchy(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
     })
 }
 
-/// `pipeline clean`: removes the work directory (under its lock, so not from under a run).
+/// `pipeline clean`: removes the work directory (under its lock, so not from under a run), only
+/// one that pipeline made and that holds neither the input nor the output.
 pub fn clean(config_path: &Path) -> anyhow::Result<()> {
     let config = Config::load(config_path)?;
     let root = config.work_dir();
     if !root.exists() {
         eprintln!("pipeline: nothing to clean at {}", root.display());
         return Ok(());
+    }
+    if let Some(message) = preflight::unsafe_to_clean(&config, config_path) {
+        return Err(ConfigError::new(config_path, message).into());
     }
     let lock = WorkLock::acquire(&root, false)?;
     std::fs::remove_dir_all(&root).with_context(|| format!("removing {}", root.display()))?;

@@ -123,3 +123,147 @@ fn gen_writes_the_requested_kind() {
     let mesh = reducem::input::read_mesh(&out).expect("read back");
     assert_eq!(mesh.triangles.len(), 2 * 32 * 32);
 }
+
+/// A small mesh at `dir/name`.
+fn small_mesh(dir: &Path, name: &str) -> PathBuf {
+    let path = dir.join(name);
+    reducem::gen::generate(reducem::gen::Kind::Sphere, 500, 1, &path).expect("generate");
+    path
+}
+
+/// Runs `args`, expects `code` and every one of `expected` in the message, and checks that the
+/// files in `kept` still hold their bytes.
+fn assert_refused(args: &[&str], code: i32, expected: &[&str], kept: &[(&Path, &[u8])]) {
+    let output = pipeline(args);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(code), "{stderr}");
+    for text in expected {
+        assert!(stderr.contains(text), "{text:?} missing in {stderr}");
+    }
+    for (path, bytes) in kept {
+        assert!(std::fs::read(path).unwrap() == *bytes, "{path:?} changed");
+    }
+}
+
+#[test]
+fn an_output_path_that_is_the_input_is_refused_before_any_stage() {
+    let dir = temp_dir("same-file");
+    let mesh = small_mesh(&dir, "model.ply");
+    let before = std::fs::read(&mesh).unwrap();
+    std::os::unix::fs::symlink(&mesh, dir.join("link.ply")).ok();
+    std::fs::hard_link(&mesh, dir.join("hard.ply")).ok();
+    for output in ["model.ply", "link.ply", "hard.ply", "./model.ply"] {
+        let config = write_config(
+            &dir,
+            &format!("[input]\npath = \"model.ply\"\n[output]\npath = \"{output}\"\n"),
+        );
+        let config_arg = config.to_str().unwrap();
+        let named = format!("[output] path {}", dir.join(output).display());
+        let input = format!("is the input {}", mesh.display());
+        let expected = ["job.toml", named.as_str(), input.as_str()];
+        assert_refused(&["run", config_arg], 78, &expected, &[(&mesh, &before)]);
+        assert!(!dir.join(format!("{output}.work")).exists(), "a stage ran");
+    }
+    let config = write_config(
+        &dir,
+        "[input]\npath = \"model.ply\"\n[output]\npath = \"job.toml\"\n",
+    );
+    let config_text = std::fs::read(&config).unwrap();
+    let expected = ["is the input", "job.toml (the same file)"];
+    let kept: [(&Path, &[u8]); 1] = [(&config, &config_text)];
+    assert_refused(&["run", config.to_str().unwrap()], 78, &expected, &kept);
+}
+
+#[test]
+fn a_work_directory_holding_the_input_or_not_made_by_pipeline_is_refused() {
+    let dir = temp_dir("work-holds-input");
+    let mesh = small_mesh(&dir, "model.ply");
+    let before = std::fs::read(&mesh).unwrap();
+    let config = write_config(
+        &dir,
+        "[input]\npath = \"model.ply\"\n[output]\npath = \"out/model.rdm\"\n[work]\ndir = \".\"\n",
+    );
+    let config_arg = config.to_str().unwrap();
+    let expected = ["[work] dir", "contains", "model.ply"];
+    assert_refused(&["run", config_arg], 78, &expected, &[(&mesh, &before)]);
+    assert!(!dir.join("out").exists() && !dir.join("manifest.json").exists());
+    let expected = ["was not made by pipeline", "not removing it"];
+    assert_refused(&["clean", config_arg], 78, &expected, &[(&mesh, &before)]);
+
+    let mine = dir.join("mine");
+    std::fs::create_dir_all(&mine).unwrap();
+    std::fs::write(mine.join("notes.txt"), "precious").unwrap();
+    let config = write_config(
+        &dir,
+        "[input]\npath = \"model.ply\"\n[output]\npath = \"model.rdm\"\n[work]\ndir = \"mine\"\n",
+    );
+    let config_arg = config.to_str().unwrap();
+    let expected = ["already exists, is not empty and was not made by pipeline"];
+    assert_refused(&["run", config_arg], 78, &expected, &[(&mesh, &before)]);
+    assert_refused(
+        &["clean", config_arg],
+        78,
+        &["was not made by pipeline"],
+        &[],
+    );
+    assert_eq!(
+        std::fs::read_to_string(mine.join("notes.txt")).unwrap(),
+        "precious"
+    );
+}
+
+#[test]
+fn clean_removes_the_work_directory_pipeline_made() {
+    let dir = temp_dir("clean");
+    small_mesh(&dir, "model.ply");
+    let config = write_config(
+        &dir,
+        "[input]\npath = \"model.ply\"\n[output]\npath = \"model.rdm\"\n",
+    );
+    let config_arg = config.to_str().unwrap();
+    assert_eq!(pipeline(&["run", config_arg]).status.code(), Some(0));
+    assert!(dir.join("model.rdm.work/pipeline-work-dir").is_file());
+    assert_eq!(pipeline(&["clean", config_arg]).status.code(), Some(0));
+    assert!(!dir.join("model.rdm.work").exists() && dir.join("model.rdm").exists());
+}
+
+#[test]
+fn an_unwritable_output_fails_before_the_first_stage_with_74() {
+    let dir = temp_dir("unwritable-output");
+    let mesh = small_mesh(&dir, "model.ply");
+    let before = std::fs::read(&mesh).unwrap();
+    std::fs::create_dir_all(dir.join("taken.rdm")).unwrap();
+    std::fs::write(dir.join("file"), "a file, not a directory").unwrap();
+    for (output, expected) in [
+        ("taken.rdm", "is a directory"),
+        ("file/model.rdm", "creating the output directory"),
+    ] {
+        let config = write_config(
+            &dir,
+            &format!(
+                "[input]\npath = \"model.ply\"\n[output]\npath = \"{output}\"\n\
+                 [work]\ndir = \"work\"\n"
+            ),
+        );
+        assert_refused(
+            &["run", config.to_str().unwrap()],
+            74,
+            &[expected],
+            &[(&mesh, &before)],
+        );
+        assert!(!dir.join("work").exists(), "a stage ran for {output}");
+    }
+}
+
+#[test]
+fn help_shows_the_exit_codes() {
+    let help = String::from_utf8_lossy(&pipeline(&["--help"]).stdout).to_string();
+    for line in [
+        "Exit codes",
+        "64  usage",
+        "75  try again later",
+        "78  configuration",
+    ] {
+        assert!(help.contains(line), "{line} missing in {help}");
+    }
+}

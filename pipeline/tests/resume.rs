@@ -194,6 +194,8 @@ fn a_held_lock_exits_75_naming_the_holder_or_skips() {
     let dir = temp_dir("lock");
     let config = job(&dir, "");
     fs::create_dir_all(dir.join("out.rdm.work")).unwrap();
+    // The holder is another run of pipeline, which marked the directory as its own.
+    fs::write(dir.join("out.rdm.work/pipeline-work-dir"), "").unwrap();
     let mut holder = File::options()
         .create(true)
         .truncate(true)
