@@ -1,6 +1,6 @@
 //! The scene file of `reducem render`: camera, image, lights and effects, in TOML.
 //!
-//! Every table denies unknown keys, so a misspelt key is an error with its line and column (the
+//! Every key, its default and unit: `docs/SCENES.md`. Every table denies unknown keys, so a misspelt key is an error with its line and column (the
 //! `toml` crate's span) rather than a silently ignored setting. Semantic checks (positive sizes,
 //! a camera that is either placed or automatic) follow parsing and name the offending key.
 //!
@@ -74,9 +74,9 @@ pub struct CameraSettings {
     pub fov_degrees: f32,
 }
 
-/// Surface and environment terms of the shading.
+/// Surface and environment terms of the shading; a key the table omits takes its default.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct Shading {
     /// Diffuse reflectance of every surface.
     pub albedo: Point,
@@ -271,6 +271,17 @@ mod tests {
         assert!(error.contains("s.toml"), "{error}");
         assert!(error.contains("unknown field `fov`"), "{error}");
         assert!(error.contains("line 6"), "{error}");
+    }
+
+    #[test]
+    fn a_partial_shading_table_takes_defaults_for_what_it_omits() {
+        let text = format!("{MINIMAL}[shading]\nambient = 0.5\n");
+        let scene = Scene::parse(Path::new("s.toml"), &text).expect("parse");
+        let expected = Shading {
+            ambient: 0.5,
+            ..Shading::default()
+        };
+        assert_eq!(scene.shading, expected);
     }
 
     #[test]
