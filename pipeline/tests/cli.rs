@@ -267,3 +267,41 @@ fn help_shows_the_exit_codes() {
         assert!(help.contains(line), "{line} missing in {help}");
     }
 }
+
+#[test]
+fn obj_errors_name_line_and_byte_and_unknown_statements_are_reported_once() {
+    let dir = temp_dir("obj");
+    std::fs::write(dir.join("bad.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n").unwrap();
+    let config = write_config(
+        &dir,
+        "[input]\npath = \"bad.obj\"\n[output]\npath = \"bad.rdm\"\n",
+    );
+    let output = pipeline(&["run", config.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(65), "{stderr}");
+    assert!(
+        stderr.contains("bad.obj: element 'face' #0 at byte 30 (line 4): OBJ: face vertex index 9"),
+        "{stderr}"
+    );
+
+    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\ncurv 0 1 1 2\nf 1 2 3\nsurf 0 1 0 1 1\ncurv 0 1 2 3\n";
+    std::fs::write(dir.join("curves.obj"), text).unwrap();
+    let config = write_config(
+        &dir,
+        "[input]\npath = \"curves.obj\"\n[output]\npath = \"curves.rdm\"\n",
+    );
+    let output = pipeline(&["run", config.to_str().unwrap(), "--log-format", "plain"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(0), "{stderr}");
+    let reports: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.contains("unknown OBJ"))
+        .collect();
+    assert_eq!(reports.len(), 1, "{stderr}");
+    assert!(
+        reports[0].contains(
+            "3 unknown OBJ statements ignored (first at line 4, byte 24; 'curv' 2, 'surf' 1)"
+        ),
+        "{stderr}"
+    );
+}

@@ -7,11 +7,15 @@
 //! concatenated with index offsets, and the shared welding step reconnects vertices that
 //! models duplicated.
 //!
-//! `tobj` reports errors without positions, so OBJ errors name only the file and the defect.
+//! `tobj` reports errors without positions, so when it rejects a file (or a coordinate is out
+//! of range) a survey of the file ([`super::obj_survey`]) finds the defective statement and the
+//! error names its element, index, line and byte offset. Statements `tobj` would drop without a
+//! word (free-form geometry, unknown keywords) are counted and reported once on stderr.
 
 use std::path::Path;
 
 use crate::input::error::{InputError, InputErrorKind, Location};
+use crate::input::obj_survey::survey;
 use crate::mesh::Mesh;
 
 pub fn read_obj(path: &Path) -> Result<Mesh, InputError> {
@@ -23,13 +27,46 @@ pub fn read_obj(path: &Path) -> Result<Mesh, InputError> {
     };
     // Materials are irrelevant to geometry; a missing .mtl file must not fail the read.
     let (models, _materials) = tobj::load_obj(path, &options).map_err(|error| {
-        InputError::new(path, Location::File, InputErrorKind::Obj(error.to_string()))
+        located(
+            path,
+            InputError::new(path, Location::File, InputErrorKind::Obj(error.to_string())),
+        )
     })?;
     let mut mesh = Mesh::default();
     for model in &models {
-        append_model(path, &mut mesh, &model.mesh)?;
+        append_model(path, &mut mesh, &model.mesh).map_err(|error| located(path, error))?;
     }
+    report_unknown_statements(path);
     Ok(mesh)
+}
+
+/// `error` placed at the first defective statement of the file, if a survey finds one; as it
+/// is otherwise. A second survey, knowing the vertex total, finds face indices beyond it.
+fn located(path: &Path, error: InputError) -> InputError {
+    let first = match survey(path, None) {
+        Ok(first) => first,
+        Err(_) => return error,
+    };
+    let defect = first.defect.or_else(|| {
+        survey(path, Some(first.vertices))
+            .ok()
+            .and_then(|second| second.defect)
+    });
+    match defect {
+        Some((location, kind)) => InputError::new(path, location, kind),
+        None => error,
+    }
+}
+
+/// Unknown statements are not errors (OBJ has many optional ones), but dropping geometry without
+/// a word is: one line on stderr counts them.
+fn report_unknown_statements(path: &Path) {
+    if let Some(summary) = survey(path, None)
+        .ok()
+        .and_then(|survey| survey.unknown_summary())
+    {
+        eprintln!("reducem: {}: {summary}", path.display());
+    }
 }
 
 fn append_model(path: &Path, mesh: &mut Mesh, model: &tobj::Mesh) -> Result<(), InputError> {
