@@ -13,6 +13,7 @@ mod progress;
 mod run;
 mod stage;
 mod status;
+mod time;
 mod workdir;
 
 use std::path::PathBuf;

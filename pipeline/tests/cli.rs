@@ -305,3 +305,57 @@ fn obj_errors_name_line_and_byte_and_unknown_statements_are_reported_once() {
         "{stderr}"
     );
 }
+
+/// `pipeline status` of `config`, checked to hold no internal token (hashes, digests).
+fn status_in_words(config: &Path) -> String {
+    let text = String::from_utf8_lossy(&pipeline(&["status", config.to_str().unwrap()]).stdout)
+        .to_string();
+    let hex_token = text
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .any(|word| word.len() >= 16 && word.chars().all(|c| c.is_ascii_hexdigit()));
+    assert!(
+        !hex_token && !text.contains("unhashed:") && !text.contains("_stage"),
+        "{text}"
+    );
+    text
+}
+
+#[test]
+fn status_explains_staleness_in_words() {
+    let dir = temp_dir("status-words");
+    let mesh = small_mesh(&dir, "model.ply");
+    let body = "[input]\npath = \"model.ply\"\n[output]\npath = \"model.rdm\"\n[chunk]\nmax_triangles = 400\n";
+    let config = write_config(&dir, body);
+    assert_eq!(
+        pipeline(&["run", config.to_str().unwrap()]).status.code(),
+        Some(0)
+    );
+
+    reducem::gen::generate(reducem::gen::Kind::Sphere, 2000, 1, &mesh).expect("generate");
+    let bytes = std::fs::metadata(&mesh).unwrap().len();
+    let text = status_in_words(&config);
+    assert!(
+        text.contains(&format!(
+            "chunk                stale: input changed: now {bytes} bytes, modified 20"
+        )),
+        "{text}"
+    );
+    assert!(
+        text.contains("redoes the work only if its content differs"),
+        "{text}"
+    );
+
+    write_config(&dir, &body.replace("400", "300"));
+    let stage = pipeline(&["run", config.to_str().unwrap(), "--stage", "chunk"]);
+    assert_eq!(
+        stage.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&stage.stderr)
+    );
+    let text = status_in_words(&config);
+    assert!(
+        text.contains("strip/chunk-000000   stale: the chunk stage's results changed"),
+        "{text}"
+    );
+}

@@ -202,7 +202,11 @@ fn a_held_lock_exits_75_naming_the_holder_or_skips() {
         .write(true)
         .open(dir.join("out.rdm.work/lock"))
         .unwrap();
-    writeln!(holder, "pid 4242 on host testhost since unix time 1").unwrap();
+    writeln!(
+        holder,
+        "pid 4242 on host testhost since 1970-01-01T00:00:01Z"
+    )
+    .unwrap();
     holder.try_lock().expect("test takes the lock");
 
     let output = run(&["run", config.to_str().unwrap()]);
