@@ -127,10 +127,11 @@ impl Default for VerticesConfig {
 }
 
 /// `[vertices] encoding`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum VertexEncodingName {
     /// Lossless f32 copies of the input positions.
+    #[value(name = "f32")]
     F32,
     /// Points of one global grid over the model, `grid_bits` bits per axis.
     Grid,
@@ -161,13 +162,17 @@ pub enum Input {
 impl Config {
     /// Reads, parses and checks `path`; relative paths in it become relative to its directory.
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
-        let error = |message: String| ConfigError {
-            path: path.to_path_buf(),
-            message,
-        };
-        let text = std::fs::read_to_string(path).map_err(|e| error(e.to_string()))?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|error| ConfigError::new(path, error.to_string()))?;
+        Config::parse(path, &text)
+    }
+
+    /// Parses and checks configuration text; `path` names it in errors and is the base of its
+    /// relative paths.
+    pub fn parse(path: &Path, text: &str) -> Result<Config, ConfigError> {
+        let error = |message: String| ConfigError::new(path, message);
         let mut config: Config =
-            toml::from_str(&text).map_err(|e| error(e.to_string().trim_end().to_string()))?;
+            toml::from_str(text).map_err(|e| error(e.to_string().trim_end().to_string()))?;
         config.resolve_paths(path.parent().unwrap_or(Path::new("")));
         config.input().map_err(error)?;
         config.build_params().check().map_err(error)?;

@@ -3,6 +3,7 @@
 
 mod chunk_io;
 mod config;
+mod convert;
 mod fingerprint;
 mod input;
 mod interrupt;
@@ -60,6 +61,33 @@ enum Command {
         /// SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT when those are set.
         #[arg(long, value_name = "I/N")]
         shard: Option<run::Shard>,
+    },
+    /// Convert one mesh without a configuration file: writes the equivalent configuration to
+    /// WORK/convert.toml and runs (or resumes) it like `run`.
+    Convert {
+        /// The mesh to convert (PLY or OBJ).
+        input: PathBuf,
+        /// The ReduceM file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Most triangles per strip (default 60; shorter strips trace faster, cost more bytes).
+        #[arg(long)]
+        max_length: Option<usize>,
+        /// Vertex encoding: f32 (lossless, the default) or grid (quantized).
+        #[arg(long, value_enum)]
+        encoding: Option<config::VertexEncodingName>,
+        /// Grid bits per axis with --encoding grid, 1 to 24 (default 20).
+        #[arg(long, requires = "encoding")]
+        grid_bits: Option<u32>,
+        /// Work directory for intermediate files (default OUTPUT.work).
+        #[arg(long)]
+        work: Option<PathBuf>,
+        /// Progress bars on a terminal, plain log lines otherwise; or force one.
+        #[arg(long, value_enum, default_value_t = progress::LogFormat::Auto)]
+        log_format: progress::LogFormat,
+        /// When another run holds the work directory: fail with exit code 75, or skip with 0.
+        #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
+        if_locked: run::IfLocked,
     },
     /// List stages and chunks as done, pending or stale, with the reason.
     Status {
@@ -127,6 +155,33 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 shard,
             };
             run::run(&config, &options)
+        }
+        Command::Convert {
+            input,
+            output,
+            max_length,
+            encoding,
+            grid_bits,
+            work,
+            log_format,
+            if_locked,
+        } => {
+            interrupt::install()?;
+            let args = convert::ConvertArgs {
+                input,
+                output,
+                max_length,
+                encoding,
+                grid_bits,
+                work,
+            };
+            let options = run::RunOptions {
+                log_format,
+                if_locked,
+                stage: None,
+                shard: run::Shard::WHOLE,
+            };
+            convert::convert(&args, &options)
         }
         Command::Status { config } => status::status(&config),
         Command::Clean { config } => run::clean(&config),

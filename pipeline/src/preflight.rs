@@ -10,8 +10,32 @@ use anyhow::Context;
 use crate::config::{Config, Input};
 use crate::workdir::WorkDir;
 
+/// How a message names the output and the work directory: as the configuration keys, or as
+/// the command-line options of `pipeline convert`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Naming {
+    Config,
+    CommandLine,
+}
+
+impl Naming {
+    fn output(self) -> &'static str {
+        match self {
+            Naming::Config => "[output] path",
+            Naming::CommandLine => "output",
+        }
+    }
+
+    fn work(self) -> &'static str {
+        match self {
+            Naming::Config => "[work] dir",
+            Naming::CommandLine => "work directory",
+        }
+    }
+}
+
 /// Why the job's paths are unsafe, as a message naming both paths; `None` when they are safe.
-pub fn unsafe_paths(config: &Config, config_path: &Path) -> Option<String> {
+pub fn unsafe_paths(config: &Config, config_path: &Path, naming: Naming) -> Option<String> {
     let output = &config.output.path;
     let mesh = match config.input() {
         Ok(Input::File(path)) => Some(path),
@@ -21,8 +45,9 @@ pub fn unsafe_paths(config: &Config, config_path: &Path) -> Option<String> {
     for input in inputs {
         if reducem::atomic::same_file(output, input) {
             return Some(format!(
-                "[output] path {} is the input {} (the same file); writing it would destroy \
-                 the input, so choose another output path",
+                "{} {} is the input {} (the same file); writing it would destroy the input, \
+                 so choose another output path",
+                naming.output(),
                 output.display(),
                 input.display()
             ));
@@ -32,13 +57,14 @@ pub fn unsafe_paths(config: &Config, config_path: &Path) -> Option<String> {
     let inside_work = mesh.iter().chain([output]).find(|path| inside(&work, path));
     if let Some(path) = inside_work {
         return Some(format!(
-            "[work] dir {} contains {}; `pipeline clean` removes the whole work directory, so \
-             give the job a directory of its own",
+            "{} {} contains {}; `pipeline clean` removes the whole work directory, so give \
+             the job a directory of its own",
+            naming.work(),
             work.display(),
             path.display()
         ));
     }
-    foreign_work_dir(&work)
+    foreign_work_dir(&work, naming)
 }
 
 /// Why `pipeline clean` must not remove the work directory, if it must not.
@@ -52,22 +78,23 @@ pub fn unsafe_to_clean(config: &Config, config_path: &Path) -> Option<String> {
             crate::workdir::MARKER
         ));
     }
-    unsafe_paths(config, config_path)
+    unsafe_paths(config, config_path, Naming::Config)
 }
 
 /// An existing work directory is refused unless it is empty or was made by pipeline: it may be
 /// a directory of the user's that `pipeline clean` would otherwise remove.
-fn foreign_work_dir(work: &Path) -> Option<String> {
+fn foreign_work_dir(work: &Path, naming: Naming) -> Option<String> {
     let entries = match std::fs::read_dir(work) {
         Ok(entries) => entries,
         Err(_) if !work.exists() => return None,
-        Err(error) => return Some(format!("[work] dir {}: {error}", work.display())),
+        Err(error) => return Some(format!("{} {}: {error}", naming.work(), work.display())),
     };
     let empty = entries.count() == 0;
     (!empty && !WorkDir::new(work.to_path_buf()).made_by_pipeline()).then(|| {
         format!(
-            "[work] dir {} already exists, is not empty and was not made by pipeline (no {} or \
+            "{} {} already exists, is not empty and was not made by pipeline (no {} or \
              manifest.json in it); choose a new or empty directory",
+            naming.work(),
             work.display(),
             crate::workdir::MARKER
         )

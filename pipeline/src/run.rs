@@ -16,7 +16,7 @@ use anyhow::Context;
 use crate::config::{Config, ConfigError};
 use crate::input;
 use crate::lock::{LockedError, WorkLock};
-use crate::preflight;
+use crate::preflight::{self, Naming};
 use crate::progress::{LogFormat, Progress};
 use crate::stage::chunk::Chunked;
 use crate::stage::hierarchy::Hierarchy;
@@ -110,7 +110,7 @@ pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
     if options.shard != Shard::WHOLE && options.stage != Some(StageName::Strip) {
         anyhow::bail!(UsageError("--shard applies to --stage strip only".into()));
     }
-    if let Some(message) = preflight::unsafe_paths(&config, config_path) {
+    if let Some(message) = preflight::unsafe_paths(&config, config_path, Naming::Config) {
         return Err(ConfigError::new(config_path, message).into());
     }
     preflight::prepare_output(&config)?;

@@ -359,3 +359,100 @@ fn status_explains_staleness_in_words() {
         "{text}"
     );
 }
+
+#[test]
+fn convert_writes_the_equivalent_config_and_resumes_like_run() {
+    let dir = temp_dir("convert");
+    let mesh = small_mesh(&dir, "model.ply");
+    let output = dir.join("out/model.rdm");
+    let args = [
+        "convert",
+        mesh.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+        "--max-length",
+        "16",
+        "--encoding",
+        "grid",
+        "--grid-bits",
+        "16",
+        "--log-format",
+        "plain",
+    ];
+    let first = pipeline(&args);
+    assert_eq!(
+        first.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let file = reducem::format::reader::ReducemFile::open(&output).expect("open");
+    assert_eq!(file.precision().grid_bits, 16);
+    let config = dir.join("out/model.rdm.work/convert.toml");
+    let text = std::fs::read_to_string(&config).expect("the equivalent config");
+    assert!(
+        text.contains("max_length = 16") && text.contains("encoding = \"grid\""),
+        "{text}"
+    );
+
+    let again = String::from_utf8_lossy(&pipeline(&args).stderr).to_string();
+    assert!(
+        again.contains("chunk: fresh") && again.contains("write: fresh"),
+        "{again}"
+    );
+    let run = pipeline(&["run", config.to_str().unwrap(), "--log-format", "plain"]);
+    assert!(String::from_utf8_lossy(&run.stderr).contains("write: fresh"));
+    let status = String::from_utf8_lossy(&pipeline(&["status", config.to_str().unwrap()]).stdout)
+        .to_string();
+    assert!(
+        status.lines().skip(1).all(|l| l.ends_with("done")),
+        "{status}"
+    );
+}
+
+#[test]
+fn convert_refuses_unsafe_paths_and_bad_options_with_64_before_any_work() {
+    let dir = temp_dir("convert-refused");
+    let mesh = small_mesh(&dir, "model.ply");
+    let before = std::fs::read(&mesh).unwrap();
+    let mesh_arg = mesh.to_str().unwrap();
+    let kept: [(&Path, &[u8]); 1] = [(&mesh, &before)];
+    let same = format!("output {mesh_arg} is the input {mesh_arg}");
+    assert_refused(&["convert", mesh_arg, "-o", mesh_arg], 64, &[&same], &kept);
+    assert!(!dir.join("model.ply.work").exists(), "a stage ran");
+
+    let output = dir.join("model.rdm");
+    let output_arg = output.to_str().unwrap();
+    let dir_arg = dir.to_str().unwrap();
+    let expected = [&format!("work directory {dir_arg} contains {mesh_arg}")[..]];
+    assert_refused(
+        &["convert", mesh_arg, "-o", output_arg, "--work", dir_arg],
+        64,
+        &expected,
+        &kept,
+    );
+    let grid_bits = ["convert", mesh_arg, "-o", output_arg, "--grid-bits", "16"];
+    assert_refused(&grid_bits, 64, &["--encoding"], &kept);
+    let f32_bits = [&grid_bits[..], &["--encoding", "f32"]].concat();
+    assert_refused(
+        &f32_bits,
+        64,
+        &["--grid-bits applies to --encoding grid only"],
+        &kept,
+    );
+    let too_many = [
+        "convert",
+        mesh_arg,
+        "-o",
+        output_arg,
+        "--encoding",
+        "grid",
+        "--grid-bits",
+        "30",
+    ];
+    assert_refused(&too_many, 64, &["grid_bits 30 is outside 1..=24"], &kept);
+    assert!(
+        !output.exists() && !dir.join("model.rdm.work").exists(),
+        "a stage ran"
+    );
+}
