@@ -9,6 +9,7 @@ mod input;
 mod interrupt;
 mod lock;
 mod manifest;
+mod outcome;
 mod preflight;
 mod progress;
 mod run;
@@ -116,19 +117,41 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    let started = std::time::Instant::now();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(error) => {
-            let code = if error.use_stderr() { exit::USAGE } else { 0 };
+            let code = if error.use_stderr() {
+                exit::USAGE
+            } else {
+                exit::SUCCESS
+            };
             let _ = error.print();
             return ExitCode::from(code);
         }
     };
+    let json = cli.command.log_format() == Some(progress::LogFormat::Json);
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("pipeline: error: {error:#}");
-            ExitCode::from(exit_code(&error))
+            if json {
+                let seconds = started.elapsed().as_secs_f64();
+                eprintln!("{}", outcome::error_json(&error, seconds));
+            } else {
+                eprintln!("pipeline: error: {error:#}");
+            }
+            ExitCode::from(outcome::classify(&error).0)
+        }
+    }
+}
+
+impl Command {
+    fn log_format(&self) -> Option<progress::LogFormat> {
+        match self {
+            Command::Run { log_format, .. } | Command::Convert { log_format, .. } => {
+                Some(*log_format)
+            }
+            _ => None,
         }
     }
 }
@@ -201,31 +224,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
     }
-}
-
-/// Classifies an error by the typed errors in its chain.
-fn exit_code(error: &anyhow::Error) -> u8 {
-    for cause in error.chain() {
-        if cause.is::<run::UsageError>() {
-            return exit::USAGE;
-        }
-        if cause.is::<lock::LockedError>()
-            || cause.is::<interrupt::Interrupted>()
-            || cause.is::<run::UpstreamPending>()
-        {
-            return exit::TEMPORARY;
-        }
-        if cause.is::<config::ConfigError>() {
-            return exit::CONFIG;
-        }
-        if cause.is::<reducem::input::InputError>() {
-            return exit::BAD_INPUT;
-        }
-        if cause.is::<std::io::Error>() || cause.is::<reducem::format::writer::WriteError>() {
-            return exit::IO;
-        }
-    }
-    exit::INTERNAL
 }
 
 #[cfg(test)]

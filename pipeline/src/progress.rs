@@ -53,6 +53,18 @@ impl Progress {
         }
     }
 
+    /// The final line of a successful run: plain text, or the JSON summary of
+    /// [`crate::outcome::summary_json`] with the output's counts.
+    pub fn summary(&self, seconds: f64, counts: Option<serde_json::Value>) {
+        match self.mode {
+            Mode::Json => {
+                let counts = counts.unwrap_or(serde_json::Value::Null);
+                eprintln!("{}", crate::outcome::summary_json(seconds, counts));
+            }
+            Mode::Bars | Mode::Plain => eprintln!("pipeline: run: finished in {seconds:.1} s"),
+        }
+    }
+
     /// Starts reporting a stage of `total` units (chunks, triangles, bytes).
     pub fn stage(&self, stage: &str, total: u64, unit: &str) -> StageProgress {
         self.event(stage, "start", &format!("{total} {unit} to do"));
@@ -145,7 +157,7 @@ impl StageProgress {
     }
 }
 
-fn unix_time() -> f64 {
+pub fn unix_time() -> f64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64())

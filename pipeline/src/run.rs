@@ -16,12 +16,14 @@ use anyhow::Context;
 use crate::config::{Config, ConfigError};
 use crate::input;
 use crate::lock::{LockedError, WorkLock};
+use crate::outcome::InStage;
 use crate::preflight::{self, Naming};
 use crate::progress::{LogFormat, Progress};
 use crate::stage::chunk::Chunked;
 use crate::stage::hierarchy::Hierarchy;
 use crate::stage::merge::Merged;
 use crate::stage::{chunk, hierarchy, merge, strip, write, Job};
+use crate::status;
 use crate::workdir::WorkDir;
 
 /// What to do when another run holds the work directory.
@@ -132,13 +134,31 @@ pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
         Err(error) => return Err(error),
     };
     let job = Job::new(&config, work, &progress);
-    match options.stage {
-        None => run_all(&job)?,
-        Some(stage) => run_stage(&job, stage, options.shard)?,
+    let result = match options.stage {
+        None => run_all(&job),
+        Some(stage) => run_stage(&job, stage, options.shard),
+    };
+    if let Err(error) = result {
+        return Err(match status::first_unfinished_stage(&job) {
+            Some(stage) => error.context(InStage(stage)),
+            None => error,
+        });
     }
-    let elapsed = started.elapsed().as_secs_f64();
-    progress.event("run", "done", &format!("finished in {elapsed:.1} s"));
+    let seconds = started.elapsed().as_secs_f64();
+    let counts = (options.stage.is_none()).then(|| output_counts(&config));
+    progress.summary(seconds, counts.flatten());
     Ok(())
+}
+
+/// What the finished file holds, for the summary.
+fn output_counts(config: &Config) -> Option<serde_json::Value> {
+    let file = reducem::format::reader::ReducemFile::open(&config.output.path).ok()?;
+    let header = file.header();
+    Some(serde_json::json!({
+        "triangles": header.triangle_count,
+        "strips": header.strip_count,
+        "bytes": std::fs::metadata(&config.output.path).ok()?.len(),
+    }))
 }
 
 fn run_all(job: &Job) -> anyhow::Result<()> {

@@ -456,3 +456,101 @@ fn convert_refuses_unsafe_paths_and_bad_options_with_64_before_any_work() {
         "a stage ran"
     );
 }
+
+/// The last stderr line of `output`, parsed as one JSON object.
+fn last_json(output: &Output) -> serde_json::Value {
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let last = stderr.lines().last().unwrap_or_default();
+    serde_json::from_str(last).unwrap_or_else(|e| panic!("{e}: not JSON: {stderr}"))
+}
+
+#[test]
+fn json_logs_end_with_the_error_or_the_summary_as_objects() {
+    let dir = temp_dir("json");
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n".to_vec();
+    let header = bytes.len() as u64;
+    for v in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        bytes.extend(v.to_le_bytes());
+    }
+    bytes.push(3);
+    for i in [0i32, 1, 7] {
+        bytes.extend(i.to_le_bytes());
+    }
+    std::fs::write(dir.join("bad.ply"), bytes).unwrap();
+    let config = write_config(
+        &dir,
+        "[input]\npath = \"bad.ply\"\n[output]\npath = \"bad.rdm\"\n",
+    );
+    let output = pipeline(&["run", config.to_str().unwrap(), "--log-format", "json"]);
+    assert_eq!(output.status.code(), Some(65));
+    let error = last_json(&output);
+    assert_eq!(error["event"], "error");
+    assert_eq!(error["kind"], "bad_input");
+    assert_eq!(error["exit_code"], 65);
+    assert_eq!(error["file"], dir.join("bad.ply").display().to_string());
+    assert_eq!(error["element"], "face");
+    assert_eq!(error["index"], 0);
+    assert_eq!(error["offset"], header + 36 + 1 + 8);
+    assert_eq!(error["stage"], "chunk");
+    assert!(error["chunk"].is_null() && error["counts"].is_null());
+    assert!(
+        error["seconds"].as_f64().is_some_and(|s| s >= 0.0),
+        "{error}"
+    );
+
+    let config = write_config(
+        &dir,
+        "[input.generate]\nkind = \"sphere\"\ntriangles = 5000\n[output]\npath = \"s.rdm\"\n",
+    );
+    let output = pipeline(&["run", config.to_str().unwrap(), "--log-format", "json"]);
+    assert_eq!(output.status.code(), Some(0));
+    let summary = last_json(&output);
+    assert_eq!(summary["event"], "done");
+    assert_eq!(summary["kind"], "success");
+    assert_eq!(summary["counts"]["triangles"], 5120);
+    let bytes = std::fs::metadata(dir.join("s.rdm")).unwrap().len();
+    assert_eq!(summary["counts"]["bytes"], bytes);
+    assert!(summary["seconds"].as_f64().is_some(), "{summary}");
+    for key in ["file", "element", "offset", "chunk"] {
+        assert!(summary.get(key).is_some(), "{key} missing in {summary}");
+    }
+
+    let work = dir.join("s.rdm.work");
+    let lock = std::fs::File::options()
+        .write(true)
+        .open(work.join("lock"))
+        .unwrap();
+    lock.try_lock().expect("the test takes the lock");
+    let output = pipeline(&["run", config.to_str().unwrap(), "--log-format", "json"]);
+    assert_eq!(output.status.code(), Some(75));
+    let locked = last_json(&output);
+    assert_eq!(locked["kind"], "locked");
+    assert_eq!(locked["file"], work.display().to_string());
+    let message = locked["message"].as_str().unwrap_or_default();
+    assert!(
+        message.contains(" since 20") && message.ends_with("Z)"),
+        "{locked}"
+    );
+}
+
+#[test]
+fn a_failing_chunk_is_named_in_the_json_error() {
+    let dir = temp_dir("json-chunk");
+    let config = write_config(
+        &dir,
+        "[input.generate]\nkind = \"sphere\"\ntriangles = 5000\n[output]\npath = \"s.rdm\"\n\
+         [chunk]\nmax_triangles = 1000\n",
+    );
+    let config_arg = config.to_str().unwrap();
+    let chunked = pipeline(&["run", config_arg, "--stage", "chunk"]);
+    assert_eq!(chunked.status.code(), Some(0));
+    // Same size, other bytes: the manifest still takes the chunk for done.
+    let chunk = dir.join("s.rdm.work/chunks/chunk-000002.mesh.zst");
+    let size = std::fs::metadata(&chunk).unwrap().len() as usize;
+    std::fs::write(&chunk, vec![0x5a; size]).unwrap();
+    let output = pipeline(&["run", config_arg, "--log-format", "json"]);
+    assert_ne!(output.status.code(), Some(0));
+    let error = last_json(&output);
+    assert_eq!(error["stage"], "strip", "{error}");
+    assert_eq!(error["chunk"], 2, "{error}");
+}
