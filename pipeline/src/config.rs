@@ -7,6 +7,8 @@ use serde::Deserialize;
 
 use reducem::gen::Kind;
 
+use crate::workdir::WorkDir;
+
 /// A configuration problem, naming the file and, for syntax and unknown keys, line and column.
 #[derive(Debug, thiserror::Error)]
 #[error("{}: {message}", path.display())]
@@ -37,6 +39,9 @@ pub struct Config {
     pub vertices: VerticesConfig,
     #[serde(default)]
     pub work: WorkConfig,
+    /// The configuration file itself (where the default work directory goes).
+    #[serde(skip)]
+    pub source: PathBuf,
 }
 
 /// Exactly one of `path` (a PLY or OBJ file) and `generate` (a synthetic mesh).
@@ -137,11 +142,24 @@ pub enum VertexEncodingName {
     Grid,
 }
 
-/// Where intermediate files go; defaults to `<output>.work` next to the output.
-#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// Where intermediate files go; defaults to `<configuration name>.work` next to the
+/// configuration file.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct WorkConfig {
     pub dir: Option<PathBuf>,
+    /// `false`: remove the work directory after a successful run (it is often larger than the
+    /// output); the next run then starts over.
+    pub keep: bool,
+}
+
+impl Default for WorkConfig {
+    fn default() -> Self {
+        WorkConfig {
+            dir: None,
+            keep: true,
+        }
+    }
 }
 
 fn default_seed() -> u64 {
@@ -174,6 +192,7 @@ impl Config {
         let mut config: Config =
             toml::from_str(text).map_err(|e| error(e.to_string().trim_end().to_string()))?;
         config.resolve_paths(path.parent().unwrap_or(Path::new("")));
+        config.source = path.to_path_buf();
         config.input().map_err(error)?;
         config.build_params().check().map_err(error)?;
         if config.chunk.max_triangles == 0 {
@@ -217,17 +236,22 @@ impl Config {
         }
     }
 
+    /// `[work] dir`; by default `<configuration name>.work` beside the configuration file, so
+    /// that it does not depend on `[output] path` (changing the output reruns only *write*). A
+    /// work directory at the former default, `<output>.work`, is kept while the new default
+    /// does not exist, so that upgrading does not rerun a job.
     pub fn work_dir(&self) -> PathBuf {
-        self.work.dir.clone().unwrap_or_else(|| {
-            let mut name = self
-                .output
-                .path
-                .file_name()
-                .unwrap_or_default()
-                .to_os_string();
-            name.push(".work");
-            self.output.path.with_file_name(name)
-        })
+        if let Some(dir) = &self.work.dir {
+            return dir.clone();
+        }
+        let default = self.source.with_extension("work");
+        let mut former = self.output.path.clone().into_os_string();
+        former.push(".work");
+        let former = PathBuf::from(former);
+        if !default.exists() && WorkDir::new(former.clone()).made_by_pipeline() {
+            return former;
+        }
+        default
     }
 
     pub fn build_params(&self) -> reducem::build::BuildParams {

@@ -55,6 +55,9 @@ enum Command {
         /// When another run holds the work directory: fail with exit code 75, or skip with 0.
         #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
         if_locked: run::IfLocked,
+        /// Remove the work directory after a successful run (as `[work] keep = false`).
+        #[arg(long)]
+        clean_after: bool,
         /// Run only this stage; the stages before it must be done.
         #[arg(long, value_enum)]
         stage: Option<run::StageName>,
@@ -89,6 +92,9 @@ enum Command {
         /// When another run holds the work directory: fail with exit code 75, or skip with 0.
         #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
         if_locked: run::IfLocked,
+        /// Remove the work directory after a successful run (as `[work] keep = false`).
+        #[arg(long)]
+        clean_after: bool,
     },
     /// List stages and chunks as done, pending or stale, with the reason.
     Status {
@@ -162,6 +168,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             config,
             log_format,
             if_locked,
+            clean_after,
             stage,
             shard,
         } => {
@@ -173,6 +180,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             let options = run::RunOptions {
                 log_format,
+                clean_after,
                 if_locked,
                 stage,
                 shard,
@@ -188,6 +196,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             work,
             log_format,
             if_locked,
+            clean_after,
         } => {
             interrupt::install()?;
             let args = convert::ConvertArgs {
@@ -200,6 +209,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             let options = run::RunOptions {
                 log_format,
+                clean_after,
                 if_locked,
                 stage: None,
                 shard: run::Shard::WHOLE,

@@ -88,6 +88,8 @@ impl FromStr for Shard {
 
 pub struct RunOptions {
     pub log_format: LogFormat,
+    /// Remove the work directory after a successful run, as `[work] keep = false` does.
+    pub clean_after: bool,
     pub if_locked: IfLocked,
     pub stage: Option<StageName>,
     pub shard: Shard,
@@ -144,8 +146,14 @@ pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
             None => error,
         });
     }
+    let finished = matches!(options.stage, None | Some(StageName::Write));
+    if finished && (options.clean_after || !config.work.keep) {
+        remove_work_dir(&config, config_path)?;
+        let root = config.work_dir();
+        progress.event("run", "clean", &format!("removed {}", root.display()));
+    }
     let seconds = started.elapsed().as_secs_f64();
-    let counts = (options.stage.is_none()).then(|| output_counts(&config));
+    let counts = finished.then(|| output_counts(&config));
     progress.summary(seconds, counts.flatten());
     Ok(())
 }
@@ -249,12 +257,18 @@ pub fn clean(config_path: &Path) -> anyhow::Result<()> {
         eprintln!("pipeline: nothing to clean at {}", root.display());
         return Ok(());
     }
-    if let Some(message) = preflight::unsafe_to_clean(&config, config_path) {
-        return Err(ConfigError::new(config_path, message).into());
-    }
     let lock = WorkLock::acquire(&root, false)?;
-    std::fs::remove_dir_all(&root).with_context(|| format!("removing {}", root.display()))?;
+    remove_work_dir(&config, config_path)?;
     drop(lock);
     eprintln!("pipeline: removed {}", root.display());
     Ok(())
+}
+
+/// Removes the work directory, which the caller holds locked, if it is safe to.
+fn remove_work_dir(config: &Config, config_path: &Path) -> anyhow::Result<()> {
+    if let Some(message) = preflight::unsafe_to_clean(config, config_path) {
+        return Err(ConfigError::new(config_path, message).into());
+    }
+    let root = config.work_dir();
+    std::fs::remove_dir_all(&root).with_context(|| format!("removing {}", root.display()))
 }

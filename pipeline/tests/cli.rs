@@ -162,7 +162,7 @@ fn an_output_path_that_is_the_input_is_refused_before_any_stage() {
         let input = format!("is the input {}", mesh.display());
         let expected = ["job.toml", named.as_str(), input.as_str()];
         assert_refused(&["run", config_arg], 78, &expected, &[(&mesh, &before)]);
-        assert!(!dir.join(format!("{output}.work")).exists(), "a stage ran");
+        assert!(!dir.join("job.work").exists(), "a stage ran");
     }
     let config = write_config(
         &dir,
@@ -222,9 +222,9 @@ fn clean_removes_the_work_directory_pipeline_made() {
     );
     let config_arg = config.to_str().unwrap();
     assert_eq!(pipeline(&["run", config_arg]).status.code(), Some(0));
-    assert!(dir.join("model.rdm.work/pipeline-work-dir").is_file());
+    assert!(dir.join("job.work/pipeline-work-dir").is_file());
     assert_eq!(pipeline(&["clean", config_arg]).status.code(), Some(0));
-    assert!(!dir.join("model.rdm.work").exists() && dir.join("model.rdm").exists());
+    assert!(!dir.join("job.work").exists() && dir.join("model.rdm").exists());
 }
 
 #[test]
@@ -515,7 +515,7 @@ fn json_logs_end_with_the_error_or_the_summary_as_objects() {
         assert!(summary.get(key).is_some(), "{key} missing in {summary}");
     }
 
-    let work = dir.join("s.rdm.work");
+    let work = dir.join("job.work");
     let lock = std::fs::File::options()
         .write(true)
         .open(work.join("lock"))
@@ -545,7 +545,7 @@ fn a_failing_chunk_is_named_in_the_json_error() {
     let chunked = pipeline(&["run", config_arg, "--stage", "chunk"]);
     assert_eq!(chunked.status.code(), Some(0));
     // Same size, other bytes: the manifest still takes the chunk for done.
-    let chunk = dir.join("s.rdm.work/chunks/chunk-000002.mesh.zst");
+    let chunk = dir.join("job.work/chunks/chunk-000002.mesh.zst");
     let size = std::fs::metadata(&chunk).unwrap().len() as usize;
     std::fs::write(&chunk, vec![0x5a; size]).unwrap();
     let output = pipeline(&["run", config_arg, "--log-format", "json"]);
@@ -553,4 +553,60 @@ fn a_failing_chunk_is_named_in_the_json_error() {
     let error = last_json(&output);
     assert_eq!(error["stage"], "strip", "{error}");
     assert_eq!(error["chunk"], 2, "{error}");
+}
+
+#[test]
+fn the_default_work_directory_follows_the_config_or_an_existing_former_default() {
+    let dir = temp_dir("default-work");
+    small_mesh(&dir, "model.ply");
+    let body = "[input]\npath = \"model.ply\"\n[output]\npath = \"model.rdm\"\n";
+    let config = write_config(&dir, &format!("{body}[work]\ndir = \"model.rdm.work\"\n"));
+    let config_arg = config.to_str().unwrap();
+    assert_eq!(pipeline(&["run", config_arg]).status.code(), Some(0));
+    write_config(&dir, body);
+    let status = String::from_utf8_lossy(&pipeline(&["status", config_arg]).stdout).to_string();
+    assert!(
+        status.starts_with(&format!(
+            "work directory {}",
+            dir.join("model.rdm.work").display()
+        )),
+        "{status}"
+    );
+    assert!(
+        status.lines().skip(1).all(|l| l.ends_with("done")),
+        "{status}"
+    );
+
+    std::fs::remove_dir_all(dir.join("model.rdm.work")).unwrap();
+    assert_eq!(pipeline(&["run", config_arg]).status.code(), Some(0));
+    assert!(dir.join("job.work/manifest.json").is_file());
+}
+
+#[test]
+fn keep_false_and_clean_after_remove_the_work_directory_after_success() {
+    let dir = temp_dir("keep");
+    let mesh = small_mesh(&dir, "model.ply");
+    let config = write_config(
+        &dir,
+        "[input]\npath = \"model.ply\"\n[output]\npath = \"model.rdm\"\n[work]\nkeep = false\n",
+    );
+    let output = pipeline(&["run", config.to_str().unwrap(), "--log-format", "plain"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(0), "{stderr}");
+    assert!(
+        stderr.contains(&format!("removed {}", dir.join("job.work").display())),
+        "{stderr}"
+    );
+    assert!(dir.join("model.rdm").is_file() && !dir.join("job.work").exists());
+
+    let converted = dir.join("converted.rdm");
+    let args = [
+        "convert",
+        mesh.to_str().unwrap(),
+        "-o",
+        converted.to_str().unwrap(),
+        "--clean-after",
+    ];
+    assert_eq!(pipeline(&args).status.code(), Some(0));
+    assert!(converted.is_file() && !dir.join("converted.rdm.work").exists());
 }
