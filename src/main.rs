@@ -9,6 +9,9 @@ use clap::{Parser, Subcommand};
 use reducem::atomic;
 use reducem::exit_code::{self, UsageError};
 use reducem::format::reader::{FormatError, ReducemFile};
+use reducem::geometry::Point;
+use reducem::render::image::ImageFormat;
+use reducem::render::scene::Scene;
 use reducem::trace::ray_file::{self, RayFileError};
 use reducem::trace::{Ray, TraceOptions, Tracer};
 
@@ -74,12 +77,15 @@ enum Command {
         /// The scene file (TOML; see docs/SCENES.md and configs/scenes/).
         #[arg(long)]
         scene: PathBuf,
-        /// The PNG image to write (replaced atomically; never an input).
+        /// The image to write, its format by extension: .png (8-bit sRGB) or .pfm (linear
+        /// floats); replaced atomically, never an input.
         #[arg(short, long)]
         output: PathBuf,
         /// Print the report as one JSON object.
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        overrides: SceneOverrides,
     },
     /// Measure the trade-offs report: OUT/REPORT.md with its tables, plots and images.
     #[cfg(feature = "report")]
@@ -94,6 +100,58 @@ enum Command {
         #[arg(long, default_value = "target/report-work")]
         work: PathBuf,
     },
+}
+
+/// Command-line replacements for scene keys (docs/SCENES.md), applied after `--up`.
+#[derive(Clone, Debug, clap::Args)]
+struct SceneOverrides {
+    /// The model's up axis: scenes are written for z-up models; y turns every position and
+    /// direction of the scene for a y-up model (such as the Stanford bunny).
+    #[arg(long, value_enum, default_value_t = UpAxis::Z)]
+    up: UpAxis,
+    /// Image width in pixels ([image] width).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height in pixels ([image] height).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Camera position X,Y,Z in model units ([camera] position); needs --look-at.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, requires = "look_at")]
+    camera_position: Option<Point>,
+    /// The point X,Y,Z seen at the image centre ([camera] look_at); needs --camera-position.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, requires = "camera_position")]
+    look_at: Option<Point>,
+    /// The direction X,Y,Z that is up in the image ([camera] up).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point)]
+    camera_up: Option<Point>,
+    /// Vertical field of view in degrees ([camera] fov_degrees).
+    #[arg(long)]
+    fov: Option<f32>,
+    /// Ambient-occlusion rays per pixel ([ambient_occlusion] samples); 0 turns AO off.
+    #[arg(long)]
+    ao_samples: Option<u32>,
+    /// Ambient-occlusion distance in model units ([ambient_occlusion] max_distance).
+    #[arg(long)]
+    ao_distance: Option<f32>,
+    /// Multiplier of the linear radiance before encoding ([shading] exposure).
+    #[arg(long)]
+    exposure: Option<f32>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum UpAxis {
+    Y,
+    Z,
+}
+
+/// `X,Y,Z` as a point.
+fn parse_point(text: &str) -> Result<Point, String> {
+    let values: Vec<f32> = text
+        .split(',')
+        .map(|value| value.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|error| format!("{text:?}: {error}"))?;
+    <[f32; 3]>::try_from(values).map_err(|_| format!("{text:?} is not three numbers X,Y,Z"))
 }
 
 /// `reducem query --invalid-rays`.
@@ -180,9 +238,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             scene,
             output,
             json,
+            overrides,
         } => {
             check_output(&output, &[&file, &scene])?;
-            render(&file, &scene, &output, json)
+            let format = ImageFormat::of(&output).ok_or_else(|| {
+                UsageError(format!(
+                    "output {}: unknown image format (the extension must be .png or .pfm)",
+                    output.display()
+                ))
+            })?;
+            let scene = load_scene(&scene, &overrides)?;
+            render(&file, &scene, &output, format, json)
         }
         #[cfg(feature = "report")]
         Command::Report { scale, out, work } => report(scale, out, work),
@@ -314,10 +380,52 @@ fn query_summary(rays: &[Option<Ray>], answers: &Answers, seconds: f64) -> Strin
     )
 }
 
-fn render(path: &Path, scene: &Path, output: &Path, json: bool) -> anyhow::Result<()> {
-    let scene = reducem::render::scene::Scene::load(scene)?;
+/// The scene file, turned and overridden as the command line asks; an override that makes the
+/// scene invalid is a usage error.
+fn load_scene(path: &Path, overrides: &SceneOverrides) -> anyhow::Result<Scene> {
+    let mut scene = Scene::load(path)?;
+    if overrides.up == UpAxis::Y {
+        scene.turn_to_y_up();
+    }
+    apply_overrides(&mut scene, overrides);
+    scene.check().map_err(|(key, detail)| {
+        UsageError(format!("the command line makes {key} invalid: {detail}"))
+    })?;
+    Ok(scene)
+}
+
+fn apply_overrides(scene: &mut Scene, overrides: &SceneOverrides) {
+    let camera = &mut scene.camera;
+    if let (Some(position), Some(look_at)) = (overrides.camera_position, overrides.look_at) {
+        (camera.auto, camera.direction) = (false, None);
+        (camera.position, camera.look_at) = (Some(position), Some(look_at));
+    }
+    camera.up = overrides.camera_up.unwrap_or(camera.up);
+    camera.fov_degrees = overrides.fov.unwrap_or(camera.fov_degrees);
+    scene.image.width = overrides.width.unwrap_or(scene.image.width);
+    scene.image.height = overrides.height.unwrap_or(scene.image.height);
+    scene.shading.exposure = overrides.exposure.unwrap_or(scene.shading.exposure);
+    match overrides.ao_samples {
+        Some(0) => scene.ambient_occlusion = None,
+        Some(samples) => scene.ambient_occlusion.get_or_insert_default().samples = samples,
+        None => {}
+    }
+    if let Some(distance) = overrides.ao_distance {
+        scene.ambient_occlusion.get_or_insert_default().max_distance = Some(distance);
+    }
+}
+
+fn render(
+    path: &Path,
+    scene: &Scene,
+    output: &Path,
+    format: ImageFormat,
+    json: bool,
+) -> anyhow::Result<()> {
     let file = ReducemFile::open(path)?;
-    let report = reducem::render::render_to_png(&file, &scene, output)?;
+    let tracer = Tracer::new(&file, TraceOptions::default());
+    let (frame, report) = reducem::render::render(&tracer, scene);
+    reducem::render::image::write_image(&frame, output, format)?;
     if json {
         println!("{}", serde_json::to_string(&report)?);
     } else {

@@ -378,3 +378,137 @@ fn help_shows_the_exit_codes_and_render_help_the_scene_documentation() {
         .join("docs/SCENES.md")
         .is_file());
 }
+
+/// The width, height and linear pixels of a PFM file, rows from the bottom.
+fn read_pfm(path: &std::path::Path) -> (u32, u32, Vec<[f32; 3]>) {
+    let bytes = std::fs::read(path).expect("image");
+    let text_end = bytes
+        .iter()
+        .enumerate()
+        .filter(|(_, b)| **b == b'\n')
+        .nth(2)
+        .expect("three header lines")
+        .0;
+    let header = String::from_utf8_lossy(&bytes[..text_end]).to_string();
+    let mut lines = header.lines();
+    assert_eq!(lines.next(), Some("PF"));
+    let size: Vec<u32> = lines
+        .next()
+        .unwrap()
+        .split(' ')
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert_eq!(lines.next(), Some("-1.0"));
+    let pixels = bytes[text_end + 1..]
+        .chunks_exact(12)
+        .map(|p| {
+            std::array::from_fn(|c| f32::from_le_bytes(p[4 * c..4 * c + 4].try_into().unwrap()))
+        })
+        .collect();
+    (size[0], size[1], pixels)
+}
+
+/// Renders `model` with `scene_text` and the extra arguments into a PFM; the output of the run.
+fn render_pfm(
+    model: &std::path::Path,
+    name: &str,
+    scene_text: &str,
+    extra: &[&str],
+) -> std::process::Output {
+    let scene = temp_path(&format!("{name}.toml"));
+    std::fs::write(&scene, scene_text).unwrap();
+    let image = temp_path(&format!("{name}.pfm"));
+    let args = [
+        "render",
+        model.to_str().unwrap(),
+        "--scene",
+        scene.to_str().unwrap(),
+        "-o",
+        image.to_str().unwrap(),
+    ];
+    reducem(&[&args[..], extra].concat())
+}
+
+#[test]
+fn render_overrides_set_the_size_and_ao_and_shadows_only_darken() {
+    let model = temp_path("cli-scene.rdm");
+    convert_mesh(&torus(48, 24), &BuildParams::default(), &model).expect("convert");
+    // The light comes low from +x: the ring's +x half shadows the inner wall of its -x half,
+    // which the camera sees over the +x half.
+    let base = "[camera]\ndirection = [1.0, 0.0, 0.9]\n[shading]\nambient = 0.5\n\
+                [[directional_light]]\ndirection = [-1.0, 0.0, -0.1]\nintensity = 0.5\n";
+    let size = ["--width", "40", "--height", "30", "--fov", "50"];
+    let primary = render_pfm(&model, "cli-scene-primary", base, &size);
+    assert!(
+        primary.status.success(),
+        "{}",
+        String::from_utf8_lossy(&primary.stderr)
+    );
+    let shadows = format!("{base}cast_shadows = true\n");
+    let shadowed = render_pfm(&model, "cli-scene-shadows", &shadows, &size);
+    assert!(shadowed.status.success());
+    let occluded = render_pfm(
+        &model,
+        "cli-scene-ao",
+        base,
+        &[&size[..], &["--ao-samples", "16", "--ao-distance", "6"]].concat(),
+    );
+    assert!(occluded.status.success());
+
+    let (width, height, primary) = read_pfm(&temp_path("cli-scene-primary.pfm"));
+    assert_eq!((width, height), (40, 30));
+    assert_eq!(primary.len(), 40 * 30);
+    for name in ["cli-scene-shadows.pfm", "cli-scene-ao.pfm"] {
+        let (_, _, image) = read_pfm(&temp_path(name));
+        assert_eq!(image.len(), primary.len());
+        let darker = image
+            .iter()
+            .zip(&primary)
+            .filter(|(a, b)| a.iter().zip(b.iter()).all(|(x, y)| x < y))
+            .count();
+        let brighter = image
+            .iter()
+            .zip(&primary)
+            .any(|(a, b)| a.iter().zip(b.iter()).any(|(x, y)| x > &(y + 1e-6)));
+        assert!(
+            !brighter,
+            "{name} is brighter than the primary image somewhere"
+        );
+        assert!(
+            darker > 20,
+            "{name}: only {darker} pixels darker than the primary image"
+        );
+    }
+}
+
+#[test]
+fn render_refuses_an_unknown_image_format_and_invalid_overrides_with_64() {
+    let model = small_model("cli-scene-refused.rdm");
+    let scene = small_scene("cli-scene-refused.toml");
+    let jpg = temp_path("cli-scene-refused.jpg");
+    let args = [
+        "render",
+        model.to_str().unwrap(),
+        "--scene",
+        scene.to_str().unwrap(),
+        "-o",
+    ];
+    let result = reducem(&[&args[..], &[jpg.to_str().unwrap()]].concat());
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(64), "{stderr}");
+    assert!(
+        stderr.contains("unknown image format (the extension must be .png or .pfm)"),
+        "{stderr}"
+    );
+    assert!(!jpg.exists() && result.stdout.is_empty());
+
+    let png = temp_path("cli-scene-refused.png");
+    let result = reducem(&[&args[..], &[png.to_str().unwrap(), "--width", "0"]].concat());
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(64), "{stderr}");
+    assert!(
+        stderr.contains("the command line makes image invalid: 0x8"),
+        "{stderr}"
+    );
+    assert!(!png.exists());
+}

@@ -124,7 +124,11 @@ pub fn render(tracer: &Tracer, scene: &Scene) -> (Frame, RenderReport) {
         unoccluded
     });
 
-    let pixels = shade(scene, &plan, &surfaces, &visibility, ambient.as_deref());
+    let exposure = scene.shading.exposure;
+    let pixels = shade(scene, &plan, &surfaces, &visibility, ambient.as_deref())
+        .into_iter()
+        .map(|pixel| pixel.map(|channel| channel * exposure))
+        .collect();
     let total_rays = effects.iter().map(|e| e.rays).sum();
     let trace_seconds = effects.iter().map(|e| e.seconds).sum::<f64>();
     let report = RenderReport {

@@ -40,7 +40,9 @@ use crate::geometry::Point;
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
+    #[serde(default)]
     pub image: ImageSettings,
+    #[serde(default)]
     pub camera: CameraSettings,
     #[serde(default)]
     pub shading: Shading,
@@ -52,26 +54,54 @@ pub struct Scene {
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct ImageSettings {
     pub width: u32,
     pub height: u32,
 }
 
-/// Either `position` + `look_at`, or `auto = true` with an optional viewing `direction`.
+impl Default for ImageSettings {
+    fn default() -> Self {
+        ImageSettings {
+            width: 1024,
+            height: 1024,
+        }
+    }
+}
+
+/// Either `position` + `look_at`, or automatic framing (`auto = true`, or neither of them
+/// given) with an optional viewing `direction`.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct CameraSettings {
-    #[serde(default)]
     pub auto: bool,
     pub position: Option<Point>,
     pub look_at: Option<Point>,
-    /// With `auto`: from the model's centre towards the camera.
+    /// Automatic framing: from the model's centre towards the camera.
     pub direction: Option<Point>,
-    #[serde(default = "default_up")]
+    /// Scenes are written for z-up models (`reducem render --up y` turns them for y-up ones).
     pub up: Point,
-    #[serde(default = "default_fov")]
     pub fov_degrees: f32,
+}
+
+impl Default for CameraSettings {
+    fn default() -> Self {
+        CameraSettings {
+            auto: false,
+            position: None,
+            look_at: None,
+            direction: None,
+            up: [0.0, 0.0, 1.0],
+            fov_degrees: 45.0,
+        }
+    }
+}
+
+impl CameraSettings {
+    /// Framed automatically: `auto = true`, or placed by neither `position` nor `look_at`.
+    pub fn is_automatic(&self) -> bool {
+        self.auto || (self.position.is_none() && self.look_at.is_none())
+    }
 }
 
 /// Surface and environment terms of the shading; a key the table omits takes its default.
@@ -86,6 +116,8 @@ pub struct Shading {
     pub background: Point,
     /// Seed of the stateless sample hash; the same seed gives the same image.
     pub seed: u32,
+    /// Multiplies the linear radiance before the image is encoded.
+    pub exposure: f32,
 }
 
 impl Default for Shading {
@@ -95,6 +127,7 @@ impl Default for Shading {
             ambient: 0.25,
             background: [0.05, 0.06, 0.08],
             seed: 1,
+            exposure: 1.0,
         }
     }
 }
@@ -121,19 +154,25 @@ pub struct PointLight {
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct AmbientOcclusion {
     pub samples: u32,
-    /// Occluders farther than this do not count; default 5% of the model's bounds diagonal.
+    /// Occluders farther than this (model units) do not count; default `distance_fraction` of
+    /// the model's bounds diagonal.
     pub max_distance: Option<f32>,
+    /// The AO distance as a fraction of the bounds diagonal when `max_distance` is not given,
+    /// so that one scene suits models of any size; default 0.05.
+    pub distance_fraction: Option<f32>,
 }
 
-fn default_up() -> Point {
-    [0.0, 1.0, 0.0]
-}
-
-fn default_fov() -> f32 {
-    45.0
+impl Default for AmbientOcclusion {
+    fn default() -> Self {
+        AmbientOcclusion {
+            samples: 16,
+            max_distance: None,
+            distance_fraction: None,
+        }
+    }
 }
 
 fn default_intensity() -> f32 {
@@ -182,7 +221,25 @@ impl Scene {
         Ok(scene)
     }
 
-    fn check(&self) -> Result<(), (&'static str, String)> {
+    /// Turns a scene written for a z-up model into one for a y-up model: every position and
+    /// direction is rotated by -90° about x, so that the scene's z axis becomes y.
+    pub fn turn_to_y_up(&mut self) {
+        let turn = |[x, y, z]: Point| [x, z, -y];
+        let camera = &mut self.camera;
+        camera.position = camera.position.map(turn);
+        camera.look_at = camera.look_at.map(turn);
+        camera.direction = camera.direction.map(turn);
+        camera.up = turn(camera.up);
+        for light in &mut self.directional_light {
+            light.direction = turn(light.direction);
+        }
+        for light in &mut self.point_light {
+            light.position = turn(light.position);
+        }
+    }
+
+    /// The semantic checks, for a scene changed after parsing: the offending key and why.
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
         let image = &self.image;
         if image.width == 0 || image.height == 0 || image.width > 16384 || image.height > 16384 {
             return Err((
@@ -204,14 +261,17 @@ impl Scene {
                 "give either auto = true or position and look_at, not both".into(),
             ));
         }
-        if !camera.auto && (camera.position.is_none() || camera.look_at.is_none()) {
+        if placed && (camera.position.is_none() || camera.look_at.is_none()) {
             return Err((
                 "camera",
-                "needs position and look_at, or auto = true".into(),
+                "needs both position and look_at (or neither, for automatic framing)".into(),
             ));
         }
-        if camera.direction.is_some() && !camera.auto {
-            return Err(("camera.direction", "only applies with auto = true".into()));
+        if camera.direction.is_some() && !camera.is_automatic() {
+            return Err((
+                "camera.direction",
+                "only applies to automatic framing, not with position and look_at".into(),
+            ));
         }
         check_vector("camera.up", &camera.up)?;
         if let Some(direction) = &camera.direction {
@@ -219,6 +279,12 @@ impl Scene {
         }
         for light in &self.directional_light {
             check_vector("directional_light.direction", &light.direction)?;
+        }
+        if !(self.shading.exposure.is_finite() && self.shading.exposure > 0.0) {
+            return Err((
+                "shading.exposure",
+                format!("{} must be positive and finite", self.shading.exposure),
+            ));
         }
         if let Some(ao) = &self.ambient_occlusion {
             if ao.samples == 0 || ao.samples > 4096 {
@@ -234,6 +300,12 @@ impl Scene {
                 return Err((
                     "ambient_occlusion.max_distance",
                     "must be positive and finite".into(),
+                ));
+            }
+            if ao.distance_fraction.is_some_and(|f| !(f > 0.0 && f <= 1.0)) {
+                return Err((
+                    "ambient_occlusion.distance_fraction",
+                    "must be within (0, 1]".into(),
                 ));
             }
         }
@@ -282,6 +354,32 @@ mod tests {
             ..Shading::default()
         };
         assert_eq!(scene.shading, expected);
+    }
+
+    #[test]
+    fn every_table_may_be_left_out_or_partial() {
+        let scene = Scene::parse(
+            Path::new("s.toml"),
+            "[image]\nwidth = 64\n[ambient_occlusion]\n",
+        )
+        .expect("parse");
+        assert_eq!((scene.image.width, scene.image.height), (64, 1024));
+        assert!(scene.camera.is_automatic());
+        assert_eq!(scene.camera.up, [0.0, 0.0, 1.0]);
+        assert_eq!(scene.ambient_occlusion, Some(AmbientOcclusion::default()));
+        assert_eq!(scene.ambient_occlusion.map(|ao| ao.samples), Some(16));
+        assert!(Scene::parse(Path::new("s.toml"), "").is_ok());
+    }
+
+    #[test]
+    fn turning_to_y_up_maps_the_z_axis_to_y() {
+        let text = "[camera]\nposition = [1.0, 2.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\n\
+                    [[directional_light]]\ndirection = [0.0, 0.0, -1.0]\n";
+        let mut scene = Scene::parse(Path::new("s.toml"), text).expect("parse");
+        scene.turn_to_y_up();
+        assert_eq!(scene.camera.position, Some([1.0, 3.0, -2.0]));
+        assert_eq!(scene.camera.up, [0.0, 1.0, 0.0]);
+        assert_eq!(scene.directional_light[0].direction, [0.0, -1.0, 0.0]);
     }
 
     #[test]

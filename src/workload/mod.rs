@@ -116,7 +116,7 @@ pub fn ao_scene(size: u32, samples: u32) -> Scene {
         point_light: Vec::new(),
         ambient_occlusion: Some(AmbientOcclusion {
             samples,
-            max_distance: None,
+            ..AmbientOcclusion::default()
         }),
     }
 }
