@@ -226,6 +226,9 @@ impl Config {
                             kind_names()
                         )
                     })?;
+                if let Some(message) = too_few_triangles(kind, generate.triangles) {
+                    return Err(format!("[input.generate] triangles = {message}"));
+                }
                 Ok(Input::Generate {
                     kind,
                     triangles: generate.triangles,
@@ -269,6 +272,15 @@ impl Config {
         params.grid_nodes = self.strip.grid_nodes;
         params
     }
+}
+
+/// Why a generated mesh of `kind` cannot have about `triangles` triangles, if it cannot.
+pub fn too_few_triangles(kind: Kind, triangles: u64) -> Option<String> {
+    let smallest = kind.smallest_triangles();
+    let name = format!("{kind:?}").to_lowercase();
+    (triangles < smallest).then(|| {
+        format!("{triangles} is too few: the smallest {name} mesh has {smallest} triangles")
+    })
 }
 
 fn kind_names() -> String {

@@ -110,7 +110,9 @@ enum Command {
     Gen {
         /// The kind of mesh.
         kind: gen::Kind,
-        /// About how many triangles (each kind rounds to its own structure).
+        /// About how many triangles: each kind rounds to its own structure (a 1M isosurface
+        /// has 1,000,772); at least the kind's smallest mesh (terrain, cad 2; scan, soup 18;
+        /// sphere 20; isosurface 96).
         #[arg(long)]
         triangles: u64,
         /// The PLY file to write.
@@ -224,6 +226,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             output,
             seed,
         } => {
+            if let Some(message) = config::too_few_triangles(kind, triangles) {
+                anyhow::bail!(run::UsageError(format!("--triangles {message}")));
+            }
             let summary = gen::generate(kind, triangles, seed, &output)?;
             eprintln!(
                 "pipeline: wrote {} ({} vertices, {} triangles)",

@@ -610,3 +610,37 @@ fn keep_false_and_clean_after_remove_the_work_directory_after_success() {
     assert_eq!(pipeline(&args).status.code(), Some(0));
     assert!(converted.is_file() && !dir.join("converted.rdm.work").exists());
 }
+
+#[test]
+fn too_few_triangles_for_the_kind_are_refused() {
+    let dir = temp_dir("too-few");
+    let out = dir.join("tiny.ply");
+    let output = pipeline(&[
+        "gen",
+        "isosurface",
+        "--triangles",
+        "50",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(64), "{stderr}");
+    assert!(
+        stderr.contains("--triangles 50 is too few: the smallest isosurface mesh has 96 triangles"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    let config = write_config(
+        &dir,
+        "[input.generate]\nkind = \"scan\"\ntriangles = 0\n[output]\npath = \"x.rdm\"\n",
+    );
+    let output = pipeline(&["run", config.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(78), "{stderr}");
+    assert!(
+        stderr.contains("[input.generate] triangles = 0 is too few"),
+        "{stderr}"
+    );
+    let help = String::from_utf8_lossy(&pipeline(&["gen", "--help"]).stdout).to_string();
+    assert!(help.contains("1,000,772"), "{help}");
+}
