@@ -57,37 +57,41 @@ pub fn survey(path: &Path, vertex_count: Option<u64>) -> io::Result<Survey> {
     let mut survey = Survey::default();
     let mut counts = Counts::default();
     let mut bytes = Vec::new();
-    let (mut line, mut offset) = (0u64, 0u64);
+    let mut place = Place { line: 0, offset: 0 };
     loop {
         bytes.clear();
         let read = reader.read_until(b'\n', &mut bytes)? as u64;
         if read == 0 {
+            survey.vertices = counts.vertices;
             return Ok(survey);
         }
-        line += 1;
-        let place = Place { line, offset };
-        offset += read;
-        let Ok(text) = std::str::from_utf8(&bytes) else {
+        place.line += 1;
+        survey.take_line(&mut counts, place, &bytes, vertex_count.unwrap_or(u64::MAX));
+        place.offset += read;
+    }
+}
+
+impl Survey {
+    /// Counts one line starting at `place`, and records its defect if it is the first one.
+    fn take_line(&mut self, counts: &mut Counts, place: Place, bytes: &[u8], vertex_total: u64) {
+        let Ok(text) = std::str::from_utf8(bytes) else {
             let kind = InputErrorKind::Obj("the line is not UTF-8 text".into());
-            survey
-                .defect
-                .get_or_insert((place.location("line", line - 1), kind));
-            continue;
+            let location = place.at("line", place.line - 1, 0);
+            self.defect.get_or_insert((location, kind));
+            return;
         };
         let Some((keyword, fields)) = statement(text) else {
-            continue;
+            return;
         };
         if !KNOWN.contains(&keyword) {
-            *survey.unknown.entry(keyword.to_string()).or_default() += 1;
-            survey.first_unknown.get_or_insert((line, place.offset));
-            continue;
+            *self.unknown.entry(keyword.to_string()).or_default() += 1;
+            self.first_unknown.get_or_insert((place.line, place.offset));
+            return;
         }
-        if survey.defect.is_none() {
-            let total = vertex_count.unwrap_or(u64::MAX);
-            survey.defect = counts.check(keyword, &fields, place, text, total);
+        if self.defect.is_none() {
+            self.defect = counts.check(keyword, &fields, place, text, vertex_total);
         }
         counts.count(keyword);
-        survey.vertices = counts.vertices;
     }
 }
 
@@ -108,10 +112,6 @@ struct Place {
 }
 
 impl Place {
-    fn location(&self, element: &str, index: u64) -> Location {
-        self.at(element, index, 0)
-    }
-
     fn at(&self, element: &str, index: u64, column: usize) -> Location {
         Location::Element {
             element: element.to_string(),
@@ -151,25 +151,18 @@ impl Counts {
         text: &str,
         vertex_total: u64,
     ) -> Option<(Location, InputErrorKind)> {
-        let defect = match keyword {
-            "v" => {
-                check_vertex(fields).map(|(column, kind)| (("vertex", self.vertices), column, kind))
-            }
-            "vt" => check_floats(fields, 2, "texture coordinate").map(|(column, kind)| {
-                (
-                    ("texture coordinate", self.texture_coordinates),
-                    column,
-                    kind,
-                )
-            }),
-            "vn" => check_floats(fields, 3, "normal")
-                .map(|(column, kind)| (("normal", self.normals), column, kind)),
-            "f" => self
-                .check_face(fields, vertex_total)
-                .map(|(column, kind)| (("face", self.faces), column, kind)),
-            _ => None,
+        let (element, index, defect) = match keyword {
+            "v" => ("vertex", self.vertices, check_vertex(fields)),
+            "vt" => (
+                "texture coordinate",
+                self.texture_coordinates,
+                check_floats(fields, 2, "texture coordinate"),
+            ),
+            "vn" => ("normal", self.normals, check_floats(fields, 3, "normal")),
+            "f" => ("face", self.faces, self.check_face(fields, vertex_total)),
+            _ => return None,
         };
-        let ((element, index), column, kind) = defect?;
+        let (column, kind) = defect?;
         let column = column.unwrap_or(text.trim_end().len());
         Some((place.at(element, index, column), kind))
     }
