@@ -115,6 +115,9 @@ struct SceneOverrides {
     /// Image height in pixels ([image] height).
     #[arg(long)]
     height: Option<u32>,
+    /// Samples per pixel along each axis: N traces N x N per pixel ([image] antialiasing).
+    #[arg(long)]
+    antialiasing: Option<u32>,
     /// Camera position X,Y,Z in model units ([camera] position); needs --look-at.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, requires = "look_at")]
     camera_position: Option<Point>,
@@ -404,6 +407,7 @@ fn apply_overrides(scene: &mut Scene, overrides: &SceneOverrides) {
     camera.fov_degrees = overrides.fov.unwrap_or(camera.fov_degrees);
     scene.image.width = overrides.width.unwrap_or(scene.image.width);
     scene.image.height = overrides.height.unwrap_or(scene.image.height);
+    scene.image.antialiasing = overrides.antialiasing.unwrap_or(scene.image.antialiasing);
     scene.shading.exposure = overrides.exposure.unwrap_or(scene.shading.exposure);
     match overrides.ao_samples {
         Some(0) => scene.ambient_occlusion = None,

@@ -482,6 +482,43 @@ fn render_overrides_set_the_size_and_ao_and_shadows_only_darken() {
 }
 
 #[test]
+fn antialiasing_traces_n_by_n_samples_per_pixel_and_keeps_the_size() {
+    let model = small_model("cli-scene-aa.rdm");
+    let scene = "[camera]\ndirection = [1.0, 0.0, 0.9]\n";
+    let args = [
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--antialiasing",
+        "3",
+        "--json",
+    ];
+    let output = render_pfm(&model, "cli-scene-aa", scene, &args);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).expect("JSON report");
+    assert_eq!(
+        (report["width"].as_u64(), report["height"].as_u64()),
+        (Some(40), Some(30))
+    );
+    assert_eq!(report["effects"][0]["effect"], "primary");
+    assert_eq!(report["effects"][0]["rays"], 40 * 30 * 9);
+    let (width, height, pixels) = read_pfm(&temp_path("cli-scene-aa.pfm"));
+    assert_eq!((width, height, pixels.len()), (40, 30, 1200));
+    let single = render_pfm(&model, "cli-scene-aa1", scene, &args[..4]);
+    assert!(single.status.success());
+    let (_, _, single) = read_pfm(&temp_path("cli-scene-aa1.pfm"));
+    assert_ne!(
+        pixels, single,
+        "antialiasing changed nothing at the silhouette"
+    );
+}
+
+#[test]
 fn render_refuses_an_unknown_image_format_and_invalid_overrides_with_64() {
     let model = small_model("cli-scene-refused.rdm");
     let scene = small_scene("cli-scene-refused.toml");

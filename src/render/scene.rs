@@ -58,6 +58,9 @@ pub struct Scene {
 pub struct ImageSettings {
     pub width: u32,
     pub height: u32,
+    /// Samples per pixel along each axis: `n` traces an n × n grid of primary rays per pixel
+    /// (and the shadow and AO rays of each) and averages them.
+    pub antialiasing: u32,
 }
 
 impl Default for ImageSettings {
@@ -65,6 +68,7 @@ impl Default for ImageSettings {
         ImageSettings {
             width: 1024,
             height: 1024,
+            antialiasing: 1,
         }
     }
 }
@@ -245,6 +249,18 @@ impl Scene {
             return Err((
                 "image",
                 format!("{}x{} is outside 1..=16384", image.width, image.height),
+            ));
+        }
+        let factor = image.antialiasing;
+        let fine_size = |size: u32| size.checked_mul(factor).is_some_and(|s| s <= 16384);
+        if factor == 0 || !fine_size(image.width) || !fine_size(image.height) {
+            return Err((
+                "image.antialiasing",
+                format!(
+                    "{factor} must be at least 1, with {}x{} samples within 16384x16384",
+                    u64::from(image.width) * u64::from(factor),
+                    u64::from(image.height) * u64::from(factor)
+                ),
             ));
         }
         let camera = &self.camera;
