@@ -143,7 +143,9 @@ struct SceneOverrides {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum UpAxis {
+    /// The model's up axis is y: the scene is turned.
     Y,
+    /// The model's up axis is z, as scenes are written.
     Z,
 }
 
@@ -518,12 +520,17 @@ mod tests {
         let command = super::Cli::command();
         for subcommand in command.get_subcommands() {
             for argument in subcommand.get_arguments() {
-                assert!(
-                    argument.get_help().is_some(),
-                    "reducem {} {} has no description",
-                    subcommand.get_name(),
-                    argument.get_id()
-                );
+                let name = format!("reducem {} {}", subcommand.get_name(), argument.get_id());
+                assert!(argument.get_help().is_some(), "{name} has no description");
+                let enumerated = argument.get_action().takes_values();
+                let values = enumerated.then(|| argument.get_value_parser().possible_values());
+                for value in values.into_iter().flatten().flatten() {
+                    let value_name = value.get_name();
+                    assert!(
+                        value.get_help().is_some(),
+                        "{name} {value_name}: no description"
+                    );
+                }
             }
         }
     }

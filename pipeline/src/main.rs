@@ -250,12 +250,17 @@ mod tests {
         let command = super::Cli::command();
         for subcommand in command.get_subcommands() {
             for argument in subcommand.get_arguments() {
-                assert!(
-                    argument.get_help().is_some(),
-                    "pipeline {} {} has no description",
-                    subcommand.get_name(),
-                    argument.get_id()
-                );
+                let name = format!("pipeline {} {}", subcommand.get_name(), argument.get_id());
+                assert!(argument.get_help().is_some(), "{name} has no description");
+                let enumerated = argument.get_action().takes_values();
+                let values = enumerated.then(|| argument.get_value_parser().possible_values());
+                for value in values.into_iter().flatten().flatten() {
+                    let value_name = value.get_name();
+                    assert!(
+                        value.get_help().is_some(),
+                        "{name} {value_name}: no description"
+                    );
+                }
             }
         }
     }

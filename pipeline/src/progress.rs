@@ -13,7 +13,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 pub enum LogFormat {
     /// Bars on a terminal, plain lines otherwise.
     Auto,
+    /// Plain log lines, progress every 10 s per stage.
     Plain,
+    /// One JSON object per line; the last one is the outcome (error or summary).
     Json,
 }
 
