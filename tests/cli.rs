@@ -283,7 +283,9 @@ fn an_output_that_cannot_be_written_fails_before_the_work_with_74() {
     let directory = temp_path("cli-unwritable-dir");
     std::fs::create_dir_all(&directory).unwrap();
     let missing = temp_path("cli-missing-dir/image.png");
-    for output in [&directory, &missing] {
+    // sysfs refuses new files even to root: a read-only directory wherever the tests run.
+    let read_only = std::path::PathBuf::from("/sys/reducem-cli-test.png");
+    for output in [&directory, &missing, &read_only] {
         let result = reducem(&[
             "render",
             model.to_str().unwrap(),
