@@ -30,6 +30,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Print the statistics of a ReduceM file.
+    #[command(after_help = exit_code::HELP)]
     Inspect {
         /// The ReduceM file.
         file: PathBuf,
@@ -42,6 +43,7 @@ enum Command {
     },
     /// Write every encoded triangle, in input winding, as binary little-endian PLY (positions as
     /// stored: the quantized ones for a grid file).
+    #[command(after_help = exit_code::HELP)]
     Decode {
         /// The ReduceM file.
         file: PathBuf,
@@ -52,6 +54,7 @@ enum Command {
     /// Trace a binary ray file (f32 x 8 per ray: origin, direction, tmin, tmax) and write the
     /// closest hits (f32 x 4 per ray: t, normal; t = inf on a miss) or, with --occluded, one byte
     /// per ray (1 = occluded). Prints a summary line on stderr.
+    #[command(after_help = exit_code::HELP)]
     Query {
         /// The ReduceM file.
         file: PathBuf,
@@ -71,6 +74,7 @@ enum Command {
     },
     /// Render an image of the model as a scene file describes it, tracing only the effects the
     /// scene asks for. Every scene key, its default and unit: docs/SCENES.md.
+    #[command(after_help = exit_code::HELP)]
     Render {
         /// The ReduceM file.
         file: PathBuf,
@@ -89,6 +93,7 @@ enum Command {
     },
     /// Measure the trade-offs report: OUT/REPORT.md with its tables, plots and images.
     #[cfg(feature = "report")]
+    #[command(after_help = exit_code::HELP)]
     Report {
         /// Mesh and image sizes: tiny (seconds), medium (minutes), full (about 30 minutes).
         #[arg(long, value_enum, default_value = "full")]

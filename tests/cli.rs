@@ -376,6 +376,10 @@ fn help_shows_the_exit_codes_and_render_help_the_scene_documentation() {
     }
     let render = String::from_utf8_lossy(&reducem(&["render", "--help"]).stdout).to_string();
     assert!(render.contains("docs/SCENES.md"), "{render}");
+    assert!(
+        render.contains("Exit codes") && render.contains("78  configuration"),
+        "{render}"
+    );
     assert!(std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("docs/SCENES.md")
         .is_file());

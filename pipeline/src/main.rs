@@ -46,6 +46,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run (or resume) the conversion described by CONFIG.
+    #[command(after_help = exit::HELP)]
     Run {
         /// The job's configuration file (TOML; see README.md, Configuration).
         config: PathBuf,
@@ -68,6 +69,7 @@ enum Command {
     },
     /// Convert one mesh without a configuration file: writes the equivalent configuration to
     /// WORK/convert.toml and runs (or resumes) it like `run`.
+    #[command(after_help = exit::HELP)]
     Convert {
         /// The mesh to convert (PLY or OBJ).
         input: PathBuf,
@@ -97,16 +99,19 @@ enum Command {
         clean_after: bool,
     },
     /// List stages and chunks as done, pending or stale, with the reason.
+    #[command(after_help = exit::HELP)]
     Status {
         /// The job's configuration file.
         config: PathBuf,
     },
     /// Remove the work directory of CONFIG (only one that pipeline made).
+    #[command(after_help = exit::HELP)]
     Clean {
         /// The job's configuration file.
         config: PathBuf,
     },
     /// Stream a synthetic mesh to binary PLY.
+    #[command(after_help = exit::HELP)]
     Gen {
         /// The kind of mesh.
         kind: gen::Kind,

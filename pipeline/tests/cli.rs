@@ -259,14 +259,17 @@ fn an_unwritable_output_fails_before_the_first_stage_with_74() {
 
 #[test]
 fn help_shows_the_exit_codes() {
-    let help = String::from_utf8_lossy(&pipeline(&["--help"]).stdout).to_string();
-    for line in [
+    let expected = [
         "Exit codes",
         "64  usage",
         "75  try again later",
         "78  configuration",
-    ] {
-        assert!(help.contains(line), "{line} missing in {help}");
+    ];
+    for command in [&["--help"][..], &["run", "--help"], &["convert", "--help"]] {
+        let help = String::from_utf8_lossy(&pipeline(command).stdout).to_string();
+        for line in expected {
+            assert!(help.contains(line), "{line} missing in {help}");
+        }
     }
 }
 
