@@ -117,6 +117,23 @@ fn malformed_obj_names_the_line_and_byte_of_the_defect() {
 }
 
 #[test]
+fn absurd_texture_and_normal_indices_are_defects_not_overflows() {
+    let corners = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/9223372036854775807 2/1 3/1\n";
+    let message = error_at("texture.obj", corners, element("face", 0, 33, 5));
+    assert!(
+        message.contains("face texture coordinate index 9223372036854775807 out of range"),
+        "{message}"
+    );
+    let corners = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//-9223372036854775807 2//1 3//1\n";
+    let message = error_at("normal.obj", corners, element("face", 0, 35, 5));
+    assert!(
+        message
+            .contains("face normal index -9223372036854775807 out of range (1 normals before it)"),
+        "{message}"
+    );
+}
+
+#[test]
 fn unknown_statements_do_not_fail_the_read() {
     let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\ncurv 0 1 1 2\nf 1 2 3\nfoo\ncurv 0 1 2 3\n";
     let file = temp_file("unknown.obj", text);

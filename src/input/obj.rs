@@ -7,10 +7,12 @@
 //! concatenated with index offsets, and the shared welding step reconnects vertices that
 //! models duplicated.
 //!
-//! `tobj` reports errors without positions, so when it rejects a file (or a coordinate is out
-//! of range) a survey of the file ([`super::obj_survey`]) finds the defective statement and the
-//! error names its element, index, line and byte offset. Statements `tobj` would drop without a
-//! word (free-form geometry, unknown keywords) are counted and reported once on stderr.
+//! `tobj` reports errors without positions, so a survey of the file ([`super::obj_survey`])
+//! runs first: it rejects defective statements with their element, index, line and byte offset
+//! (and keeps absurd indices from overflowing `tobj`'s arithmetic), and when `tobj` or a later
+//! check still fails, a second survey that knows the vertex total places the error. Statements
+//! `tobj` would drop without a word (free-form geometry, unknown keywords) are counted and
+//! reported once on stderr.
 
 use std::path::Path;
 
@@ -25,47 +27,40 @@ pub fn read_obj(path: &Path) -> Result<Mesh, InputError> {
         ignore_lines: true,
         ..Default::default()
     };
+    // The survey comes first: statements it rejects would only make `tobj` fail without a
+    // position, or overflow its index arithmetic.
+    let surveyed = survey(path, None).map_err(|error| {
+        InputError::new(path, Location::File, InputErrorKind::Io(error.to_string()))
+    })?;
+    if let Some((location, kind)) = surveyed.defect {
+        return Err(InputError::new(path, location, kind));
+    }
     // Materials are irrelevant to geometry; a missing .mtl file must not fail the read.
     let (models, _materials) = tobj::load_obj(path, &options).map_err(|error| {
+        let kind = InputErrorKind::Obj(error.to_string());
         located(
             path,
-            InputError::new(path, Location::File, InputErrorKind::Obj(error.to_string())),
+            surveyed.vertices,
+            InputError::new(path, Location::File, kind),
         )
     })?;
     let mut mesh = Mesh::default();
     for model in &models {
-        append_model(path, &mut mesh, &model.mesh).map_err(|error| located(path, error))?;
+        append_model(path, &mut mesh, &model.mesh)
+            .map_err(|error| located(path, surveyed.vertices, error))?;
     }
-    report_unknown_statements(path);
+    if let Some(summary) = surveyed.unknown_summary() {
+        eprintln!("reducem: {}: {summary}", path.display());
+    }
     Ok(mesh)
 }
 
-/// `error` placed at the first defective statement of the file, if a survey finds one; as it
-/// is otherwise. A second survey, knowing the vertex total, finds face indices beyond it.
-fn located(path: &Path, error: InputError) -> InputError {
-    let first = match survey(path, None) {
-        Ok(first) => first,
-        Err(_) => return error,
-    };
-    let defect = first.defect.or_else(|| {
-        survey(path, Some(first.vertices))
-            .ok()
-            .and_then(|second| second.defect)
-    });
-    match defect {
+/// `error` placed at the first statement that a second survey, knowing the file's vertex total,
+/// finds defective (a face vertex beyond it); as it is otherwise.
+fn located(path: &Path, vertex_total: u64, error: InputError) -> InputError {
+    match survey(path, Some(vertex_total)).ok().and_then(|s| s.defect) {
         Some((location, kind)) => InputError::new(path, location, kind),
         None => error,
-    }
-}
-
-/// Unknown statements are not errors (OBJ has many optional ones), but dropping geometry without
-/// a word is: one line on stderr counts them.
-fn report_unknown_statements(path: &Path) {
-    if let Some(summary) = survey(path, None)
-        .ok()
-        .and_then(|survey| survey.unknown_summary())
-    {
-        eprintln!("reducem: {}: {summary}", path.display());
     }
 }
 

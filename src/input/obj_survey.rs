@@ -50,10 +50,16 @@ impl Survey {
     }
 }
 
-/// Reads `path` line by line. With `vertex_count` (the file's total), face indices beyond it are
-/// defects too; without it only statements that are wrong on their own are.
+/// Reads `path` line by line. With `vertex_count` (the file's total, from a first survey), face
+/// vertex indices beyond it are defects too; without it only statements that are wrong on their
+/// own are.
 pub fn survey(path: &Path, vertex_count: Option<u64>) -> io::Result<Survey> {
-    let mut reader = BufReader::with_capacity(1 << 20, File::open(path)?);
+    let file = File::open(path)?;
+    let limits = Limits {
+        vertices: vertex_count,
+        file_length: file.metadata()?.len(),
+    };
+    let mut reader = BufReader::with_capacity(1 << 20, file);
     let mut survey = Survey::default();
     let mut counts = Counts::default();
     let mut bytes = Vec::new();
@@ -66,14 +72,14 @@ pub fn survey(path: &Path, vertex_count: Option<u64>) -> io::Result<Survey> {
             return Ok(survey);
         }
         place.line += 1;
-        survey.take_line(&mut counts, place, &bytes, vertex_count.unwrap_or(u64::MAX));
+        survey.take_line(&mut counts, place, &bytes, limits);
         place.offset += read;
     }
 }
 
 impl Survey {
     /// Counts one line starting at `place`, and records its defect if it is the first one.
-    fn take_line(&mut self, counts: &mut Counts, place: Place, bytes: &[u8], vertex_total: u64) {
+    fn take_line(&mut self, counts: &mut Counts, place: Place, bytes: &[u8], limits: Limits) {
         let Ok(text) = std::str::from_utf8(bytes) else {
             let kind = InputErrorKind::Obj("the line is not UTF-8 text".into());
             let location = place.at("line", place.line - 1, 0);
@@ -89,7 +95,7 @@ impl Survey {
             return;
         }
         if self.defect.is_none() {
-            self.defect = counts.check(keyword, &fields, place, text, vertex_total);
+            self.defect = counts.check(keyword, &fields, place, text, limits);
         }
         counts.count(keyword);
     }
@@ -149,7 +155,7 @@ impl Counts {
         fields: &[(usize, &str)],
         place: Place,
         text: &str,
-        vertex_total: u64,
+        limits: Limits,
     ) -> Option<(Location, InputErrorKind)> {
         let (element, index, defect) = match keyword {
             "v" => ("vertex", self.vertices, check_vertex(fields)),
@@ -159,7 +165,7 @@ impl Counts {
                 check_floats(fields, 2, "texture coordinate"),
             ),
             "vn" => ("normal", self.normals, check_floats(fields, 3, "normal")),
-            "f" => ("face", self.faces, self.check_face(fields, vertex_total)),
+            "f" => ("face", self.faces, self.check_face(fields, limits)),
             _ => return None,
         };
         let (column, kind) = defect?;
@@ -167,47 +173,108 @@ impl Counts {
         Some((place.at(element, index, column), kind))
     }
 
-    /// The first corner that is malformed or names no vertex.
+    /// The first corner that is malformed or names no element.
     fn check_face(
         &self,
         fields: &[(usize, &str)],
-        vertex_total: u64,
+        limits: Limits,
     ) -> Option<(Option<usize>, InputErrorKind)> {
         for &(column, corner) in fields {
-            let Some(index) = corner_vertex(corner) else {
-                let kind = InputErrorKind::Obj(format!("malformed face corner '{corner}'"));
-                return Some((Some(column), kind));
+            let defect = match corner_indices(corner) {
+                None => format!("malformed face corner '{corner}'"),
+                Some((vertex, texture, normal)) => {
+                    let references = [
+                        (
+                            Some(vertex),
+                            self.vertices,
+                            limits.vertices,
+                            "vertex",
+                            "vertices",
+                        ),
+                        (
+                            texture,
+                            self.texture_coordinates,
+                            None,
+                            "texture coordinate",
+                            "texture coordinates",
+                        ),
+                        (normal, self.normals, None, "normal", "normals"),
+                    ];
+                    let out_of_range =
+                        references
+                            .into_iter()
+                            .find_map(|(index, seen, total, one, many)| {
+                                let reference = Reference {
+                                    seen,
+                                    total,
+                                    one,
+                                    many,
+                                };
+                                index.and_then(|index| {
+                                    reference.out_of_range(index, limits.file_length)
+                                })
+                            });
+                    match out_of_range {
+                        Some(defect) => defect,
+                        None => continue,
+                    }
+                }
             };
-            let resolved = if index < 0 {
-                self.vertices as i64 + index
-            } else {
-                index - 1
-            };
-            if resolved < 0 || resolved as u64 >= vertex_total {
-                let total = if vertex_total == u64::MAX {
-                    self.vertices
-                } else {
-                    vertex_total
-                };
-                let kind = InputErrorKind::Obj(format!(
-                    "face vertex index {index} out of range ({total} vertices)"
-                ));
-                return Some((Some(column), kind));
-            }
+            return Some((Some(column), InputErrorKind::Obj(defect)));
         }
         None
     }
 }
 
-/// The vertex index of a face corner `v`, `v/vt`, `v//vn` or `v/vt/vn`.
-fn corner_vertex(corner: &str) -> Option<i64> {
-    let parts: Vec<&str> = corner.split('/').collect();
-    let references_ok = parts[1..]
-        .iter()
-        .all(|part| part.is_empty() || part.parse::<i64>().is_ok());
-    (parts.len() <= 3 && references_ok)
-        .then(|| parts[0].parse().ok())
-        .flatten()
+/// What the survey knows of the file when it checks a face.
+#[derive(Clone, Copy)]
+struct Limits {
+    /// The file's vertex total, on the second survey.
+    vertices: Option<u64>,
+    /// No index can exceed the file's length in bytes; this bound also keeps `tobj`'s index
+    /// arithmetic from overflowing on absurd indices, so they are rejected here first.
+    file_length: u64,
+}
+
+/// The elements a face corner can refer to: how many came before it, the total when known, and
+/// their names.
+struct Reference {
+    seen: u64,
+    total: Option<u64>,
+    one: &'static str,
+    many: &'static str,
+}
+
+impl Reference {
+    /// Why `index` (1-based, or negative for relative) names no element, if it names none.
+    fn out_of_range(&self, index: i64, file_length: u64) -> Option<String> {
+        let resolved = if index < 0 {
+            self.seen as i64 + index
+        } else {
+            index - 1
+        };
+        let limit = self.total.unwrap_or(file_length);
+        (resolved < 0 || resolved as u64 >= limit).then(|| {
+            let count = match self.total {
+                Some(total) => format!("{total} {}", self.many),
+                None => format!("{} {} before it", self.seen, self.many),
+            };
+            format!("face {} index {index} out of range ({count})", self.one)
+        })
+    }
+}
+
+/// The vertex, texture-coordinate and normal references of a face corner `v`, `v/vt`, `v//vn`
+/// or `v/vt/vn`; `None` when it is malformed.
+fn corner_indices(corner: &str) -> Option<(i64, Option<i64>, Option<i64>)> {
+    let mut parts = corner.split('/');
+    let vertex = parts.next()?.parse().ok()?;
+    let mut optional = || match parts.next() {
+        None | Some("") => Some(None),
+        Some(part) => part.parse().ok().map(Some),
+    };
+    let (texture, normal) = (optional()?, optional()?);
+    parts.next().is_none().then_some((vertex, texture, normal))
 }
 
 /// `v x y z [w | r g b]`: three coordinates in range, then nothing, a non-zero w or a colour.
