@@ -93,5 +93,10 @@ pub fn check_writable(path: &Path) -> io::Result<()> {
             format!("cannot create a file in {}: {error}", directory.display()),
         )
     })?;
-    fs::remove_file(&temporary)
+    // Strip tasks on other hosts may probe the same name at once (pids repeat across hosts):
+    // the file being gone already is fine.
+    match fs::remove_file(&temporary) {
+        Err(error) if error.kind() == io::ErrorKind::NotFound => Ok(()),
+        removed => removed,
+    }
 }
