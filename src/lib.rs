@@ -17,6 +17,7 @@ pub mod baseline;
 pub mod build;
 pub mod chunking;
 pub mod decode;
+pub mod exit_code;
 pub mod format;
 pub mod gen;
 pub mod input;

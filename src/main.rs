@@ -2,17 +2,25 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
-use reducem::format::reader::ReducemFile;
-use reducem::trace::{ray_file, Kernel, TraceOptions, Tracer};
+use reducem::atomic;
+use reducem::exit_code::{self, UsageError};
+use reducem::format::reader::{FormatError, ReducemFile};
+use reducem::geometry::Point;
+use reducem::render::image::ImageFormat;
+use reducem::render::scene::Scene;
+use reducem::trace::ray_file::{self, RayFileError};
+use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
 
 #[derive(Parser)]
 #[command(
     name = "reducem",
     version,
-    about = "Inspect, decode, query and render ReduceM files"
+    about = "Inspect, decode, query and render ReduceM files",
+    after_help = exit_code::HELP
 )]
 struct Cli {
     #[command(subcommand)]
@@ -22,7 +30,9 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Print the statistics of a ReduceM file.
+    #[command(after_help = exit_code::HELP)]
     Inspect {
+        /// The ReduceM file.
         file: PathBuf,
         /// One JSON object instead of text.
         #[arg(long)]
@@ -33,41 +43,62 @@ enum Command {
     },
     /// Write every encoded triangle, in input winding, as binary little-endian PLY (positions as
     /// stored: the quantized ones for a grid file).
+    #[command(after_help = exit_code::HELP)]
     Decode {
+        /// The ReduceM file.
         file: PathBuf,
+        /// The PLY file to write (replaced atomically; never the input itself).
         #[arg(short, long)]
         output: PathBuf,
     },
     /// Trace a binary ray file (f32 x 8 per ray: origin, direction, tmin, tmax) and write the
     /// closest hits (f32 x 4 per ray: t, normal; t = inf on a miss) or, with --occluded, one byte
-    /// per ray (1 = occluded).
+    /// per ray (1 = occluded). Prints a summary line on stderr.
+    #[command(after_help = exit_code::HELP)]
     Query {
+        /// The ReduceM file.
         file: PathBuf,
+        /// The ray file to trace.
         #[arg(long)]
         rays: PathBuf,
+        /// The hit or occlusion file to write (replaced atomically; never an input).
         #[arg(short, long)]
         output: PathBuf,
+        /// Answer occlusion (any hit within [tmin, tmax]) instead of the closest hit.
         #[arg(long)]
         occluded: bool,
+        /// What an invalid ray (NaN, zero direction, tmin > tmax) does: reject the whole file,
+        /// or be answered as a miss (counted in the summary).
+        #[arg(long, value_enum, default_value_t = InvalidRays::Reject)]
+        invalid_rays: InvalidRays,
     },
     /// Render an image of the model as a scene file describes it, tracing only the effects the
-    /// scene asks for.
+    /// scene asks for. Every scene key, its default and unit: docs/SCENES.md.
+    #[command(after_help = exit_code::HELP)]
     Render {
+        /// The ReduceM file.
         file: PathBuf,
+        /// The scene file (TOML; see docs/SCENES.md and configs/scenes/).
         #[arg(long)]
         scene: PathBuf,
+        /// The image to write, its format by extension: .png (8-bit sRGB) or .pfm (linear
+        /// floats); replaced atomically, never an input.
         #[arg(short, long)]
         output: PathBuf,
         /// Print the report as one JSON object.
         #[arg(long)]
         json: bool,
+        #[command(flatten)]
+        overrides: SceneOverrides,
     },
     /// Measure the trade-offs report: OUT/REPORT.md with its tables, plots and images.
     #[cfg(feature = "report")]
+    #[command(after_help = exit_code::HELP)]
     Report {
         /// Mesh and image sizes: tiny (seconds), medium (minutes), full (about 30 minutes).
         #[arg(long, value_enum, default_value = "full")]
         scale: reducem::report::Scale,
+        /// Directory of the report (REPORT.md, plots, images).
         #[arg(long, default_value = "report")]
         out: PathBuf,
         /// Generated meshes (kept between runs) and converted files.
@@ -76,20 +107,128 @@ enum Command {
     },
 }
 
+/// Command-line replacements for scene keys (docs/SCENES.md), applied after `--up`.
+#[derive(Clone, Debug, clap::Args)]
+struct SceneOverrides {
+    /// The model's up axis: scenes are written for z-up models; y turns every position and
+    /// direction of the scene for a y-up model (such as the Stanford bunny).
+    #[arg(long, value_enum, default_value_t = UpAxis::Z)]
+    up: UpAxis,
+    /// Image width in pixels ([image] width).
+    #[arg(long)]
+    width: Option<u32>,
+    /// Image height in pixels ([image] height).
+    #[arg(long)]
+    height: Option<u32>,
+    /// Samples per pixel along each axis: N traces N x N per pixel ([image] antialiasing).
+    #[arg(long)]
+    antialiasing: Option<u32>,
+    /// Camera position X,Y,Z in model units ([camera] position); needs --look-at.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, requires = "look_at")]
+    camera_position: Option<Point>,
+    /// The point X,Y,Z seen at the image centre ([camera] look_at); needs --camera-position.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, requires = "camera_position")]
+    look_at: Option<Point>,
+    /// The direction X,Y,Z that is up in the image ([camera] up).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point)]
+    camera_up: Option<Point>,
+    /// Vertical field of view in degrees ([camera] fov_degrees).
+    #[arg(long)]
+    fov: Option<f32>,
+    /// Ambient-occlusion rays per pixel ([ambient_occlusion] samples); 0 turns AO off.
+    #[arg(long)]
+    ao_samples: Option<u32>,
+    /// Ambient-occlusion distance in model units ([ambient_occlusion] max_distance).
+    #[arg(long)]
+    ao_distance: Option<f32>,
+    /// Multiplier of the linear radiance before encoding ([shading] exposure).
+    #[arg(long)]
+    exposure: Option<f32>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum UpAxis {
+    /// The model's up axis is y: the scene is turned.
+    Y,
+    /// The model's up axis is z, as scenes are written.
+    Z,
+}
+
+/// `X,Y,Z` as a point.
+fn parse_point(text: &str) -> Result<Point, String> {
+    let values: Vec<f32> = text
+        .split(',')
+        .map(|value| value.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|error| format!("{text:?}: {error}"))?;
+    <[f32; 3]>::try_from(values).map_err(|_| format!("{text:?} is not three numbers X,Y,Z"))
+}
+
+/// `reducem query --invalid-rays`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum InvalidRays {
+    /// One invalid ray rejects the whole ray file (exit code 65), before anything is traced.
+    Reject,
+    /// Each invalid ray is answered as a miss (not occluded); the summary counts them.
+    Miss,
+}
+
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) => {
+            let code = if error.use_stderr() {
+                exit_code::USAGE
+            } else {
+                exit_code::SUCCESS
+            };
+            let _ = error.print();
+            return ExitCode::from(code);
+        }
+    };
+    match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("reducem: {error:#}");
-            ExitCode::FAILURE
+            eprintln!("reducem: error: {error:#}");
+            ExitCode::from(exit_code_of(&error))
         }
     }
+}
+
+/// Classifies an error by the typed errors in its chain (the table in `exit_code`).
+fn exit_code_of(error: &anyhow::Error) -> u8 {
+    for cause in error.chain() {
+        if cause.is::<UsageError>() {
+            return exit_code::USAGE;
+        }
+        if cause.is::<reducem::render::scene::SceneError>() {
+            return exit_code::CONFIG;
+        }
+        match cause.downcast_ref::<FormatError>() {
+            Some(FormatError::Io { .. }) => return exit_code::IO,
+            Some(FormatError::Invalid { .. }) => return exit_code::BAD_INPUT,
+            None => {}
+        }
+        match cause.downcast_ref::<RayFileError>() {
+            Some(RayFileError::Io { .. }) => return exit_code::IO,
+            Some(_) => return exit_code::BAD_INPUT,
+            None => {}
+        }
+        if cause.is::<reducem::input::InputError>() {
+            return exit_code::BAD_INPUT;
+        }
+        if cause.is::<std::io::Error>() || cause.is::<reducem::render::image::ImageError>() {
+            return exit_code::IO;
+        }
+    }
+    exit_code::INTERNAL
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Inspect { file, json, verify } => inspect(&file, json, verify),
         Command::Decode { file, output } => {
+            check_output(&output, &[&file])?;
             let opened = ReducemFile::open(&file)?;
             reducem::decode::write_ply(&opened, &output)
                 .with_context(|| format!("writing {}", output.display()))
@@ -99,16 +238,45 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             rays,
             output,
             occluded,
-        } => query(&file, &rays, &output, occluded),
+            invalid_rays,
+        } => {
+            check_output(&output, &[&file, &rays])?;
+            query(&file, &rays, &output, occluded, invalid_rays)
+        }
         Command::Render {
             file,
             scene,
             output,
             json,
-        } => render(&file, &scene, &output, json),
+            overrides,
+        } => {
+            check_output(&output, &[&file, &scene])?;
+            let format = ImageFormat::of(&output).ok_or_else(|| {
+                UsageError(format!(
+                    "output {}: unknown image format (the extension must be .png or .pfm)",
+                    output.display()
+                ))
+            })?;
+            let scene = load_scene(&scene, &overrides)?;
+            render(&file, &scene, &output, format, json)
+        }
         #[cfg(feature = "report")]
         Command::Report { scale, out, work } => report(scale, out, work),
     }
+}
+
+/// Refuses, before any work, an output that is one of the command's inputs (by path, symlink or
+/// hard link) or that cannot be written (a directory; a missing or read-only directory).
+fn check_output(output: &Path, inputs: &[&Path]) -> anyhow::Result<()> {
+    if let Some(input) = inputs.iter().find(|input| atomic::same_file(output, input)) {
+        anyhow::bail!(UsageError(format!(
+            "output {} is the input {} (the same file); writing it would destroy the input, \
+             so choose another output path",
+            output.display(),
+            input.display()
+        )));
+    }
+    atomic::check_writable(output).with_context(|| format!("output {}", output.display()))
 }
 
 #[cfg(feature = "report")]
@@ -127,31 +295,190 @@ fn report(
     Ok(())
 }
 
-fn query(path: &Path, rays: &Path, output: &Path, occluded: bool) -> anyhow::Result<()> {
+fn query(
+    path: &Path,
+    rays_path: &Path,
+    output: &Path,
+    occluded: bool,
+    invalid_rays: InvalidRays,
+) -> anyhow::Result<()> {
     let kernel = Kernel::from_env()?;
     // Opening validates the model and reading parses the rays: both on every core, together.
-    let (rays, file) = rayon::join(|| ray_file::read_rays(rays), || ReducemFile::open(path));
-    let (rays, file) = (rays?, file?);
-    let tracer = Tracer::new(
-        &file,
-        TraceOptions {
-            kernel,
-            ..TraceOptions::default()
-        },
+    let (rays, file) = rayon::join(
+        || QueryRays::read(rays_path, invalid_rays),
+        || ReducemFile::open(path),
     );
-    let bytes = if occluded {
-        ray_file::trace_occlusion(&tracer, &rays)
-    } else {
-        ray_file::trace_hits(&tracer, &rays)
+    let (rays, file) = (rays?, file?);
+    let options = TraceOptions {
+        kernel,
+        ..TraceOptions::default()
     };
+    let tracer = Tracer::new(&file, options);
+    let started = Instant::now();
+    let traced = if occluded {
+        ray_file::trace_occlusion(&tracer, &rays.valid)
+    } else {
+        ray_file::trace_hits(&tracer, &rays.valid)
+    };
+    let seconds = started.elapsed().as_secs_f64();
+    let hits = count_hits(&traced, occluded);
+    let bytes = rays.place(traced, occluded);
     ray_file::write_atomically(output, &bytes)
-        .with_context(|| format!("writing {}", output.display()))
+        .with_context(|| format!("writing {}", output.display()))?;
+    let summary = QuerySummary {
+        rays: rays.total,
+        invalid: rays.total - rays.valid.len(),
+        hits,
+        seconds,
+        kernel,
+    };
+    eprintln!("{summary}");
+    Ok(())
 }
 
-fn render(path: &Path, scene: &Path, output: &Path, json: bool) -> anyhow::Result<()> {
-    let scene = reducem::render::scene::Scene::load(scene)?;
+/// The rays of a query: the valid ones, traced as one batch, and where the invalid ones were.
+struct QueryRays {
+    valid: Vec<Ray>,
+    total: usize,
+    /// With `--invalid-rays miss`, every record in order (`None` for an invalid one), when
+    /// there was an invalid one.
+    records: Option<Vec<Option<Ray>>>,
+}
+
+impl QueryRays {
+    fn read(path: &Path, invalid_rays: InvalidRays) -> Result<QueryRays, RayFileError> {
+        if invalid_rays == InvalidRays::Reject {
+            let valid = ray_file::read_rays(path)?;
+            let total = valid.len();
+            return Ok(QueryRays {
+                valid,
+                total,
+                records: None,
+            });
+        }
+        let read = ray_file::read_rays_allowing_invalid(path)?;
+        if let Some(first) = &read.first_invalid {
+            eprintln!(
+                "reducem: query: {} invalid rays answered as misses (first: {first})",
+                read.invalid
+            );
+        }
+        let valid: Vec<Ray> = read.rays.iter().flatten().copied().collect();
+        Ok(QueryRays {
+            total: read.rays.len(),
+            records: (read.invalid > 0).then_some(read.rays),
+            valid,
+        })
+    }
+
+    /// The output file's bytes: the valid rays' answers `traced` in their places, a miss for
+    /// every invalid ray.
+    fn place(&self, traced: Vec<u8>, occluded: bool) -> Vec<u8> {
+        let Some(records) = &self.records else {
+            return traced;
+        };
+        let (size, miss) = if occluded {
+            (1, ray_file::encode_occlusion(&[false]))
+        } else {
+            (ray_file::HIT_BYTES, ray_file::encode_hits(&[None]))
+        };
+        let mut answers = traced.chunks_exact(size);
+        records
+            .iter()
+            .flat_map(|ray| match ray {
+                Some(_) => answers.next().unwrap_or(&miss),
+                None => &miss,
+            })
+            .copied()
+            .collect()
+    }
+}
+
+/// Hits (or occluded rays) among the answers of a hit (or occlusion) file.
+fn count_hits(answers: &[u8], occluded: bool) -> usize {
+    if occluded {
+        return answers.iter().filter(|&&byte| byte != 0).count();
+    }
+    answers
+        .chunks_exact(ray_file::HIT_BYTES)
+        .filter(|record| record[..4] != f32::INFINITY.to_le_bytes())
+        .count()
+}
+
+/// The query's one summary line: `key=value` fields, so that scripts can parse it and later
+/// fields can be appended without breaking them.
+struct QuerySummary {
+    rays: usize,
+    invalid: usize,
+    hits: usize,
+    seconds: f64,
+    kernel: Kernel,
+}
+
+impl std::fmt::Display for QuerySummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        let traced = self.rays - self.invalid;
+        let mrays = if self.seconds > 0.0 {
+            traced as f64 / self.seconds / 1e6
+        } else {
+            0.0
+        };
+        write!(
+            f,
+            "reducem: query: rays={} invalid={} hits={} seconds={:.6} mrays_per_s={mrays:.3} \
+             kernel={}",
+            self.rays, self.invalid, self.hits, self.seconds, self.kernel
+        )
+    }
+}
+
+/// The scene file, turned and overridden as the command line asks; an override that makes the
+/// scene invalid is a usage error.
+fn load_scene(path: &Path, overrides: &SceneOverrides) -> anyhow::Result<Scene> {
+    let mut scene = Scene::load(path)?;
+    if overrides.up == UpAxis::Y {
+        scene.turn_to_y_up();
+    }
+    apply_overrides(&mut scene, overrides);
+    scene.check().map_err(|(key, detail)| {
+        UsageError(format!("the command line makes {key} invalid: {detail}"))
+    })?;
+    Ok(scene)
+}
+
+fn apply_overrides(scene: &mut Scene, overrides: &SceneOverrides) {
+    let camera = &mut scene.camera;
+    if let (Some(position), Some(look_at)) = (overrides.camera_position, overrides.look_at) {
+        (camera.auto, camera.direction) = (false, None);
+        (camera.position, camera.look_at) = (Some(position), Some(look_at));
+    }
+    camera.up = overrides.camera_up.unwrap_or(camera.up);
+    camera.fov_degrees = overrides.fov.unwrap_or(camera.fov_degrees);
+    scene.image.width = overrides.width.unwrap_or(scene.image.width);
+    scene.image.height = overrides.height.unwrap_or(scene.image.height);
+    scene.image.antialiasing = overrides.antialiasing.unwrap_or(scene.image.antialiasing);
+    scene.shading.exposure = overrides.exposure.unwrap_or(scene.shading.exposure);
+    match overrides.ao_samples {
+        Some(0) => scene.ambient_occlusion = None,
+        Some(samples) => scene.ambient_occlusion.get_or_insert_default().samples = samples,
+        None => {}
+    }
+    if let Some(distance) = overrides.ao_distance {
+        scene.ambient_occlusion.get_or_insert_default().max_distance = Some(distance);
+    }
+}
+
+fn render(
+    path: &Path,
+    scene: &Scene,
+    output: &Path,
+    format: ImageFormat,
+    json: bool,
+) -> anyhow::Result<()> {
     let file = ReducemFile::open(path)?;
-    let report = reducem::render::render_to_png(&file, &scene, output)?;
+    let tracer = Tracer::new(&file, TraceOptions::default());
+    let (frame, report) = reducem::render::render(&tracer, scene);
+    reducem::render::image::write_image(&frame, output, format)?;
     if json {
         println!("{}", serde_json::to_string(&report)?);
     } else {
@@ -229,4 +556,29 @@ fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<(
         println!("  checksums          ok");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    #[test]
+    fn every_argument_of_every_command_has_a_description() {
+        let command = super::Cli::command();
+        for subcommand in command.get_subcommands() {
+            for argument in subcommand.get_arguments() {
+                let name = format!("reducem {} {}", subcommand.get_name(), argument.get_id());
+                assert!(argument.get_help().is_some(), "{name} has no description");
+                let enumerated = argument.get_action().takes_values();
+                let values = enumerated.then(|| argument.get_value_parser().possible_values());
+                for value in values.into_iter().flatten().flatten() {
+                    let value_name = value.get_name();
+                    assert!(
+                        value.get_help().is_some(),
+                        "{name} {value_name}: no description"
+                    );
+                }
+            }
+        }
+    }
 }

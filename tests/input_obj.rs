@@ -76,24 +76,76 @@ fn upper_case_extension_and_negative_indices_work() {
     assert_eq!(mesh.positions[3], [1.0, 0.0, 0.0]);
 }
 
-#[test]
-fn malformed_obj_names_the_file() {
-    let file = temp_file("broken.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n");
+/// The message of reading `text` as an OBJ file, which must fail at `location`.
+fn error_at(name: &str, text: &str, location: Location) -> String {
+    let file = temp_file(name, text);
     let error = read_mesh(&file.0).unwrap_err();
-    assert_eq!(error.location, Location::File);
-    assert!(matches!(error.kind, InputErrorKind::Obj(_)), "{error}");
+    assert_eq!(error.location, location, "{error}");
+    assert!(error.to_string().starts_with(&file.0.display().to_string()));
+    error.to_string()
+}
+
+fn element(element: &str, index: u64, byte_offset: u64, line: u64) -> Location {
+    Location::Element {
+        element: element.into(),
+        index,
+        byte_offset,
+        line: Some(line),
+    }
+}
+
+#[test]
+fn malformed_obj_names_the_line_and_byte_of_the_defect() {
+    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n";
+    let message = error_at("broken.obj", text, element("face", 0, 30, 4));
     assert!(
-        error
-            .to_string()
-            .starts_with(&format!("{}: OBJ: ", file.0.display())),
-        "{error}"
+        message.ends_with(
+            "element 'face' #0 at byte 30 (line 4): OBJ: face vertex index 9 out of range \
+             (3 vertices)"
+        ),
+        "{message}"
     );
+    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf -4 1 2\n";
+    let message = error_at("relative.obj", text, element("face", 1, 34, 5));
+    assert!(message.contains("index -4 out of range"), "{message}");
+    let text = "v 0 0 0\nv 1 x 0\n";
+    let message = error_at("token.obj", text, element("vertex", 1, 12, 2));
+    assert!(message.contains("malformed number token 'x'"), "{message}");
+    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2/a 3\n";
+    let message = error_at("corner.obj", text, element("face", 0, 28, 4));
+    assert!(message.contains("malformed face corner '2/a'"), "{message}");
+}
+
+#[test]
+fn absurd_texture_and_normal_indices_are_defects_not_overflows() {
+    let corners = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/9223372036854775807 2/1 3/1\n";
+    let message = error_at("texture.obj", corners, element("face", 0, 33, 5));
+    assert!(
+        message.contains("face texture coordinate index 9223372036854775807 out of range"),
+        "{message}"
+    );
+    let corners = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//-9223372036854775807 2//1 3//1\n";
+    let message = error_at("normal.obj", corners, element("face", 0, 35, 5));
+    assert!(
+        message
+            .contains("face normal index -9223372036854775807 out of range (1 normals before it)"),
+        "{message}"
+    );
+}
+
+#[test]
+fn unknown_statements_do_not_fail_the_read() {
+    let text = "v 0 0 0\nv 1 0 0\nv 0 1 0\ncurv 0 1 1 2\nf 1 2 3\nfoo\ncurv 0 1 2 3\n";
+    let file = temp_file("unknown.obj", text);
+    let mesh = read_mesh(&file.0).unwrap();
+    assert_eq!(mesh.triangles.len(), 1);
 }
 
 #[test]
 fn non_finite_obj_coordinates_are_rejected() {
     let file = temp_file("nan.obj", "v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n");
     let error = read_mesh(&file.0).unwrap_err();
+    assert_eq!(error.location, element("vertex", 1, 12, 2), "{error}");
     assert!(
         matches!(
             error.kind,

@@ -202,3 +202,106 @@ fn nan_and_infinite_fields_are_rejected_by_name() {
         "ray 0 at byte 24: tmin 0 is greater than tmax -inf",
     );
 }
+
+#[test]
+fn an_invalid_ray_rejects_the_batch_with_exit_code_65() {
+    let mesh = grid(3, 3);
+    let model = temp_path("invalid-default.rdm");
+    write_strips(&mesh, &long_strips(&mesh, 10), 2, &model);
+    let zero = Ray {
+        direction: [0.0; 3],
+        ..good_ray()
+    };
+    let ray_path = temp_path("invalid-default.rays");
+    std::fs::write(&ray_path, encode_rays(&[good_ray(), zero])).expect("write rays");
+    let out = temp_path("invalid-default.hits");
+    let output = run_query(&model, &ray_path, &out, false);
+    assert_eq!(output.status.code(), Some(65));
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("ray 1 at byte 44: direction is zero"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn invalid_rays_miss_answers_each_as_a_miss_and_counts_them() {
+    let mesh = grid(3, 3);
+    let model = temp_path("invalid-miss.rdm");
+    write_strips(&mesh, &long_strips(&mesh, 10), 2, &model);
+    let nan = Ray {
+        origin: [f32::NAN, 0.0, 0.0],
+        ..good_ray()
+    };
+    let zero = Ray {
+        direction: [0.0; 3],
+        ..good_ray()
+    };
+    let rays = [nan, good_ray(), zero, good_ray()];
+    let ray_path = temp_path("invalid-miss.rays");
+    std::fs::write(&ray_path, encode_rays(&rays)).expect("write rays");
+    let file = reducem::format::reader::ReducemFile::open(&model).expect("open");
+    let tracer = Tracer::new(&file, TraceOptions::default());
+    let hit = tracer
+        .intersect(&good_ray())
+        .expect("the good ray hits the grid");
+
+    for occluded in [false, true] {
+        let out = temp_path(&format!("invalid-miss-{occluded}.out"));
+        let mut command = Command::new(env!("CARGO_BIN_EXE_reducem"));
+        command
+            .arg("query")
+            .arg(&model)
+            .arg("--rays")
+            .arg(&ray_path);
+        command.arg("-o").arg(&out).args(["--invalid-rays", "miss"]);
+        if occluded {
+            command.arg("--occluded");
+        }
+        let output = command.output().expect("run reducem");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{stderr}");
+        assert!(
+            stderr.contains("2 invalid rays answered as misses (first: ")
+                && stderr.contains("ray 0 at byte 0: ox is NaN"),
+            "{stderr}"
+        );
+        let summary = stderr
+            .lines()
+            .find(|line| line.starts_with("reducem: query: rays="))
+            .unwrap_or_else(|| panic!("no summary line in {stderr}"));
+        assert!(
+            summary.contains("rays=4 invalid=2 hits=2 seconds=")
+                && summary.contains(" mrays_per_s="),
+            "{summary}"
+        );
+        let bytes = std::fs::read(&out).expect("answers");
+        if occluded {
+            assert_eq!(bytes, [0, 1, 0, 1]);
+        } else {
+            let miss = [f32::INFINITY, 0.0, 0.0, 0.0];
+            let good = [hit.t, hit.normal[0], hit.normal[1], hit.normal[2]];
+            assert_eq!(f32s(&bytes), [miss, good, miss, good].concat());
+        }
+    }
+}
+
+#[test]
+fn a_valid_query_prints_one_summary_line() {
+    let mesh = torus(20, 10);
+    let model = temp_path("query-summary.rdm");
+    write_strips(&mesh, &long_strips(&mesh, 50), 2, &model);
+    let rays = sample_rays();
+    let ray_path = temp_path("query-summary.rays");
+    std::fs::write(&ray_path, encode_rays(&rays)).expect("write rays");
+    let output = run_query(&model, &ray_path, &temp_path("query-summary.hits"), false);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    assert!(
+        lines[0].starts_with("reducem: query: rays=500 invalid=0 hits="),
+        "{stderr}"
+    );
+}

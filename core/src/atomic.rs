@@ -56,3 +56,53 @@ fn sync_directory(path: &Path) -> io::Result<()> {
         .unwrap_or(Path::new("."));
     File::open(directory)?.sync_all()
 }
+
+/// Whether `a` and `b` name one existing file: the same path after canonicalisation, or the
+/// same device and inode (a symlink to it, a hard link). False when either does not exist, so a
+/// new output never matches.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    let (Ok(meta_a), Ok(meta_b)) = (fs::metadata(a), fs::metadata(b)) else {
+        return false;
+    };
+    same_inode(&meta_a, &meta_b) || fs::canonicalize(a).ok() == fs::canonicalize(b).ok()
+}
+
+#[cfg(unix)]
+fn same_inode(a: &fs::Metadata, b: &fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    (a.dev(), a.ino()) == (b.dev(), b.ino())
+}
+
+#[cfg(not(unix))]
+fn same_inode(_: &fs::Metadata, _: &fs::Metadata) -> bool {
+    false
+}
+
+/// Checks, before any work is done, that [`write_atomically`] can write `path`: `path` is not a
+/// directory and its directory takes a new file (the temporary file is created there and removed
+/// again). Catches a missing or read-only directory in seconds instead of after hours of work.
+pub fn check_writable(path: &Path) -> io::Result<()> {
+    if path.is_dir() {
+        return Err(io::Error::new(
+            io::ErrorKind::IsADirectory,
+            format!("{} is a directory, not a file name", path.display()),
+        ));
+    }
+    let temporary = temporary_path(path);
+    let directory = temporary
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    File::create(&temporary).map_err(|error| {
+        io::Error::new(
+            error.kind(),
+            format!("cannot create a file in {}: {error}", directory.display()),
+        )
+    })?;
+    // Strip tasks on other hosts may probe the same name at once (pids repeat across hosts):
+    // the file being gone already is fine.
+    match fs::remove_file(&temporary) {
+        Err(error) if error.kind() == io::ErrorKind::NotFound => Ok(()),
+        removed => removed,
+    }
+}

@@ -7,12 +7,23 @@ use serde::Deserialize;
 
 use reducem::gen::Kind;
 
+use crate::workdir::WorkDir;
+
 /// A configuration problem, naming the file and, for syntax and unknown keys, line and column.
 #[derive(Debug, thiserror::Error)]
 #[error("{}: {message}", path.display())]
 pub struct ConfigError {
     pub path: PathBuf,
     pub message: String,
+}
+
+impl ConfigError {
+    pub fn new(path: &Path, message: String) -> ConfigError {
+        ConfigError {
+            path: path.to_path_buf(),
+            message,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize)]
@@ -28,6 +39,9 @@ pub struct Config {
     pub vertices: VerticesConfig,
     #[serde(default)]
     pub work: WorkConfig,
+    /// The configuration file itself (where the default work directory goes).
+    #[serde(skip)]
+    pub source: PathBuf,
 }
 
 /// Exactly one of `path` (a PLY or OBJ file) and `generate` (a synthetic mesh).
@@ -122,20 +136,34 @@ impl Default for VerticesConfig {
 }
 
 /// `[vertices] encoding`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum VertexEncodingName {
     /// Lossless f32 copies of the input positions.
+    #[value(name = "f32")]
     F32,
     /// Points of one global grid over the model, `grid_bits` bits per axis.
     Grid,
 }
 
-/// Where intermediate files go; defaults to `<output>.work` next to the output.
-#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// Where intermediate files go; defaults to `<configuration name>.work` next to the
+/// configuration file.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
 pub struct WorkConfig {
     pub dir: Option<PathBuf>,
+    /// `false`: remove the work directory after a successful run (it is often larger than the
+    /// output); the next run then starts over.
+    pub keep: bool,
+}
+
+impl Default for WorkConfig {
+    fn default() -> Self {
+        WorkConfig {
+            dir: None,
+            keep: true,
+        }
+    }
 }
 
 fn default_seed() -> u64 {
@@ -156,14 +184,19 @@ pub enum Input {
 impl Config {
     /// Reads, parses and checks `path`; relative paths in it become relative to its directory.
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
-        let error = |message: String| ConfigError {
-            path: path.to_path_buf(),
-            message,
-        };
-        let text = std::fs::read_to_string(path).map_err(|e| error(e.to_string()))?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|error| ConfigError::new(path, error.to_string()))?;
+        Config::parse(path, &text)
+    }
+
+    /// Parses and checks configuration text; `path` names it in errors and is the base of its
+    /// relative paths.
+    pub fn parse(path: &Path, text: &str) -> Result<Config, ConfigError> {
+        let error = |message: String| ConfigError::new(path, message);
         let mut config: Config =
-            toml::from_str(&text).map_err(|e| error(e.to_string().trim_end().to_string()))?;
+            toml::from_str(text).map_err(|e| error(e.to_string().trim_end().to_string()))?;
         config.resolve_paths(path.parent().unwrap_or(Path::new("")));
+        config.source = path.to_path_buf();
         config.input().map_err(error)?;
         config.build_params().check().map_err(error)?;
         if config.chunk.max_triangles == 0 {
@@ -197,6 +230,9 @@ impl Config {
                             kind_names()
                         )
                     })?;
+                if let Some(message) = too_few_triangles(kind, generate.triangles) {
+                    return Err(format!("[input.generate] triangles = {message}"));
+                }
                 Ok(Input::Generate {
                     kind,
                     triangles: generate.triangles,
@@ -207,17 +243,22 @@ impl Config {
         }
     }
 
+    /// `[work] dir`; by default `<configuration name>.work` beside the configuration file, so
+    /// that it does not depend on `[output] path` (changing the output reruns only *write*). A
+    /// work directory at the former default, `<output>.work`, is kept while the new default
+    /// does not exist, so that upgrading does not rerun a job.
     pub fn work_dir(&self) -> PathBuf {
-        self.work.dir.clone().unwrap_or_else(|| {
-            let mut name = self
-                .output
-                .path
-                .file_name()
-                .unwrap_or_default()
-                .to_os_string();
-            name.push(".work");
-            self.output.path.with_file_name(name)
-        })
+        if let Some(dir) = &self.work.dir {
+            return dir.clone();
+        }
+        let default = self.source.with_extension("work");
+        let mut former = self.output.path.clone().into_os_string();
+        former.push(".work");
+        let former = PathBuf::from(former);
+        if !default.exists() && WorkDir::new(former.clone()).made_by_pipeline() {
+            return former;
+        }
+        default
     }
 
     pub fn build_params(&self) -> reducem::build::BuildParams {
@@ -235,6 +276,15 @@ impl Config {
         params.grid_nodes = self.strip.grid_nodes;
         params
     }
+}
+
+/// Why a generated mesh of `kind` cannot have about `triangles` triangles, if it cannot.
+pub fn too_few_triangles(kind: Kind, triangles: u64) -> Option<String> {
+    let smallest = kind.smallest_triangles();
+    let name = format!("{kind:?}").to_lowercase();
+    (triangles < smallest).then(|| {
+        format!("{triangles} is too few: the smallest {name} mesh has {smallest} triangles")
+    })
 }
 
 fn kind_names() -> String {

@@ -62,10 +62,7 @@ pub fn peek(job: &Job) -> Result<ResolvedInput, String> {
                 .input
                 .clone()
                 .filter(|c| same_identity(c, &identity));
-            let content = cached.map_or_else(
-                || format!("unhashed:{}:{}", identity.bytes, identity.modified_ns),
-                |c| c.hash,
-            );
+            let content = cached.map_or_else(|| unhashed_content(&identity), |c| c.hash);
             Ok(ResolvedInput { path, content })
         }
         Input::Generate {
@@ -80,6 +77,19 @@ pub fn peek(job: &Job) -> Result<ResolvedInput, String> {
             }
         }
     }
+}
+
+/// Marks an input content that status could not know without hashing the file.
+pub const UNHASHED: &str = "unhashed: ";
+
+/// What status knows of a changed input: its size and modification time.
+fn unhashed_content(identity: &InputIdentity) -> String {
+    let modified = UNIX_EPOCH + std::time::Duration::from_nanos(identity.modified_ns as u64);
+    format!(
+        "{UNHASHED}now {} bytes, modified {}",
+        identity.bytes,
+        crate::time::iso8601(modified)
+    )
 }
 
 /// A synthetic input: where it goes in the work directory and what it depends on.

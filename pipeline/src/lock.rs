@@ -86,13 +86,25 @@ fn read_holder(file: &mut File) -> String {
 
 fn holder_description() -> String {
     let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
-    let since = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_secs())
-        .unwrap_or(0);
     format!(
-        "pid {} on host {} since unix time {since}",
+        "pid {} on host {} since {}",
         std::process::id(),
-        host.trim()
+        host.trim(),
+        crate::time::iso8601(std::time::SystemTime::now())
     )
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_holder_is_named_with_an_iso_8601_start_time() {
+        let holder = super::holder_description();
+        let since = holder.rsplit(" since ").next().unwrap_or_default();
+        assert!(holder.starts_with(&format!("pid {} on host ", std::process::id())));
+        assert_eq!(since.len(), "2026-11-24T22:41:07Z".len(), "{holder}");
+        assert!(
+            since.ends_with('Z') && since.as_bytes()[10] == b'T',
+            "{holder}"
+        );
+    }
 }

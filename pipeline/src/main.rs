@@ -3,21 +3,26 @@
 
 mod chunk_io;
 mod config;
+mod convert;
 mod fingerprint;
 mod input;
 mod interrupt;
 mod lock;
 mod manifest;
+mod outcome;
+mod preflight;
 mod progress;
 mod run;
 mod stage;
 mod status;
+mod time;
 mod workdir;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use reducem::exit_code as exit;
 use reducem::gen;
 
 /// mimalloc returns freed chunk memory to the system promptly; with glibc's per-thread arenas
@@ -26,21 +31,12 @@ use reducem::gen;
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
-/// Exit codes (sysexits.h values, as batch schedulers expect).
-mod exit {
-    pub const USAGE: u8 = 64;
-    pub const BAD_INPUT: u8 = 65;
-    pub const INTERNAL: u8 = 70;
-    pub const IO: u8 = 74;
-    pub const TEMPORARY: u8 = 75;
-    pub const CONFIG: u8 = 78;
-}
-
 #[derive(Parser)]
 #[command(
     name = "pipeline",
     version,
-    about = "Convert massive meshes to ReduceM files"
+    about = "Convert massive meshes to ReduceM files",
+    after_help = exit::HELP
 )]
 struct Cli {
     #[command(subcommand)]
@@ -50,7 +46,9 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run (or resume) the conversion described by CONFIG.
+    #[command(after_help = exit::HELP)]
     Run {
+        /// The job's configuration file (TOML; see README.md, Configuration).
         config: PathBuf,
         /// Progress bars on a terminal, plain log lines otherwise; or force one.
         #[arg(long, value_enum, default_value_t = progress::LogFormat::Auto)]
@@ -58,6 +56,9 @@ enum Command {
         /// When another run holds the work directory: fail with exit code 75, or skip with 0.
         #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
         if_locked: run::IfLocked,
+        /// Remove the work directory after a successful run (as `[work] keep = false`).
+        #[arg(long)]
+        clean_after: bool,
         /// Run only this stage; the stages before it must be done.
         #[arg(long, value_enum)]
         stage: Option<run::StageName>,
@@ -66,36 +67,104 @@ enum Command {
         #[arg(long, value_name = "I/N")]
         shard: Option<run::Shard>,
     },
-    /// List stages and chunks as done, pending or stale, with the reason.
-    Status { config: PathBuf },
-    /// Remove the work directory of CONFIG.
-    Clean { config: PathBuf },
-    /// Stream a synthetic mesh to binary PLY.
-    Gen {
-        kind: gen::Kind,
-        #[arg(long)]
-        triangles: u64,
+    /// Convert one mesh without a configuration file: writes the equivalent configuration to
+    /// WORK/convert.toml and runs (or resumes) it like `run`.
+    #[command(after_help = exit::HELP)]
+    Convert {
+        /// The mesh to convert (PLY or OBJ).
+        input: PathBuf,
+        /// The ReduceM file to write.
         #[arg(short, long)]
         output: PathBuf,
+        /// Most triangles per strip (default 60; shorter strips trace faster, cost more bytes).
+        #[arg(long)]
+        max_length: Option<usize>,
+        /// Vertex encoding: f32 (lossless, the default) or grid (quantized).
+        #[arg(long, value_enum)]
+        encoding: Option<config::VertexEncodingName>,
+        /// Grid bits per axis with --encoding grid, 1 to 24 (default 20).
+        #[arg(long, requires = "encoding")]
+        grid_bits: Option<u32>,
+        /// Work directory for intermediate files (default OUTPUT.work).
+        #[arg(long)]
+        work: Option<PathBuf>,
+        /// Progress bars on a terminal, plain log lines otherwise; or force one.
+        #[arg(long, value_enum, default_value_t = progress::LogFormat::Auto)]
+        log_format: progress::LogFormat,
+        /// When another run holds the work directory: fail with exit code 75, or skip with 0.
+        #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
+        if_locked: run::IfLocked,
+        /// Remove the work directory after a successful run (as `[work] keep = false`).
+        #[arg(long)]
+        clean_after: bool,
+    },
+    /// List stages and chunks as done, pending or stale, with the reason.
+    #[command(after_help = exit::HELP)]
+    Status {
+        /// The job's configuration file.
+        config: PathBuf,
+    },
+    /// Remove the work directory of CONFIG (only one that pipeline made).
+    #[command(after_help = exit::HELP)]
+    Clean {
+        /// The job's configuration file.
+        config: PathBuf,
+    },
+    /// Stream a synthetic mesh to binary PLY.
+    #[command(after_help = exit::HELP)]
+    Gen {
+        /// The kind of mesh.
+        kind: gen::Kind,
+        /// About how many triangles: each kind rounds to its own structure (a 1M isosurface
+        /// has 1,000,772); at least the kind's smallest mesh (terrain, cad 2; scan, soup 18;
+        /// sphere 20; isosurface 96).
+        #[arg(long)]
+        triangles: u64,
+        /// The PLY file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Seed of the generator: the same seed gives the same mesh.
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
 }
 
 fn main() -> ExitCode {
+    let started = std::time::Instant::now();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(error) => {
-            let code = if error.use_stderr() { exit::USAGE } else { 0 };
+            let code = if error.use_stderr() {
+                exit::USAGE
+            } else {
+                exit::SUCCESS
+            };
             let _ = error.print();
             return ExitCode::from(code);
         }
     };
+    let json = cli.command.log_format() == Some(progress::LogFormat::Json);
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("pipeline: error: {error:#}");
-            ExitCode::from(exit_code(&error))
+            if json {
+                let seconds = started.elapsed().as_secs_f64();
+                eprintln!("{}", outcome::error_json(&error, seconds));
+            } else {
+                eprintln!("pipeline: error: {error:#}");
+            }
+            ExitCode::from(outcome::classify(&error).0)
+        }
+    }
+}
+
+impl Command {
+    fn log_format(&self) -> Option<progress::LogFormat> {
+        match self {
+            Command::Run { log_format, .. } | Command::Convert { log_format, .. } => {
+                Some(*log_format)
+            }
+            _ => None,
         }
     }
 }
@@ -106,6 +175,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             config,
             log_format,
             if_locked,
+            clean_after,
             stage,
             shard,
         } => {
@@ -117,11 +187,41 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             let options = run::RunOptions {
                 log_format,
+                clean_after,
                 if_locked,
                 stage,
                 shard,
             };
             run::run(&config, &options)
+        }
+        Command::Convert {
+            input,
+            output,
+            max_length,
+            encoding,
+            grid_bits,
+            work,
+            log_format,
+            if_locked,
+            clean_after,
+        } => {
+            interrupt::install()?;
+            let args = convert::ConvertArgs {
+                input,
+                output,
+                max_length,
+                encoding,
+                grid_bits,
+                work,
+            };
+            let options = run::RunOptions {
+                log_format,
+                clean_after,
+                if_locked,
+                stage: None,
+                shard: run::Shard::WHOLE,
+            };
+            convert::convert(&args, &options)
         }
         Command::Status { config } => status::status(&config),
         Command::Clean { config } => run::clean(&config),
@@ -131,6 +231,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             output,
             seed,
         } => {
+            if let Some(message) = config::too_few_triangles(kind, triangles) {
+                anyhow::bail!(run::UsageError(format!("--triangles {message}")));
+            }
             let summary = gen::generate(kind, triangles, seed, &output)?;
             eprintln!(
                 "pipeline: wrote {} ({} vertices, {} triangles)",
@@ -143,27 +246,27 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-/// Classifies an error by the typed errors in its chain.
-fn exit_code(error: &anyhow::Error) -> u8 {
-    for cause in error.chain() {
-        if cause.is::<run::UsageError>() {
-            return exit::USAGE;
-        }
-        if cause.is::<lock::LockedError>()
-            || cause.is::<interrupt::Interrupted>()
-            || cause.is::<run::UpstreamPending>()
-        {
-            return exit::TEMPORARY;
-        }
-        if cause.is::<config::ConfigError>() {
-            return exit::CONFIG;
-        }
-        if cause.is::<reducem::input::InputError>() {
-            return exit::BAD_INPUT;
-        }
-        if cause.is::<std::io::Error>() || cause.is::<reducem::format::writer::WriteError>() {
-            return exit::IO;
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    #[test]
+    fn every_argument_of_every_command_has_a_description() {
+        let command = super::Cli::command();
+        for subcommand in command.get_subcommands() {
+            for argument in subcommand.get_arguments() {
+                let name = format!("pipeline {} {}", subcommand.get_name(), argument.get_id());
+                assert!(argument.get_help().is_some(), "{name} has no description");
+                let enumerated = argument.get_action().takes_values();
+                let values = enumerated.then(|| argument.get_value_parser().possible_values());
+                for value in values.into_iter().flatten().flatten() {
+                    let value_name = value.get_name();
+                    assert!(
+                        value.get_help().is_some(),
+                        "{name} {value_name}: no description"
+                    );
+                }
+            }
         }
     }
-    exit::INTERNAL
 }

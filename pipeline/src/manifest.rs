@@ -110,15 +110,43 @@ fn changed_parts(
     for (name, value) in current {
         match recorded.get(name) {
             Some(old) if old == value => {}
-            Some(old) => changes.push(format!("{name} changed from {old} to {value}")),
-            None => changes.push(format!("{name} is new")),
+            Some(old) => changes.push(describe_change(name, old, value)),
+            None => changes.push(format!("{name} is new (recorded by an older version)")),
         }
     }
     changes.extend(
         recorded
             .keys()
             .filter(|k| !current.contains_key(*k))
-            .map(|k| format!("{k} was removed")),
+            .map(|k| format!("{k} no longer applies (recorded by an older version)")),
     );
     changes.join("; ")
+}
+
+/// One changed part in words: stage digests and content hashes mean nothing to a user, so they
+/// are named by what changed rather than shown.
+fn describe_change(name: &str, old: &str, new: &str) -> String {
+    if let Some(stage) = name.strip_suffix("_stage") {
+        return format!("the {stage} stage's results changed");
+    }
+    match name {
+        "input" => describe_input_change(new),
+        "top_level" => "the top-level hierarchy parameters of the program changed".into(),
+        "format_version" => format!("the file format version changed from {old} to {new}"),
+        "program_version" => format!("the program version changed from {old} to {new}"),
+        _ => format!("{name} changed from {old} to {new}"),
+    }
+}
+
+fn describe_input_change(new: &str) -> String {
+    if let Some(identity) = new.strip_prefix(crate::input::UNHASHED) {
+        return format!(
+            "input changed: {identity} (the next run hashes it again and redoes the work only \
+             if its content differs)"
+        );
+    }
+    if new.starts_with("generated:") {
+        return "the generated input changed".into();
+    }
+    "the input's content changed".into()
 }

@@ -13,7 +13,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 pub enum LogFormat {
     /// Bars on a terminal, plain lines otherwise.
     Auto,
+    /// Plain log lines, progress every 10 s per stage.
     Plain,
+    /// One JSON object per line; the last one is the outcome (error or summary).
     Json,
 }
 
@@ -50,6 +52,18 @@ impl Progress {
                 serde_json::json!({"time": unix_time(), "stage": stage, "event": event, "message": message})
             ),
             Mode::Bars | Mode::Plain => eprintln!("pipeline: {stage}: {message}"),
+        }
+    }
+
+    /// The final line of a successful run: plain text, or the JSON summary of
+    /// [`crate::outcome::summary_json`] with the output's counts.
+    pub fn summary(&self, seconds: f64, counts: Option<serde_json::Value>) {
+        match self.mode {
+            Mode::Json => {
+                let counts = counts.unwrap_or(serde_json::Value::Null);
+                eprintln!("{}", crate::outcome::summary_json(seconds, counts));
+            }
+            Mode::Bars | Mode::Plain => eprintln!("pipeline: run: finished in {seconds:.1} s"),
         }
     }
 
@@ -145,7 +159,7 @@ impl StageProgress {
     }
 }
 
-fn unix_time() -> f64 {
+pub fn unix_time() -> f64 {
     std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0.0, |d| d.as_secs_f64())

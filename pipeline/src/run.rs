@@ -12,15 +12,18 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use crate::config::Config;
+use crate::config::{Config, ConfigError};
 use crate::input;
 use crate::lock::{LockedError, WorkLock};
+use crate::outcome::InStage;
+use crate::preflight::{self, Naming};
 use crate::progress::{LogFormat, Progress};
 use crate::stage::chunk::Chunked;
 use crate::stage::hierarchy::Hierarchy;
 use crate::stage::merge::Merged;
 use crate::stage::{chunk, hierarchy, merge, strip, write, Job};
 pub use crate::stage::{Shard, StageName, UpstreamPending};
+use crate::status;
 use crate::workdir::WorkDir;
 
 /// What to do when another run holds the work directory.
@@ -34,6 +37,8 @@ pub enum IfLocked {
 
 pub struct RunOptions {
     pub log_format: LogFormat,
+    /// Remove the work directory after a successful run, as `[work] keep = false` does.
+    pub clean_after: bool,
     pub if_locked: IfLocked,
     pub stage: Option<StageName>,
     pub shard: Shard,
@@ -50,6 +55,10 @@ pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
     if options.shard != Shard::WHOLE && options.stage != Some(StageName::Strip) {
         anyhow::bail!(UsageError("--shard applies to --stage strip only".into()));
     }
+    if let Some(message) = preflight::unsafe_paths(&config, config_path, Naming::Config) {
+        return Err(ConfigError::new(config_path, message).into());
+    }
+    preflight::prepare_output(&config)?;
     let work = WorkDir::new(config.work_dir());
     work.create()
         .with_context(|| format!("creating {}", work.root().display()))?;
@@ -68,13 +77,37 @@ pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
         Err(error) => return Err(error),
     };
     let job = Job::new(&config, work, &progress);
-    match options.stage {
-        None => run_all(&job)?,
-        Some(stage) => run_stage(&job, stage, options.shard)?,
+    let result = match options.stage {
+        None => run_all(&job),
+        Some(stage) => run_stage(&job, stage, options.shard),
+    };
+    if let Err(error) = result {
+        return Err(match status::first_unfinished_stage(&job) {
+            Some(stage) => error.context(InStage(stage)),
+            None => error,
+        });
     }
-    let elapsed = started.elapsed().as_secs_f64();
-    progress.event("run", "done", &format!("finished in {elapsed:.1} s"));
+    let finished = matches!(options.stage, None | Some(StageName::Write));
+    if finished && (options.clean_after || !config.work.keep) {
+        remove_work_dir(&config, config_path)?;
+        let root = config.work_dir();
+        progress.event("run", "clean", &format!("removed {}", root.display()));
+    }
+    let seconds = started.elapsed().as_secs_f64();
+    let counts = finished.then(|| output_counts(&config));
+    progress.summary(seconds, counts.flatten());
     Ok(())
+}
+
+/// What the finished file holds, for the summary.
+fn output_counts(config: &Config) -> Option<serde_json::Value> {
+    let file = reducem::format::reader::ReducemFile::open(&config.output.path).ok()?;
+    let header = file.header();
+    Some(serde_json::json!({
+        "triangles": header.triangle_count,
+        "strips": header.strip_count,
+        "bytes": std::fs::metadata(&config.output.path).ok()?.len(),
+    }))
 }
 
 fn run_all(job: &Job) -> anyhow::Result<()> {
@@ -156,7 +189,8 @@ fn built_hierarchy(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
     })
 }
 
-/// `pipeline clean`: removes the work directory (under its lock, so not from under a run).
+/// `pipeline clean`: removes the work directory (under its lock, so not from under a run), only
+/// one that pipeline made and that holds neither the input nor the output.
 pub fn clean(config_path: &Path) -> anyhow::Result<()> {
     let config = Config::load(config_path)?;
     let root = config.work_dir();
@@ -165,8 +199,17 @@ pub fn clean(config_path: &Path) -> anyhow::Result<()> {
         return Ok(());
     }
     let lock = WorkLock::acquire(&root, false)?;
-    std::fs::remove_dir_all(&root).with_context(|| format!("removing {}", root.display()))?;
+    remove_work_dir(&config, config_path)?;
     drop(lock);
     eprintln!("pipeline: removed {}", root.display());
     Ok(())
+}
+
+/// Removes the work directory, which the caller holds locked, if it is safe to.
+fn remove_work_dir(config: &Config, config_path: &Path) -> anyhow::Result<()> {
+    if let Some(message) = preflight::unsafe_to_clean(config, config_path) {
+        return Err(ConfigError::new(config_path, message).into());
+    }
+    let root = config.work_dir();
+    std::fs::remove_dir_all(&root).with_context(|| format!("removing {}", root.display()))
 }

@@ -2,8 +2,12 @@
 //! goes through.
 
 use std::fs;
-use std::io;
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
+
+/// The file that marks a directory as a work directory made by pipeline: `pipeline clean`
+/// removes no directory without it (or, from older versions, without a manifest).
+pub const MARKER: &str = "pipeline-work-dir";
 
 /// Paths inside a job's work directory.
 #[derive(Clone, Debug)]
@@ -29,10 +33,22 @@ impl WorkDir {
         self.root.join(relative)
     }
 
+    /// Creates the directory and its subdirectories, and marks it as made by pipeline.
     pub fn create(&self) -> io::Result<()> {
         fs::create_dir_all(self.root.join("chunks"))?;
         fs::create_dir_all(self.root.join("strips"))?;
-        fs::create_dir_all(self.root.join("locks"))
+        fs::create_dir_all(self.root.join("locks"))?;
+        let marker = self.root.join(MARKER);
+        if marker.exists() {
+            return Ok(());
+        }
+        reducem::atomic::write_atomically(&marker, |out| {
+            out.write_all(b"A work directory of pipeline: `pipeline clean` removes it whole.\n")
+        })
+    }
+
+    pub fn made_by_pipeline(&self) -> bool {
+        self.root.join(MARKER).is_file() || self.manifest().is_file()
     }
 }
 

@@ -79,10 +79,7 @@ fn chunked_conversion_is_lossless() {
         expected
     );
     assert!(
-        fs::read_dir(dir.join("out.rdm.work/strips"))
-            .unwrap()
-            .count()
-            >= 7,
+        fs::read_dir(dir.join("job.work/strips")).unwrap().count() >= 7,
         "several chunks"
     );
 }
@@ -93,7 +90,7 @@ fn output_is_identical_for_one_and_two_threads() {
     let config = job(&dir, "");
     run_ok(&config, "1");
     let one = fs::read(dir.join("out.rdm")).unwrap();
-    fs::remove_dir_all(dir.join("out.rdm.work")).unwrap();
+    fs::remove_dir_all(dir.join("job.work")).unwrap();
     run_ok(&config, "2");
     assert!(
         one == fs::read(dir.join("out.rdm")).unwrap(),
@@ -111,7 +108,7 @@ fn runs_killed_at_random_moments_resume_to_identical_bytes() {
     let reference = fs::read(dir.join("out.rdm")).unwrap();
     let mut state = 0x2545_f491_4f6c_dd1du64;
     for trial in 0..12 {
-        fs::remove_dir_all(dir.join("out.rdm.work")).unwrap();
+        fs::remove_dir_all(dir.join("job.work")).unwrap();
         fs::remove_file(dir.join("out.rdm")).unwrap();
         for _kill in 0..2 {
             state ^= state << 13;
@@ -167,7 +164,7 @@ fn a_config_change_reruns_only_the_stages_it_affects() {
         &config,
         fs::read_to_string(&config)
             .unwrap()
-            .replace("out.rdm\"", "other.rdm\"\n[work]\ndir = \"out.rdm.work\""),
+            .replace("out.rdm\"", "other.rdm\""),
     )
     .unwrap();
     let text =
@@ -193,14 +190,20 @@ fn a_config_change_reruns_only_the_stages_it_affects() {
 fn a_held_lock_exits_75_naming_the_holder_or_skips() {
     let dir = temp_dir("lock");
     let config = job(&dir, "");
-    fs::create_dir_all(dir.join("out.rdm.work")).unwrap();
+    fs::create_dir_all(dir.join("job.work")).unwrap();
+    // The holder is another run of pipeline, which marked the directory as its own.
+    fs::write(dir.join("job.work/pipeline-work-dir"), "").unwrap();
     let mut holder = File::options()
         .create(true)
         .truncate(true)
         .write(true)
-        .open(dir.join("out.rdm.work/lock"))
+        .open(dir.join("job.work/lock"))
         .unwrap();
-    writeln!(holder, "pid 4242 on host testhost since unix time 1").unwrap();
+    writeln!(
+        holder,
+        "pid 4242 on host testhost since 1970-01-01T00:00:01Z"
+    )
+    .unwrap();
     holder.try_lock().expect("test takes the lock");
 
     let output = run(&["run", config.to_str().unwrap()]);
@@ -282,7 +285,7 @@ fn a_quantized_chunked_conversion_decodes_to_the_quantized_input_for_any_thread_
     );
     assert!(file.precision().error_max <= grid.cell as f64);
     let two = fs::read(dir.join("out.rdm")).unwrap();
-    fs::remove_dir_all(dir.join("out.rdm.work")).unwrap();
+    fs::remove_dir_all(dir.join("job.work")).unwrap();
     run_ok(&config, "1");
     assert!(
         two == fs::read(dir.join("out.rdm")).unwrap(),

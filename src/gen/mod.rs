@@ -49,6 +49,19 @@ pub enum Kind {
     Sphere,
 }
 
+impl Kind {
+    /// The triangles of the kind's smallest mesh, which any request below it would also get:
+    /// `pipeline` refuses such requests rather than return many times what was asked.
+    pub fn smallest_triangles(self) -> u64 {
+        match self {
+            Kind::Scan | Kind::Soup => 18,
+            Kind::Terrain | Kind::Cad => 2,
+            Kind::Isosurface => 96,
+            Kind::Sphere => 20,
+        }
+    }
+}
+
 /// Element counts of a written mesh.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct GenSummary {
@@ -152,6 +165,18 @@ mod tests {
                 let dir = tempfile::tempdir().unwrap();
                 let summary = generate(kind, requested, 1, &dir.path().join("m.ply")).unwrap();
                 assert!(summary.triangles > 0, "{kind:?} with N={requested}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_smallest_mesh_is_what_a_request_of_zero_or_of_its_size_gets() {
+        for kind in ALL_KINDS {
+            let dir = tempfile::tempdir().unwrap();
+            let smallest = kind.smallest_triangles();
+            for requested in [0, smallest] {
+                let summary = generate(kind, requested, 1, &dir.path().join("m.ply")).unwrap();
+                assert_eq!(summary.triangles, smallest, "{kind:?} with N={requested}");
             }
         }
     }

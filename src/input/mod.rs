@@ -9,6 +9,7 @@
 
 mod error;
 mod obj;
+mod obj_survey;
 mod ply;
 pub mod stream;
 mod tolerance_weld;

@@ -7,11 +7,17 @@
 //! concatenated with index offsets, and the shared welding step reconnects vertices that
 //! models duplicated.
 //!
-//! `tobj` reports errors without positions, so OBJ errors name only the file and the defect.
+//! `tobj` reports errors without positions, so a survey of the file ([`super::obj_survey`])
+//! runs first: it rejects defective statements with their element, index, line and byte offset
+//! (and keeps absurd indices from overflowing `tobj`'s arithmetic), and when `tobj` or a later
+//! check still fails, a second survey that knows the vertex total places the error. Statements
+//! `tobj` would drop without a word (free-form geometry, unknown keywords) are counted and
+//! reported once on stderr.
 
 use std::path::Path;
 
 use crate::input::error::{InputError, InputErrorKind, Location};
+use crate::input::obj_survey::survey;
 use crate::mesh::Mesh;
 
 pub fn read_obj(path: &Path) -> Result<Mesh, InputError> {
@@ -21,15 +27,41 @@ pub fn read_obj(path: &Path) -> Result<Mesh, InputError> {
         ignore_lines: true,
         ..Default::default()
     };
+    // The survey comes first: statements it rejects would only make `tobj` fail without a
+    // position, or overflow its index arithmetic.
+    let surveyed = survey(path, None).map_err(|error| {
+        InputError::new(path, Location::File, InputErrorKind::Io(error.to_string()))
+    })?;
+    if let Some((location, kind)) = surveyed.defect {
+        return Err(InputError::new(path, location, kind));
+    }
     // Materials are irrelevant to geometry; a missing .mtl file must not fail the read.
     let (models, _materials) = tobj::load_obj(path, &options).map_err(|error| {
-        InputError::new(path, Location::File, InputErrorKind::Obj(error.to_string()))
+        let kind = InputErrorKind::Obj(error.to_string());
+        located(
+            path,
+            surveyed.vertices,
+            InputError::new(path, Location::File, kind),
+        )
     })?;
     let mut mesh = Mesh::default();
     for model in &models {
-        append_model(path, &mut mesh, &model.mesh)?;
+        append_model(path, &mut mesh, &model.mesh)
+            .map_err(|error| located(path, surveyed.vertices, error))?;
+    }
+    if let Some(summary) = surveyed.unknown_summary() {
+        eprintln!("reducem: {}: {summary}", path.display());
     }
     Ok(mesh)
+}
+
+/// `error` placed at the first statement that a second survey, knowing the file's vertex total,
+/// finds defective (a face vertex beyond it); as it is otherwise.
+fn located(path: &Path, vertex_total: u64, error: InputError) -> InputError {
+    match survey(path, Some(vertex_total)).ok().and_then(|s| s.defect) {
+        Some((location, kind)) => InputError::new(path, location, kind),
+        None => error,
+    }
 }
 
 fn append_model(path: &Path, mesh: &mut Mesh, model: &tobj::Mesh) -> Result<(), InputError> {

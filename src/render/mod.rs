@@ -78,8 +78,51 @@ impl RenderReport {
     }
 }
 
-/// Renders `scene` with `tracer`; also measures residency of the file afterwards.
+/// Renders `scene` with `tracer`; also measures residency of the file afterwards. With
+/// `[image] antialiasing = n`, renders n × n samples per pixel on a finer image and averages
+/// them (an ordered grid: every sample is an ordinary pixel of the finer image, so the result is
+/// as reproducible as one sample).
 pub fn render(tracer: &Tracer, scene: &Scene) -> (Frame, RenderReport) {
+    let factor = scene.image.antialiasing;
+    if factor <= 1 {
+        return render_samples(tracer, scene);
+    }
+    let mut fine = scene.clone();
+    fine.image.width *= factor;
+    fine.image.height *= factor;
+    let (frame, mut report) = render_samples(tracer, &fine);
+    (report.width, report.height) = (scene.image.width, scene.image.height);
+    (frame.averaged(factor), report)
+}
+
+impl Frame {
+    /// Each `factor` × `factor` block of pixels averaged into one.
+    fn averaged(&self, factor: u32) -> Frame {
+        let (width, height) = (self.width / factor, self.height / factor);
+        let weight = 1.0 / (factor * factor) as f32;
+        let pixels = (0..width * height)
+            .map(|index| {
+                let (x, y) = (index % width * factor, index / width * factor);
+                let mut sum = [0.0f32; 3];
+                for sample_y in y..y + factor {
+                    for sample_x in x..x + factor {
+                        let sample = self.pixels[(sample_y * self.width + sample_x) as usize];
+                        sum = std::array::from_fn(|c| sum[c] + sample[c]);
+                    }
+                }
+                sum.map(|channel| channel * weight)
+            })
+            .collect();
+        Frame {
+            width,
+            height,
+            pixels,
+        }
+    }
+}
+
+/// One sample per pixel of `scene`'s image.
+fn render_samples(tracer: &Tracer, scene: &Scene) -> (Frame, RenderReport) {
     let file = tracer.file();
     let header = file.header();
     let bounds = Aabb {
@@ -124,7 +167,11 @@ pub fn render(tracer: &Tracer, scene: &Scene) -> (Frame, RenderReport) {
         unoccluded
     });
 
-    let pixels = shade(scene, &plan, &surfaces, &visibility, ambient.as_deref());
+    let exposure = scene.shading.exposure;
+    let pixels = shade(scene, &plan, &surfaces, &visibility, ambient.as_deref())
+        .into_iter()
+        .map(|pixel| pixel.map(|channel| channel * exposure))
+        .collect();
     let total_rays = effects.iter().map(|e| e.rays).sum();
     let trace_seconds = effects.iter().map(|e| e.seconds).sum::<f64>();
     let report = RenderReport {

@@ -76,9 +76,9 @@ impl Plan {
         };
         let ambient_occlusion = scene.ambient_occlusion.as_ref().map(|ao| AoPlan {
             samples: ao.samples,
-            max_distance: ao
-                .max_distance
-                .unwrap_or(DEFAULT_AO_DISTANCE_FRACTION * diagonal),
+            max_distance: ao.max_distance.unwrap_or_else(|| {
+                ao.distance_fraction.unwrap_or(DEFAULT_AO_DISTANCE_FRACTION) * diagonal
+            }),
         });
         Plan {
             width: scene.image.width,

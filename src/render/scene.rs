@@ -1,6 +1,6 @@
 //! The scene file of `reducem render`: camera, image, lights and effects, in TOML.
 //!
-//! Every table denies unknown keys, so a misspelt key is an error with its line and column (the
+//! Every key, its default and unit: `docs/SCENES.md`. Every table denies unknown keys, so a misspelt key is an error with its line and column (the
 //! `toml` crate's span) rather than a silently ignored setting. Semantic checks (positive sizes,
 //! a camera that is either placed or automatic) follow parsing and name the offending key.
 //!
@@ -40,7 +40,9 @@ use crate::geometry::Point;
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
+    #[serde(default)]
     pub image: ImageSettings,
+    #[serde(default)]
     pub camera: CameraSettings,
     #[serde(default)]
     pub shading: Shading,
@@ -52,31 +54,63 @@ pub struct Scene {
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct ImageSettings {
     pub width: u32,
     pub height: u32,
+    /// Samples per pixel along each axis: `n` traces an n × n grid of primary rays per pixel
+    /// (and the shadow and AO rays of each) and averages them.
+    pub antialiasing: u32,
 }
 
-/// Either `position` + `look_at`, or `auto = true` with an optional viewing `direction`.
+impl Default for ImageSettings {
+    fn default() -> Self {
+        ImageSettings {
+            width: 1024,
+            height: 1024,
+            antialiasing: 1,
+        }
+    }
+}
+
+/// Either `position` + `look_at`, or automatic framing (`auto = true`, or neither of them
+/// given) with an optional viewing `direction`.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct CameraSettings {
-    #[serde(default)]
     pub auto: bool,
     pub position: Option<Point>,
     pub look_at: Option<Point>,
-    /// With `auto`: from the model's centre towards the camera.
+    /// Automatic framing: from the model's centre towards the camera.
     pub direction: Option<Point>,
-    #[serde(default = "default_up")]
+    /// Scenes are written for z-up models (`reducem render --up y` turns them for y-up ones).
     pub up: Point,
-    #[serde(default = "default_fov")]
     pub fov_degrees: f32,
 }
 
-/// Surface and environment terms of the shading.
+impl Default for CameraSettings {
+    fn default() -> Self {
+        CameraSettings {
+            auto: false,
+            position: None,
+            look_at: None,
+            direction: None,
+            up: [0.0, 0.0, 1.0],
+            fov_degrees: 45.0,
+        }
+    }
+}
+
+impl CameraSettings {
+    /// Framed automatically: `auto = true`, or placed by neither `position` nor `look_at`.
+    pub fn is_automatic(&self) -> bool {
+        self.auto || (self.position.is_none() && self.look_at.is_none())
+    }
+}
+
+/// Surface and environment terms of the shading; a key the table omits takes its default.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct Shading {
     /// Diffuse reflectance of every surface.
     pub albedo: Point,
@@ -86,6 +120,8 @@ pub struct Shading {
     pub background: Point,
     /// Seed of the stateless sample hash; the same seed gives the same image.
     pub seed: u32,
+    /// Multiplies the linear radiance before the image is encoded.
+    pub exposure: f32,
 }
 
 impl Default for Shading {
@@ -95,6 +131,7 @@ impl Default for Shading {
             ambient: 0.25,
             background: [0.05, 0.06, 0.08],
             seed: 1,
+            exposure: 1.0,
         }
     }
 }
@@ -121,19 +158,25 @@ pub struct PointLight {
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct AmbientOcclusion {
     pub samples: u32,
-    /// Occluders farther than this do not count; default 5% of the model's bounds diagonal.
+    /// Occluders farther than this (model units) do not count; default `distance_fraction` of
+    /// the model's bounds diagonal.
     pub max_distance: Option<f32>,
+    /// The AO distance as a fraction of the bounds diagonal when `max_distance` is not given,
+    /// so that one scene suits models of any size; default 0.05.
+    pub distance_fraction: Option<f32>,
 }
 
-fn default_up() -> Point {
-    [0.0, 1.0, 0.0]
-}
-
-fn default_fov() -> f32 {
-    45.0
+impl Default for AmbientOcclusion {
+    fn default() -> Self {
+        AmbientOcclusion {
+            samples: 16,
+            max_distance: None,
+            distance_fraction: None,
+        }
+    }
 }
 
 fn default_intensity() -> f32 {
@@ -182,12 +225,42 @@ impl Scene {
         Ok(scene)
     }
 
-    fn check(&self) -> Result<(), (&'static str, String)> {
+    /// Turns a scene written for a z-up model into one for a y-up model: every position and
+    /// direction is rotated by -90° about x, so that the scene's z axis becomes y.
+    pub fn turn_to_y_up(&mut self) {
+        let turn = |[x, y, z]: Point| [x, z, -y];
+        let camera = &mut self.camera;
+        camera.position = camera.position.map(turn);
+        camera.look_at = camera.look_at.map(turn);
+        camera.direction = camera.direction.map(turn);
+        camera.up = turn(camera.up);
+        for light in &mut self.directional_light {
+            light.direction = turn(light.direction);
+        }
+        for light in &mut self.point_light {
+            light.position = turn(light.position);
+        }
+    }
+
+    /// The semantic checks, for a scene changed after parsing: the offending key and why.
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
         let image = &self.image;
         if image.width == 0 || image.height == 0 || image.width > 16384 || image.height > 16384 {
             return Err((
                 "image",
                 format!("{}x{} is outside 1..=16384", image.width, image.height),
+            ));
+        }
+        let factor = image.antialiasing;
+        let fine_size = |size: u32| size.checked_mul(factor).is_some_and(|s| s <= 16384);
+        if factor == 0 || !fine_size(image.width) || !fine_size(image.height) {
+            return Err((
+                "image.antialiasing",
+                format!(
+                    "{factor} must be at least 1, with {}x{} samples within 16384x16384",
+                    u64::from(image.width) * u64::from(factor),
+                    u64::from(image.height) * u64::from(factor)
+                ),
             ));
         }
         let camera = &self.camera;
@@ -204,14 +277,17 @@ impl Scene {
                 "give either auto = true or position and look_at, not both".into(),
             ));
         }
-        if !camera.auto && (camera.position.is_none() || camera.look_at.is_none()) {
+        if placed && (camera.position.is_none() || camera.look_at.is_none()) {
             return Err((
                 "camera",
-                "needs position and look_at, or auto = true".into(),
+                "needs both position and look_at (or neither, for automatic framing)".into(),
             ));
         }
-        if camera.direction.is_some() && !camera.auto {
-            return Err(("camera.direction", "only applies with auto = true".into()));
+        if camera.direction.is_some() && !camera.is_automatic() {
+            return Err((
+                "camera.direction",
+                "only applies to automatic framing, not with position and look_at".into(),
+            ));
         }
         check_vector("camera.up", &camera.up)?;
         if let Some(direction) = &camera.direction {
@@ -219,6 +295,12 @@ impl Scene {
         }
         for light in &self.directional_light {
             check_vector("directional_light.direction", &light.direction)?;
+        }
+        if !(self.shading.exposure.is_finite() && self.shading.exposure > 0.0) {
+            return Err((
+                "shading.exposure",
+                format!("{} must be positive and finite", self.shading.exposure),
+            ));
         }
         if let Some(ao) = &self.ambient_occlusion {
             if ao.samples == 0 || ao.samples > 4096 {
@@ -234,6 +316,12 @@ impl Scene {
                 return Err((
                     "ambient_occlusion.max_distance",
                     "must be positive and finite".into(),
+                ));
+            }
+            if ao.distance_fraction.is_some_and(|f| !(f > 0.0 && f <= 1.0)) {
+                return Err((
+                    "ambient_occlusion.distance_fraction",
+                    "must be within (0, 1]".into(),
                 ));
             }
         }
@@ -271,6 +359,43 @@ mod tests {
         assert!(error.contains("s.toml"), "{error}");
         assert!(error.contains("unknown field `fov`"), "{error}");
         assert!(error.contains("line 6"), "{error}");
+    }
+
+    #[test]
+    fn a_partial_shading_table_takes_defaults_for_what_it_omits() {
+        let text = format!("{MINIMAL}[shading]\nambient = 0.5\n");
+        let scene = Scene::parse(Path::new("s.toml"), &text).expect("parse");
+        let expected = Shading {
+            ambient: 0.5,
+            ..Shading::default()
+        };
+        assert_eq!(scene.shading, expected);
+    }
+
+    #[test]
+    fn every_table_may_be_left_out_or_partial() {
+        let scene = Scene::parse(
+            Path::new("s.toml"),
+            "[image]\nwidth = 64\n[ambient_occlusion]\n",
+        )
+        .expect("parse");
+        assert_eq!((scene.image.width, scene.image.height), (64, 1024));
+        assert!(scene.camera.is_automatic());
+        assert_eq!(scene.camera.up, [0.0, 0.0, 1.0]);
+        assert_eq!(scene.ambient_occlusion, Some(AmbientOcclusion::default()));
+        assert_eq!(scene.ambient_occlusion.map(|ao| ao.samples), Some(16));
+        assert!(Scene::parse(Path::new("s.toml"), "").is_ok());
+    }
+
+    #[test]
+    fn turning_to_y_up_maps_the_z_axis_to_y() {
+        let text = "[camera]\nposition = [1.0, 2.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\n\
+                    [[directional_light]]\ndirection = [0.0, 0.0, -1.0]\n";
+        let mut scene = Scene::parse(Path::new("s.toml"), text).expect("parse");
+        scene.turn_to_y_up();
+        assert_eq!(scene.camera.position, Some([1.0, 3.0, -2.0]));
+        assert_eq!(scene.camera.up, [0.0, 1.0, 0.0]);
+        assert_eq!(scene.directional_light[0].direction, [0.0, -1.0, 0.0]);
     }
 
     #[test]

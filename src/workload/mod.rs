@@ -102,6 +102,7 @@ pub fn ao_scene(size: u32, samples: u32) -> Scene {
         image: ImageSettings {
             width: size,
             height: size,
+            antialiasing: 1,
         },
         camera: camera_settings(),
         shading: Shading {
@@ -116,7 +117,7 @@ pub fn ao_scene(size: u32, samples: u32) -> Scene {
         point_light: Vec::new(),
         ambient_occlusion: Some(AmbientOcclusion {
             samples,
-            max_distance: None,
+            ..AmbientOcclusion::default()
         }),
     }
 }

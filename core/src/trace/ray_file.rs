@@ -57,30 +57,30 @@ pub enum RayFileError {
 
 /// Reads and validates the ray file at `path` (mapped, parsed on every core).
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>, RayFileError> {
+    with_ray_bytes(path, |bytes| parse_rays(path, bytes))
+}
+
+/// Calls `read` with the bytes of the file at `path`, mapped (an empty file is not mapped).
+fn with_ray_bytes<T>(
+    path: &Path,
+    read: impl FnOnce(&[u8]) -> Result<T, RayFileError>,
+) -> Result<T, RayFileError> {
     let io_error = |source| RayFileError::Io {
         path: path.to_path_buf(),
         source,
     };
     let file = File::open(path).map_err(io_error)?;
     if file.metadata().map_err(io_error)?.len() == 0 {
-        return Ok(Vec::new());
+        return read(&[]);
     }
     let bytes = mapping::map_file(&file).map_err(io_error)?;
-    parse_rays(path, &bytes)
+    read(&bytes)
 }
 
 /// Validates `bytes` as a ray file (`path` is only for messages). The error names the first
 /// invalid ray, whatever the thread count.
 pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>, RayFileError> {
-    if !bytes.len().is_multiple_of(RAY_BYTES) {
-        let ray = bytes.len() / RAY_BYTES;
-        return Err(RayFileError::Truncated {
-            path: path.to_path_buf(),
-            size: bytes.len(),
-            ray,
-            offset: ray * RAY_BYTES,
-        });
-    }
+    check_length(path, bytes)?;
     let parsed = bytes
         .par_chunks_exact(RAY_BYTES)
         .map(parse_ray)
@@ -88,20 +88,64 @@ pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>, RayFileError> {
     parsed.map_err(|_| first_invalid_ray(path, bytes))
 }
 
+/// A ray file read with invalid rays allowed (`reducem query --invalid-rays miss`).
+#[derive(Debug)]
+pub struct RaysWithInvalid {
+    /// Every record in order, `None` for an invalid one.
+    pub rays: Vec<Option<Ray>>,
+    pub invalid: usize,
+    /// The defect of the first invalid ray, for the report.
+    pub first_invalid: Option<RayFileError>,
+}
+
+/// Reads the ray file at `path` like [`read_rays`], except that an invalid ray (NaN, zero
+/// direction, bad interval) does not reject the file; a truncated file still does.
+pub fn read_rays_allowing_invalid(path: &Path) -> Result<RaysWithInvalid, RayFileError> {
+    with_ray_bytes(path, |bytes| {
+        check_length(path, bytes)?;
+        let rays: Vec<Option<Ray>> = bytes
+            .par_chunks_exact(RAY_BYTES)
+            .map(|record| parse_ray(record).ok())
+            .collect();
+        let invalid = rays.iter().filter(|ray| ray.is_none()).count();
+        Ok(RaysWithInvalid {
+            rays,
+            invalid,
+            first_invalid: (invalid > 0).then(|| first_invalid_ray(path, bytes)),
+        })
+    })
+}
+
 /// The error of the first invalid ray of `bytes`, which has one (found again in file order:
 /// a parallel collect stops at any invalid ray, not necessarily the first).
 fn first_invalid_ray(path: &Path, bytes: &[u8]) -> RayFileError {
-    let (index, (field, detail)) = bytes
+    bytes
         .chunks_exact(RAY_BYTES)
         .enumerate()
-        .find_map(|(index, record)| parse_ray(record).err().map(|error| (index, error)))
-        .expect("a ray file that failed to parse has an invalid ray");
-    RayFileError::Invalid {
+        .find_map(|(index, record)| parse_record(path, index, record).err())
+        .expect("a ray file that failed to parse has an invalid ray")
+}
+
+fn check_length(path: &Path, bytes: &[u8]) -> Result<(), RayFileError> {
+    if bytes.len().is_multiple_of(RAY_BYTES) {
+        return Ok(());
+    }
+    let ray = bytes.len() / RAY_BYTES;
+    Err(RayFileError::Truncated {
+        path: path.to_path_buf(),
+        size: bytes.len(),
+        ray,
+        offset: ray * RAY_BYTES,
+    })
+}
+
+fn parse_record(path: &Path, index: usize, record: &[u8]) -> Result<Ray, RayFileError> {
+    parse_ray(record).map_err(|(field, detail)| RayFileError::Invalid {
         path: path.to_path_buf(),
         ray: index,
         offset: index * RAY_BYTES + field * 4,
         detail,
-    }
+    })
 }
 
 /// One record; on error, the offending field and what is wrong with it.

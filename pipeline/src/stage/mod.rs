@@ -24,10 +24,15 @@ use crate::workdir::WorkDir;
 /// The stages, in run order, as `--stage` names them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, clap::ValueEnum)]
 pub enum StageName {
+    /// Partition the input into chunks.
     Chunk,
+    /// Strips and a hierarchy per chunk (the long stage; shardable).
     Strip,
+    /// Collect the chunks' strip tables.
     Merge,
+    /// The hierarchy over the chunks.
     Hierarchy,
+    /// Write and verify the ReduceM file.
     Write,
 }
 

@@ -79,7 +79,7 @@ pub fn run(job: &Job, chunked: &Chunked, shard: Shard) -> anyhow::Result<String>
         job.reload_manifest();
         let fingerprint = fingerprint(job, chunked, chunk);
         if job.freshness(&unit(chunk), &fingerprint) != Freshness::Fresh {
-            strip_one(job, chunked, chunk).with_context(|| format!("chunk {chunk}"))?;
+            strip_one(job, chunked, chunk).context(crate::outcome::InChunk(chunk))?;
             job.complete(&unit(chunk), &fingerprint, &[strip_chunk(chunk)])?;
             converted.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }

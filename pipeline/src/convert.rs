@@ -1,0 +1,92 @@
+//! `pipeline convert`: a conversion without a configuration file. It writes the equivalent
+//! configuration into the work directory and runs it like `pipeline run`, so the job resumes,
+//! reports its status and is cleaned like any other (`pipeline run WORK/convert.toml`).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+
+use crate::config::{Config, VertexEncodingName};
+use crate::preflight::{self, Naming};
+use crate::run::{self, RunOptions, UsageError};
+use crate::workdir::WorkDir;
+
+/// The configuration's name inside the work directory.
+pub const CONFIG_NAME: &str = "convert.toml";
+
+/// What the command line asks for.
+pub struct ConvertArgs {
+    pub input: PathBuf,
+    pub output: PathBuf,
+    pub max_length: Option<usize>,
+    pub encoding: Option<VertexEncodingName>,
+    pub grid_bits: Option<u32>,
+    pub work: Option<PathBuf>,
+}
+
+pub fn convert(args: &ConvertArgs, options: &RunOptions) -> anyhow::Result<()> {
+    if args.grid_bits.is_some() && args.encoding != Some(VertexEncodingName::Grid) {
+        anyhow::bail!(UsageError(
+            "--grid-bits applies to --encoding grid only".into()
+        ));
+    }
+    let text = config_text(args)?;
+    let config = Config::parse(Path::new(CONFIG_NAME), &text)
+        .map_err(|error| UsageError(format!("invalid options: {}", error.message)))?;
+    let work = WorkDir::new(config.work_dir());
+    let config_path = work.file(CONFIG_NAME);
+    if let Some(message) = preflight::unsafe_paths(&config, &config_path, Naming::CommandLine) {
+        anyhow::bail!(UsageError(message));
+    }
+    preflight::prepare_output(&config)?;
+    work.create()
+        .with_context(|| format!("creating {}", work.root().display()))?;
+    reducem::atomic::write_atomically(&config_path, |out| {
+        std::io::Write::write_all(out, text.as_bytes())
+    })
+    .with_context(|| format!("writing {}", config_path.display()))?;
+    run::run(&config_path, options)
+}
+
+/// The configuration equivalent to `args`, with absolute paths (it lives in the work directory).
+fn config_text(args: &ConvertArgs) -> anyhow::Result<String> {
+    let input = absolute(&args.input)?;
+    let output = absolute(&args.output)?;
+    let work = match &args.work {
+        Some(work) => absolute(work)?,
+        None => {
+            let mut work = args.output.clone().into_os_string();
+            work.push(".work");
+            absolute(Path::new(&work))?
+        }
+    };
+    let mut text = format!(
+        "# Written by `pipeline convert`; `pipeline run` on this file resumes the same job.\n\
+         [input]\npath = {input}\n\n[output]\npath = {output}\n\n[work]\ndir = {work}\n"
+    );
+    if let Some(max_length) = args.max_length {
+        text += &format!("\n[strip]\nmax_length = {max_length}\n");
+    }
+    if let Some(encoding) = args.encoding {
+        let name = format!("{encoding:?}").to_lowercase();
+        text += &format!("\n[vertices]\nencoding = \"{name}\"\n");
+        if let Some(bits) = args.grid_bits {
+            text += &format!("grid_bits = {bits}\n");
+        }
+    }
+    Ok(text)
+}
+
+/// `path` made absolute, as a TOML string. A JSON string is a valid TOML basic string (the same
+/// escapes), so serde_json quotes it.
+fn absolute(path: &Path) -> anyhow::Result<String> {
+    let absolute =
+        std::path::absolute(path).with_context(|| format!("resolving {}", path.display()))?;
+    let text = absolute.to_str().ok_or_else(|| {
+        UsageError(format!(
+            "{} is not valid UTF-8, which a configuration needs",
+            path.display()
+        ))
+    })?;
+    Ok(serde_json::to_string(text)?)
+}

@@ -1,0 +1,33 @@
+//! The exit codes of both binaries, `reducem` and `pipeline`: sysexits.h values, as batch
+//! schedulers and cron wrappers expect. One table, printed at the end of each `--help` and copied
+//! in README.md.
+
+pub const SUCCESS: u8 = 0;
+/// Bad command-line arguments, or an output that would overwrite an input of the same command.
+pub const USAGE: u8 = 64;
+/// An input file (mesh, ReduceM file, ray file) is malformed.
+pub const BAD_INPUT: u8 = 65;
+pub const INTERNAL: u8 = 70;
+/// Reading or writing failed (missing file, permissions, disk full, an output that is a
+/// directory).
+pub const IO: u8 = 74;
+/// `pipeline` only: try again later (locked, stopped by a signal, stages not done yet).
+pub const TEMPORARY: u8 = 75;
+/// A configuration or scene file is invalid.
+pub const CONFIG: u8 = 78;
+
+/// The table at the end of `--help`.
+pub const HELP: &str = "\
+Exit codes (the same for reducem and pipeline):
+   0  success
+  64  usage: bad arguments, or an output that is one of the command's inputs
+  65  bad input: a malformed mesh, ReduceM or ray file (the message says where)
+  70  internal error
+  74  I/O: reading or writing failed (missing file, permissions, disk full, output is a directory)
+  75  try again later (pipeline): work directory locked, stopped by a signal, stages not done
+  78  configuration or scene error (including an [output] path that is an input)";
+
+/// A command line that cannot be run as given.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct UsageError(pub String);
