@@ -40,7 +40,7 @@ median_seconds() {
     for _ in 1 2 3; do
         local start end
         start=$(date +%s.%N)
-        "$@" > /dev/null
+        "$@" > /dev/null 2>&1
         end=$(date +%s.%N)
         times+=("$(awk "BEGIN { print $end - $start }")")
     done
