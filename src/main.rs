@@ -201,6 +201,9 @@ fn exit_code_of(error: &anyhow::Error) -> u8 {
         if cause.is::<UsageError>() {
             return exit_code::USAGE;
         }
+        if cause.is::<reducem::trace::kernel::KernelError>() {
+            return exit_code::USAGE;
+        }
         if cause.is::<reducem::render::scene::SceneError>() {
             return exit_code::CONFIG;
         }
@@ -476,7 +479,11 @@ fn render(
     json: bool,
 ) -> anyhow::Result<()> {
     let file = ReducemFile::open(path)?;
-    let tracer = Tracer::new(&file, TraceOptions::default());
+    let options = TraceOptions {
+        kernel: Kernel::from_env()?,
+        ..TraceOptions::default()
+    };
+    let tracer = Tracer::new(&file, options);
     let (frame, report) = reducem::render::render(&tracer, scene);
     reducem::render::image::write_image(&frame, output, format)?;
     if json {

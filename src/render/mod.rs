@@ -65,6 +65,8 @@ pub struct RenderReport {
     pub total_rays: u64,
     pub trace_seconds: f64,
     pub mrays_per_second: f64,
+    /// The tracer's SIMD kernel (`sse2`, `avx2`).
+    pub kernel: String,
     pub memory: Residency,
 }
 
@@ -182,6 +184,7 @@ fn render_samples(tracer: &Tracer, scene: &Scene) -> (Frame, RenderReport) {
         total_rays,
         trace_seconds,
         mrays_per_second: total_rays as f64 / trace_seconds.max(1e-9) / 1e6,
+        kernel: tracer.options().kernel.to_string(),
         memory: residency::measure(file.path(), file.file_bytes()),
     };
     let frame = Frame {
@@ -394,6 +397,7 @@ impl fmt::Display for RenderReport {
             "  {:<18} {:>12} rays  {:>8.3} s  {:>8.2} Mrays/s",
             "total", self.total_rays, self.trace_seconds, self.mrays_per_second
         )?;
+        writeln!(f, "  kernel             {}", self.kernel)?;
         let mib = |bytes: u64| bytes as f64 / (1024.0 * 1024.0);
         let optional = |bytes: Option<u64>| {
             bytes.map_or("unknown".to_string(), |b| format!("{:.1} MiB", mib(b)))
