@@ -7,7 +7,7 @@ use std::process::Command;
 
 use common::*;
 use reducem::trace::ray_file::{encode_rays, RAY_BYTES};
-use reducem::trace::{Ray, TraceOptions, Tracer};
+use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
 
 fn run_query(model: &Path, rays: &Path, out: &Path, occluded: bool) -> std::process::Output {
     let mut command = Command::new(env!("CARGO_BIN_EXE_reducem"));
@@ -304,4 +304,38 @@ fn a_valid_query_prints_one_summary_line() {
         lines[0].starts_with("reducem: query: rays=500 invalid=0 hits="),
         "{stderr}"
     );
+}
+
+/// `REDUCEM_KERNEL` forces a kernel: each one this CPU runs writes the same bytes and names
+/// itself in the summary line; an unknown one is a usage error that traces nothing.
+#[test]
+fn every_forced_kernel_writes_the_same_hits_and_says_so() {
+    let mesh = torus(20, 10);
+    let model = temp_path("query-kernels.rdm");
+    write_strips(&mesh, &long_strips(&mesh, 50), 2, &model);
+    let ray_path = temp_path("query-kernels.rays");
+    std::fs::write(&ray_path, encode_rays(&sample_rays())).expect("write rays");
+    let query = |kernel: &str, out: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_reducem"))
+            .env("REDUCEM_KERNEL", kernel)
+            .args(["query".as_ref(), model.as_os_str(), "--rays".as_ref()])
+            .args([ray_path.as_os_str(), "-o".as_ref(), out.as_os_str()])
+            .output()
+            .expect("run reducem")
+    };
+    let mut outputs = Vec::new();
+    for kernel in Kernel::supported() {
+        let out = temp_path(&format!("query-kernels-{kernel}.hits"));
+        let output = query(kernel.name(), &out);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success(), "{stderr}");
+        assert!(stderr.trim_end().ends_with(&format!(" kernel={kernel}")), "{stderr}");
+        outputs.push(std::fs::read(&out).expect("hits"));
+    }
+    assert!(outputs.windows(2).all(|pair| pair[0] == pair[1]));
+    let out = temp_path("query-kernels-unknown.hits");
+    let output = query("avx9", &out);
+    assert_eq!(output.status.code(), Some(64));
+    assert!(String::from_utf8_lossy(&output.stderr).contains("REDUCEM_KERNEL=avx9"));
+    assert!(!out.exists());
 }
