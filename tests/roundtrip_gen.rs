@@ -37,14 +37,7 @@ fn round_trip(kind: Kind, triangles: u64, params: &BuildParams) {
 
 #[test]
 fn every_generator_kind_round_trips() {
-    for kind in [
-        Kind::Scan,
-        Kind::Terrain,
-        Kind::Isosurface,
-        Kind::Cad,
-        Kind::Soup,
-        Kind::Sphere,
-    ] {
+    for kind in Kind::ALL {
         round_trip(kind, 20_000, &BuildParams::default());
     }
 }

@@ -278,14 +278,7 @@ fn generated(kind: reducem::gen::Kind, triangles: u64) -> Mesh {
 #[test]
 fn every_generator_kind_agrees_with_brute_force() {
     use reducem::gen::Kind;
-    for kind in [
-        Kind::Scan,
-        Kind::Terrain,
-        Kind::Isosurface,
-        Kind::Cad,
-        Kind::Soup,
-        Kind::Sphere,
-    ] {
+    for kind in Kind::ALL {
         let mesh = generated(kind, 1500);
         let path = temp_path(&format!("gen-{kind:?}.rdm"));
         convert_mesh(&mesh, &BuildParams::default(), &path).expect("convert");

@@ -13,15 +13,6 @@ use reducem::input::read_mesh;
 use reducem::trace::{Kernel, Ray};
 use reducem::workload::RaySet;
 
-const KINDS: [Kind; 6] = [
-    Kind::Scan,
-    Kind::Terrain,
-    Kind::Isosurface,
-    Kind::Cad,
-    Kind::Soup,
-    Kind::Sphere,
-];
-
 /// Camera rays, 4 AO rays per hit and rays aimed at a few hundred vertices and edge midpoints.
 fn probe_rays(file: &ReducemFile, mesh: &reducem::mesh::Mesh) -> Vec<Ray> {
     let set = RaySet::new(file, 48, 4);
@@ -83,14 +74,14 @@ fn check_kind(kind: Kind, grid_bits: Option<u32>) {
 #[test]
 fn every_kernel_agrees_on_lossless_files() {
     println!("kernels compared: {:?}", Kernel::supported());
-    for kind in KINDS {
+    for kind in Kind::ALL {
         check_kind(kind, None);
     }
 }
 
 #[test]
 fn every_kernel_agrees_on_grid_files() {
-    for kind in KINDS {
+    for kind in Kind::ALL {
         check_kind(kind, Some(16));
     }
 }

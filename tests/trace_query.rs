@@ -329,7 +329,10 @@ fn every_forced_kernel_writes_the_same_hits_and_says_so() {
         let output = query(kernel.name(), &out);
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(output.status.success(), "{stderr}");
-        assert!(stderr.trim_end().ends_with(&format!(" kernel={kernel}")), "{stderr}");
+        assert!(
+            stderr.trim_end().ends_with(&format!(" kernel={kernel}")),
+            "{stderr}"
+        );
         outputs.push(std::fs::read(&out).expect("hits"));
     }
     assert!(outputs.windows(2).all(|pair| pair[0] == pair[1]));

@@ -50,6 +50,16 @@ pub enum Kind {
 }
 
 impl Kind {
+    /// Every kind, in `--help` order.
+    pub const ALL: [Kind; 6] = [
+        Kind::Scan,
+        Kind::Terrain,
+        Kind::Isosurface,
+        Kind::Cad,
+        Kind::Soup,
+        Kind::Sphere,
+    ];
+
     /// The triangles of the kind's smallest mesh, which any request below it would also get:
     /// `pipeline` refuses such requests rather than return many times what was asked.
     pub fn smallest_triangles(self) -> u64 {
@@ -123,15 +133,6 @@ const TRIANGLES_PER_CHUNK: u64 = 100_000;
 mod tests {
     use super::*;
 
-    const ALL_KINDS: [Kind; 6] = [
-        Kind::Scan,
-        Kind::Terrain,
-        Kind::Isosurface,
-        Kind::Cad,
-        Kind::Soup,
-        Kind::Sphere,
-    ];
-
     fn bytes_of(kind: Kind, triangles: u64, seed: u64) -> Vec<u8> {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("mesh.ply");
@@ -141,7 +142,7 @@ mod tests {
 
     #[test]
     fn same_seed_gives_identical_bytes_and_different_seed_differs() {
-        for kind in ALL_KINDS {
+        for kind in Kind::ALL {
             let first = bytes_of(kind, 3000, 7);
             assert_eq!(
                 first,
@@ -160,7 +161,7 @@ mod tests {
 
     #[test]
     fn tiny_requests_still_produce_triangles() {
-        for kind in ALL_KINDS {
+        for kind in Kind::ALL {
             for requested in [1, 2, 100] {
                 let dir = tempfile::tempdir().unwrap();
                 let summary = generate(kind, requested, 1, &dir.path().join("m.ply")).unwrap();
@@ -171,7 +172,7 @@ mod tests {
 
     #[test]
     fn the_smallest_mesh_is_what_a_request_of_zero_or_of_its_size_gets() {
-        for kind in ALL_KINDS {
+        for kind in Kind::ALL {
             let dir = tempfile::tempdir().unwrap();
             let smallest = kind.smallest_triangles();
             for requested in [0, smallest] {
