@@ -81,12 +81,34 @@ fn with_ray_bytes<T>(
 /// invalid ray, whatever the thread count.
 pub fn parse_rays(path: &Path, bytes: &[u8]) -> Result<Vec<Ray>, RayFileError> {
     check_length(path, bytes)?;
-    let parsed = bytes
-        .par_chunks_exact(RAY_BYTES)
-        .map(parse_ray)
-        .collect::<Result<Vec<Ray>, _>>();
-    parsed.map_err(|_| first_invalid_ray(path, bytes))
+    // Parsed in place into one vector, chunk by chunk on every core: a collect of `Result`s
+    // builds and joins a vector per task, three times the instructions per ray.
+    let mut rays = vec![UNPARSED; bytes.len() / RAY_BYTES];
+    let all_valid = rays
+        .par_chunks_mut(PARSE_CHUNK)
+        .zip(bytes.par_chunks(PARSE_CHUNK * RAY_BYTES))
+        .all(|(rays, records)| {
+            rays.iter_mut()
+                .zip(records.chunks_exact(RAY_BYTES))
+                .all(|(ray, record)| parse_ray(record).map(|parsed| *ray = parsed).is_ok())
+        });
+    if all_valid {
+        Ok(rays)
+    } else {
+        Err(first_invalid_ray(path, bytes))
+    }
 }
+
+/// Rays parsed by one task of [`parse_rays`].
+const PARSE_CHUNK: usize = 16 * 1024;
+
+/// What [`parse_rays`] fills its vector with before parsing into it.
+const UNPARSED: Ray = Ray {
+    origin: [0.0; 3],
+    direction: [0.0; 3],
+    tmin: 0.0,
+    tmax: 0.0,
+};
 
 /// A ray file read with invalid rays allowed (`reducem query --invalid-rays miss`).
 #[derive(Debug)]
@@ -150,13 +172,10 @@ fn parse_record(path: &Path, index: usize, record: &[u8]) -> Result<Ray, RayFile
 
 /// One record; on error, the offending field and what is wrong with it.
 fn parse_ray(record: &[u8]) -> Result<Ray, (usize, String)> {
+    let record: &[u8; RAY_BYTES] = record.first_chunk().expect("a whole ray record");
     let fields: [f32; 8] = std::array::from_fn(|i| {
-        f32::from_le_bytes([
-            record[4 * i],
-            record[4 * i + 1],
-            record[4 * i + 2],
-            record[4 * i + 3],
-        ])
+        let field: &[u8; 4] = record[4 * i..].first_chunk().expect("four bytes");
+        f32::from_le_bytes(*field)
     });
     if let Some(field) = fields.iter().position(|x| x.is_nan()) {
         return Err((field, format!("{} is NaN", FIELD_NAMES[field])));
