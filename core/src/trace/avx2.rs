@@ -66,15 +66,15 @@ impl BlockKernel for Avx2Blocks {
         vertices: V,
         references: &[u8; BLOCK + 2],
         count: usize,
-    ) -> BlockEdges {
+    ) -> Option<BlockEdges> {
         // SAFETY: `Avx2Blocks` is private to this module and used only by `trace_as`, which
         // runs only once AVX2 was detected (`trace`).
         unsafe { block_edges::<V, KX, KY, KZ>(space, vertices, references, count) }
     }
 }
 
-/// [`BlockEdges`] of the block whose `BLOCK + 2` strip references are `references`; lanes past
-/// `count` are not candidates.
+/// [`BlockEdges`] of the block whose `BLOCK + 2` strip references are `references`, or `None`
+/// when no lane is a candidate; lanes past `count` are not candidates.
 #[target_feature(enable = "avx2")]
 #[inline]
 fn block_edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
@@ -82,7 +82,7 @@ fn block_edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usiz
     vertices: V,
     references: &[u8; BLOCK + 2],
     count: usize,
-) -> BlockEdges {
+) -> Option<BlockEdges> {
     let model = match vertices.lossless() {
         Some(points) => transpose_corners::<KX, KY, KZ>(points, references),
         None => load_corners(&vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(references, count + 2)),
@@ -110,18 +110,15 @@ fn block_edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usiz
         edge(&corners[0], &corners[1]),
     ];
     let candidates = candidate_lanes(&weights) & ((1 << count) - 1);
-    let mut edges = BlockEdges {
-        candidates,
-        ..BlockEdges::default()
-    };
-    if candidates != 0 {
-        for (k, [x, y]) in corners.iter().enumerate() {
-            store(&mut edges.x[k], *x);
-            store(&mut edges.y[k], *y);
-            store(&mut edges.weights[k], weights[k]);
-        }
+    if candidates == 0 {
+        return None;
     }
-    edges
+    Some(BlockEdges {
+        candidates,
+        x: corners.map(|[x, _]| lanes(x)),
+        y: corners.map(|[_, y]| lanes(y)),
+        weights: weights.map(|w| lanes(w)),
+    })
 }
 
 /// `watertight::candidate_lanes` lanewise: `vminps`/`vmaxps` are the baseline's `minps`/`maxps`
@@ -212,9 +209,12 @@ fn load(values: &[f32; BLOCK + 2], shift: usize) -> __m256 {
     unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
 }
 
+/// The eight lanes of `value`.
 #[target_feature(enable = "avx2")]
 #[inline]
-fn store(lanes: &mut [f32; BLOCK], value: __m256) {
+fn lanes(value: __m256) -> [f32; BLOCK] {
+    let mut lanes = [0.0; BLOCK];
     // SAFETY: `lanes` is eight f32 (32 bytes), what the unaligned store writes; AVX is enabled.
-    unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), value) }
+    unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), value) };
+    lanes
 }

@@ -26,6 +26,11 @@
 //! already separated the ray: fewer operations, but the skip was a data-dependent branch
 //! mispredicted about half the time.)
 //!
+//! Kernels: the lanes are computed by a [`BlockKernel`], chosen per query
+//! ([`super::kernel::Kernel`]): the baseline's `wide` lanes here, or 256-bit AVX2 lanes
+//! ([`super::avx2`], which compiles this same traversal for AVX2). Both run the same IEEE
+//! operations per lane, so the kernel never changes a hit.
+//!
 //! Cost: the traversal is a flat loop over a fixed stack, with nodes numbered in buckets of
 //! `leaf_windows` windows (see [`crate::format::implicit_tree`]) so that splitting a node and
 //! finding its right child take a shift and an add rather than divisions by the leaf size, and
@@ -330,7 +335,10 @@ impl StripQuery<'_> {
         closest: &mut Closest,
     ) -> bool {
         let references: [u8; BLOCK + 2] = view.references.read_block(first);
-        let edges = K::edges::<V, KX, KY, KZ>(&self.ray.space, vertices, &references, count);
+        let Some(edges) = K::edges::<V, KX, KY, KZ>(&self.ray.space, vertices, &references, count)
+        else {
+            return false;
+        };
         let mut candidates = edges.candidates;
         let mut found = false;
         while candidates != 0 {
@@ -360,10 +368,10 @@ impl StripQuery<'_> {
     }
 }
 
-/// What a kernel computes for a block of windows: the candidate lanes (see
-/// [`candidate_lanes`]) and, only when there are any, every lane's ray-space corners `[corner]`
+/// What a kernel computes for a block of windows with candidate lanes (see
+/// [`candidate_lanes`]): the candidates (never 0) and every lane's ray-space corners `[corner]`
 /// and edge weights `[corner]`, each lane holding what the scalar test computes for its window.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 pub struct BlockEdges {
     pub candidates: u32,
     pub x: [[f32; BLOCK]; 3],
@@ -373,14 +381,15 @@ pub struct BlockEdges {
 
 /// One way of computing [`BlockEdges`].
 pub(super) trait BlockKernel {
-    /// The block whose `BLOCK + 2` strip references are `references`; lanes past `count` are
-    /// not candidates.
+    /// The block whose `BLOCK + 2` strip references are `references`, or `None` when no lane is
+    /// a candidate (the common case: nothing is stored then); lanes past `count` are not
+    /// candidates.
     fn edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
         space: &RaySpace,
         vertices: V,
         references: &[u8; BLOCK + 2],
         count: usize,
-    ) -> BlockEdges;
+    ) -> Option<BlockEdges>;
 }
 
 /// The baseline kernel: `wide`'s eight lanes (two SSE2 operations each on x86-64). The block's
@@ -396,7 +405,7 @@ impl BlockKernel for Sse2Blocks {
         vertices: V,
         references: &[u8; BLOCK + 2],
         count: usize,
-    ) -> BlockEdges {
+    ) -> Option<BlockEdges> {
         let model = vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(references, count + 2);
         // A position is transformed once per corner it is in (up to three times) rather than
         // once and then shifted through memory: the arithmetic is cheaper than storing lanes and
@@ -417,15 +426,12 @@ impl BlockKernel for Sse2Blocks {
             edge_lanes(&corners[0], &corners[1]),
         ];
         let candidates = candidate_lanes(weights) & ((1 << count) - 1);
-        if candidates == 0 {
-            return BlockEdges::default();
-        }
-        BlockEdges {
+        (candidates != 0).then(|| BlockEdges {
             candidates,
             x: corners.map(|c| c.x.to_array()),
             y: corners.map(|c| c.y.to_array()),
             weights: weights.map(f32x8::to_array),
-        }
+        })
     }
 }
 
