@@ -43,6 +43,32 @@ struct Cli {
     command: Command,
 }
 
+/// How a job runs, for `run` and `convert` alike.
+#[derive(clap::Args)]
+struct JobFlags {
+    /// Progress bars on a terminal, plain log lines otherwise; or force one.
+    #[arg(long, value_enum, default_value_t = progress::LogFormat::Auto)]
+    log_format: progress::LogFormat,
+    /// When another run holds the work directory: fail with exit code 75, or skip with 0.
+    #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
+    if_locked: run::IfLocked,
+    /// Remove the work directory after a successful run (as `[work] keep = false`).
+    #[arg(long)]
+    clean_after: bool,
+}
+
+impl JobFlags {
+    fn options(self, stage: Option<run::StageName>, shard: run::Shard) -> run::RunOptions {
+        run::RunOptions {
+            log_format: self.log_format,
+            clean_after: self.clean_after,
+            if_locked: self.if_locked,
+            stage,
+            shard,
+        }
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Run (or resume) the conversion described by CONFIG.
@@ -50,15 +76,8 @@ enum Command {
     Run {
         /// The job's configuration file (TOML; see README.md, Configuration).
         config: PathBuf,
-        /// Progress bars on a terminal, plain log lines otherwise; or force one.
-        #[arg(long, value_enum, default_value_t = progress::LogFormat::Auto)]
-        log_format: progress::LogFormat,
-        /// When another run holds the work directory: fail with exit code 75, or skip with 0.
-        #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
-        if_locked: run::IfLocked,
-        /// Remove the work directory after a successful run (as `[work] keep = false`).
-        #[arg(long)]
-        clean_after: bool,
+        #[command(flatten)]
+        job: JobFlags,
         /// Run only this stage; the stages before it must be done.
         #[arg(long, value_enum)]
         stage: Option<run::StageName>,
@@ -76,7 +95,7 @@ enum Command {
         /// The ReduceM file to write.
         #[arg(short, long)]
         output: PathBuf,
-        /// Most triangles per strip (default 60; shorter strips trace faster, cost more bytes).
+        /// Most triangles per strip (default 20; shorter strips trace faster, cost more bytes).
         #[arg(long)]
         max_length: Option<usize>,
         /// Vertex encoding: f32 (lossless, the default) or grid (quantized).
@@ -88,15 +107,8 @@ enum Command {
         /// Work directory for intermediate files (default OUTPUT.work).
         #[arg(long)]
         work: Option<PathBuf>,
-        /// Progress bars on a terminal, plain log lines otherwise; or force one.
-        #[arg(long, value_enum, default_value_t = progress::LogFormat::Auto)]
-        log_format: progress::LogFormat,
-        /// When another run holds the work directory: fail with exit code 75, or skip with 0.
-        #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
-        if_locked: run::IfLocked,
-        /// Remove the work directory after a successful run (as `[work] keep = false`).
-        #[arg(long)]
-        clean_after: bool,
+        #[command(flatten)]
+        job: JobFlags,
     },
     /// List stages and chunks as done, pending or stale, with the reason.
     #[command(after_help = exit::HELP)]
@@ -161,9 +173,7 @@ fn main() -> ExitCode {
 impl Command {
     fn log_format(&self) -> Option<progress::LogFormat> {
         match self {
-            Command::Run { log_format, .. } | Command::Convert { log_format, .. } => {
-                Some(*log_format)
-            }
+            Command::Run { job, .. } | Command::Convert { job, .. } => Some(job.log_format),
             _ => None,
         }
     }
@@ -173,9 +183,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Run {
             config,
-            log_format,
-            if_locked,
-            clean_after,
+            job,
             stage,
             shard,
         } => {
@@ -185,14 +193,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 (None, Some(run::StageName::Strip)) => run::Shard::from_slurm_env()?,
                 (None, _) => run::Shard::WHOLE,
             };
-            let options = run::RunOptions {
-                log_format,
-                clean_after,
-                if_locked,
-                stage,
-                shard,
-            };
-            run::run(&config, &options)
+            run::run(&config, &job.options(stage, shard))
         }
         Command::Convert {
             input,
@@ -201,9 +202,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             encoding,
             grid_bits,
             work,
-            log_format,
-            if_locked,
-            clean_after,
+            job,
         } => {
             interrupt::install()?;
             let args = convert::ConvertArgs {
@@ -214,14 +213,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 grid_bits,
                 work,
             };
-            let options = run::RunOptions {
-                log_format,
-                clean_after,
-                if_locked,
-                stage: None,
-                shard: run::Shard::WHOLE,
-            };
-            convert::convert(&args, &options)
+            convert::convert(&args, &job.options(None, run::Shard::WHOLE))
         }
         Command::Status { config } => status::status(&config),
         Command::Clean { config } => run::clean(&config),
