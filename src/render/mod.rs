@@ -19,16 +19,14 @@ pub mod sampling;
 pub mod scene;
 
 use std::fmt;
-use std::path::Path;
 use std::time::Instant;
 
 use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::format::reader::ReducemFile;
 use crate::geometry::Aabb;
-use crate::trace::{Ray, TraceOptions, Tracer};
+use crate::trace::{Ray, Tracer};
 use camera::Camera;
 use plan::{AoPlan, Light, LightSource, Plan};
 use residency::Residency;
@@ -193,18 +191,6 @@ fn render_samples(tracer: &Tracer, scene: &Scene) -> (Frame, RenderReport) {
         pixels,
     };
     (frame, report)
-}
-
-/// Renders `scene` from `file` with default tracing options and writes the PNG atomically.
-pub fn render_to_png(
-    file: &ReducemFile,
-    scene: &Scene,
-    out: &Path,
-) -> Result<RenderReport, image::ImageError> {
-    let tracer = Tracer::new(file, TraceOptions::default());
-    let (frame, report) = render(&tracer, scene);
-    image::write_png(&frame, out)?;
-    Ok(report)
 }
 
 /// Pixel indices of each 8×8 tile, tiles in row-major order: the order passes trace pixels in.
