@@ -21,25 +21,25 @@ use std::time::Instant;
 use clap::Parser;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
-use reducem::baseline::TriangleBvh;
 use reducem::build::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS, PIPELINE_MAX_STRIP_LENGTH};
 use reducem::format::reader::ReducemFile;
 use reducem::format::{VERSION_MAJOR, VERSION_MINOR};
 use reducem::geometry::Point;
 use reducem::render::residency;
 use reducem::render::sampling::Surface;
+use reducem::tools::baseline::TriangleBvh;
+use reducem::tools::workload::engines::{Baseline, Engine, ReduceM};
+use reducem::tools::workload::{load_mesh, median_timed, RaySet};
 use reducem::trace::ray_file::encode_rays;
 use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
-use reducem::workload::engines::{Baseline, Engine, ReduceM};
-use reducem::workload::{kind_name, load_mesh, median_timed, RaySet};
 
 /// Rays handed to one rayon task: eight 8-ray packets of one 8×8 tile.
 const CHUNK: usize = 64;
 
 #[derive(Parser)]
 struct Args {
-    #[arg(long, value_enum, default_value = "scan")]
-    kind: reducem::gen::Kind,
+    #[arg(long, default_value = "scan")]
+    kind: reducem::tools::gen::Kind,
     #[arg(long, default_value_t = 1_000_000)]
     triangles: u64,
     #[arg(long, default_value_t = 1024)]
@@ -89,7 +89,7 @@ type Answers = Vec<(String, Vec<bool>)>;
 fn main() -> anyhow::Result<()> {
     let args = Args::parse();
     std::fs::create_dir_all(&args.dir)?;
-    let name = format!("{}-{}", kind_name(args.kind), args.triangles);
+    let name = format!("{}-{}", args.kind.name(), args.triangles);
     // Loaded only when needed, so that tuning runs on a cached file trace and nothing else.
     let mut mesh = None;
     let (length, leaf) = (args.max_strip_length, args.leaf_windows);
@@ -317,7 +317,7 @@ fn check_ao(file: &ReducemFile, rays: &[Ray], answers: &Answers) {
 fn embree(mesh: &reducem::mesh::Mesh, rays: &RaySet, args: &Args, answers: &mut Answers) {
     use embree::{Device, Scene};
     use reducem::render::residency::process_rss;
-    use reducem::workload::engines::{triangle_geometry, Embree};
+    use reducem::tools::workload::engines::{triangle_geometry, Embree};
 
     let rss_before = process_rss().unwrap_or(0);
     let device = Device::new();

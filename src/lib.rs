@@ -13,24 +13,20 @@
 
 #![deny(unsafe_code)]
 
-pub mod baseline;
 pub mod build;
 pub mod chunking;
 pub mod decode;
 pub mod exit_code;
 pub mod format;
-pub mod gen;
 pub mod input;
 pub mod inspect;
 pub mod mesh;
 pub mod quantize;
 pub mod render;
-#[cfg(feature = "report")]
-pub mod report;
 pub mod splitmix;
 pub mod strip_encoding;
 pub mod stripify;
+pub mod tools;
 pub mod toplevel;
-pub mod workload;
 
 pub use reducem_core::{atomic, geometry, mapping, strip_windows, trace};

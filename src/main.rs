@@ -97,7 +97,7 @@ enum Command {
     Report {
         /// Mesh and image sizes: tiny (seconds), medium (minutes), full (about 30 minutes).
         #[arg(long, value_enum, default_value = "full")]
-        scale: reducem::report::Scale,
+        scale: reducem::tools::report::Scale,
         /// Directory of the report (REPORT.md, plots, images).
         #[arg(long, default_value = "report")]
         out: PathBuf,
@@ -284,16 +284,16 @@ fn check_output(output: &Path, inputs: &[&Path]) -> anyhow::Result<()> {
 
 #[cfg(feature = "report")]
 fn report(
-    scale: reducem::report::Scale,
+    scale: reducem::tools::report::Scale,
     out_dir: PathBuf,
     work_dir: PathBuf,
 ) -> anyhow::Result<()> {
-    let config = reducem::report::ReportConfig {
+    let config = reducem::tools::report::ReportConfig {
         scale,
         out_dir,
         work_dir,
     };
-    let (_, written) = reducem::report::run(&config)?;
+    let (_, written) = reducem::tools::report::run(&config)?;
     println!("wrote {}", written.report.display());
     Ok(())
 }

@@ -12,8 +12,8 @@ use common::{canonical_sorted, expected_triangles, grid, temp_path, torus};
 use reducem::build::{encode_stripification, write_chunk, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::mesh::Mesh;
-use reducem::report::stripifier::{limit_length, meshopt_stripification};
-use reducem::report::{self, memory, sweeps, ReportConfig, ReportData, Scale, Written};
+use reducem::tools::report::stripifier::{limit_length, meshopt_stripification};
+use reducem::tools::report::{self, memory, sweeps, ReportConfig, ReportData, Scale, Written};
 use reducem::{decode, strip_windows};
 
 /// One tiny run shared by the tests that read its output.

@@ -6,8 +6,8 @@ mod common;
 use common::{canonical_sorted, expected_triangles, temp_path};
 use reducem::build::{convert_mesh, encode_chunk, strip_bounds, BuildParams};
 use reducem::format::reader::ReducemFile;
-use reducem::gen::{generate, Kind};
 use reducem::input::read_mesh;
+use reducem::tools::gen::{generate, Kind};
 use reducem::{decode, strip_encoding, toplevel};
 
 fn round_trip(kind: Kind, triangles: u64, params: &BuildParams) {

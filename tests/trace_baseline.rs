@@ -3,8 +3,8 @@
 mod common;
 
 use common::*;
-use reducem::baseline::TriangleBvh;
 use reducem::geometry::Point;
+use reducem::tools::baseline::TriangleBvh;
 
 #[test]
 fn baseline_agrees_with_brute_force() {

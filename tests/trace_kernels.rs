@@ -8,10 +8,10 @@ mod common;
 use common::*;
 use reducem::build::{convert_mesh, BuildParams};
 use reducem::format::reader::ReducemFile;
-use reducem::gen::{generate, Kind};
 use reducem::input::read_mesh;
+use reducem::tools::gen::{generate, Kind};
+use reducem::tools::workload::RaySet;
 use reducem::trace::{Kernel, Ray};
-use reducem::workload::RaySet;
 
 /// Camera rays, 4 AO rays per hit and rays aimed at a few hundred vertices and edge midpoints.
 fn probe_rays(file: &ReducemFile, mesh: &reducem::mesh::Mesh) -> Vec<Ray> {

@@ -8,8 +8,8 @@ use reducem::build::{convert_mesh, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::mesh::Mesh;
 use reducem::render::render;
+use reducem::tools::workload::{ao_scene, RaySet};
 use reducem::trace::{TraceOptions, Tracer};
-use reducem::workload::{ao_scene, RaySet};
 
 /// `cad`'s base slab: a 60 × 60 × 0.5 box with its top at z = 0, turned by `yaw` about the
 /// vertical through its corner as the generator places it.

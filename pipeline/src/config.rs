@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use reducem::gen::Kind;
+use reducem::tools::gen::Kind;
 
 use crate::workdir::WorkDir;
 
@@ -222,14 +222,13 @@ impl Config {
         match (&self.input.path, &self.input.generate) {
             (Some(path), None) => Ok(Input::File(path.clone())),
             (None, Some(generate)) => {
-                let kind =
-                    <Kind as clap::ValueEnum>::from_str(&generate.kind, true).map_err(|_| {
-                        format!(
-                            "[input.generate] kind = {:?} is not one of {}",
-                            generate.kind,
-                            kind_names()
-                        )
-                    })?;
+                let kind = generate.kind.parse::<Kind>().map_err(|_| {
+                    format!(
+                        "[input.generate] kind = {:?} is not one of {}",
+                        generate.kind,
+                        Kind::names()
+                    )
+                })?;
                 if let Some(message) = too_few_triangles(kind, generate.triangles) {
                     return Err(format!("[input.generate] triangles = {message}"));
                 }
@@ -281,16 +280,8 @@ impl Config {
 /// Why a generated mesh of `kind` cannot have about `triangles` triangles, if it cannot.
 pub fn too_few_triangles(kind: Kind, triangles: u64) -> Option<String> {
     let smallest = kind.smallest_triangles();
-    let name = format!("{kind:?}").to_lowercase();
+    let name = kind.name();
     (triangles < smallest).then(|| {
         format!("{triangles} is too few: the smallest {name} mesh has {smallest} triangles")
     })
-}
-
-fn kind_names() -> String {
-    <Kind as clap::ValueEnum>::value_variants()
-        .iter()
-        .filter_map(|k| clap::ValueEnum::to_possible_value(k).map(|v| v.get_name().to_string()))
-        .collect::<Vec<_>>()
-        .join(", ")
 }

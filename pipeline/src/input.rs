@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::time::UNIX_EPOCH;
 
 use anyhow::Context;
-use reducem::gen;
+use reducem::tools::gen;
 
 use crate::config::Input;
 use crate::fingerprint::{hash_file, Fingerprint};
@@ -100,7 +100,7 @@ struct Generated {
 
 impl Generated {
     fn new(kind: gen::Kind, triangles: u64, seed: u64) -> Generated {
-        let name = format!("{kind:?}").to_lowercase();
+        let name = kind.name();
         Generated {
             relative: format!("generated-{name}-{triangles}-{seed}.ply"),
             fingerprint: Fingerprint::new()

@@ -21,9 +21,10 @@ mod workdir;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Parser, Subcommand};
 use reducem::exit_code as exit;
-use reducem::gen;
+use reducem::tools::gen;
 
 /// mimalloc returns freed chunk memory to the system promptly; with glibc's per-thread arenas
 /// the resident set of a long run crept up chunk after chunk (6.3 GB peak over 76 chunks
@@ -126,6 +127,7 @@ enum Command {
     #[command(after_help = exit::HELP)]
     Gen {
         /// The kind of mesh.
+        #[arg(value_parser = kind_parser())]
         kind: gen::Kind,
         /// About how many triangles: each kind rounds to its own structure (a 1M isosurface
         /// has 1,000,772); at least the kind's smallest mesh (terrain, cad 2; scan, soup 18;
@@ -139,6 +141,13 @@ enum Command {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+}
+
+/// `pipeline gen`'s KIND: the generator's kinds, each with its description in `--help` (the
+/// library's `Kind` knows nothing of clap).
+fn kind_parser() -> impl clap::builder::TypedValueParser<Value = gen::Kind> {
+    let kinds = gen::Kind::ALL.map(|kind| PossibleValue::new(kind.name()).help(kind.description()));
+    PossibleValuesParser::new(kinds).try_map(|name| name.parse::<gen::Kind>())
 }
 
 fn main() -> ExitCode {

@@ -10,8 +10,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use reducem::build::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS};
-use reducem::gen::{generate, Kind};
 use reducem::input::read_mesh;
+use reducem::tools::gen::{generate, Kind};
 
 const TRIANGLES: u64 = 6_000;
 const CHUNK_TRIANGLES: u64 = 2_000;
@@ -47,7 +47,7 @@ fn temp_dir() -> PathBuf {
 }
 
 fn kind(name: &str) -> Kind {
-    <Kind as clap::ValueEnum>::from_str(name, true).expect("kind")
+    name.parse().expect("kind")
 }
 
 /// The build parameters of the staged job's config for `vertices`.

@@ -30,7 +30,8 @@ fn run(args: &[&str]) -> Output {
 fn job(dir: &Path, extra: &str) -> PathBuf {
     let input = dir.join("input.ply");
     if !input.exists() {
-        reducem::gen::generate(reducem::gen::Kind::Scan, 60_000, 5, &input).expect("generate");
+        reducem::tools::gen::generate(reducem::tools::gen::Kind::Scan, 60_000, 5, &input)
+            .expect("generate");
     }
     let config = dir.join("job.toml");
     let body = format!(
@@ -363,7 +364,7 @@ fn perturbed_grid() -> reducem::mesh::Mesh {
                 .push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
         }
     }
-    reducem::gen::perturbed_copies(&mesh, 1e-5, 3)
+    reducem::tools::gen::perturbed_copies(&mesh, 1e-5, 3)
 }
 
 #[test]

@@ -26,9 +26,9 @@ use crate::mesh::Mesh;
 use crate::strip_windows::{window_count, window_triangle};
 use crate::stripify::adjacency::is_dropped;
 use crate::stripify::Stripification;
+use crate::tools::workload::engines::ReduceM;
+use crate::tools::workload::{convert_timed, load_mesh, RaySet};
 use crate::trace::{TraceOptions, Tracer};
-use crate::workload::engines::ReduceM;
-use crate::workload::{convert_timed, kind_name, load_mesh, RaySet};
 
 /// meshoptimizer's restart index for 32-bit indices.
 const RESTART: u32 = u32::MAX;
@@ -112,7 +112,7 @@ pub fn collect(work: &Path, sizes: &Sizes) -> anyhow::Result<Vec<StripifierRow>>
     let params = BuildParams::default();
     let mut rows = Vec::new();
     for kind in MEMORY_KINDS {
-        let name = kind_name(kind);
+        let name = kind.name();
         let mesh = load_mesh(kind, sizes.triangles, work)?;
         let strip_rt = convert_timed(&mesh, &params, work, &name, sizes.runs)?;
         let meshopt_path = work.join(format!("{name}-meshopt.rdm"));
@@ -132,7 +132,7 @@ pub fn collect(work: &Path, sizes: &Sizes) -> anyhow::Result<Vec<StripifierRow>>
         ] {
             let engine = ReduceM(Tracer::new(file, TraceOptions::default()));
             rows.push(StripifierRow {
-                kind: name.clone(),
+                kind: name.to_string(),
                 stripifier,
                 stats,
                 build_seconds,

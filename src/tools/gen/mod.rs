@@ -32,20 +32,14 @@ use anyhow::Result;
 
 pub use perturb::perturbed_copies;
 
-/// The family of synthetic mesh to generate.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+/// The family of synthetic mesh to generate ([`Kind::description`] says what each looks like).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
-    /// Closed noisy torus that looks like a scanned statue surface.
     Scan,
-    /// Open fractal heightfield.
     Terrain,
-    /// Closed marching-cubes surface of a 3D noise field.
     Isosurface,
-    /// Many disconnected parts with wildly varying triangle sizes.
     Cad,
-    /// Unindexed triangles (every triangle owns its three vertices).
     Soup,
-    /// Closed subdivided icosahedron on the unit sphere.
     Sphere,
 }
 
@@ -60,6 +54,35 @@ impl Kind {
         Kind::Sphere,
     ];
 
+    /// The kind's name on command lines and in configurations.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Scan => "scan",
+            Kind::Terrain => "terrain",
+            Kind::Isosurface => "isosurface",
+            Kind::Cad => "cad",
+            Kind::Soup => "soup",
+            Kind::Sphere => "sphere",
+        }
+    }
+
+    /// One line saying what the kind's meshes look like.
+    pub fn description(self) -> &'static str {
+        match self {
+            Kind::Scan => "Closed noisy torus that looks like a scanned statue surface",
+            Kind::Terrain => "Open fractal heightfield",
+            Kind::Isosurface => "Closed marching-cubes surface of a 3D noise field",
+            Kind::Cad => "Many disconnected parts with wildly varying triangle sizes",
+            Kind::Soup => "Unindexed triangles (every triangle owns its three vertices)",
+            Kind::Sphere => "Closed subdivided icosahedron on the unit sphere",
+        }
+    }
+
+    /// Every kind's name, comma separated, for messages.
+    pub fn names() -> String {
+        Kind::ALL.map(Kind::name).join(", ")
+    }
+
     /// The triangles of the kind's smallest mesh, which any request below it would also get:
     /// `pipeline` refuses such requests rather than return many times what was asked.
     pub fn smallest_triangles(self) -> u64 {
@@ -69,6 +92,32 @@ impl Kind {
             Kind::Isosurface => 96,
             Kind::Sphere => 20,
         }
+    }
+}
+
+impl std::fmt::Display for Kind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A name that is not a kind's (case is ignored).
+#[derive(Debug, thiserror::Error)]
+#[error("{given:?} is not a mesh kind: one of {}", Kind::names())]
+pub struct UnknownKind {
+    pub given: String,
+}
+
+impl std::str::FromStr for Kind {
+    type Err = UnknownKind;
+
+    fn from_str(given: &str) -> Result<Kind, UnknownKind> {
+        Kind::ALL
+            .into_iter()
+            .find(|kind| kind.name().eq_ignore_ascii_case(given))
+            .ok_or_else(|| UnknownKind {
+                given: given.to_string(),
+            })
     }
 }
 
@@ -82,9 +131,8 @@ pub struct GenSummary {
 /// Generates a mesh of `kind` with about `triangles` triangles and writes it
 /// atomically to `out` as binary little-endian PLY.
 pub fn generate(kind: Kind, triangles: u64, seed: u64, out: &Path) -> Result<GenSummary> {
-    let name = format!("{kind:?}").to_lowercase();
     let comment =
-        format!("reducem pipeline gen kind={name} seed={seed} requested_triangles={triangles}");
+        format!("reducem pipeline gen kind={kind} seed={seed} requested_triangles={triangles}");
     let target = ply::Target {
         path: out,
         comment: &comment,
@@ -132,6 +180,19 @@ const TRIANGLES_PER_CHUNK: u64 = 100_000;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_kind_parses_from_its_name_in_any_case() {
+        for kind in Kind::ALL {
+            assert_eq!(kind.name().parse::<Kind>().unwrap(), kind);
+            assert_eq!(kind.name().to_uppercase().parse::<Kind>().unwrap(), kind);
+        }
+        let unknown = "blob".parse::<Kind>().unwrap_err();
+        assert_eq!(
+            unknown.to_string(),
+            "\"blob\" is not a mesh kind: one of scan, terrain, isosurface, cad, soup, sphere"
+        );
+    }
 
     fn bytes_of(kind: Kind, triangles: u64, seed: u64) -> Vec<u8> {
         let dir = tempfile::tempdir().unwrap();

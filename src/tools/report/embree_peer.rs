@@ -18,8 +18,8 @@ use super::memory_parts::MemoryParts;
 use super::speed::{self, Speed};
 use super::Sizes;
 use crate::mesh::Mesh;
-use crate::workload::engines::{triangle_geometry, Embree};
-use crate::workload::RaySet;
+use crate::tools::workload::engines::{triangle_geometry, Embree};
+use crate::tools::workload::RaySet;
 
 /// Bytes per vertex of the `embree` crate's vertex buffer (four f32, the fourth unused).
 const EMBREE_VERTEX_BYTES: u64 = 16;

@@ -24,7 +24,7 @@ pub fn generated(kind: Kind, triangles: u64, seed: u64) -> (GenSummary, Mesh) {
     let mesh = Mesh::read(&path);
     assert_eq!(mesh.positions.len() as u64, summary.vertices);
     assert_eq!(mesh.faces.len() as u64, summary.triangles);
-    let name = format!("kind={}", format!("{kind:?}").to_lowercase());
+    let name = format!("kind={kind}");
     assert!(mesh.comment.contains(&name) && mesh.comment.contains(&format!("seed={seed}")));
     mesh.assert_indices_in_range();
     mesh.assert_no_degenerate_triangles();

@@ -18,10 +18,10 @@ use crate::build::{encode_chunk, strip_bounds, write_chunk, BuildParams};
 use crate::format::reader::ReducemFile;
 use crate::inspect::{file_stats, FileStats};
 use crate::mesh::Mesh;
+use crate::tools::workload::engines::ReduceM;
+use crate::tools::workload::{convert_timed, median_timed, Converted, RaySet};
 use crate::toplevel;
 use crate::trace::{TraceOptions, Tracer};
-use crate::workload::engines::ReduceM;
-use crate::workload::{convert_timed, median_timed, Converted, RaySet};
 
 pub const STRIP_LENGTHS: [usize; 7] = [4, 8, 16, 32, 60, 64, 128];
 pub const LEAF_SIZES: [usize; 5] = [1, 2, 4, 8, 16];

@@ -1,13 +1,13 @@
-//! The speed of the engines under comparison ([`crate::workload::engines`]) on a [`RaySet`],
+//! The speed of the engines under comparison ([`crate::tools::workload::engines`]) on a [`RaySet`],
 //! with what they answered.
 
 use std::time::Instant;
 
 use rayon::prelude::*;
 
+use crate::tools::workload::engines::Engine;
+use crate::tools::workload::RaySet;
 use crate::trace::Ray;
-use crate::workload::engines::Engine;
-use crate::workload::RaySet;
 
 /// Rays handed to one rayon task: eight 8-ray packets of one 8×8 tile.
 const CHUNK: usize = 64;

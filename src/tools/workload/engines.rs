@@ -3,7 +3,7 @@
 //! Each engine counts hits (primary rays) and occluded rays (AO rays), so that a benchmark shows
 //! that the engines answered the same queries, not only how fast.
 
-use crate::baseline::TriangleBvh;
+use crate::tools::baseline::TriangleBvh;
 use crate::trace::{Ray, Tracer};
 
 #[cfg(feature = "embree")]

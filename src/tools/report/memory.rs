@@ -18,14 +18,14 @@ use super::memory_parts::MemoryParts;
 use super::plot::{self, Axis, Plot, Series};
 use super::speed::{self, Speed};
 use super::{Sizes, MEMORY_KINDS};
-use crate::baseline::TriangleBvh;
 use crate::build::BuildParams;
 use crate::format::reader::ReducemFile;
 use crate::inspect::FileStats;
 use crate::mesh::Mesh;
+use crate::tools::baseline::TriangleBvh;
+use crate::tools::workload::engines::{Baseline, ReduceM};
+use crate::tools::workload::{convert_timed, load_mesh, median_timed, RaySet};
 use crate::trace::{TraceOptions, Tracer};
-use crate::workload::engines::{Baseline, ReduceM};
-use crate::workload::{convert_timed, kind_name, load_mesh, median_timed, RaySet};
 
 /// Bytes per triangle of the paper's precomputed intersection format (Wald 2004).
 pub const PAPER_TRIANGLE_BYTES: u64 = 40;
@@ -61,13 +61,13 @@ pub const PAPER_FORMAT: &str = "BVH + paper's 40-byte triangles";
 pub fn collect(work: &Path, sizes: &Sizes) -> anyhow::Result<Vec<MemoryRow>> {
     let mut rows = Vec::new();
     for kind in MEMORY_KINDS {
-        let name = kind_name(kind);
+        let name = kind.name();
         let mesh = load_mesh(kind, sizes.triangles, work)?;
         let converted = convert_timed(&mesh, &BuildParams::default(), work, &name, sizes.runs)?;
         let file = ReducemFile::open(&converted.path)?;
         let rays = RaySet::new(&file, sizes.image, sizes.ao_rays_per_hit);
         let row = |representation: &str, parts: MemoryParts| MemoryRow {
-            kind: name.clone(),
+            kind: name.to_string(),
             representation: representation.to_string(),
             triangles: mesh.triangles.len() as u64,
             parts,

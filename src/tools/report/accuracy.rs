@@ -14,11 +14,11 @@ use super::plot::{self, Axis, Plot, Series};
 use super::Sizes;
 use crate::build::BuildParams;
 use crate::format::reader::ReducemFile;
-use crate::gen::Kind;
 use crate::render::image::write_png;
 use crate::render::{render, Frame};
+use crate::tools::gen::Kind;
+use crate::tools::workload::{ao_scene, convert_timed, load_mesh, median_timed};
 use crate::trace::{TraceOptions, Tracer};
-use crate::workload::{ao_scene, convert_timed, load_mesh, median_timed};
 
 /// A heightfield: valleys and ridges give ambient occlusion something to estimate.
 pub const ACCURACY_KIND: Kind = Kind::Terrain;

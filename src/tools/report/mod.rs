@@ -35,7 +35,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::gen::Kind;
+use crate::tools::gen::Kind;
 use machine::MachineFacts;
 use markdown::Section;
 
@@ -149,7 +149,7 @@ pub fn run(config: &ReportConfig) -> anyhow::Result<(ReportData, Written)> {
     let memory = memory::collect(work, &sizes)?;
     let stripifiers = stripifier::collect(work, &sizes)?;
     let subject = sweeps::Subject::new(
-        crate::workload::load_mesh(SWEEP_KIND, sizes.triangles, work)?,
+        crate::tools::workload::load_mesh(SWEEP_KIND, sizes.triangles, work)?,
         work,
         &sizes,
     )?;

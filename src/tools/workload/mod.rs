@@ -17,7 +17,6 @@ use anyhow::Context;
 
 use crate::build::{convert_mesh, BuildParams};
 use crate::format::reader::ReducemFile;
-use crate::gen::Kind;
 use crate::geometry::Aabb;
 use crate::inspect::{file_stats, FileStats};
 use crate::mesh::Mesh;
@@ -28,19 +27,16 @@ use crate::render::scene::{
     AmbientOcclusion, CameraSettings, DirectionalLight, ImageSettings, Scene, Shading,
 };
 use crate::render::tiles;
+use crate::tools::gen::Kind;
 use crate::trace::{Ray, TraceOptions, Tracer};
 
 /// Generates the mesh once into `work` (kept for later runs) and reads it.
 pub fn load_mesh(kind: Kind, triangles: u64, work: &Path) -> anyhow::Result<Mesh> {
-    let ply = work.join(format!("{}-{triangles}.ply", kind_name(kind)));
+    let ply = work.join(format!("{}-{triangles}.ply", kind.name()));
     if !ply.exists() {
-        crate::gen::generate(kind, triangles, 1, &ply)?;
+        crate::tools::gen::generate(kind, triangles, 1, &ply)?;
     }
     crate::input::read_mesh(&ply).with_context(|| format!("reading {}", ply.display()))
-}
-
-pub fn kind_name(kind: Kind) -> String {
-    format!("{kind:?}").to_lowercase()
 }
 
 /// Runs `f` `runs` times (at least once); the median duration in seconds and the last result.

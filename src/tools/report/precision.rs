@@ -1,7 +1,7 @@
 //! Section 7: what vertex precision costs. The sweep mesh lossless and with vertices on grids of
 //! 12 to 24 bits (the pipeline's default leaves of [`PIPELINE_LEAF_WINDOWS`] windows): the
 //! position error against bytes per triangle and speed. Then the tolerance weld on a copy of the
-//! mesh whose shared vertices were perturbed ([`crate::gen::perturbed_copies`], the paper's
+//! mesh whose shared vertices were perturbed ([`crate::tools::gen::perturbed_copies`], the paper's
 //! Boeing 777 case): strip length, bytes and speed without and with it.
 
 use std::path::Path;
@@ -66,7 +66,7 @@ pub fn precision(
 pub fn weld(subject: &Subject, work: &Path, sizes: &Sizes) -> anyhow::Result<Vec<WeldRow>> {
     let bounds = subject.mesh.bounds();
     let amount = PERTURBATION * distance(&bounds.min, &bounds.max) as f32;
-    let perturbed = crate::gen::perturbed_copies(&subject.mesh, amount, 5);
+    let perturbed = crate::tools::gen::perturbed_copies(&subject.mesh, amount, 5);
     // Copies of one vertex are at most 2√3 × amount apart.
     [0.0, 4.0 * amount]
         .into_iter()
