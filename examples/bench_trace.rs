@@ -21,7 +21,9 @@ use std::time::Instant;
 use clap::Parser;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
-use reducem::build::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS, PIPELINE_MAX_STRIP_LENGTH};
+use reducem::conversion::{
+    convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS, PIPELINE_MAX_STRIP_LENGTH,
+};
 use reducem::format::reader::ReducemFile;
 use reducem::format::{VERSION_MAJOR, VERSION_MINOR};
 use reducem::geometry::Point;

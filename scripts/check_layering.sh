@@ -13,7 +13,7 @@ if cargo tree -p reducem-core -e normal --prefix none | grep -E "^($heavy)"; the
   failed=1
 fi
 
-build_side='(tools|build|strip_encoding|toplevel|input|stripify|chunking|quantize|mesh|gen|render|report|workload|baseline|inspect|decode)'
+build_side='(tools|conversion|build|strip_encoding|toplevel|input|stripify|chunking|quantize|mesh|gen|render|report|workload|baseline|inspect|decode)'
 if grep -rnE "(crate|reducem|super)::$build_side\b" core/src; then
   echo "check_layering: the read side (core/src) names a build-side module (above)" >&2
   failed=1

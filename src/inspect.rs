@@ -25,6 +25,9 @@ pub struct FileStats {
     /// Bytes per top-level node: 128 for f32 boxes, 64 for grid nodes (grid files, and
     /// lossless files since format 2.4).
     pub top_node_bytes: u64,
+    /// Windows per leaf of the strips' kd-trees (`[strip] leaf_windows`).
+    pub leaf_windows: u32,
+    /// The same value under its name before the rename, kept for tools that read it.
     pub leaf_triangles: u32,
     pub file_bytes: u64,
     pub bytes_per_triangle: f64,
@@ -91,6 +94,7 @@ pub fn file_stats(file: &ReducemFile) -> FileStats {
             TopNodes::F32(_) => size_of::<TopNode>() as u64,
             TopNodes::Grid(..) => size_of::<GridNode>() as u64,
         },
+        leaf_windows: header.leaf_windows,
         leaf_triangles: header.leaf_windows,
         file_bytes: file.file_bytes(),
         bytes_per_triangle: ratio(file.file_bytes(), header.triangle_count),

@@ -5,7 +5,7 @@
 //!
 //! Build side: [`input`] reads meshes, [`stripify`] is Strip-RT (paper 4.1), [`strip_encoding`]
 //! builds the per-strip implicit kd-trees (paper 3.2), [`toplevel`] the global hierarchy,
-//! [`build`] ties them together per chunk and lays the strips out for [`format::writer`], which
+//! [`conversion`] ties them together per chunk and lays the strips out for [`format::writer`], which
 //! writes the file. Read side: the crate `reducem-core`, re-exported here as
 //! [`format`](mod@format) (with [`format::reader`], which maps and validates a file), [`trace`],
 //! [`geometry`], [`strip_windows`], [`mapping`] and [`atomic`]; it depends on nothing from the
@@ -13,8 +13,8 @@
 
 #![deny(unsafe_code)]
 
-pub mod build;
 pub mod chunking;
+pub mod conversion;
 pub mod decode;
 pub mod exit_code;
 pub mod format;

@@ -7,7 +7,7 @@ mod common;
 use std::process::Command;
 
 use common::{canonical_sorted, expected_triangles, quantized_input, temp_path, torus};
-use reducem::build::{convert_mesh, BuildParams};
+use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::geometry::distance;
 use reducem::input::read_mesh;
 
@@ -57,6 +57,9 @@ fn inspect_json_has_the_contract_keys_and_adds_up() {
         .sum();
     assert_eq!(section_sum, file_bytes);
     assert!(stats["max_strip_length"].as_u64().unwrap() <= 60);
+    let leaf = BuildParams::default().leaf_windows as u64;
+    assert_eq!(stats["leaf_windows"], leaf);
+    assert_eq!(stats["leaf_triangles"], leaf, "the former name stays");
 }
 
 #[test]

@@ -4,7 +4,7 @@
 mod common;
 
 use common::{temp_path, torus};
-use reducem::build::{convert_mesh, BuildParams};
+use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::decode;
 use reducem::format::reader::{FormatError, ReducemFile};
 use reducem::format::{PrecisionRecord, SectionKind, HEADER_PAGE, PRECISION_OFFSET};

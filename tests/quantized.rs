@@ -5,8 +5,8 @@
 mod common;
 
 use common::*;
-use reducem::build::{convert_mesh, encode_chunk, encode_chunk_on, BuildParams};
 use reducem::chunking::local_mesh;
+use reducem::conversion::{convert_mesh, encode_chunk, encode_chunk_on, BuildParams};
 use reducem::decode;
 use reducem::format::grid::Grid;
 use reducem::format::reader::{ReducemFile, VertexLayout};

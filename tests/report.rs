@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use common::{canonical_sorted, expected_triangles, grid, temp_path, torus};
-use reducem::build::{encode_stripification, write_chunk, BuildParams};
+use reducem::conversion::{encode_stripification, write_chunk, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::mesh::Mesh;
 use reducem::tools::report::stripifier::{limit_length, meshopt_stripification};

@@ -4,7 +4,7 @@
 mod common;
 
 use common::{canonical_sorted, expected_triangles, grid, temp_path, torus};
-use reducem::build::{convert_mesh, encode_chunk, strip_bounds, BuildParams};
+use reducem::conversion::{convert_mesh, encode_chunk, strip_bounds, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::mesh::Mesh;
 use reducem::{decode, strip_encoding, toplevel};

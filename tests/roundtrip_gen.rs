@@ -4,7 +4,7 @@
 mod common;
 
 use common::{canonical_sorted, expected_triangles, temp_path};
-use reducem::build::{convert_mesh, encode_chunk, strip_bounds, BuildParams};
+use reducem::conversion::{convert_mesh, encode_chunk, strip_bounds, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::input::read_mesh;
 use reducem::tools::gen::{generate, Kind};

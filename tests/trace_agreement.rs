@@ -8,7 +8,7 @@
 mod common;
 
 use common::*;
-use reducem::build::{convert_mesh, BuildParams};
+use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;

@@ -5,8 +5,8 @@
 mod common;
 
 use common::*;
-use reducem::build::write_file;
-use reducem::build::{encode_chunk, strip_bounds, BuildParams, EncodedChunk};
+use reducem::conversion::write_file;
+use reducem::conversion::{encode_chunk, strip_bounds, BuildParams, EncodedChunk};
 use reducem::format::reader::ReducemFile;
 use reducem::format::writer::FileInfo;
 use reducem::format::{TopNode, INTERNAL_CHILD, MAX_TOP_DEPTH};

@@ -13,7 +13,7 @@
 mod common;
 
 use common::*;
-use reducem::build::{convert_mesh, BuildParams, ChunkStats};
+use reducem::conversion::{convert_mesh, BuildParams, ChunkStats};
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;

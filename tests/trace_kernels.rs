@@ -6,7 +6,7 @@
 mod common;
 
 use common::*;
-use reducem::build::{convert_mesh, BuildParams};
+use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::input::read_mesh;
 use reducem::tools::gen::{generate, Kind};

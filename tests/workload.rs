@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use reducem::build::{convert_mesh, BuildParams};
+use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::mesh::Mesh;
 use reducem::render::render;

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use reducem::build::{convert_mesh, BuildParams};
+use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::mesh::Mesh;
 use reducem::trace::ray_file::encode_rays;
 use reducem::trace::Ray;

@@ -12,7 +12,7 @@
 
 use std::path::{Path, PathBuf};
 
-use reducem::build::{convert_mesh, BuildParams};
+use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::decode;
 use reducem::format::reader::ReducemFile;
 use reducem::input::{read_obj, weld_identical_positions, PlyFile, PlyStream};

@@ -9,7 +9,7 @@ use std::io::{self, BufReader, Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 use bytemuck::{Pod, Zeroable};
-use reducem::build::ChunkStats;
+use reducem::conversion::ChunkStats;
 use reducem::format::{StripRecord, TopNode};
 use reducem::geometry::{Aabb, Displacement, Point};
 use reducem::mesh::Mesh;

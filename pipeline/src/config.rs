@@ -88,10 +88,10 @@ impl Default for ChunkConfig {
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct StripConfig {
-    /// Default [`reducem::build::PIPELINE_MAX_STRIP_LENGTH`] (20; the paper's is 60).
+    /// Default [`reducem::conversion::PIPELINE_MAX_STRIP_LENGTH`] (20; the paper's is 60).
     pub max_length: usize,
     /// Strip kd-tree leaf size in windows, as the file header and the library name it. Default
-    /// [`reducem::build::PIPELINE_LEAF_WINDOWS`] (8; the paper's is 2). Configs written before
+    /// [`reducem::conversion::PIPELINE_LEAF_WINDOWS`] (8; the paper's is 2). Configs written before
     /// the rename say `leaf_triangles`, which is still accepted.
     #[serde(alias = "leaf_triangles")]
     pub leaf_windows: Option<usize>,
@@ -105,7 +105,7 @@ pub struct StripConfig {
 impl Default for StripConfig {
     fn default() -> Self {
         StripConfig {
-            max_length: reducem::build::PIPELINE_MAX_STRIP_LENGTH,
+            max_length: reducem::conversion::PIPELINE_MAX_STRIP_LENGTH,
             leaf_windows: None,
             sah_bins: 16,
             grid_nodes: false,
@@ -260,13 +260,13 @@ impl Config {
         default
     }
 
-    pub fn build_params(&self) -> reducem::build::BuildParams {
+    pub fn build_params(&self) -> reducem::conversion::BuildParams {
         let grid = self.vertices.encoding == VertexEncodingName::Grid;
-        let mut params = reducem::build::BuildParams {
+        let mut params = reducem::conversion::BuildParams {
             leaf_windows: self
                 .strip
                 .leaf_windows
-                .unwrap_or(reducem::build::PIPELINE_LEAF_WINDOWS),
+                .unwrap_or(reducem::conversion::PIPELINE_LEAF_WINDOWS),
             grid_bits: grid.then_some(self.vertices.grid_bits),
             ..Default::default()
         };

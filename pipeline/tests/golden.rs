@@ -1,5 +1,5 @@
 //! Files stay byte-identical across refactorings: every generator kind, converted in memory
-//! (`reducem::build::convert_mesh`) and by the staged job in several chunks, with f32 vertices,
+//! (`reducem::conversion::convert_mesh`) and by the staged job in several chunks, with f32 vertices,
 //! grid vertices and f32 vertices with grid nodes, hashes to the value recorded when the test was
 //! written (at 7bca529). A deliberate format or build change updates the table (the failure
 //! prints the new values). `soup` hashes as `scan` does: it is scan's surface with unshared
@@ -9,7 +9,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use reducem::build::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS};
+use reducem::conversion::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS};
 use reducem::input::read_mesh;
 use reducem::tools::gen::{generate, Kind};
 

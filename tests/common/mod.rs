@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use reducem::build::write_file;
-use reducem::build::ChunkStats;
+use reducem::conversion::write_file;
+use reducem::conversion::ChunkStats;
 use reducem::decode;
 use reducem::format::grid::Grid;
 use reducem::format::reader::ReducemFile;

@@ -4,7 +4,7 @@
 //! stage measured (the weld) and the model grid to the write stage.
 
 use anyhow::Context;
-use reducem::build::ChunkStats;
+use reducem::conversion::ChunkStats;
 use reducem::format::grid::Grid;
 use reducem::geometry::Aabb;
 use reducem::input::WeldStats;

@@ -1,10 +1,10 @@
 //! Stage *strip*: adjacency, Strip-RT, strip encoding, the chunk's own top-level hierarchy and
-//! its strip-record layout (`reducem::build`), chunks in parallel on the rayon pool. Each chunk is
+//! its strip-record layout (`reducem::conversion`), chunks in parallel on the rayon pool. Each chunk is
 //! a unit of its own in the manifest, so a killed run keeps every chunk it finished. Memory is
 //! about threads × one chunk ([`for_each_unit`]).
 
 use anyhow::Context;
-use reducem::build::{encode_chunk_on, ChunkLayout};
+use reducem::conversion::{encode_chunk_on, ChunkLayout};
 use reducem::toplevel::TopLevelParams;
 
 use crate::chunk_io::{self, StripChunkHeader};

@@ -6,7 +6,7 @@ use std::io::{self, Write};
 use std::path::PathBuf;
 
 use anyhow::Context;
-use reducem::build::layout::{rebase_records, DataWords};
+use reducem::conversion::layout::{rebase_records, DataWords};
 use reducem::format::grid::NodeGrid;
 use reducem::format::reader::ReducemFile;
 use reducem::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource};

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use super::markdown::{figure, Section, Table};
 use super::plot::{self, Axis, Plot, Series};
 use super::Sizes;
-use crate::build::BuildParams;
+use crate::conversion::BuildParams;
 use crate::format::reader::ReducemFile;
 use crate::render::image::write_png;
 use crate::render::{render, Frame};

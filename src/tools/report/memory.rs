@@ -18,7 +18,7 @@ use super::memory_parts::MemoryParts;
 use super::plot::{self, Axis, Plot, Series};
 use super::speed::{self, Speed};
 use super::{Sizes, MEMORY_KINDS};
-use crate::build::BuildParams;
+use crate::conversion::BuildParams;
 use crate::format::reader::ReducemFile;
 use crate::inspect::FileStats;
 use crate::mesh::Mesh;

@@ -11,7 +11,7 @@ use super::plot::{self, Axis, Plot, Series};
 use super::speed::Speed;
 use super::sweeps::Subject;
 use super::Sizes;
-use crate::build::{BuildParams, PIPELINE_LEAF_WINDOWS};
+use crate::conversion::{BuildParams, PIPELINE_LEAF_WINDOWS};
 use crate::geometry::distance;
 use crate::input::{weld_within_tolerance, WeldStats};
 use crate::inspect::FileStats;

@@ -4,8 +4,8 @@
 //! The peer is meshoptimizer's stripifier (the `meshopt` crate), run the way a rasterizer would:
 //! vertex-cache optimization first, then `stripify` with restart indices. Its strips are turned
 //! into this project's convention ([`crate::strip_windows`]) and then encoded, given a top level and
-//! written exactly as Strip-RT's ([`crate::build::encode_stripification`],
-//! [`crate::build::write_chunk`]). The conventions agree within a restart-delimited strip:
+//! written exactly as Strip-RT's ([`crate::conversion::encode_stripification`],
+//! [`crate::conversion::write_chunk`]). The conventions agree within a restart-delimited strip:
 //! meshoptimizer's window `k` is `(s[k], s[k+1], s[k+2])`, odd windows flipped, windows with a
 //! repeated index skipped (its swaps), so only the restarts and the length limit need work:
 //! strips are cut at restarts, then into pieces of at most `max_length` triangles. A piece that
@@ -19,7 +19,7 @@ use super::markdown::{figure, number, Section, Table};
 use super::plot::{self, Axis, Plot, Series};
 use super::speed::{self, Speed};
 use super::{Sizes, MEMORY_KINDS};
-use crate::build::{encode_stripification, write_chunk, BuildParams};
+use crate::conversion::{encode_stripification, write_chunk, BuildParams};
 use crate::format::reader::ReducemFile;
 use crate::inspect::{file_stats, FileStats};
 use crate::mesh::Mesh;

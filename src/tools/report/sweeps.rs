@@ -14,7 +14,7 @@ use super::markdown::{figure, Section, Table};
 use super::plot::{self, Axis, Plot, Series};
 use super::speed::{self, Speed};
 use super::Sizes;
-use crate::build::{encode_chunk, strip_bounds, write_chunk, BuildParams};
+use crate::conversion::{encode_chunk, strip_bounds, write_chunk, BuildParams};
 use crate::format::reader::ReducemFile;
 use crate::inspect::{file_stats, FileStats};
 use crate::mesh::Mesh;

@@ -15,7 +15,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use crate::build::{convert_mesh, BuildParams};
+use crate::conversion::{convert_mesh, BuildParams};
 use crate::format::reader::ReducemFile;
 use crate::geometry::Aabb;
 use crate::inspect::{file_stats, FileStats};
