@@ -104,7 +104,7 @@ impl Generated {
         Generated {
             relative: format!("generated-{name}-{triangles}-{seed}.ply"),
             fingerprint: Fingerprint::new()
-                .with("input.generate.kind", &name)
+                .with("input.generate.kind", name)
                 .with("input.generate.triangles", triangles)
                 .with("input.generate.seed", seed),
         }

@@ -63,7 +63,7 @@ pub fn collect(work: &Path, sizes: &Sizes) -> anyhow::Result<Vec<MemoryRow>> {
     for kind in MEMORY_KINDS {
         let name = kind.name();
         let mesh = load_mesh(kind, sizes.triangles, work)?;
-        let converted = convert_timed(&mesh, &BuildParams::default(), work, &name, sizes.runs)?;
+        let converted = convert_timed(&mesh, &BuildParams::default(), work, name, sizes.runs)?;
         let file = ReducemFile::open(&converted.path)?;
         let rays = RaySet::new(&file, sizes.image, sizes.ao_rays_per_hit);
         let row = |representation: &str, parts: MemoryParts| MemoryRow {

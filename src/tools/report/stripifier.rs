@@ -114,7 +114,7 @@ pub fn collect(work: &Path, sizes: &Sizes) -> anyhow::Result<Vec<StripifierRow>>
     for kind in MEMORY_KINDS {
         let name = kind.name();
         let mesh = load_mesh(kind, sizes.triangles, work)?;
-        let strip_rt = convert_timed(&mesh, &params, work, &name, sizes.runs)?;
+        let strip_rt = convert_timed(&mesh, &params, work, name, sizes.runs)?;
         let meshopt_path = work.join(format!("{name}-meshopt.rdm"));
         let (meshopt_stats, meshopt_seconds) =
             convert_meshopt(&mesh, &params, &meshopt_path, sizes.runs)?;
