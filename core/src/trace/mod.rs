@@ -30,6 +30,7 @@ pub mod strip;
 pub mod top;
 pub mod watertight;
 
+use arrayvec::ArrayVec;
 use rayon::prelude::*;
 
 use crate::format::reader::ReducemFile;
@@ -118,11 +119,10 @@ impl<'f> Tracer<'f> {
         if !self.options.packets {
             return rays.iter().map(|ray| self.intersect(ray)).collect();
         }
-        let mut hits = Vec::with_capacity(rays.len());
-        for group in rays.chunks(packet::PACKET_WIDTH) {
-            let closest = packet::trace_packet(self, group, false);
-            hits.extend(closest.iter().take(group.len()).map(|c| self.finish(c)));
-        }
+        let mut hits = vec![None; rays.len()];
+        self.trace_by_octant(rays, false, |index, closest| {
+            hits[index] = self.finish(closest)
+        });
         hits
     }
 
@@ -131,12 +131,45 @@ impl<'f> Tracer<'f> {
         if !self.options.packets {
             return rays.iter().map(|ray| self.occluded(ray)).collect();
         }
-        let mut occluded = Vec::with_capacity(rays.len());
-        for group in rays.chunks(packet::PACKET_WIDTH) {
-            let closest = packet::trace_packet(self, group, true);
-            occluded.extend(closest.iter().take(group.len()).map(Closest::found));
-        }
+        let mut occluded = vec![false; rays.len()];
+        self.trace_by_octant(rays, true, |index, closest| {
+            occluded[index] = closest.found()
+        });
         occluded
+    }
+
+    /// Traces `rays` as packets of rays that share their direction signs, and gives ray `i`'s
+    /// result to `answer(i, closest)`. Rays already in runs of one octant (camera rays) are cut
+    /// into packets in their order; others (a hit point's ambient-occlusion rays, spread over a
+    /// hemisphere) are first grouped by octant, stably, so that they still form packets. The
+    /// answers are those of single rays (packets are bit-identical to them) whatever the grouping.
+    fn trace_by_octant(
+        &self,
+        rays: &[Ray],
+        any_hit: bool,
+        mut answer: impl FnMut(usize, &Closest),
+    ) {
+        let Some(order) = octant_order(rays) else {
+            for (start, group) in (0..)
+                .step_by(packet::PACKET_WIDTH)
+                .zip(rays.chunks(packet::PACKET_WIDTH))
+            {
+                let closest = packet::trace_packet(self, group, any_hit);
+                for (offset, closest) in closest.iter().take(group.len()).enumerate() {
+                    answer(start + offset, closest);
+                }
+            }
+            return;
+        };
+        let mut group = ArrayVec::<Ray, { packet::PACKET_WIDTH }>::new();
+        for indices in order.chunks(packet::PACKET_WIDTH) {
+            group.clear();
+            group.extend(indices.iter().map(|&i| rays[i as usize]));
+            let closest = packet::trace_packet(self, &group, any_hit);
+            for (&index, closest) in indices.iter().zip(&closest) {
+                answer(index as usize, closest);
+            }
+        }
     }
 
     fn query<'a>(&'a self, ray: &'a PreparedRay, any_hit: bool) -> StripQuery<'a> {
@@ -173,6 +206,38 @@ impl<'f> Tracer<'f> {
             window: closest.window,
         })
     }
+}
+
+/// The indices of `rays` grouped by the octant of their direction (its three sign bits), each
+/// group in the rays' order (a counting sort over the eight octants); `None` when the rays
+/// already come in runs of one octant as long as a packet on average, which then form packets
+/// as they are.
+fn octant_order(rays: &[Ray]) -> Option<Vec<u32>> {
+    let octant = |ray: &Ray| {
+        let [x, y, z] = ray.direction.map(|d| d.is_sign_negative() as usize);
+        x | y << 1 | z << 2
+    };
+    let runs = 1 + rays
+        .windows(2)
+        .filter(|pair| octant(&pair[0]) != octant(&pair[1]))
+        .count();
+    if runs * packet::PACKET_WIDTH <= rays.len() {
+        return None;
+    }
+    let mut starts = [0usize; 9];
+    for ray in rays {
+        starts[octant(ray) + 1] += 1;
+    }
+    for i in 1..starts.len() {
+        starts[i] += starts[i - 1];
+    }
+    let mut order = vec![0u32; rays.len()];
+    for (index, ray) in rays.iter().enumerate() {
+        let slot = &mut starts[octant(ray)];
+        order[*slot] = index as u32;
+        *slot += 1;
+    }
+    Some(order)
 }
 
 /// `normalize((v1 - v0) × (v2 - v0))`, in f64 so that slivers with tiny edges keep a direction.
