@@ -14,6 +14,7 @@
 #![deny(unsafe_code)]
 
 pub mod chunking;
+pub mod cli;
 pub mod conversion;
 pub mod decode;
 pub mod exit_code;

@@ -571,21 +571,7 @@ mod tests {
 
     #[test]
     fn every_argument_of_every_command_has_a_description() {
-        let command = super::Cli::command();
-        for subcommand in command.get_subcommands() {
-            for argument in subcommand.get_arguments() {
-                let name = format!("reducem {} {}", subcommand.get_name(), argument.get_id());
-                assert!(argument.get_help().is_some(), "{name} has no description");
-                let enumerated = argument.get_action().takes_values();
-                let values = enumerated.then(|| argument.get_value_parser().possible_values());
-                for value in values.into_iter().flatten().flatten() {
-                    let value_name = value.get_name();
-                    assert!(
-                        value.get_help().is_some(),
-                        "{name} {value_name}: no description"
-                    );
-                }
-            }
-        }
+        let undescribed = reducem::cli::undescribed_arguments(&super::Cli::command());
+        assert!(undescribed.is_empty(), "no description: {undescribed:?}");
     }
 }
