@@ -290,6 +290,7 @@ pub fn local_mesh<E>(
     Ok(Mesh {
         positions: positions_of(&distinct)?,
         triangles: local.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
+        face_ids: None,
     })
 }
 

@@ -7,6 +7,11 @@ use crate::geometry::{Aabb, Point};
 pub struct Mesh {
     pub positions: Vec<Point>,
     pub triangles: Vec<[u32; 3]>,
+    /// For each triangle, the index of the input face it comes from: PLY `face` element order,
+    /// OBJ `f` statement order across groups; a polygon's fan triangles share their polygon's.
+    /// `None` where triangle `i` is face `i`: meshes made in code and PLY files of triangles
+    /// only. Pipeline chunks do not carry face ids yet (their triangles are numbered per chunk).
+    pub face_ids: Option<Vec<u32>>,
 }
 
 impl Mesh {
@@ -25,6 +30,14 @@ impl Mesh {
                 })
                 .map(|axis| (vertex, axis, p[axis]))
         })
+    }
+
+    /// The input face triangle `triangle` comes from.
+    pub fn face_id(&self, triangle: usize) -> u32 {
+        match &self.face_ids {
+            Some(ids) => ids[triangle],
+            None => triangle as u32,
+        }
     }
 
     pub fn triangle_points(&self, triangle: &[u32; 3]) -> [Point; 3] {

@@ -42,6 +42,7 @@ pub fn quantize_mesh(mesh: &Mesh, grid: &Grid) -> QuantizedMesh {
     let snapped = Mesh {
         positions: decoded,
         triangles: mesh.triangles.clone(),
+        face_ids: mesh.face_ids.clone(),
     };
     let (welded, kept) = weld_identical_positions_kept(snapped);
     QuantizedMesh {
@@ -66,6 +67,7 @@ mod tests {
                 [0.001, 0.0, 0.0],
             ],
             triangles: vec![[0, 1, 2], [3, 2, 1]],
+            face_ids: None,
         };
         let grid = Grid::over(
             &Aabb {

@@ -49,8 +49,41 @@ fn objects_are_merged_fanned_and_welded() {
             [2.0, 0.0, 0.0],
         ],
         triangles: vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]],
+        face_ids: Some(vec![0, 0, 1]),
     };
     assert_eq!(mesh, expected);
+}
+
+#[test]
+fn face_ids_follow_f_statements_across_groups_and_polygons() {
+    // A pentagon, a triangle in another group, then the first group again with a quad.
+    let text = "v 0 0 0
+v 1 0 0
+v 2 1 0
+v 1 2 0
+v 0 1 0
+g a
+f 1 2 3 4 5
+g b
+f 1 2 4
+g a
+f 2 3 4 5
+";
+    let file = temp_file("groups.obj", text);
+    // Welded: `tobj` gives each group its own copies of the vertices.
+    let mesh = read_mesh(&file.0).unwrap();
+    assert_eq!(
+        mesh.triangles,
+        vec![
+            [0, 1, 2],
+            [0, 2, 3],
+            [0, 3, 4],
+            [0, 1, 3],
+            [1, 2, 3],
+            [1, 3, 4]
+        ]
+    );
+    assert_eq!(mesh.face_ids, Some(vec![0, 0, 0, 1, 2, 2]));
 }
 
 #[test]

@@ -194,6 +194,7 @@ fn sample_mesh() -> Mesh {
             .map(|p| p.map(|c| c as f32))
             .collect(),
         triangles: vec![[0, 1, 2], [0, 2, 3], [0, 1, 4], [3, 2, 4]],
+        face_ids: Some(vec![0, 0, 1, 2]),
     }
 }
 
@@ -410,6 +411,8 @@ fn polygons_are_fanned_with_winding_kept() {
             "{format:?}"
         );
         assert_eq!(&mesh.triangles[253..], &[[3, 2, 1], [3, 1, 0]]);
+        let face_ids: Vec<u32> = (0..255).map(|t| mesh.face_id(t)).collect();
+        assert_eq!(face_ids, [vec![0; 253], vec![1; 2]].concat(), "{format:?}");
     }
 }
 
@@ -512,6 +515,7 @@ fn triangle_soup_is_welded_in_first_occurrence_order() {
             [-1.0, 0.0, 0.0],
         ],
         triangles: vec![[0, 1, 2], [1, 3, 2], [0, 2, 4]],
+        face_ids: None,
     };
     assert_eq!(mesh, expected);
 }
@@ -527,6 +531,7 @@ fn welding_compares_bits_and_keeps_unreferenced_vertices() {
             [1.0, 0.0, 0.0],
         ],
         triangles: vec![[3, 1, 4]],
+        face_ids: None,
     };
     let welded = weld_identical_positions(mesh);
     assert_eq!(
@@ -1028,6 +1033,15 @@ fn grid(side: usize) -> (Vec<[f64; 3]>, Vec<Vec<i64>>) {
     (positions, faces)
 }
 
+/// The face each fan triangle of `faces` comes from.
+fn fan_face_ids(faces: &[Vec<i64>]) -> Vec<u32> {
+    faces
+        .iter()
+        .enumerate()
+        .flat_map(|(face, corners)| std::iter::repeat_n(face as u32, corners.len() - 2))
+        .collect()
+}
+
 fn fan_triangles(faces: &[Vec<i64>]) -> Vec<[u32; 3]> {
     faces
         .iter()
@@ -1127,6 +1141,8 @@ proptest! {
         let mesh = PlyFile::open(file.path()).unwrap().read_mesh().unwrap();
         let bits = |points: &[[f32; 3]]| points.iter().map(|p| p.map(f32::to_bits)).collect::<Vec<_>>();
         prop_assert_eq!(bits(&mesh.positions), bits(&positions));
+        let face_ids: Vec<u32> = (0..mesh.triangles.len()).map(|t| mesh.face_id(t)).collect();
+        prop_assert_eq!(face_ids, fan_face_ids(&faces));
         prop_assert_eq!(mesh.triangles, fan_triangles(&faces));
     }
 }
@@ -1208,6 +1224,7 @@ fn measure_binary_read_throughput() {
     let mesh = weld_identical_positions(Mesh {
         positions,
         triangles: parallel,
+        face_ids: None,
     });
     report("weld", bytes, triangles, start.elapsed().as_secs_f64());
     assert_eq!(mesh.positions.len(), 2237 * 2237);

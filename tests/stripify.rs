@@ -47,6 +47,7 @@ fn welded_soup(seed: u64, vertices: u32, triangle_count: usize) -> Mesh {
     Mesh {
         positions,
         triangles,
+        face_ids: None,
     }
 }
 
@@ -213,6 +214,7 @@ fn non_manifold_fan_edges_are_boundaries() {
             [1.5, 1.0, 0.0],
         ]),
         triangles: vec![[0, 1, 2], [1, 0, 3], [1, 0, 4], [1, 5, 2]],
+        face_ids: None,
     };
     let adjacency = Adjacency::build(&mesh);
     for fan_triangle in &adjacency.neighbours[..3] {
@@ -234,6 +236,7 @@ fn inconsistently_wound_neighbours_are_not_joined() {
             [1.0, 1.0, 0.0],
         ]),
         triangles: vec![[0, 1, 2], [3, 1, 2]],
+        face_ids: None,
     };
     let adjacency = Adjacency::build(&mesh);
     assert_eq!(adjacency.neighbours, vec![[NO_NEIGHBOUR; 3]; 2]);
@@ -247,6 +250,7 @@ fn two_sided_sliver_pair_is_one_strip() {
     let mesh = Mesh {
         positions: points(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
         triangles: vec![[0, 1, 2], [0, 2, 1]],
+        face_ids: None,
     };
     let adjacency = Adjacency::build(&mesh);
     assert_eq!(adjacency.neighbours, vec![[1; 3], [0; 3]]);
@@ -341,6 +345,7 @@ fn all_centroids_equal_uses_median_splits() {
     let mesh = Mesh {
         positions,
         triangles,
+        face_ids: None,
     };
     stripify_checked(&mesh, &defaults());
 }
@@ -388,6 +393,7 @@ fn small_mesh() -> impl Strategy<Value = Mesh> {
             .prop_map(|(positions, triangles)| Mesh {
                 positions,
                 triangles,
+                face_ids: None,
             })
     })
 }

@@ -44,6 +44,7 @@ fn slab(yaw: f32) -> Mesh {
             .iter()
             .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
             .collect(),
+        face_ids: None,
     }
 }
 

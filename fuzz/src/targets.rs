@@ -313,6 +313,7 @@ pub fn octahedron_sphere(levels: u32) -> Mesh {
             [3, 1, 5],
             [0, 3, 5],
         ],
+        face_ids: None,
     };
     for _ in 0..levels {
         let mut midpoints = std::collections::HashMap::new();

@@ -53,6 +53,7 @@ pub fn read_mesh(path: &Path) -> io::Result<Mesh> {
     Ok(Mesh {
         positions: bytemuck::pod_collect_to_vec::<u8, Point>(&bytes[24..positions_end]),
         triangles: bytemuck::pod_collect_to_vec::<u8, [u32; 3]>(&bytes[positions_end..]),
+        face_ids: None,
     })
 }
 

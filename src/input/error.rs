@@ -101,6 +101,8 @@ pub enum InputErrorKind {
     NotStreamable(&'static str),
     #[error("{vertex_count} vertices cannot be indexed with 32 bits")]
     TooManyVertices { vertex_count: u64 },
+    #[error("{face_count} faces cannot be numbered with 32-bit face ids")]
+    TooManyFaces { face_count: u64 },
     #[error("file ends in the middle of the element ({needed} more bytes needed)")]
     Truncated { needed: u64 },
     #[error("file ends in the middle of the element")]

@@ -1,8 +1,9 @@
-//! OBJ input through `tobj`, keeping positions only.
+//! OBJ input through `tobj`, keeping positions and each triangle's face.
 //!
 //! OBJ meshes of the sizes ReduceM targets are rare (the format is slow to write and parse),
-//! so the robust parser of `tobj` is preferred over a hand-written fast path. `tobj` fans
-//! polygons exactly like the PLY reader (`v0, vi, vi+1`), so winding is kept. Each object or
+//! so the robust parser of `tobj` is preferred over a hand-written fast path. Polygons are
+//! fanned here exactly like the PLY reader does (`v0, vi, vi+1`), so winding is kept and every
+//! triangle carries its polygon's face id (`f` statement order across groups). Each object or
 //! group becomes a separate `tobj` model with its own vertex list; the models are
 //! concatenated with index offsets, and the shared welding step reconnects vertices that
 //! models duplicated.
@@ -22,7 +23,8 @@ use crate::mesh::Mesh;
 
 pub fn read_obj(path: &Path) -> Result<Mesh, InputError> {
     let options = tobj::LoadOptions {
-        triangulate: true,
+        // Polygons are fanned here rather than by `tobj`, to know each triangle's face.
+        triangulate: false,
         ignore_points: true,
         ignore_lines: true,
         ..Default::default()
@@ -44,9 +46,13 @@ pub fn read_obj(path: &Path) -> Result<Mesh, InputError> {
             InputError::new(path, Location::File, kind),
         )
     })?;
-    let mut mesh = Mesh::default();
+    let mut mesh = Mesh {
+        face_ids: Some(Vec::new()),
+        ..Mesh::default()
+    };
+    let mut faces = 0;
     for model in &models {
-        append_model(path, &mut mesh, &model.mesh)
+        append_model(path, &mut mesh, &model.mesh, &mut faces)
             .map_err(|error| located(path, surveyed.vertices, error))?;
     }
     if let Some(summary) = surveyed.unknown_summary() {
@@ -64,7 +70,14 @@ fn located(path: &Path, vertex_total: u64, error: InputError) -> InputError {
     }
 }
 
-fn append_model(path: &Path, mesh: &mut Mesh, model: &tobj::Mesh) -> Result<(), InputError> {
+/// Appends `model`'s vertices and its faces' fan triangles, numbering the faces on from
+/// `faces` (the faces of the models before it).
+fn append_model(
+    path: &Path,
+    mesh: &mut Mesh,
+    model: &tobj::Mesh,
+    faces: &mut u64,
+) -> Result<(), InputError> {
     let offset = mesh.positions.len();
     let vertex_count = offset + model.positions.len() / 3;
     if vertex_count as u64 > 1 << 32 {
@@ -80,13 +93,44 @@ fn append_model(path: &Path, mesh: &mut Mesh, model: &tobj::Mesh) -> Result<(), 
         check_finite(path, point)?;
         mesh.positions.push(point);
     }
-    mesh.triangles.extend(
-        model
-            .indices
-            .chunks_exact(3)
-            .map(|corners| [corners[0], corners[1], corners[2]].map(|corner| corner + offset)),
-    );
+    let polygons = polygons(model);
+    let face_count = *faces + polygons.len() as u64;
+    if face_count > 1 << 32 {
+        let kind = InputErrorKind::TooManyFaces { face_count };
+        return Err(InputError::new(path, Location::File, kind));
+    }
+    let face_ids = mesh.face_ids.get_or_insert_with(Vec::new);
+    for (face, polygon) in (*faces..).zip(polygons) {
+        let Some((&first, rest)) = polygon.split_first() else {
+            continue;
+        };
+        for edge in rest.windows(2) {
+            mesh.triangles
+                .push([first, edge[0], edge[1]].map(|corner| corner + offset));
+            // Below `face_count` ≤ 2^32.
+            face_ids.push(face as u32);
+        }
+    }
+    *faces = face_count;
     Ok(())
+}
+
+/// The model's faces as vertex index lists (`tobj` leaves `face_arities` empty when every face
+/// is a triangle).
+fn polygons(model: &tobj::Mesh) -> Vec<&[u32]> {
+    if model.face_arities.is_empty() {
+        return model.indices.chunks_exact(3).collect();
+    }
+    let mut start = 0;
+    model
+        .face_arities
+        .iter()
+        .map(|&arity| {
+            let polygon = &model.indices[start..start + arity as usize];
+            start += arity as usize;
+            polygon
+        })
+        .collect()
 }
 
 /// Rejects NaN, infinities and coordinates beyond [`crate::geometry::MAX_COORDINATE`].

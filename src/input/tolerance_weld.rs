@@ -58,6 +58,7 @@ pub fn weld_within_tolerance(mesh: Mesh, tolerance: f32) -> (Mesh, WeldStats) {
     let remapped = Mesh {
         positions: mesh.positions,
         triangles,
+        face_ids: mesh.face_ids,
     };
     (compact(remapped, &representative), stats)
 }
@@ -80,6 +81,7 @@ fn compact(mesh: Mesh, representative: &[u32]) -> Mesh {
     Mesh {
         positions,
         triangles,
+        face_ids: mesh.face_ids,
     }
 }
 
@@ -199,6 +201,7 @@ mod tests {
                 [-1e-6, 1.0, 0.0],
             ],
             triangles: vec![[0, 1, 2], [3, 4, 5]],
+            face_ids: None,
         };
         let (welded, stats) = weld_within_tolerance(mesh, 1e-5);
         assert_eq!(welded.positions.len(), 4);

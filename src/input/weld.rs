@@ -47,6 +47,7 @@ pub fn weld_identical_positions_kept(mesh: Mesh) -> (Mesh, Vec<u32>) {
     let welded = Mesh {
         positions,
         triangles,
+        face_ids: mesh.face_ids,
     };
     (welded, kept)
 }

@@ -138,6 +138,7 @@ pub fn icosphere(levels: u32) -> Mesh {
     Mesh {
         positions,
         triangles,
+        face_ids: None,
     }
 }
 
@@ -189,6 +190,7 @@ pub fn transformed(mesh: &Mesh, f: impl Fn(f32) -> f32) -> Mesh {
     Mesh {
         positions: mesh.positions.iter().map(|p| p.map(&f)).collect(),
         triangles: mesh.triangles.clone(),
+        face_ids: None,
     }
 }
 
@@ -346,6 +348,7 @@ pub fn quantized_input(mesh: &Mesh, bits: u32) -> (Mesh, Grid) {
             .map(|p| grid.decode(&grid.quantize(p)))
             .collect(),
         triangles: mesh.triangles.clone(),
+        face_ids: None,
     };
     (snapped, grid)
 }

@@ -158,11 +158,33 @@ impl PlyFile {
         Ok(triangles)
     }
 
-    /// Positions and triangles as stored, without welding.
+    /// Positions and triangles as stored, without welding, with each triangle's face.
     pub fn read_mesh(&self) -> Result<Mesh, InputError> {
+        let positions = self.read_positions()?;
+        if let Some(triangles) = self.read_uniform_triangles() {
+            // Every face is one triangle: triangle `i` is face `i`.
+            let triangles = triangles?;
+            return Ok(Mesh {
+                positions,
+                triangles,
+                face_ids: None,
+            });
+        }
+        let face_count = self.face_count();
+        if face_count > 1 << 32 {
+            let kind = InputErrorKind::TooManyFaces { face_count };
+            return Err(InputError::new(&self.path, Location::File, kind));
+        }
+        let mut triangles = Vec::with_capacity(face_count as usize);
+        let mut face_ids = Vec::with_capacity(face_count as usize);
+        self.for_each_triangle(|face, triangle| {
+            triangles.push(triangle);
+            face_ids.push(face as u32);
+        })?;
         Ok(Mesh {
-            positions: self.read_positions()?,
-            triangles: self.read_triangles()?,
+            positions,
+            triangles,
+            face_ids: Some(face_ids),
         })
     }
 

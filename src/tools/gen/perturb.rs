@@ -14,6 +14,7 @@ pub fn perturbed_copies(mesh: &Mesh, amount: f32, seed: u64) -> Mesh {
     let mut out = Mesh {
         positions: Vec::with_capacity(3 * mesh.triangles.len()),
         triangles: Vec::with_capacity(mesh.triangles.len()),
+        face_ids: None,
     };
     for triangle in &mesh.triangles {
         let base = out.positions.len() as u32;
