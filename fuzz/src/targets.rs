@@ -128,7 +128,12 @@ impl Workspace {
         if let Some(streamed) = read_streamed(path) {
             if let Ok(whole) = &whole {
                 assert_eq!(
-                    &streamed, whole,
+                    (
+                        &streamed.positions,
+                        &streamed.triangles,
+                        face_ids(&streamed)
+                    ),
+                    (&whole.positions, &whole.triangles, face_ids(whole)),
                     "the stream and the whole-file reader differ"
                 );
             }
@@ -166,12 +171,20 @@ fn read_streamed(path: &Path) -> Option<Mesh> {
             mesh.positions.extend_from_slice(positions)
         })
         .ok()?;
+    let mut face_ids = Vec::new();
     stream
-        .for_each_triangle(STREAM_WINDOW_BYTES, |_, triangle| {
-            mesh.triangles.push(triangle)
+        .for_each_triangle(STREAM_WINDOW_BYTES, |face, triangle| {
+            mesh.triangles.push(triangle);
+            face_ids.push(face as u32);
         })
         .ok()?;
+    mesh.face_ids = Some(face_ids);
     Some(mesh)
+}
+
+/// Every triangle's face, however the mesh records them.
+fn face_ids(mesh: &Mesh) -> Vec<u32> {
+    (0..mesh.triangles.len()).map(|t| mesh.face_id(t)).collect()
 }
 
 /// Decodes, inspects and traces an opened file.
