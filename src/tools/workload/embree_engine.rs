@@ -72,7 +72,8 @@ pub fn triangle_geometry<'a>(device: &'a Device, mesh: &Mesh) -> Geometry<'a> {
     geometry
 }
 
-fn embree_ray(ray: &Ray) -> embree::Ray {
+/// `ray` as Embree takes it.
+pub fn embree_ray(ray: &Ray) -> embree::Ray {
     let [org_x, org_y, org_z] = ray.origin;
     let [dir_x, dir_y, dir_z] = ray.direction;
     embree::Ray {

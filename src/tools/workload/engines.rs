@@ -7,7 +7,7 @@ use crate::tools::baseline::TriangleBvh;
 use crate::trace::{Ray, Tracer};
 
 #[cfg(feature = "embree")]
-pub use super::embree_engine::{triangle_geometry, Embree};
+pub use super::embree_engine::{embree_ray, triangle_geometry, Embree};
 
 pub trait Engine: Sync {
     /// How many of `rays` hit something (closest-hit queries).
