@@ -1,5 +1,6 @@
 //! The AVX2 kernel of the strip block (see [`super::strip`]): eight windows in one 256-bit
-//! register per quantity, lossless vertices moved into lanes without going through memory.
+//! register per quantity, lossless vertices moved into lanes without going through memory. Also
+//! the packets' walk of the global hierarchy compiled for AVX2 ([`traverse_packet`]).
 //!
 //! The baseline kernel assembles the block's corners in a stack array (scalar stores) and then
 //! loads them as lanes, and those wide loads of freshly stored scalars stall on store
@@ -11,8 +12,9 @@
 //! baseline's, operation for operation (`vsubps`, `vmulps`, `vminps`, `vmaxps`, compares), never
 //! fused, so every lane has the same bits as the baseline kernel and the scalar test.
 //!
-//! This is the tracer's one kernel module with `unsafe`: [`trace`] checks that the CPU has AVX2
-//! before it enters the functions compiled for it (`#[target_feature]`), and the loads and
+//! This is the tracer's one kernel module with `unsafe`: [`trace`] and [`traverse_packet`]
+//! check that the CPU has AVX2 before they enter the functions compiled for it
+//! (`#[target_feature]`), and the loads and
 //! stores below read and write arrays of exactly their width.
 
 #![allow(unsafe_code)]
@@ -54,6 +56,35 @@ fn trace_as<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
     args: TraceArgs,
 ) -> bool {
     query.traverse::<Avx2Blocks, V, KX, KY, KZ>(vertices, args)
+}
+
+/// The packet traversal of the global hierarchy compiled for AVX2 (see `packet::traverse`);
+/// false, with nothing traced, when this CPU lacks AVX2.
+pub(super) fn traverse_packet(
+    tracer: &super::Tracer,
+    lanes: &super::packet::Lanes,
+    packet_mask: u32,
+    any_hit: bool,
+    closest: &mut [super::strip::Closest; super::packet::PACKET_WIDTH],
+) -> bool {
+    if !std::is_x86_feature_detected!("avx2") {
+        return false;
+    }
+    // SAFETY: the CPU supports AVX2, checked just above.
+    unsafe { traverse_packet_detected(tracer, lanes, packet_mask, any_hit, closest) };
+    true
+}
+
+#[target_feature(enable = "avx2")]
+#[inline(never)]
+fn traverse_packet_detected(
+    tracer: &super::Tracer,
+    lanes: &super::packet::Lanes,
+    packet_mask: u32,
+    any_hit: bool,
+    closest: &mut [super::strip::Closest; super::packet::PACKET_WIDTH],
+) {
+    super::packet::traverse_inline(tracer, lanes, packet_mask, any_hit, closest)
 }
 
 /// The AVX2 blocks, as a [`BlockKernel`] for the shared traversal.

@@ -53,7 +53,7 @@ struct PacketDeferred {
 }
 
 /// The packet's rays in structure-of-arrays form.
-struct Lanes {
+pub(super) struct Lanes {
     rays: [PreparedRay; PACKET_WIDTH],
     origin: [f32x8; 3],
     entry_reciprocal: [f32x8; 3],
@@ -202,7 +202,31 @@ fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> f32x8 {
     }))
 }
 
+/// Walks the global hierarchy with the packet's lanes. With the AVX2 kernel on a CPU that has
+/// it, the walk is compiled for AVX2 ([`super::avx2::traverse_packet`]), where each `wide`
+/// eight-lane operation of the box tests is one 256-bit instruction instead of two 128-bit ones:
+/// 2.7% fewer instructions per AO ray and 4% per primary ray (callgrind, 100k rays of the 1M
+/// scan), 9% less CPU time for 3.8M AO rays on one thread. The arithmetic is the same, so the
+/// lanes' bits are.
 fn traverse(
+    tracer: &Tracer,
+    lanes: &Lanes,
+    packet_mask: u32,
+    any_hit: bool,
+    closest: &mut [Closest; PACKET_WIDTH],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if tracer.options().kernel == super::Kernel::Avx2
+        && super::avx2::traverse_packet(tracer, lanes, packet_mask, any_hit, closest)
+    {
+        return;
+    }
+    traverse_inline(tracer, lanes, packet_mask, any_hit, closest)
+}
+
+/// [`traverse`] compiled for the target of the function it is inlined into.
+#[inline(always)]
+pub(super) fn traverse_inline(
     tracer: &Tracer,
     lanes: &Lanes,
     packet_mask: u32,
@@ -228,6 +252,7 @@ fn traverse(
     }
 }
 
+#[inline(always)]
 fn traverse_nodes<N: TraceNode>(
     tracer: &Tracer,
     nodes: &[N],
