@@ -22,7 +22,20 @@ pub struct ConvertArgs {
     pub encoding: Option<VertexEncodingName>,
     pub grid_bits: Option<u32>,
     pub work: Option<PathBuf>,
+    /// Further configuration keys as `(key, TOML value)`, each key one of [`SETTING_SECTIONS`]
+    /// (the Python package's `reducem.convert(..., leaf_windows=4)`); the command line has none.
+    pub settings: Vec<(String, String)>,
 }
+
+/// The configuration keys [`ConvertArgs::settings`] may set, with their table.
+pub const SETTING_SECTIONS: [(&str, &str); 6] = [
+    ("leaf_windows", "strip"),
+    ("sah_bins", "strip"),
+    ("grid_nodes", "strip"),
+    ("weld_tolerance", "vertices"),
+    ("max_triangles", "chunk"),
+    ("keep", "work"),
+];
 
 pub fn convert(args: &ConvertArgs, options: &RunOptions) -> anyhow::Result<()> {
     if args.grid_bits.is_some() && args.encoding != Some(VertexEncodingName::Grid) {
@@ -64,14 +77,36 @@ fn config_text(args: &ConvertArgs) -> anyhow::Result<String> {
         "# Written by `pipeline convert`; `pipeline run` on this file resumes the same job.\n\
          [input]\npath = {input}\n\n[output]\npath = {output}\n\n[work]\ndir = {work}\n"
     );
+    let mut strip = Vec::new();
     if let Some(max_length) = args.max_length {
-        text += &format!("\n[strip]\nmax_length = {max_length}\n");
+        strip.push(format!("max_length = {max_length}\n"));
     }
+    let mut vertices = Vec::new();
     if let Some(encoding) = args.encoding {
         let name = format!("{encoding:?}").to_lowercase();
-        text += &format!("\n[vertices]\nencoding = \"{name}\"\n");
+        vertices.push(format!("encoding = \"{name}\"\n"));
         if let Some(bits) = args.grid_bits {
-            text += &format!("grid_bits = {bits}\n");
+            vertices.push(format!("grid_bits = {bits}\n"));
+        }
+    }
+    let mut tables = [("strip", strip), ("vertices", vertices), ("chunk", Vec::new())];
+    let mut work_keys = String::new();
+    for (key, value) in &args.settings {
+        let section = SETTING_SECTIONS
+            .iter()
+            .find(|(name, _)| name == key)
+            .map(|(_, section)| *section)
+            .ok_or_else(|| UsageError(format!("{key} is not a setting of convert")))?;
+        let line = format!("{key} = {value}\n");
+        match tables.iter_mut().find(|(name, _)| *name == section) {
+            Some((_, lines)) => lines.push(line),
+            None => work_keys += &line,
+        }
+    }
+    text += &work_keys;
+    for (name, lines) in tables {
+        if !lines.is_empty() {
+            text += &format!("\n[{name}]\n{}", lines.concat());
         }
     }
     Ok(text)

@@ -1,28 +1,13 @@
 //! The `pipeline` command: converts meshes to ReduceM files (`run`, `status`, `clean`) and
 //! generates synthetic meshes (`gen`). Exit codes are a contract with cron jobs and are listed in README.md.
 
-mod chunk_io;
-mod config;
-mod convert;
-mod fingerprint;
-mod input;
-mod interrupt;
-mod lock;
-mod manifest;
-mod outcome;
-mod preflight;
-mod progress;
-mod run;
-mod stage;
-mod status;
-mod time;
-mod workdir;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Parser, Subcommand};
+use pipeline::{config, convert, interrupt, outcome, progress, run, status};
 use reducem::exit_code as exit;
 use reducem::tools::gen;
 
@@ -221,6 +206,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 encoding,
                 grid_bits,
                 work,
+                settings: Vec::new(),
             };
             convert::convert(&args, &job.options(None, run::Shard::WHOLE))
         }

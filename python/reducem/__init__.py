@@ -1,0 +1,15 @@
+"""Ray queries on ReduceM files from numpy.
+
+``reducem.open(path)`` maps and validates a ReduceM file and returns a ``Scene``, whose
+``cast_rays`` and ``test_occlusions`` follow Open3D's ``RaycastingScene`` conventions: rays shaped
+``(..., 6)`` as ``[ox, oy, oz, dx, dy, dz]``, answers shaped like the rays' leading axes.
+Tracing runs in the native tracer, without the GIL, on all cores (or ``nthreads``), and gives
+bit-identical answers to ``reducem query`` on the same rays.
+
+``reducem.convert(input, output, **options)`` converts a PLY or OBJ mesh with the staged,
+resumable conversion of ``pipeline convert``; options are named like the configuration keys.
+"""
+
+from ._native import ReducemError, Scene, convert, open
+
+__all__ = ["ReducemError", "Scene", "convert", "open"]

@@ -1,0 +1,328 @@
+//! `reducem.open(path) -> Scene`: a mapped, validated file and its ray queries.
+//!
+//! Tracing runs without the GIL on rayon's threads (a pool of `nthreads` when given), in chunks
+//! of consecutive rays through [`Tracer::intersect_chunk`] and [`Tracer::occluded_chunk`], the
+//! calls `reducem query` makes: the same rays give bit-identical `t` and normals.
+
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+use numpy::ndarray::{Array, IxDyn};
+use numpy::{PyArray, PyArray1};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+use reducem_core::format::reader::ReducemFile;
+use reducem_core::trace::{Hit, Kernel, TraceOptions, Tracer};
+use reducem_core::triangle_index::TriangleIndex;
+
+use crate::errors::{format_error, reducem_error};
+use crate::rays::{self, InvalidRays, Rays};
+
+/// Rays traced by one task: the chunk size of `reducem query` (large enough to amortize
+/// scheduling and keep packets of consecutive rays, small enough to balance).
+const CHUNK: usize = 4096;
+
+/// `primitive_ids` of a miss.
+const NO_PRIMITIVE: u32 = u32::MAX;
+
+/// A mapped ReduceM file.
+#[pyclass(frozen, module = "reducem")]
+pub struct Scene {
+    file: ReducemFile,
+    /// File-order positions of the triangles, counted on the first hit query (it reads every
+    /// strip's references, which opening does not).
+    triangle_index: OnceLock<TriangleIndex>,
+}
+
+/// Maps and validates the ReduceM file at `path`.
+#[pyfunction]
+pub fn open(py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
+    let file = py.detach(|| ReducemFile::open(&path)).map_err(format_error)?;
+    Ok(Scene {
+        file,
+        triangle_index: OnceLock::new(),
+    })
+}
+
+/// The four answers of `cast_rays`, flat, in ray order.
+struct Answers {
+    t: Vec<f32>,
+    ids: Vec<u32>,
+    uvs: Vec<f32>,
+    normals: Vec<f32>,
+}
+
+impl Answers {
+    fn misses(rays: usize) -> Answers {
+        Answers {
+            t: vec![f32::INFINITY; rays],
+            ids: vec![NO_PRIMITIVE; rays],
+            uvs: vec![0.0; 2 * rays],
+            normals: vec![0.0; 3 * rays],
+        }
+    }
+
+    /// These answers of the valid rays at `positions` of `total` rays, misses elsewhere.
+    fn placed(self, positions: &[usize], total: usize) -> Answers {
+        let mut all = Answers::misses(total);
+        for (k, &at) in positions.iter().enumerate() {
+            all.t[at] = self.t[k];
+            all.ids[at] = self.ids[k];
+            all.uvs[2 * at..2 * at + 2].copy_from_slice(&self.uvs[2 * k..2 * k + 2]);
+            all.normals[3 * at..3 * at + 3].copy_from_slice(&self.normals[3 * k..3 * k + 3]);
+        }
+        all
+    }
+}
+
+#[pymethods]
+impl Scene {
+    /// Closest hits of `rays` (`(..., 6)`: origin, direction; float32 or float64, traced in
+    /// float32) on `[tnear, tfar]`, in units of each direction's length. Returns a dict:
+    /// `t_hit` float32 `(...)` (inf on a miss), `primitive_ids` uint32 `(...)` (the stored
+    /// triangle's row in `triangles()`; 4294967295 on a miss), `primitive_uvs` float32
+    /// `(..., 2)` (barycentric weights of the triangle's second and third corners),
+    /// `primitive_normals` float32 `(..., 3)` (unit geometric normal in input winding, zero on
+    /// a miss). `nthreads` > 0 traces on that many threads; `invalid="miss"` answers invalid
+    /// rays (NaN, infinite, zero direction) as misses instead of raising `ValueError`.
+    #[pyo3(signature = (rays, tnear = 0.0, tfar = f32::INFINITY, nthreads = 0, invalid = "raise"))]
+    fn cast_rays<'py>(
+        &self,
+        py: Python<'py>,
+        rays: &Bound<'py, PyAny>,
+        tnear: f32,
+        tfar: f32,
+        nthreads: usize,
+        invalid: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let invalid = InvalidRays::parse(invalid)?;
+        rays::check_interval(tnear, tfar)?;
+        let (shape, components) = rays::components(rays)?;
+        check_ids_fit(&self.file)?;
+        let kernel = kernel()?;
+        let answers = py
+            .detach(|| {
+                in_pool(nthreads, || {
+                    let rays = rays::validate(shape.clone(), &components, tnear, tfar, invalid)?;
+                    drop(components);
+                    Ok(self.cast(&rays, kernel))
+                })
+            })
+            .map_err(|message: String| PyValueError::new_err(message))?;
+        let result = PyDict::new(py);
+        let with = |extra: &[usize]| [&shape[..], extra].concat();
+        result.set_item("t_hit", ndarray(py, answers.t, &shape)?)?;
+        result.set_item("primitive_ids", ndarray(py, answers.ids, &shape)?)?;
+        result.set_item("primitive_uvs", ndarray(py, answers.uvs, &with(&[2]))?)?;
+        result.set_item("primitive_normals", ndarray(py, answers.normals, &with(&[3]))?)?;
+        Ok(result)
+    }
+
+    /// Whether each ray of `rays` (as for `cast_rays`) hits anything on `[tnear, tfar]`:
+    /// bool `(...)`; an invalid ray with `invalid="miss"` is not occluded.
+    #[pyo3(signature = (rays, tnear = 0.0, tfar = f32::INFINITY, nthreads = 0, invalid = "raise"))]
+    fn test_occlusions<'py>(
+        &self,
+        py: Python<'py>,
+        rays: &Bound<'py, PyAny>,
+        tnear: f32,
+        tfar: f32,
+        nthreads: usize,
+        invalid: &str,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let invalid = InvalidRays::parse(invalid)?;
+        rays::check_interval(tnear, tfar)?;
+        let (shape, components) = rays::components(rays)?;
+        let kernel = kernel()?;
+        let occluded = py
+            .detach(|| {
+                in_pool(nthreads, || {
+                    let rays = rays::validate(shape.clone(), &components, tnear, tfar, invalid)?;
+                    drop(components);
+                    Ok(self.occlusions(&rays, kernel))
+                })
+            })
+            .map_err(|message: String| PyValueError::new_err(message))?;
+        ndarray(py, occluded, &shape)
+    }
+
+    /// `(min, max)` of the stored vertices, float32 `(3,)` each.
+    #[getter]
+    fn bounds<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> (Bound<'py, PyArray1<f32>>, Bound<'py, PyArray1<f32>>) {
+        let header = self.file.header();
+        (
+            PyArray1::from_slice(py, &header.bounds_min),
+            PyArray1::from_slice(py, &header.bounds_max),
+        )
+    }
+
+    /// The statistics `reducem inspect --json` prints, as a dict with the same keys.
+    #[getter]
+    fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let stats = py.detach(|| reducem::inspect::file_stats(&self.file));
+        let text = serde_json::to_string(&stats).map_err(reducem_error)?;
+        py.import("json")?.call_method1("loads", (text,))
+    }
+
+    /// Every stored triangle, float32 `(n, 3, 3)` (triangle, corner, axis), in file order and
+    /// input winding: the triangles `reducem decode` writes, in its order.
+    fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let corners: Vec<f32> = py.detach(|| {
+            reducem::decode::triangles(&self.file)
+                .flat_map(|triangle| triangle.into_iter().flatten())
+                .collect()
+        });
+        let count = corners.len() / 9;
+        ndarray(py, corners, &[count, 3, 3])
+    }
+
+    /// Renders the file as `reducem render` does: `scene` is a scene TOML path or a dict with
+    /// the same tables and keys (docs/SCENES.md); keyword overrides are named like the
+    /// command's flags (`width`, `height`, `antialiasing`, `camera_position` with `look_at`,
+    /// `camera_up`, `fov`, `ao_samples`, `ao_distance`, `exposure`, `up="y"`). Returns the
+    /// 8-bit sRGB image, uint8 `(height, width, 3)`.
+    #[pyo3(signature = (scene, **overrides))]
+    fn render<'py>(
+        &self,
+        py: Python<'py>,
+        scene: &Bound<'py, PyAny>,
+        overrides: Option<&Bound<'py, PyDict>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let scene = crate::render::load(scene, overrides)?;
+        let options = TraceOptions {
+            kernel: kernel()?,
+            ..TraceOptions::default()
+        };
+        let (width, height, pixels) = py.detach(|| {
+            let tracer = Tracer::new(&self.file, options);
+            let (frame, _) = reducem::render::render(&tracer, &scene);
+            let pixels = reducem::render::image::srgb_bytes(&frame);
+            (frame.width as usize, frame.height as usize, pixels)
+        });
+        ndarray(py, pixels, &[height, width, 3])
+    }
+
+    /// The file's path.
+    #[getter]
+    fn path(&self) -> PathBuf {
+        self.file.path().to_path_buf()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "reducem.Scene({:?}, triangles={})",
+            self.file.path().display().to_string(),
+            self.file.header().triangle_count
+        )
+    }
+}
+
+impl Scene {
+    fn cast(&self, rays: &Rays, kernel: Kernel) -> Answers {
+        let tracer = Tracer::new(&self.file, trace_options(kernel));
+        let index = self
+            .triangle_index
+            .get_or_init(|| TriangleIndex::new(&self.file));
+        let mut answers = Answers::misses(rays.valid.len());
+        answers
+            .t
+            .par_chunks_mut(CHUNK)
+            .zip(answers.ids.par_chunks_mut(CHUNK))
+            .zip(answers.uvs.par_chunks_mut(2 * CHUNK))
+            .zip(answers.normals.par_chunks_mut(3 * CHUNK))
+            .zip(rays.valid.par_chunks(CHUNK))
+            .for_each(|((((t, ids), uvs), normals), chunk)| {
+                let hits = tracer.intersect_chunk(chunk);
+                for (k, hit) in hits.iter().enumerate() {
+                    let Some(hit) = hit else { continue };
+                    t[k] = hit.t;
+                    ids[k] = self.primitive_id(index, hit);
+                    uvs[2 * k..2 * k + 2].copy_from_slice(&[hit.u, hit.v]);
+                    normals[3 * k..3 * k + 3].copy_from_slice(&hit.normal);
+                }
+            });
+        match &rays.positions {
+            Some(positions) => answers.placed(positions, rays.total()),
+            None => answers,
+        }
+    }
+
+    fn occlusions(&self, rays: &Rays, kernel: Kernel) -> Vec<bool> {
+        let tracer = Tracer::new(&self.file, trace_options(kernel));
+        let mut occluded = vec![false; rays.valid.len()];
+        occluded
+            .par_chunks_mut(CHUNK)
+            .zip(rays.valid.par_chunks(CHUNK))
+            .for_each(|(out, chunk)| out.copy_from_slice(&tracer.occluded_chunk(chunk)));
+        let Some(positions) = &rays.positions else {
+            return occluded;
+        };
+        let mut all = vec![false; rays.total()];
+        for (&at, answer) in positions.iter().zip(occluded) {
+            all[at] = answer;
+        }
+        all
+    }
+
+    /// The row of `triangles()` that `hit` is on (fits: see [`check_ids_fit`]).
+    fn primitive_id(&self, index: &TriangleIndex, hit: &Hit) -> u32 {
+        index
+            .position(&self.file, hit.strip, hit.window)
+            .and_then(|position| u32::try_from(position).ok())
+            .unwrap_or(NO_PRIMITIVE)
+    }
+}
+
+/// `primitive_ids` are uint32 with 4294967295 for a miss: refuses a file with more triangles.
+fn check_ids_fit(file: &ReducemFile) -> PyResult<()> {
+    let triangles = file.header().triangle_count;
+    if triangles >= u64::from(NO_PRIMITIVE) {
+        return Err(crate::errors::ReducemError::new_err(format!(
+            "{}: {triangles} triangles do not fit the uint32 primitive_ids",
+            file.path().display()
+        )));
+    }
+    Ok(())
+}
+
+/// The kernel `reducem query` uses: `REDUCEM_KERNEL`, or the fastest this CPU runs.
+fn kernel() -> PyResult<Kernel> {
+    Kernel::from_env().map_err(|error| PyValueError::new_err(error.to_string()))
+}
+
+fn trace_options(kernel: Kernel) -> TraceOptions {
+    TraceOptions {
+        kernel,
+        ..TraceOptions::default()
+    }
+}
+
+/// Runs `work` on rayon's global pool, or on a pool of `threads` threads when that is not 0.
+fn in_pool<T: Send>(
+    threads: usize,
+    work: impl FnOnce() -> Result<T, String> + Send,
+) -> Result<T, String> {
+    if threads == 0 {
+        return work();
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|error| format!("nthreads = {threads}: {error}"))?
+        .install(work)
+}
+
+/// `values` as a numpy array of `shape` (without a copy).
+fn ndarray<'py, T: numpy::Element>(
+    py: Python<'py>,
+    values: Vec<T>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyAny>> {
+    let array = Array::from_shape_vec(IxDyn(shape), values).map_err(reducem_error)?;
+    Ok(PyArray::from_owned_array(py, array).into_any())
+}
