@@ -89,7 +89,11 @@ fn config_text(args: &ConvertArgs) -> anyhow::Result<String> {
             vertices.push(format!("grid_bits = {bits}\n"));
         }
     }
-    let mut tables = [("strip", strip), ("vertices", vertices), ("chunk", Vec::new())];
+    let mut tables = [
+        ("strip", strip),
+        ("vertices", vertices),
+        ("chunk", Vec::new()),
+    ];
     let mut work_keys = String::new();
     for (key, value) in &args.settings {
         let section = SETTING_SECTIONS

@@ -1,7 +1,6 @@
 //! The `pipeline` command: converts meshes to ReduceM files (`run`, `status`, `clean`) and
 //! generates synthetic meshes (`gen`). Exit codes are a contract with cron jobs and are listed in README.md.
 
-
 use std::path::PathBuf;
 use std::process::ExitCode;
 

@@ -65,9 +65,8 @@ fn set_option(
     key: &str,
     value: &Bound<'_, PyAny>,
 ) -> PyResult<()> {
-    let invalid = |expected: &str| {
-        PyValueError::new_err(format!("{key}={value}: expected {expected}"))
-    };
+    let invalid =
+        |expected: &str| PyValueError::new_err(format!("{key}={value}: expected {expected}"));
     match key {
         "max_length" => args.max_length = Some(value.extract()?),
         "grid_bits" => args.grid_bits = Some(value.extract()?),
@@ -96,7 +95,8 @@ fn set_option(
             }
         }
         _ if SETTING_SECTIONS.iter().any(|(name, _)| *name == key) => {
-            args.settings.push((key.to_string(), toml_value(key, value)?));
+            args.settings
+                .push((key.to_string(), toml_value(key, value)?));
         }
         _ => {
             let known: Vec<&str> = ARGUMENT_KEYS

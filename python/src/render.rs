@@ -92,7 +92,9 @@ fn apply(scene: &mut Scene, overrides: &Bound<'_, PyDict>) -> PyResult<()> {
         }
     }
     let point = |key: &str| -> PyResult<Option<Point>> {
-        get(key)?.map(|value| value.extract::<[f32; 3]>()).transpose()
+        get(key)?
+            .map(|value| value.extract::<[f32; 3]>())
+            .transpose()
     };
     let camera = &mut scene.camera;
     match (point("camera_position")?, point("look_at")?) {

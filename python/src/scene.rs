@@ -39,7 +39,9 @@ pub struct Scene {
 /// Maps and validates the ReduceM file at `path`.
 #[pyfunction]
 pub fn open(py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
-    let file = py.detach(|| ReducemFile::open(&path)).map_err(format_error)?;
+    let file = py
+        .detach(|| ReducemFile::open(&path))
+        .map_err(format_error)?;
     Ok(Scene {
         file,
         triangle_index: OnceLock::new(),
@@ -116,7 +118,10 @@ impl Scene {
         result.set_item("t_hit", ndarray(py, answers.t, &shape)?)?;
         result.set_item("primitive_ids", ndarray(py, answers.ids, &shape)?)?;
         result.set_item("primitive_uvs", ndarray(py, answers.uvs, &with(&[2]))?)?;
-        result.set_item("primitive_normals", ndarray(py, answers.normals, &with(&[3]))?)?;
+        result.set_item(
+            "primitive_normals",
+            ndarray(py, answers.normals, &with(&[3]))?,
+        )?;
         Ok(result)
     }
 
