@@ -1,16 +1,17 @@
-//! numpy rays `(..., 6)` to tracer rays, validated exactly as `reducem query` validates a ray
-//! file: each ray is encoded as a ray-file record and parsed by
-//! [`reducem_core::trace::ray_file::parse_rays`], so NaN, infinite or zero directions and bad
-//! intervals are caught by the same code with the same messages, and a ray traced here is
-//! bit for bit the ray `reducem query` traces from a file of the same values.
+//! numpy rays `(..., 6)` to tracer rays, validated as `reducem query` validates a ray file
+//! ([`reducem_core::trace::ray_file::parse_rays`]): NaN or infinite components and zero
+//! directions are refused (the message of the first comes from the ray-file parser itself),
+//! and a ray traced here is bit for bit the ray `reducem query` traces from a file of the same
+//! values. Read straight from the caller's array into tracer rays, on every core, without the
+//! 32-byte records of a ray file in between.
 
 use std::path::Path;
 
-use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use rayon::prelude::*;
-use reducem_core::trace::ray_file::{self, RayFileError, RAY_BYTES};
+use reducem_core::trace::ray_file::{self, RayFileError};
 use reducem_core::trace::Ray;
 
 /// What an invalid ray does (`invalid=` of `cast_rays` and `test_occlusions`).
@@ -50,20 +51,31 @@ impl Rays {
     }
 }
 
-/// The components of `rays` as f32, in C order, with the leading shape.
-pub fn components(rays: &Bound<'_, PyAny>) -> PyResult<(Vec<usize>, Vec<f32>)> {
-    let py = rays.py();
-    let array = py.import("numpy")?.call_method1("asarray", (rays,))?;
+/// The components of rays, C-contiguous, as the caller's array holds them.
+pub enum Components<'a> {
+    F32(&'a [f32]),
+    F64(&'a [f64]),
+}
+
+/// Calls `read` with the leading shape and the components of `rays` (any array-like shaped
+/// `(..., 6)`; a C-contiguous float32 or float64 array is read in place, anything else is
+/// first made one by numpy).
+pub fn with_components<T>(
+    rays: &Bound<'_, PyAny>,
+    read: impl FnOnce(Vec<usize>, Components<'_>) -> PyResult<T>,
+) -> PyResult<T> {
+    let numpy = rays.py().import("numpy")?;
+    let array = numpy.call_method1("asarray", (rays,))?;
+    // The shape before `ascontiguousarray`, which makes a 0-d array 1-d.
+    let shape = leading_shape(&array.getattr("shape")?.extract::<Vec<usize>>()?)?;
+    let array = numpy.call_method1("ascontiguousarray", (array,))?;
     if let Ok(array) = array.cast::<PyArrayDyn<f32>>() {
-        let shape = leading_shape(array.shape())?;
         let readonly = array.readonly();
-        return Ok((shape, contiguous(readonly.as_array(), |x| x)));
+        return read(shape, Components::F32(contiguous(readonly.as_slice())?));
     }
     if let Ok(array) = array.cast::<PyArrayDyn<f64>>() {
-        let shape = leading_shape(array.shape())?;
         let readonly = array.readonly();
-        // Computed in f32, as Open3D does: the nearest f32 of each component.
-        return Ok((shape, contiguous(readonly.as_array(), |x| x as f32)));
+        return read(shape, Components::F64(contiguous(readonly.as_slice())?));
     }
     let dtype = array.getattr("dtype")?.str()?.to_string();
     Err(PyTypeError::new_err(format!(
@@ -71,15 +83,8 @@ pub fn components(rays: &Bound<'_, PyAny>) -> PyResult<(Vec<usize>, Vec<f32>)> {
     )))
 }
 
-/// The elements of `view` in C order, converted; one parallel copy when it is contiguous.
-fn contiguous<T: Copy + Sync>(
-    view: numpy::ndarray::ArrayViewD<'_, T>,
-    convert: impl Fn(T) -> f32 + Sync,
-) -> Vec<f32> {
-    match view.as_slice() {
-        Some(slice) => slice.par_iter().map(|&x| convert(x)).collect(),
-        None => view.iter().map(|&x| convert(x)).collect(),
-    }
+fn contiguous<T>(slice: Result<&[T], numpy::AsSliceError>) -> PyResult<&[T]> {
+    slice.map_err(|error| PyValueError::new_err(format!("rays: {error}")))
 }
 
 /// `shape[:-1]`, after checking that the last axis holds the six components.
@@ -114,65 +119,83 @@ pub fn check_interval(tnear: f32, tfar: f32) -> PyResult<()> {
     Ok(())
 }
 
-/// Validates the rays `components` (six per ray) on `[tnear, tfar]`. Runs without the GIL.
+/// The rays of `components` on `[tnear, tfar]` (checked by [`check_interval`]), validated.
+/// Runs without the GIL, on every core.
 pub fn validate(
     shape: Vec<usize>,
-    components: &[f32],
+    components: Components<'_>,
     tnear: f32,
     tfar: f32,
     invalid: InvalidRays,
 ) -> Result<Rays, String> {
-    let records = encode_records(components, tnear, tfar);
-    let name = Path::new("rays");
-    match ray_file::parse_rays(name, &records) {
-        Ok(valid) => Ok(Rays {
+    match components {
+        Components::F32(values) => validate_as(shape, values, |x| x, tnear, tfar, invalid),
+        // Computed in f32, as Open3D does: the nearest f32 of each component.
+        Components::F64(values) => validate_as(shape, values, |x| x as f32, tnear, tfar, invalid),
+    }
+}
+
+fn validate_as<T: Copy + Sync>(
+    shape: Vec<usize>,
+    values: &[T],
+    to_f32: impl Fn(T) -> f32 + Sync,
+    tnear: f32,
+    tfar: f32,
+    invalid: InvalidRays,
+) -> Result<Rays, String> {
+    let ray = |components: &[T]| -> [f32; 6] { std::array::from_fn(|i| to_f32(components[i])) };
+    let records = values.par_chunks_exact(6);
+    let Some(first_invalid) = records.clone().position_first(|c| !is_valid(&ray(c))) else {
+        let valid = records.map(|c| to_ray(ray(c), tnear, tfar)).collect();
+        return Ok(Rays {
             shape,
             valid,
             positions: None,
-        }),
-        Err(error) if invalid == InvalidRays::Raise => Err(describe(&error, &shape)),
-        Err(_) => {
-            let parsed: Vec<Option<Ray>> = records
-                .par_chunks_exact(RAY_BYTES)
-                .map(|record| ray_file::parse_rays(name, record).ok().map(|rays| rays[0]))
-                .collect();
-            let positions = (0..parsed.len()).filter(|&i| parsed[i].is_some()).collect();
-            Ok(Rays {
-                shape,
-                valid: parsed.into_iter().flatten().collect(),
-                positions: Some(positions),
-            })
-        }
-    }
-}
-
-/// The ray-file records of the rays, `[tnear, tfar]` each.
-fn encode_records(components: &[f32], tnear: f32, tfar: f32) -> Vec<u8> {
-    let mut records = vec![0u8; components.len() / 6 * RAY_BYTES];
-    records
-        .par_chunks_exact_mut(RAY_BYTES)
-        .zip(components.par_chunks_exact(6))
-        .for_each(|(record, ray)| {
-            let fields = ray.iter().chain([&tnear, &tfar]);
-            for (out, field) in record.chunks_exact_mut(4).zip(fields) {
-                out.copy_from_slice(&field.to_le_bytes());
-            }
         });
-    records
+    };
+    if invalid == InvalidRays::Raise {
+        let record = &values[6 * first_invalid..6 * first_invalid + 6];
+        return Err(describe(first_invalid, ray(record), tnear, tfar, &shape));
+    }
+    let (positions, valid): (Vec<usize>, Vec<Ray>) = records
+        .enumerate()
+        .filter(|(_, c)| is_valid(&ray(c)))
+        .map(|(position, c)| (position, to_ray(ray(c), tnear, tfar)))
+        .unzip();
+    Ok(Rays {
+        shape,
+        valid,
+        positions: Some(positions),
+    })
 }
 
-/// The ray parser's message, with the ray named by its index in the caller's array.
-fn describe(error: &RayFileError, shape: &[usize]) -> String {
-    match error {
-        RayFileError::Invalid { ray, detail, .. } => {
-            let detail = detail.replace("tmin", "tnear").replace("tmax", "tfar");
-            format!(
-                "ray {ray} (rays[{}]) is invalid: {detail}",
-                multi_index(*ray, shape)
-            )
-        }
-        other => other.to_string(),
+/// What [`ray_file::parse_rays`] accepts of a ray, given an interval that
+/// [`check_interval`] accepted: finite components and a non-zero direction.
+fn is_valid(ray: &[f32; 6]) -> bool {
+    ray.iter().all(|x| x.is_finite()) && ray[3..] != [0.0; 3]
+}
+
+fn to_ray([ox, oy, oz, dx, dy, dz]: [f32; 6], tmin: f32, tmax: f32) -> Ray {
+    Ray {
+        origin: [ox, oy, oz],
+        direction: [dx, dy, dz],
+        tmin,
+        tmax,
     }
+}
+
+/// Why ray `index` is invalid, in the ray parser's words (the ray is encoded as a ray-file
+/// record and parsed), named by its index in the caller's array.
+fn describe(index: usize, ray: [f32; 6], tnear: f32, tfar: f32, shape: &[usize]) -> String {
+    let record = ray_file::encode_rays(&[to_ray(ray, tnear, tfar)]);
+    let detail = match ray_file::parse_rays(Path::new("rays"), &record) {
+        Err(RayFileError::Invalid { detail, .. }) => detail,
+        _ => "rejected".to_string(),
+    };
+    format!(
+        "ray {index} (rays[{}]) is invalid: {detail}",
+        multi_index(index, shape)
+    )
 }
 
 /// The index of flat position `flat` in an array of `shape`, as `i, j, k`.

@@ -101,18 +101,17 @@ impl Scene {
     ) -> PyResult<Bound<'py, PyDict>> {
         let invalid = InvalidRays::parse(invalid)?;
         rays::check_interval(tnear, tfar)?;
-        let (shape, components) = rays::components(rays)?;
         check_ids_fit(&self.file)?;
         let kernel = kernel()?;
-        let answers = py
-            .detach(|| {
+        let (shape, answers) = rays::with_components(rays, |shape, components| {
+            let answers = py.detach(|| {
                 in_pool(nthreads, || {
-                    let rays = rays::validate(shape.clone(), &components, tnear, tfar, invalid)?;
-                    drop(components);
+                    let rays = rays::validate(shape.clone(), components, tnear, tfar, invalid)?;
                     Ok(self.cast(&rays, kernel))
                 })
-            })
-            .map_err(|message: String| PyValueError::new_err(message))?;
+            });
+            Ok((shape, answers.map_err(PyValueError::new_err)?))
+        })?;
         let result = PyDict::new(py);
         let with = |extra: &[usize]| [&shape[..], extra].concat();
         result.set_item("t_hit", ndarray(py, answers.t, &shape)?)?;
@@ -139,17 +138,16 @@ impl Scene {
     ) -> PyResult<Bound<'py, PyAny>> {
         let invalid = InvalidRays::parse(invalid)?;
         rays::check_interval(tnear, tfar)?;
-        let (shape, components) = rays::components(rays)?;
         let kernel = kernel()?;
-        let occluded = py
-            .detach(|| {
+        let (shape, occluded) = rays::with_components(rays, |shape, components| {
+            let occluded = py.detach(|| {
                 in_pool(nthreads, || {
-                    let rays = rays::validate(shape.clone(), &components, tnear, tfar, invalid)?;
-                    drop(components);
+                    let rays = rays::validate(shape.clone(), components, tnear, tfar, invalid)?;
                     Ok(self.occlusions(&rays, kernel))
                 })
-            })
-            .map_err(|message: String| PyValueError::new_err(message))?;
+            });
+            Ok((shape, occluded.map_err(PyValueError::new_err)?))
+        })?;
         ndarray(py, occluded, &shape)
     }
 
