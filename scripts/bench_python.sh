@@ -7,6 +7,13 @@
 #
 #   scripts/bench_python.sh                 # 1M-triangle scan, 1024² camera rays, 5 runs
 #   TRIANGLES=8000000 SIZE=2048 RUNS=3 scripts/bench_python.sh
+#   CALLGRIND=1 scripts/bench_python.sh     # also the binding's overhead in instructions
+#
+# Wall-clock figures move with the machine's load; CALLGRIND=1 adds the overhead of
+# `cast_rays` and `test_occlusions` over `reducem query` counted in instructions (valgrind,
+# one thread) on a 100k-ray block of the camera rays: each tool's run minus its run on one ray,
+# so that opening the file (and the binding's triangle index, built on the first query) and
+# starting the interpreter are left out.
 #
 # PYTHON is an interpreter with the package installed (`pip install ./python`) and numpy;
 # Open3D (`pip install open3d-cpu`, which needs Debian's libusb-1.0-0) and trimesh with embreex
@@ -193,3 +200,48 @@ for kind, key in (("camera", "camera_mrays"), ("ao", "ao_mrays")):
 print(f"reducem query end to end (open, read rays, trace, write): camera "
       f"{pick('query', 'wall_s', 'camera'):.3f} s, AO {pick('query', 'wall_s', 'ao'):.3f} s")
 EOF
+
+if [[ ${CALLGRIND-} == 1 ]]; then
+  "$PYTHON" - "$WORK" "$SIZE" <<'EOF'
+import sys
+import numpy as np
+work, size = sys.argv[1], int(sys.argv[2])
+side = min(size, 316)
+first = (size - side) // 2
+camera = np.load(f"{work}/camera.npy").reshape(size, size, 6)
+block = np.ascontiguousarray(camera[first:first + side, first:first + side].reshape(-1, 6))
+np.save(f"{work}/block.npy", block)
+for name, rays in (("block", block), ("one", block[:1])):
+    records = np.empty((len(rays), 8), "<f4")
+    records[:, :6], records[:, 6], records[:, 7] = rays, 0, np.inf
+    records.tofile(f"{work}/{name}.rays")
+EOF
+  cat >"$WORK/callgrind.py" <<'EOF'
+import sys
+import numpy as np
+import reducem
+scene = reducem.open(sys.argv[1])
+rays = np.load(sys.argv[2])
+scene.cast_rays(rays[:1])
+if sys.argv[3] == "cast":
+    scene.cast_rays(rays)
+elif sys.argv[3] == "occluded":
+    scene.test_occlusions(rays)
+EOF
+  instructions() {
+    RAYON_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 valgrind --tool=callgrind \
+      --callgrind-out-file=/dev/null "$@" 2>&1 | grep -o 'Collected : [0-9]*' | awk '{print $3}'
+  }
+  rays=$("$PYTHON" -c 'import numpy as np, sys; print(len(np.load(sys.argv[1])))' "$WORK/block.npy")
+  query_one=$(instructions target/release/reducem query "$model" --rays "$WORK/one.rays" -o "$WORK/one.answers")
+  python_none=$(instructions "$PYTHON" "$WORK/callgrind.py" "$model" "$WORK/block.npy" none)
+  for kind in cast occluded; do
+    flag=()
+    [[ $kind == occluded ]] && flag=(--occluded)
+    query=$(instructions target/release/reducem query "$model" --rays "$WORK/block.rays" \
+      -o "$WORK/block.answers" "${flag[@]}")
+    python=$(instructions "$PYTHON" "$WORK/callgrind.py" "$model" "$WORK/block.npy" "$kind")
+    awk -v kind="$kind" -v n="$rays" -v q=$((query - query_one)) -v p=$((python - python_none)) \
+      'BEGIN { printf "instructions per ray (%s, %d camera rays, one thread): reducem query %.0f, binding %.0f (%+.1f%%)\n", kind, n, q / n, p / n, 100 * (p / q - 1) }'
+  done
+fi
