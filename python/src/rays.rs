@@ -2,9 +2,10 @@
 //! ([`reducem_core::trace::ray_file::parse_rays`]): NaN or infinite components and zero
 //! directions are refused (the message of the first comes from the ray-file parser itself),
 //! and a ray traced here is bit for bit the ray `reducem query` traces from a file of the same
-//! values. Read straight from the caller's array into tracer rays, on every core, without the
-//! 32-byte records of a ray file in between.
+//! values. Rays are read from the caller's array as they are traced, chunk by chunk, with no
+//! ray-file records or array of tracer rays in between.
 
+use std::ops::Range;
 use std::path::Path;
 
 use numpy::{PyArrayDyn, PyArrayMethods};
@@ -35,26 +36,70 @@ impl InvalidRays {
     }
 }
 
-/// The rays of one call: the valid ones, traced as one batch, and where they go.
-pub struct Rays {
-    /// Leading shape of the input (`rays.shape[:-1]`).
-    pub shape: Vec<usize>,
-    pub valid: Vec<Ray>,
-    /// With invalid rays answered as misses: the position of every valid ray in the input;
-    /// `None` when every ray is valid.
-    pub positions: Option<Vec<usize>>,
+/// The validated rays of one call.
+pub enum Rays<'a> {
+    /// Every ray is valid: read from the caller's array chunk by chunk as they are traced, so
+    /// that no array of tracer rays is allocated.
+    All {
+        components: Components<'a>,
+        tnear: f32,
+        tfar: f32,
+    },
+    /// Invalid rays answered as misses: the valid ones and their positions among `total`.
+    Valid {
+        rays: Vec<Ray>,
+        positions: Vec<usize>,
+        total: usize,
+    },
 }
 
-impl Rays {
-    pub fn total(&self) -> usize {
-        self.shape.iter().product()
+impl Rays<'_> {
+    /// Rays to trace.
+    pub fn traced(&self) -> usize {
+        match self {
+            Rays::All { components, .. } => components.len(),
+            Rays::Valid { rays, .. } => rays.len(),
+        }
+    }
+
+    /// The traced rays `range` (of `0..traced()`).
+    pub fn chunk(&self, range: Range<usize>) -> Vec<Ray> {
+        match self {
+            Rays::All {
+                components,
+                tnear,
+                tfar,
+            } => range
+                .map(|i| to_ray(components.ray(i), *tnear, *tfar))
+                .collect(),
+            Rays::Valid { rays, .. } => rays[range].to_vec(),
+        }
     }
 }
 
 /// The components of rays, C-contiguous, as the caller's array holds them.
+#[derive(Clone, Copy)]
 pub enum Components<'a> {
     F32(&'a [f32]),
     F64(&'a [f64]),
+}
+
+impl Components<'_> {
+    pub fn len(&self) -> usize {
+        match self {
+            Components::F32(values) => values.len() / 6,
+            Components::F64(values) => values.len() / 6,
+        }
+    }
+
+    /// Ray `i` in f32; float64 components are computed in f32 as Open3D does (the nearest f32
+    /// of each).
+    fn ray(&self, i: usize) -> [f32; 6] {
+        match self {
+            Components::F32(values) => std::array::from_fn(|k| values[6 * i + k]),
+            Components::F64(values) => std::array::from_fn(|k| values[6 * i + k] as f32),
+        }
+    }
 }
 
 /// Calls `read` with the leading shape and the components of `rays` (any array-like shaped
@@ -119,53 +164,41 @@ pub fn check_interval(tnear: f32, tfar: f32) -> PyResult<()> {
     Ok(())
 }
 
-/// The rays of `components` on `[tnear, tfar]` (checked by [`check_interval`]), validated.
-/// Runs without the GIL, on every core.
-pub fn validate(
-    shape: Vec<usize>,
-    components: Components<'_>,
+/// The rays of `components` on `[tnear, tfar]` (checked by [`check_interval`]), validated;
+/// `shape` names an invalid one. Runs without the GIL, on every core.
+pub fn validate<'a>(
+    shape: &[usize],
+    components: Components<'a>,
     tnear: f32,
     tfar: f32,
     invalid: InvalidRays,
-) -> Result<Rays, String> {
-    match components {
-        Components::F32(values) => validate_as(shape, values, |x| x, tnear, tfar, invalid),
-        // Computed in f32, as Open3D does: the nearest f32 of each component.
-        Components::F64(values) => validate_as(shape, values, |x| x as f32, tnear, tfar, invalid),
-    }
-}
-
-fn validate_as<T: Copy + Sync>(
-    shape: Vec<usize>,
-    values: &[T],
-    to_f32: impl Fn(T) -> f32 + Sync,
-    tnear: f32,
-    tfar: f32,
-    invalid: InvalidRays,
-) -> Result<Rays, String> {
-    let ray = |components: &[T]| -> [f32; 6] { std::array::from_fn(|i| to_f32(components[i])) };
-    let records = values.par_chunks_exact(6);
-    let Some(first_invalid) = records.clone().position_first(|c| !is_valid(&ray(c))) else {
-        let valid = records.map(|c| to_ray(ray(c), tnear, tfar)).collect();
-        return Ok(Rays {
-            shape,
-            valid,
-            positions: None,
+) -> Result<Rays<'a>, String> {
+    let all = 0..components.len();
+    let first_invalid = all
+        .clone()
+        .into_par_iter()
+        .position_first(|i| !is_valid(&components.ray(i)));
+    let Some(first_invalid) = first_invalid else {
+        return Ok(Rays::All {
+            components,
+            tnear,
+            tfar,
         });
     };
     if invalid == InvalidRays::Raise {
-        let record = &values[6 * first_invalid..6 * first_invalid + 6];
-        return Err(describe(first_invalid, ray(record), tnear, tfar, &shape));
+        let ray = components.ray(first_invalid);
+        return Err(describe(first_invalid, ray, tnear, tfar, shape));
     }
-    let (positions, valid): (Vec<usize>, Vec<Ray>) = records
-        .enumerate()
-        .filter(|(_, c)| is_valid(&ray(c)))
-        .map(|(position, c)| (position, to_ray(ray(c), tnear, tfar)))
+    let (positions, rays): (Vec<usize>, Vec<Ray>) = all
+        .into_par_iter()
+        .map(|i| (i, components.ray(i)))
+        .filter(|(_, ray)| is_valid(ray))
+        .map(|(i, ray)| (i, to_ray(ray, tnear, tfar)))
         .unzip();
-    Ok(Rays {
-        shape,
-        valid,
-        positions: Some(positions),
+    Ok(Rays::Valid {
+        rays,
+        positions,
+        total: components.len(),
     })
 }
 

@@ -106,7 +106,7 @@ impl Scene {
         let (shape, answers) = rays::with_components(rays, |shape, components| {
             let answers = py.detach(|| {
                 in_pool(nthreads, || {
-                    let rays = rays::validate(shape.clone(), components, tnear, tfar, invalid)?;
+                    let rays = rays::validate(&shape, components, tnear, tfar, invalid)?;
                     Ok(self.cast(&rays, kernel))
                 })
             });
@@ -142,7 +142,7 @@ impl Scene {
         let (shape, occluded) = rays::with_components(rays, |shape, components| {
             let occluded = py.detach(|| {
                 in_pool(nthreads, || {
-                    let rays = rays::validate(shape.clone(), components, tnear, tfar, invalid)?;
+                    let rays = rays::validate(&shape, components, tnear, tfar, invalid)?;
                     Ok(self.occlusions(&rays, kernel))
                 })
             });
@@ -231,16 +231,17 @@ impl Scene {
         let index = self
             .triangle_index
             .get_or_init(|| TriangleIndex::new(&self.file));
-        let mut answers = Answers::misses(rays.valid.len());
+        let mut answers = Answers::misses(rays.traced());
         answers
             .t
             .par_chunks_mut(CHUNK)
             .zip(answers.ids.par_chunks_mut(CHUNK))
             .zip(answers.uvs.par_chunks_mut(2 * CHUNK))
             .zip(answers.normals.par_chunks_mut(3 * CHUNK))
-            .zip(rays.valid.par_chunks(CHUNK))
-            .for_each(|((((t, ids), uvs), normals), chunk)| {
-                let hits = tracer.intersect_chunk(chunk);
+            .enumerate()
+            .for_each(|(chunk, (((t, ids), uvs), normals))| {
+                let first = chunk * CHUNK;
+                let hits = tracer.intersect_chunk(&rays.chunk(first..first + t.len()));
                 for (k, hit) in hits.iter().enumerate() {
                     let Some(hit) = hit else { continue };
                     t[k] = hit.t;
@@ -249,23 +250,32 @@ impl Scene {
                     normals[3 * k..3 * k + 3].copy_from_slice(&hit.normal);
                 }
             });
-        match &rays.positions {
-            Some(positions) => answers.placed(positions, rays.total()),
-            None => answers,
+        match rays {
+            Rays::Valid {
+                positions, total, ..
+            } => answers.placed(positions, *total),
+            Rays::All { .. } => answers,
         }
     }
 
     fn occlusions(&self, rays: &Rays, kernel: Kernel) -> Vec<bool> {
         let tracer = Tracer::new(&self.file, trace_options(kernel));
-        let mut occluded = vec![false; rays.valid.len()];
+        let mut occluded = vec![false; rays.traced()];
         occluded
             .par_chunks_mut(CHUNK)
-            .zip(rays.valid.par_chunks(CHUNK))
-            .for_each(|(out, chunk)| out.copy_from_slice(&tracer.occluded_chunk(chunk)));
-        let Some(positions) = &rays.positions else {
+            .enumerate()
+            .for_each(|(chunk, out)| {
+                let first = chunk * CHUNK;
+                let answers = tracer.occluded_chunk(&rays.chunk(first..first + out.len()));
+                out.copy_from_slice(&answers);
+            });
+        let Rays::Valid {
+            positions, total, ..
+        } = rays
+        else {
             return occluded;
         };
-        let mut all = vec![false; rays.total()];
+        let mut all = vec![false; *total];
         for (&at, answer) in positions.iter().zip(occluded) {
             all[at] = answer;
         }
