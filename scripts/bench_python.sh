@@ -195,8 +195,9 @@ for engine, label in names.items():
               f"{pick(engine, 'scene_mb'):>10.0f}{pick(engine, 'peak_mb'):>9.0f}")
 for kind, key in (("camera", "camera_mrays"), ("ao", "ao_mrays")):
     cli, binding = pick("query", "mrays", kind), pick("reducem", key)
-    print(f"binding overhead on {kind} rays: {100 * (cli / binding - 1):+.1f}% "
-          f"(trace time of cast_rays/test_occlusions against reducem query's)")
+    print(f"binding overhead on {kind} rays: {100 * (cli / binding - 1):+.1f}% (the whole "
+          f"cast_rays/test_occlusions call against the tracing alone of reducem query, "
+          f"its summary's seconds, which leave out reading and checking the rays)")
 print(f"reducem query end to end (open, read rays, trace, write): camera "
       f"{pick('query', 'wall_s', 'camera'):.3f} s, AO {pick('query', 'wall_s', 'ao'):.3f} s")
 EOF
