@@ -16,7 +16,7 @@
 #
 #   scripts/bench_outofcore.sh
 #   MODEL=/work/big/scan300m.rdm BUDGETS="4 3" SIZES="512 1024" AO_SAMPLES=4 RUNS=3 scripts/bench_outofcore.sh
-#   HINTS=0 ...  disables the reader's madvise hints (REDUCEM_MADVISE=0) for comparison
+#   REDUCEM=/path/to/another/reducem ... compares another build (e.g. one without a paging hint)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -29,7 +29,7 @@ RAYS_DIR=${RAYS_DIR:-$(dirname "$MODEL")/rays-$(basename "$MODEL" .rdm)-ao$AO_SA
 MIN_UNLOCKED_GIB=3
 
 cargo build --release --quiet --bin reducem --example bench_trace
-REDUCEM=target/release/reducem
+REDUCEM=${REDUCEM:-target/release/reducem}
 WORK=$(mktemp -d)
 BALLOON_PID=""
 
@@ -44,9 +44,11 @@ trap 'release_balloon; rm -rf "$WORK"' EXIT
 trap 'exit 130' INT TERM HUP
 
 # The balloon: locks anonymous memory 256 MiB at a time until only BUDGET GiB stay available,
-# then reports how much it holds and sleeps until killed.
+# reports how much it holds, then keeps the budget while the benchmark runs: it locks more when
+# other processes free memory and unlocks when they need it, so the machine's available memory
+# stays within a chunk of BUDGET (never below the 3 GiB floor checked before it starts).
 cat > "$WORK/balloon.py" <<'EOF'
-import ctypes, mmap, signal, sys
+import ctypes, mmap, signal, sys, time
 libc = ctypes.CDLL("libc.so.6", use_errno=True)
 libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG: die with the script, whatever kills it
 budget = int(float(sys.argv[1]) * 2**30)
@@ -56,14 +58,22 @@ def available():
         if line.startswith("MemAvailable:"):
             return int(line.split()[1]) * 1024
 held = []
-while available() - chunk > budget:
-    block = mmap.mmap(-1, chunk, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
-    address = ctypes.addressof(ctypes.c_char.from_buffer(block))
-    if libc.mlock(ctypes.c_void_p(address), ctypes.c_size_t(chunk)) != 0:
-        sys.exit("mlock failed: errno %d (ulimit -l, or run as root)" % ctypes.get_errno())
-    held.append(block)
+def adjust():
+    while available() - chunk > budget:
+        block = mmap.mmap(-1, chunk, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
+        view = ctypes.c_char.from_buffer(block)
+        address = ctypes.addressof(view)
+        del view  # release the export, so that the block can be closed (unmapped) later
+        if libc.mlock(ctypes.c_void_p(address), ctypes.c_size_t(chunk)) != 0:
+            sys.exit("mlock failed: errno %d (ulimit -l, or run as root)" % ctypes.get_errno())
+        held.append(block)
+    while held and available() < budget - chunk:
+        held.pop().close()
+adjust()
 print("locked %.1f GiB, %.1f GiB available" % (len(held) * chunk / 2**30, available() / 2**30), flush=True)
-signal.pause()
+while True:
+    time.sleep(0.2)
+    adjust()
 EOF
 
 # One measured run: prints "mrays wall majflt read_bytes maxrss_kib".
@@ -112,6 +122,7 @@ for budget in unconstrained $BUDGETS; do
             echo "budget $budget GiB refused: at least $MIN_UNLOCKED_GIB GiB stay unlocked" >&2
             continue
         fi
+        rm -f "$WORK/balloon.out"
         python3 "$WORK/balloon.py" "$budget" > "$WORK/balloon.out" &
         BALLOON_PID=$!
         until [ -s "$WORK/balloon.out" ] || ! kill -0 "$BALLOON_PID" 2>/dev/null; do sleep 0.5; done

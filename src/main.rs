@@ -312,6 +312,7 @@ fn query(
         || ReducemFile::open(path),
     );
     let (rays, file) = (rays?, file?);
+    file.advise_batch(rays.valid.len());
     let options = TraceOptions {
         kernel,
         ..TraceOptions::default()

@@ -45,6 +45,11 @@ pub use validate::VALIDATION_WINDOW;
 /// well under a millisecond, and a small model is then rejected at open as a whole.
 pub const EAGER_VALIDATION_BYTES: u64 = 1 << 20;
 
+/// A batch of fewer rays than one per this many bytes of the file reads it as scattered pages
+/// ([`ReducemFile::advise_batch`]): between the measured crossover of 10,000 to 100,000 rays on
+/// a 5.5 GiB file.
+pub const SCATTERED_BATCH_BYTES_PER_RAY: u64 = 256 << 10;
+
 /// When the strips of a file are validated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Validation {
@@ -213,6 +218,24 @@ impl ReducemFile {
     /// resident set after a frame is only the pages rays really reached.
     pub fn open_with(path: &Path, validation: Validation) -> Result<ReducemFile, FormatError> {
         validate::open(path, Some(validation))
+    }
+
+    /// Tells the kernel how a batch of `rays` rays will read the file: a batch small for the
+    /// file (fewer than one ray per [`SCATTERED_BATCH_BYTES_PER_RAY`]) touches scattered pages,
+    /// so each page fault should read its page alone; a larger batch keeps the default
+    /// read-around, which streams the many pages it needs faster than page-by-page faults.
+    ///
+    /// Measured on the 300M-triangle scan (5.5 GiB, 8 MiB read-ahead, page cache cold,
+    /// `reducem query --occluded` of spread AO rays): 1 ray 0.25–0.57 s by default, 0.03 s
+    /// advised; 1,000 rays 4.9–6.0 s against 0.7–0.8 s; 10,000 rays 6.1–6.7 s against 4.8–5.2 s;
+    /// 100,000 rays 5.8–7.8 s against 18–21 s. The same frame-sized batches under a page-cache
+    /// budget were also slower advised (a 1024² primary frame warm with 4 GiB: 6.3 s against
+    /// 11.5 s), and advising the nodes "will need" (reading them all ahead) gained nothing
+    /// measurable (`scripts/bench_outofcore.sh`).
+    pub fn advise_batch(&self, rays: usize) {
+        if (rays as u64).saturating_mul(SCATTERED_BATCH_BYTES_PER_RAY) < self.file_bytes() {
+            crate::mapping::advise_scattered_reads(&self.map);
+        }
     }
 
     /// Node `index` of `nodes`, this file's [`ReducemFile::top_nodes`], when it may be
