@@ -142,8 +142,11 @@ fn rays_clear_of(file: &ReducemFile, rays: &[Ray], strip: usize) -> Vec<Ray> {
     rays.iter().copied().filter(misses).collect()
 }
 
+/// One tracer configuration's closest hits (as bits) and occlusion answers.
+type Answers = (Vec<Option<[u32; 8]>>, Vec<bool>);
+
 /// Closest hits and occlusion answers of `rays` for every tracer configuration.
-fn answers(file: &ReducemFile, rays: &[Ray]) -> Vec<(Vec<Option<[u32; 8]>>, Vec<bool>)> {
+fn answers(file: &ReducemFile, rays: &[Ray]) -> Vec<Answers> {
     tracer_variants(file)
         .iter()
         .map(|(_, tracer)| {
