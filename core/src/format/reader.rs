@@ -4,14 +4,15 @@
 //! (`reader/validate.rs`), and a short or inconsistent file is an error, never a default. It
 //! happens in one of two ways ([`Validation`]):
 //! * in full at open: one linear pass over records, references and nodes;
-//! * lazily, for a model larger than [`EAGER_VALIDATION_BYTES`]: opening checks the header, the
-//!   section table and the top-level nodes, and each strip is checked the first time it is
-//!   viewed (`reader/lazy.rs`), so that opening does not read the whole model before the first
-//!   ray. A strip found corrupt then reads as a strip without triangles and the defect is kept
-//!   ([`ReducemFile::defect`]) for the caller to report.
+//! * lazily, for a model larger than [`EAGER_VALIDATION_BYTES`]: opening checks the header and
+//!   the section table, and each strip and top-level node is checked the first time traversal
+//!   uses it (`reader/lazy.rs`), so that opening does not read the whole model before the first
+//!   ray. A strip found corrupt then reads as a strip without triangles, a node as one every
+//!   ray misses, and the defect is kept ([`ReducemFile::defect`]) for the caller to report.
 //!
 //! Either way, traversal can index the mapping through the views here ([`ReducemFile::strip`],
-//! [`ReducemFile::top_nodes`]) and cannot read out of bounds, even on a crafted file. Checksums
+//! [`ReducemFile::top_nodes`] through [`ReducemFile::top_node`]) and cannot read out of bounds
+//! or loop, even on a crafted file. Checksums
 //! are verified only on request ([`ReducemFile::verify_checksums`]), since hashing pages in the
 //! whole file.
 //!
@@ -42,7 +43,7 @@ use lazy::LazyChecks;
 pub use validate::VALIDATION_WINDOW;
 
 /// Files up to this size are validated in full when opened by [`ReducemFile::open`]: it costs
-/// well under a millisecond, and a small model is then rejected at open as a whole.
+/// about a millisecond at most, and a corrupt small model is then rejected at open.
 pub const EAGER_VALIDATION_BYTES: u64 = 1 << 20;
 
 /// A batch of fewer rays than one per this many bytes of the file reads it as scattered pages
@@ -57,8 +58,8 @@ pub enum Validation {
     /// fails on any structural defect. What `reducem inspect` and the pipeline's final check
     /// use.
     Full,
-    /// The header, the section table and the top-level nodes at open; each strip the first
-    /// time it is viewed. Opening costs the same for any model size.
+    /// The header and the section table at open; each strip and top-level node the first time
+    /// traversal uses it. Opening costs the same for any model size.
     Lazy,
 }
 

@@ -1,6 +1,6 @@
-//! Validation of a file: header and section table first ([`Checker`]), then the top-level
-//! nodes and (in a full validation) every strip record and block through bounded windows of the
-//! file ([`Windows`]), or one strip at a time on first view ([`check_strip`]), so that every
+//! Validation of a file: header and section table first ([`Checker`]), then either every
+//! top-level node, strip record and block through bounded windows of the file ([`Windows`]), or
+//! one strip or node at a time on first use ([`check_strip`], [`check_node`]), so that every
 //! view in [`super`] stays in bounds.
 
 use std::fs::File;
@@ -64,8 +64,8 @@ pub(super) fn open(
     let checks = match validation {
         Validation::Full => LazyChecks::new(Passed::all(), Passed::all()),
         Validation::Lazy => {
-            let nodes =
-                (sections[0].end - sections[0].start) as u64 / node_bytes(node_grid.is_some());
+            let node_section = &sections[section_slot(SectionKind::TopNodes)];
+            let nodes = node_section.len() as u64 / node_bytes(node_grid.is_some());
             LazyChecks::new(Passed::none_of(header.strip_count), Passed::none_of(nodes))
         }
     };
