@@ -8,7 +8,7 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use reducem::atomic;
 use reducem::exit_code::{self, UsageError};
-use reducem::format::reader::{FormatError, ReducemFile};
+use reducem::format::reader::{FormatError, ReducemFile, Validation};
 use reducem::geometry::Point;
 use reducem::render::image::ImageFormat;
 use reducem::render::scene::Scene;
@@ -232,7 +232,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Inspect { file, json, verify } => inspect(&file, json, verify),
         Command::Decode { file, output } => {
             check_output(&output, &[&file])?;
-            let opened = ReducemFile::open(&file)?;
+            let opened = ReducemFile::open_with(&file, Validation::Full)?;
             reducem::decode::write_ply(&opened, &output)
                 .with_context(|| format!("writing {}", output.display()))
         }
@@ -312,6 +312,7 @@ fn query(
         || ReducemFile::open(path),
     );
     let (rays, file) = (rays?, file?);
+    file.advise_batch(rays.valid.len());
     let options = TraceOptions {
         kernel,
         ..TraceOptions::default()
@@ -324,6 +325,7 @@ fn query(
         ray_file::trace_hits(&tracer, &rays.valid)
     };
     let seconds = started.elapsed().as_secs_f64();
+    complete(&file)?;
     let hits = count_hits(&traced, occluded);
     let bytes = rays.place(traced, occluded);
     ray_file::write_atomically(output, &bytes)
@@ -485,6 +487,7 @@ fn render(
     };
     let tracer = Tracer::new(&file, options);
     let (frame, report) = reducem::render::render(&tracer, scene);
+    complete(&file)?;
     reducem::render::image::write_image(&frame, output, format)?;
     if json {
         println!("{}", serde_json::to_string(&report)?);
@@ -494,8 +497,15 @@ fn render(
     Ok(())
 }
 
+/// Fails when the traced rays met a corrupt strip or node of a lazily opened file: their
+/// answers are incomplete, so nothing is written (exit code 65, naming the file and byte).
+fn complete(file: &ReducemFile) -> Result<(), FormatError> {
+    file.defect().map_or(Ok(()), Err)
+}
+
 fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<()> {
-    let file = ReducemFile::open(path)?;
+    // The statistics walk every strip anyway: validating them all first costs little more.
+    let file = ReducemFile::open_with(path, Validation::Full)?;
     if verify {
         file.verify_checksums()?;
     }

@@ -33,3 +33,12 @@ pub fn map_range(file: &File, offset: u64, length: usize) -> io::Result<Mmap> {
     // SAFETY: see the function documentation; files are replaced by rename, never in place.
     unsafe { options.map(file) }
 }
+
+/// Advises the kernel that `map` will be read at scattered pages (madvise random): a page fault
+/// then reads the page alone instead of the read-around window (`read_ahead_kb` of the device,
+/// 128 KiB by default, 8 MiB on some virtual disks) around it.
+pub fn advise_scattered_reads(map: &Mmap) {
+    // A hint only: a kernel that refuses it pages as it would have without, so the error has no
+    // consequence for correctness.
+    let _ = map.advise(memmap2::Advice::Random);
+}

@@ -1,18 +1,28 @@
-//! Opens a ReduceM file by mapping it and validating it once, and views it in place.
+//! Opens a ReduceM file by mapping it, validates it, and views it in place.
 //!
-//! Opening is cheap (one linear pass over records, references and nodes, no copy of the
-//! geometry) and strict: every offset, count, index and child link is checked
-//! (`reader/validate.rs`), and a short or inconsistent file is an error, never a default. After a
-//! successful open, traversal can index the mapping through the views here
-//! ([`ReducemFile::strip`], [`ReducemFile::top_nodes`]) without further checks and cannot read
-//! out of bounds, even on a crafted file. Checksums are verified only on request
-//! ([`ReducemFile::verify_checksums`]), since hashing pages in the whole file.
+//! Validation is strict: every offset, count, index and child link is checked
+//! (`reader/validate.rs`), and a short or inconsistent file is an error, never a default. It
+//! happens in one of two ways ([`Validation`]):
+//! * in full at open: one linear pass over records, references and nodes;
+//! * lazily, for a model larger than [`EAGER_VALIDATION_BYTES`]: opening checks the header and
+//!   the section table, and each strip and top-level node is checked the first time traversal
+//!   uses it (`reader/lazy.rs`), so that opening does not read the whole model before the first
+//!   ray. A strip found corrupt then reads as a strip without triangles, a node as one every
+//!   ray misses, and the defect is kept ([`ReducemFile::defect`]) for the caller to report.
+//!
+//! Either way, traversal can index the mapping through the views here ([`ReducemFile::strip`],
+//! [`ReducemFile::top_nodes`] through [`ReducemFile::top_node`]) and cannot read out of bounds
+//! or loop, even on a crafted file. Checksums
+//! are verified only on request ([`ReducemFile::verify_checksums`]), since hashing pages in the
+//! whole file.
 //!
 //! This module is the read side: it depends on the format definitions only, never on the build
 //! side, the pipeline, PLY input, progress or channel code.
 
+mod lazy;
 mod validate;
 
+use std::fs::File;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -28,8 +38,30 @@ use super::{
     F32_VERTEX_BYTES,
 };
 use crate::geometry::Point;
+use lazy::LazyChecks;
 
 pub use validate::VALIDATION_WINDOW;
+
+/// Files up to this size are validated in full when opened by [`ReducemFile::open`]: it costs
+/// about a millisecond at most, and a corrupt small model is then rejected at open.
+pub const EAGER_VALIDATION_BYTES: u64 = 1 << 20;
+
+/// A batch of fewer rays than one per this many bytes of the file reads it as scattered pages
+/// ([`ReducemFile::advise_batch`]): between the measured crossover of 10,000 to 100,000 rays on
+/// a 5.5 GiB file.
+pub const SCATTERED_BATCH_BYTES_PER_RAY: u64 = 256 << 10;
+
+/// When the strips of a file are validated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Validation {
+    /// Every strip and node at open, and the triangle count against the header: the open
+    /// fails on any structural defect. What `reducem inspect` and the pipeline's final check
+    /// use.
+    Full,
+    /// The header and the section table at open; each strip and top-level node the first time
+    /// traversal uses it. Opening costs the same for any model size.
+    Lazy,
+}
 
 /// Why a file could not be opened, with the file and the byte offset of the defect.
 #[derive(Debug, thiserror::Error)]
@@ -52,6 +84,8 @@ pub enum FormatError {
 /// A mapped, validated ReduceM file.
 pub struct ReducemFile {
     path: PathBuf,
+    /// Kept open for [`ReducemFile::validate_all`], which maps the file in bounded windows.
+    file: File,
     map: Mmap,
     header: Header,
     precision: PrecisionRecord,
@@ -59,6 +93,7 @@ pub struct ReducemFile {
     /// The grid of [`GridNode`] boxes; `None` for f32 [`TopNode`]s.
     node_grid: Option<NodeGrid>,
     sections: [Range<usize>; 3],
+    checks: LazyChecks,
 }
 
 /// The top-level nodes of a file, in the record its vertex encoding implies.
@@ -169,14 +204,82 @@ impl StripView<'_> {
 }
 
 impl ReducemFile {
-    /// Validates the file at `path` and maps it.
+    /// Maps the file at `path` and validates it: in full when it is at most
+    /// [`EAGER_VALIDATION_BYTES`], else lazily ([`Validation::Lazy`]), so that opening a large
+    /// model costs the same as a small one.
+    pub fn open(path: &Path) -> Result<ReducemFile, FormatError> {
+        validate::open(path, None)
+    }
+
+    /// Maps the file at `path` and validates it as `validation` says.
     ///
     /// Validation reads the file through bounded windows ([`VALIDATION_WINDOW`]) that are
     /// unmapped as it goes, and traversal gets a fresh mapping of the same (never modified in
-    /// place) file: opening a 6 GB model costs tens of megabytes of resident memory, and the
+    /// place) file: validating a 6 GB model costs tens of megabytes of resident memory, and the
     /// resident set after a frame is only the pages rays really reached.
-    pub fn open(path: &Path) -> Result<ReducemFile, FormatError> {
-        validate::open(path)
+    pub fn open_with(path: &Path, validation: Validation) -> Result<ReducemFile, FormatError> {
+        validate::open(path, Some(validation))
+    }
+
+    /// Tells the kernel how a batch of `rays` rays will read the file: a batch small for the
+    /// file (fewer than one ray per [`SCATTERED_BATCH_BYTES_PER_RAY`]) touches scattered pages,
+    /// so each page fault should read its page alone; a larger batch keeps the default
+    /// read-around, which streams the many pages it needs faster than page-by-page faults.
+    ///
+    /// Measured on the 300M-triangle scan (5.5 GiB, 8 MiB read-ahead, page cache cold,
+    /// `reducem query --occluded` of spread AO rays): 1 ray 0.25–0.57 s by default, 0.03 s
+    /// advised; 1,000 rays 4.9–6.0 s against 0.7–0.8 s; 10,000 rays 6.1–6.7 s against 4.8–5.2 s;
+    /// 100,000 rays 5.8–7.8 s against 18–21 s. The same frame-sized batches under a page-cache
+    /// budget were also slower advised (a 1024² primary frame warm with 4 GiB: 6.3 s against
+    /// 11.5 s), and advising the nodes "will need" (reading them all ahead) gained nothing
+    /// measurable (`scripts/bench_outofcore.sh`).
+    pub fn advise_batch(&self, rays: usize) {
+        if (rays as u64).saturating_mul(SCATTERED_BATCH_BYTES_PER_RAY) < self.file_bytes() {
+            crate::mapping::advise_scattered_reads(&self.map);
+        }
+    }
+
+    /// Node `index` of `nodes`, this file's [`ReducemFile::top_nodes`], when it may be
+    /// traversed: on a lazily opened file, the node's first visit validates it (the checks that
+    /// need no other node: slots, child links after it and inside the array, leaf strip ranges
+    /// inside the record array); a corrupt node is `None`, which traversal takes as a miss, and
+    /// the defect is kept for [`ReducemFile::defect`].
+    #[inline(always)]
+    pub fn top_node<'n, N>(&self, nodes: &'n [N], index: usize) -> Option<&'n N> {
+        if !self.checks.nodes.get(index) && !self.node_on_first_visit(index) {
+            return None;
+        }
+        nodes.get(index)
+    }
+
+    /// Validates node `index`; whether it passed. Out of line: it runs once per node.
+    #[inline(never)]
+    fn node_on_first_visit(&self, index: usize) -> bool {
+        match validate::check_node(self, index) {
+            Ok(()) => {
+                self.checks.nodes.set(index);
+                true
+            }
+            Err(defect) => {
+                self.checks.keep(defect);
+                false
+            }
+        }
+    }
+
+    /// Validates every strip and node, and the triangle count against the header, as
+    /// [`Validation::Full`] does at open: for a lazily opened file, what `reducem inspect
+    /// --verify` checks.
+    pub fn validate_all(&self) -> Result<(), FormatError> {
+        validate::validate_all(self)
+    }
+
+    /// The first defect met in a strip or top-level node viewed since a lazy open, if any: such
+    /// a strip read as having no triangles, such a node as missed, so results that reached it
+    /// are incomplete and must not be reported as complete. Always `None` after a full
+    /// validation.
+    pub fn defect(&self) -> Option<FormatError> {
+        self.checks.first_defect(&self.path)
     }
 
     pub fn path(&self) -> &Path {
@@ -226,8 +329,36 @@ impl ReducemFile {
     }
 
     /// The strip at file position `index` (`index < strip_count()`).
+    ///
+    /// On a lazily opened file, the strip's first view validates it; a corrupt strip reads as
+    /// one without triangles, and the defect is kept for [`ReducemFile::defect`].
     #[inline]
     pub fn strip(&self, index: usize) -> StripView<'_> {
+        if !self.checks.strips.get(index) {
+            return self.strip_on_first_view(index);
+        }
+        self.strip_in_place(index)
+    }
+
+    /// Validates strip `index` and views it, or the stand-in without triangles when it is
+    /// corrupt. Out of line: it runs once per strip.
+    #[inline(never)]
+    fn strip_on_first_view(&self, index: usize) -> StripView<'_> {
+        match validate::check_strip(self, index) {
+            Ok(()) => {
+                self.checks.strips.set(index);
+                self.strip_in_place(index)
+            }
+            Err(defect) => {
+                self.checks.keep(defect);
+                lazy::no_triangles()
+            }
+        }
+    }
+
+    /// The view of a strip known to be valid.
+    #[inline]
+    fn strip_in_place(&self, index: usize) -> StripView<'_> {
         strip_view(
             self.section_bytes(SectionKind::StripData),
             &self.strip_records()[index],

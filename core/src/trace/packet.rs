@@ -277,10 +277,11 @@ fn traverse_nodes<N: TraceNode>(
     loop {
         if current.mask != 0 {
             if current.kind == INTERNAL_CHILD {
-                let node = &nodes[current.child as usize];
-                if let Some(nearest) =
-                    lanes.enter_children(node, decoder, current.mask, limit, &mut stack)
-                {
+                let node = tracer.file().top_node(nodes, current.child as usize);
+                let entered = node.and_then(|n| {
+                    lanes.enter_children(n, decoder, current.mask, limit, &mut stack)
+                });
+                if let Some(nearest) = entered {
                     current = nearest;
                     continue;
                 }

@@ -204,8 +204,10 @@ fn trace_nodes<N: TraceNode>(
     let mut current = Deferred::root(query.ray);
     loop {
         if current.kind == INTERNAL_CHILD {
-            let node = &nodes[current.child as usize];
-            if let Some(nearest) = enter_children(&ray, node, decoder, query, closest, &mut stack) {
+            let node = file.top_node(nodes, current.child as usize);
+            let entered =
+                node.and_then(|n| enter_children(&ray, n, decoder, query, closest, &mut stack));
+            if let Some(nearest) = entered {
                 current = nearest;
                 continue;
             }

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use reducem::conversion::layout::{rebase_records, DataWords};
 use reducem::format::grid::NodeGrid;
-use reducem::format::reader::ReducemFile;
+use reducem::format::reader::{ReducemFile, Validation};
 use reducem::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource};
 use reducem::format::SectionKind;
 use reducem::toplevel::relocate;
@@ -59,7 +59,7 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
     let mut source = Spliced::new(job, merged, hierarchy, info.node_grid()?)?;
     write_streaming(&output, &info, &mut source)?;
     progress.advance(3);
-    ReducemFile::open(&output).context("verifying the written file")?;
+    ReducemFile::open_with(&output, Validation::Full).context("verifying the written file")?;
     job.complete(UNIT, &fingerprint, &[output.display().to_string()])?;
     let bytes = std::fs::metadata(&output)?.len();
     progress.finish(&format!(

@@ -1,6 +1,7 @@
-//! Validation of a file at open: header and section table first ([`Checker`]), then strip
-//! records and blocks and the top-level nodes through bounded windows of the file
-//! ([`Windows`]), so that every view in [`super`] stays in bounds afterwards.
+//! Validation of a file: header and section table first ([`Checker`]), then either every
+//! top-level node, strip record and block through bounded windows of the file ([`Windows`]), or
+//! one strip or node at a time on first use ([`check_strip`], [`check_node`]), so that every
+//! view in [`super`] stays in bounds.
 
 use std::fs::File;
 use std::mem::size_of;
@@ -19,11 +20,19 @@ use super::super::{
     HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH, PRECISION_CHECKSUMMED_BYTES,
     PRECISION_OFFSET, SECTION_ALIGN, TOP_WIDTH, VERSION_MAJOR,
 };
-use super::{section_slot, strip_view, FormatError, ReducemFile, StripView, VertexLayout};
+use super::lazy::{LazyChecks, Passed};
+use super::{
+    section_slot, strip_view, FormatError, ReducemFile, StripView, Validation, VertexLayout,
+    EAGER_VALIDATION_BYTES,
+};
 use crate::mapping::{map_file, map_range};
 
-/// Maps and validates the file at `path` ([`ReducemFile::open`]).
-pub(super) fn open(path: &Path) -> Result<ReducemFile, FormatError> {
+/// Maps and validates the file at `path` as `validation` says, or by its size when `None`
+/// ([`ReducemFile::open`]).
+pub(super) fn open(
+    path: &Path,
+    validation: Option<Validation>,
+) -> Result<ReducemFile, FormatError> {
     let io_error = |source| FormatError::Io {
         path: path.to_path_buf(),
         source,
@@ -48,22 +57,89 @@ pub(super) fn open(path: &Path) -> Result<ReducemFile, FormatError> {
         let detail = "the file changed size while it was being opened".to_string();
         return Err(checker.invalid("file", 0, detail));
     }
+    let validation = validation.unwrap_or(match file_len <= EAGER_VALIDATION_BYTES {
+        true => Validation::Full,
+        false => Validation::Lazy,
+    });
+    let checks = match validation {
+        Validation::Full => LazyChecks::new(Passed::all(), Passed::all()),
+        Validation::Lazy => {
+            let node_section = &sections[section_slot(SectionKind::TopNodes)];
+            let nodes = node_section.len() as u64 / node_bytes(node_grid.is_some());
+            LazyChecks::new(Passed::none_of(header.strip_count), Passed::none_of(nodes))
+        }
+    };
     let opened = ReducemFile {
         path: path.to_path_buf(),
+        file,
         map,
         header,
         precision,
         layout,
         node_grid,
         sections,
+        checks,
     };
-    let windows = Windows {
-        file: &file,
-        opened: &opened,
-    };
-    windows.validate_strips()?;
-    windows.validate_nodes()?;
+    let windows = Windows { opened: &opened };
+    windows.check_strip_count()?;
+    if validation == Validation::Full {
+        windows.validate_strips()?;
+        windows.validate_nodes()?;
+    }
     Ok(opened)
+}
+
+/// Validates every strip and node of an opened file ([`ReducemFile::validate_all`]).
+pub(super) fn validate_all(opened: &ReducemFile) -> Result<(), FormatError> {
+    let windows = Windows { opened };
+    windows.validate_strips()?;
+    windows.validate_nodes()
+}
+
+/// Validates node `index` of a lazily opened file alone ([`TreeCheck::check`] without the
+/// bookkeeping across nodes).
+pub(super) fn check_node(opened: &ReducemFile, index: usize) -> Result<(), FormatError> {
+    match opened.node_grid {
+        None => check_node_of::<TopNode>(opened, index),
+        Some(_) => check_node_of::<GridNode>(opened, index),
+    }
+}
+
+fn check_node_of<N: NodeRecord>(opened: &ReducemFile, index: usize) -> Result<(), FormatError> {
+    let nodes: &[N] = bytemuck::cast_slice(opened.section_bytes(SectionKind::TopNodes));
+    let mut tree = TreeCheck::alone(opened, nodes.len(), size_of::<N>() as u64);
+    match nodes.get(index) {
+        Some(node) => tree.check(index, node),
+        None => {
+            let detail = format!("node {index} outside 0..{}", nodes.len());
+            Err(tree.fail(0, 0, detail))
+        }
+    }
+}
+
+/// Validates strip `index` of a lazily opened file in the mapping: its record, its block's
+/// bounds, reference indices and split axes, as [`Windows::validate_strips`] does.
+pub(super) fn check_strip(opened: &ReducemFile, index: usize) -> Result<(), FormatError> {
+    let Some(record) = opened.strip_records().get(index) else {
+        let strips = opened.strip_count();
+        let detail = format!("strip {index} outside 0..{strips}");
+        return Err(opened.invalid(
+            "strip_records",
+            opened.section_offset(SectionKind::StripRecords),
+            detail,
+        ));
+    };
+    let data = opened.section_bytes(SectionKind::StripData);
+    let data_len = data.len() as u64;
+    let shape = BlockShape {
+        leaf_windows: opened.leaf_windows(),
+        layout: opened.layout,
+    };
+    shape
+        .extent(record, data_len)
+        .and_then(|_| shape.check(data, 0, record, data_len))
+        .map(|_| ())
+        .map_err(|defect| strip_error(opened, index, defect))
 }
 
 /// Bytes of the file mapped at a time while validating.
@@ -71,13 +147,12 @@ pub const VALIDATION_WINDOW: usize = 64 << 20;
 
 /// Validation of the sections through bounded windows of the file.
 struct Windows<'a> {
-    file: &'a File,
     opened: &'a ReducemFile,
 }
 
 impl Windows<'_> {
     fn map(&self, offset: u64, length: usize) -> Result<Mmap, FormatError> {
-        map_range(self.file, offset, length).map_err(|source| FormatError::Io {
+        map_range(&self.opened.file, offset, length).map_err(|source| FormatError::Io {
             path: self.opened.path.clone(),
             source,
         })
@@ -88,9 +163,8 @@ impl Windows<'_> {
         range.start as u64..range.end as u64
     }
 
-    /// Checks every strip record, its block bounds, reference indices and split axes, and that
-    /// the real triangles add up to the header's count.
-    fn validate_strips(&self) -> Result<(), FormatError> {
+    /// Checks that the record section holds as many records as the header says strips.
+    fn check_strip_count(&self) -> Result<(), FormatError> {
         let opened = self.opened;
         let records = self.section(SectionKind::StripRecords);
         let count = (records.end - records.start) / RECORD_BYTES;
@@ -104,6 +178,15 @@ impl Windows<'_> {
                 ),
             ));
         }
+        Ok(())
+    }
+
+    /// Checks every strip record, its block bounds, reference indices and split axes, and that
+    /// the real triangles add up to the header's count.
+    fn validate_strips(&self) -> Result<(), FormatError> {
+        let opened = self.opened;
+        let records = self.section(SectionKind::StripRecords);
+        let count = opened.header.strip_count;
         let batch = (VALIDATION_WINDOW as u64 / RECORD_BYTES).max(1);
         let mut triangles = 0;
         for first in (0..count).step_by(batch as usize) {
@@ -143,7 +226,7 @@ impl Windows<'_> {
         while start < records.len() {
             let mut span = shape
                 .extent(&records[start], data_len)
-                .map_err(|defect| self.strip_error(first + start, defect))?;
+                .map_err(|defect| strip_error(self.opened, first + start, defect))?;
             let mut end = start + 1;
             while let Some(next) = records.get(end) {
                 let Ok(block) = shape.extent(next, data_len) else {
@@ -163,21 +246,12 @@ impl Windows<'_> {
                 .map(|(i, record)| {
                     shape
                         .check(&window, span.start, record, data_len)
-                        .map_err(|defect| self.strip_error(first + start + i, defect))
+                        .map_err(|defect| strip_error(self.opened, first + start + i, defect))
                 })
                 .try_reduce(|| 0u64, |a, b| Ok(a + b))?;
             start = end;
         }
         Ok(triangles)
-    }
-
-    fn strip_error(&self, index: usize, (offset, detail): StripDefect) -> FormatError {
-        let opened = self.opened;
-        let offset = offset.map_or(
-            opened.section_offset(SectionKind::StripRecords) + index as u64 * RECORD_BYTES,
-            |o| opened.section_offset(SectionKind::StripData) + o,
-        );
-        opened.invalid("strip_data", offset, format!("strip {index}: {detail}"))
     }
 
     /// Checks that the nodes form one tree in preorder within the depth limit, with every slot
@@ -198,6 +272,7 @@ impl Windows<'_> {
         let mut tree = TreeCheck {
             opened: self.opened,
             node_bytes,
+            nodes: count,
             depth: vec![u8::MAX; count],
             leaf_strips: 0,
         };
@@ -220,6 +295,15 @@ impl Windows<'_> {
 
 const RECORD_BYTES: u64 = std::mem::size_of::<StripRecord>() as u64;
 
+/// The error for a defect in strip `index`: at the record when the defect has no data offset.
+fn strip_error(opened: &ReducemFile, index: usize, (offset, detail): StripDefect) -> FormatError {
+    let offset = offset.map_or(
+        opened.section_offset(SectionKind::StripRecords) + index as u64 * RECORD_BYTES,
+        |o| opened.section_offset(SectionKind::StripData) + o,
+    );
+    opened.invalid("strip_data", offset, format!("strip {index}: {detail}"))
+}
+
 /// Bytes of one top-level node record: [`GridNode`] with a node grid, else [`TopNode`].
 fn node_bytes(grid_nodes: bool) -> u64 {
     match grid_nodes {
@@ -228,16 +312,31 @@ fn node_bytes(grid_nodes: bool) -> u64 {
     }
 }
 
-/// The one-parent, depth and strip-count bookkeeping of [`Windows::validate_nodes`].
+/// The node checks of [`Windows::validate_nodes`], with its one-parent, depth and strip-count
+/// bookkeeping, or of [`check_node`] without it.
 struct TreeCheck<'a> {
     opened: &'a ReducemFile,
     node_bytes: u64,
+    nodes: usize,
+    /// Each node's depth, `u8::MAX` before its parent is seen; empty when checking a node
+    /// alone.
     depth: Vec<u8>,
     /// Strips over all leaves so far.
     leaf_strips: u64,
 }
 
 impl TreeCheck<'_> {
+    /// The checks of one node that need no other node, among `nodes` nodes of `node_bytes`.
+    fn alone(opened: &ReducemFile, nodes: usize, node_bytes: u64) -> TreeCheck<'_> {
+        TreeCheck {
+            opened,
+            node_bytes,
+            nodes,
+            depth: Vec::new(),
+            leaf_strips: 0,
+        }
+    }
+
     fn fail(&self, index: usize, field: u64, detail: String) -> FormatError {
         self.opened.invalid(
             "top_nodes",
@@ -249,7 +348,7 @@ impl TreeCheck<'_> {
     }
 
     fn check<N: NodeRecord>(&mut self, index: usize, node: &N) -> Result<(), FormatError> {
-        if self.depth[index] == u8::MAX {
+        if self.depth.get(index) == Some(&u8::MAX) {
             return Err(self.fail(index, 0, "has no parent".into()));
         }
         let occupied = node.occupied();
@@ -315,10 +414,13 @@ impl TreeCheck<'_> {
         child: usize,
         field: u64,
     ) -> Result<(), FormatError> {
-        let nodes = self.depth.len();
+        let nodes = self.nodes;
         if child <= index || child >= nodes {
             let detail = format!("slot {slot}: child {child} outside {}..{nodes}", index + 1);
             return Err(self.fail(index, field, detail));
+        }
+        if self.depth.is_empty() {
+            return Ok(());
         }
         let child_depth = self.depth[index] + 1;
         if child_depth as usize > MAX_TOP_DEPTH {
