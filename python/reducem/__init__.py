@@ -1,6 +1,7 @@
 """Ray queries on ReduceM files from numpy.
 
-``reducem.open(path)`` maps and validates a ReduceM file and returns a ``Scene``, whose
+``reducem.open(path)`` maps and validates a ReduceM file (a large one part by part, as queries
+reach it) and returns a ``Scene``, whose
 ``cast_rays`` and ``test_occlusions`` follow Open3D's ``RaycastingScene`` conventions: rays shaped
 ``(..., 6)`` as ``[ox, oy, oz, dx, dy, dz]``, answers shaped like the rays' leading axes.
 Tracing runs in the native tracer, without the GIL, on all cores (or ``nthreads``), and gives

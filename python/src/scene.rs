@@ -36,7 +36,10 @@ pub struct Scene {
     triangle_index: OnceLock<TriangleIndex>,
 }
 
-/// Maps and validates the ReduceM file at `path`.
+/// Maps the ReduceM file at `path` and validates it: a file up to 1 MiB in full, a larger one
+/// its header and section table at once and each strip and node when first reached, so that
+/// opening costs the same for any model; a query that reaches a corrupt part raises
+/// `ReducemError` naming the file and byte.
 #[pyfunction]
 pub fn open(py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
     let file = py
@@ -112,6 +115,7 @@ impl Scene {
             });
             Ok((shape, answers.map_err(PyValueError::new_err)?))
         })?;
+        self.complete()?;
         let result = PyDict::new(py);
         let with = |extra: &[usize]| [&shape[..], extra].concat();
         result.set_item("t_hit", ndarray(py, answers.t, &shape)?)?;
@@ -148,6 +152,7 @@ impl Scene {
             });
             Ok((shape, occluded.map_err(PyValueError::new_err)?))
         })?;
+        self.complete()?;
         ndarray(py, occluded, &shape)
     }
 
@@ -167,6 +172,8 @@ impl Scene {
     /// The statistics `reducem inspect --json` prints, as a dict with the same keys.
     #[getter]
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        // The statistics read every strip: all of them are validated first.
+        py.detach(|| self.file.validate_all()).map_err(format_error)?;
         let stats = py.detach(|| reducem::inspect::file_stats(&self.file));
         let text = serde_json::to_string(&stats).map_err(reducem_error)?;
         py.import("json")?.call_method1("loads", (text,))
@@ -175,6 +182,7 @@ impl Scene {
     /// Every stored triangle, float32 `(n, 3, 3)` (triangle, corner, axis), in file order and
     /// input winding: the triangles `reducem decode` writes, in its order.
     fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        py.detach(|| self.file.validate_all()).map_err(format_error)?;
         let corners: Vec<f32> = py.detach(|| {
             reducem::decode::triangles(&self.file)
                 .flat_map(|triangle| triangle.into_iter().flatten())
@@ -207,6 +215,7 @@ impl Scene {
             let pixels = reducem::render::image::srgb_bytes(&frame);
             (frame.width as usize, frame.height as usize, pixels)
         });
+        self.complete()?;
         ndarray(py, pixels, &[height, width, 3])
     }
 
@@ -226,6 +235,13 @@ impl Scene {
 }
 
 impl Scene {
+    /// Fails when rays met a corrupt strip or node (the file is validated lazily, part by part
+    /// as rays reach it, when larger than 1 MiB): the answers are then incomplete, and the error
+    /// names the file and the byte, as `reducem query` does.
+    fn complete(&self) -> PyResult<()> {
+        self.file.defect().map_or(Ok(()), |defect| Err(format_error(defect)))
+    }
+
     fn cast(&self, rays: &Rays, kernel: Kernel) -> Answers {
         let tracer = Tracer::new(&self.file, trace_options(kernel));
         let index = self
