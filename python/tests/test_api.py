@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import reducem
-from conftest import camera_rays, convert, random_rays
+from conftest import camera_rays, convert, generate, random_rays
 
 
 @pytest.fixture(scope="module")
@@ -176,6 +176,29 @@ def test_corrupted_files_raise_reducem_error(scan, tmp_path):
         # Geometry bytes the reader cannot tell from valid ones: tracing must still answer.
         scene.cast_rays(random_rays(scene, count=200))
         scene.test_occlusions(random_rays(scene, count=200))
+
+
+def test_a_corrupt_part_of_a_large_file_raises_when_reached(pipeline_bin, work, tmp_path):
+    # Above 1 MiB a file is validated part by part as rays reach it: opening succeeds, and the
+    # calls that meet the corrupt strips raise, naming the file and the byte.
+    path = convert(generate(pipeline_bin, work, "scan", 100_000))
+    data = bytearray(path.read_bytes())
+    assert len(data) > 1 << 20
+    # Section table at byte 104, entries of 32 bytes; the third is the strip data.
+    entry = 104 + 2 * 32
+    offset = int.from_bytes(data[entry + 8 : entry + 16], "little")
+    length = int.from_bytes(data[entry + 16 : entry + 24], "little")
+    data[offset + length // 4 : offset + 3 * length // 4] = b"\xff" * (length // 2)
+    corrupt = tmp_path / "corrupt-strips.rdm"
+    corrupt.write_bytes(bytes(data))
+    scene = reducem.open(corrupt)
+    rays = camera_rays(scene, width=64, height=64)
+    for call in (scene.cast_rays, scene.test_occlusions):
+        with pytest.raises(reducem.ReducemError, match=r"corrupt-strips\.rdm.*byte"):
+            call(rays)
+    for read in (lambda: scene.info, scene.triangles):
+        with pytest.raises(reducem.ReducemError, match=r"corrupt-strips\.rdm.*byte"):
+            read()
 
 
 def test_bounds_info_and_triangles_match_the_tools(scan, reducem_bin, tmp_path):
