@@ -149,25 +149,21 @@ impl<'f> Tracer<'f> {
         any_hit: bool,
         mut answer: impl FnMut(usize, &Closest),
     ) {
-        let Some(order) = octant_order(rays) else {
-            for (start, group) in (0..)
-                .step_by(packet::PACKET_WIDTH)
-                .zip(rays.chunks(packet::PACKET_WIDTH))
-            {
-                let closest = packet::trace_packet(self, group, any_hit);
-                for (offset, closest) in closest.iter().take(group.len()).enumerate() {
-                    answer(start + offset, closest);
-                }
-            }
-            return;
-        };
-        let mut group = ArrayVec::<Ray, { packet::PACKET_WIDTH }>::new();
-        for indices in order.chunks(packet::PACKET_WIDTH) {
-            group.clear();
-            group.extend(indices.iter().map(|&i| rays[i as usize]));
-            let closest = packet::trace_packet(self, &group, any_hit);
-            for (&index, closest) in indices.iter().zip(&closest) {
-                answer(index as usize, closest);
+        let order = octant_order(rays);
+        let ray_at = |k: usize| order.as_ref().map_or(k, |order| order[k] as usize);
+        let mut gathered = ArrayVec::<Ray, { packet::PACKET_WIDTH }>::new();
+        for start in (0..rays.len()).step_by(packet::PACKET_WIDTH) {
+            let end = (start + packet::PACKET_WIDTH).min(rays.len());
+            let group = if order.is_some() {
+                gathered.clear();
+                gathered.extend((start..end).map(|k| rays[ray_at(k)]));
+                &gathered[..]
+            } else {
+                &rays[start..end]
+            };
+            let closest = packet::trace_packet(self, group, any_hit);
+            for (k, closest) in (start..end).zip(&closest) {
+                answer(ray_at(k), closest);
             }
         }
     }
