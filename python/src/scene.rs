@@ -102,20 +102,9 @@ impl Scene {
         nthreads: usize,
         invalid: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let invalid = InvalidRays::parse(invalid)?;
-        rays::check_interval(tnear, tfar)?;
         check_ids_fit(&self.file)?;
-        let kernel = kernel()?;
-        let (shape, answers) = rays::with_components(rays, |shape, components| {
-            let answers = py.detach(|| {
-                in_pool(nthreads, || {
-                    let rays = rays::validate(&shape, components, tnear, tfar, invalid)?;
-                    Ok(self.cast(&rays, kernel))
-                })
-            });
-            Ok((shape, answers.map_err(PyValueError::new_err)?))
-        })?;
-        self.complete()?;
+        let query = RayQuery::new(tnear, tfar, nthreads, invalid)?;
+        let (shape, answers) = self.trace(py, rays, query, Scene::cast)?;
         let result = PyDict::new(py);
         let with = |extra: &[usize]| [&shape[..], extra].concat();
         result.set_item("t_hit", ndarray(py, answers.t, &shape)?)?;
@@ -140,19 +129,8 @@ impl Scene {
         nthreads: usize,
         invalid: &str,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let invalid = InvalidRays::parse(invalid)?;
-        rays::check_interval(tnear, tfar)?;
-        let kernel = kernel()?;
-        let (shape, occluded) = rays::with_components(rays, |shape, components| {
-            let occluded = py.detach(|| {
-                in_pool(nthreads, || {
-                    let rays = rays::validate(&shape, components, tnear, tfar, invalid)?;
-                    Ok(self.occlusions(&rays, kernel))
-                })
-            });
-            Ok((shape, occluded.map_err(PyValueError::new_err)?))
-        })?;
-        self.complete()?;
+        let query = RayQuery::new(tnear, tfar, nthreads, invalid)?;
+        let (shape, occluded) = self.trace(py, rays, query, Scene::occlusions)?;
         ndarray(py, occluded, &shape)
     }
 
@@ -173,7 +151,8 @@ impl Scene {
     #[getter]
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         // The statistics read every strip: all of them are validated first.
-        py.detach(|| self.file.validate_all()).map_err(format_error)?;
+        py.detach(|| self.file.validate_all())
+            .map_err(format_error)?;
         let stats = py.detach(|| reducem::inspect::file_stats(&self.file));
         let text = serde_json::to_string(&stats).map_err(reducem_error)?;
         py.import("json")?.call_method1("loads", (text,))
@@ -182,7 +161,8 @@ impl Scene {
     /// Every stored triangle, float32 `(n, 3, 3)` (triangle, corner, axis), in file order and
     /// input winding: the triangles `reducem decode` writes, in its order.
     fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        py.detach(|| self.file.validate_all()).map_err(format_error)?;
+        py.detach(|| self.file.validate_all())
+            .map_err(format_error)?;
         let corners: Vec<f32> = py.detach(|| {
             reducem::decode::triangles(&self.file)
                 .flat_map(|triangle| triangle.into_iter().flatten())
@@ -234,12 +214,68 @@ impl Scene {
     }
 }
 
+/// How `cast_rays` and `test_occlusions` were asked to trace.
+#[derive(Clone, Copy)]
+struct RayQuery {
+    tnear: f32,
+    tfar: f32,
+    nthreads: usize,
+    invalid: InvalidRays,
+    kernel: Kernel,
+}
+
+impl RayQuery {
+    fn new(tnear: f32, tfar: f32, nthreads: usize, invalid: &str) -> PyResult<RayQuery> {
+        let invalid = InvalidRays::parse(invalid)?;
+        rays::check_interval(tnear, tfar)?;
+        Ok(RayQuery {
+            tnear,
+            tfar,
+            nthreads,
+            invalid,
+            kernel: kernel()?,
+        })
+    }
+}
+
 impl Scene {
+    /// Reads and validates `rays`, answers them with `answer` without the GIL on the query's
+    /// threads, and fails when they met a corrupt part of the file; the rays' leading shape
+    /// and the answers.
+    fn trace<T: Send>(
+        &self,
+        py: Python<'_>,
+        rays: &Bound<'_, PyAny>,
+        query: RayQuery,
+        answer: impl Fn(&Scene, &Rays, Kernel) -> T + Sync,
+    ) -> PyResult<(Vec<usize>, T)> {
+        let RayQuery {
+            tnear,
+            tfar,
+            nthreads,
+            invalid,
+            kernel,
+        } = query;
+        let traced = rays::with_components(rays, |shape, components| {
+            let answers = py.detach(|| {
+                in_pool(nthreads, || {
+                    let rays = rays::validate(&shape, components, tnear, tfar, invalid)?;
+                    Ok(answer(self, &rays, kernel))
+                })
+            });
+            Ok((shape, answers.map_err(PyValueError::new_err)?))
+        })?;
+        self.complete()?;
+        Ok(traced)
+    }
+
     /// Fails when rays met a corrupt strip or node (the file is validated lazily, part by part
     /// as rays reach it, when larger than 1 MiB): the answers are then incomplete, and the error
     /// names the file and the byte, as `reducem query` does.
     fn complete(&self) -> PyResult<()> {
-        self.file.defect().map_or(Ok(()), |defect| Err(format_error(defect)))
+        self.file
+            .defect()
+            .map_or(Ok(()), |defect| Err(format_error(defect)))
     }
 
     fn cast(&self, rays: &Rays, kernel: Kernel) -> Answers {
