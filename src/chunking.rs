@@ -291,6 +291,8 @@ pub fn local_mesh<E>(
         positions: positions_of(&distinct)?,
         triangles: local.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
         face_ids: None,
+        normals: None,
+        colors: None,
     })
 }
 

@@ -12,6 +12,12 @@ pub struct Mesh {
     /// `None` where triangle `i` is face `i`: meshes made in code and PLY files of triangles
     /// only. Pipeline chunks do not carry face ids yet (their triangles are numbered per chunk).
     pub face_ids: Option<Vec<u32>>,
+    /// Per-vertex normals, parallel to `positions`, as read (not necessarily unit length);
+    /// `None` when the input has none or they were not asked for.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Per-vertex RGBA8 colours, parallel to `positions` (alpha 255 when the input has none);
+    /// `None` when the input has none or they were not asked for.
+    pub colors: Option<Vec<[u8; 4]>>,
 }
 
 impl Mesh {

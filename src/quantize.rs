@@ -43,6 +43,8 @@ pub fn quantize_mesh(mesh: &Mesh, grid: &Grid) -> QuantizedMesh {
         positions: decoded,
         triangles: mesh.triangles.clone(),
         face_ids: mesh.face_ids.clone(),
+        normals: None,
+        colors: None,
     };
     let (welded, kept) = weld_identical_positions_kept(snapped);
     QuantizedMesh {
@@ -68,6 +70,8 @@ mod tests {
             ],
             triangles: vec![[0, 1, 2], [3, 2, 1]],
             face_ids: None,
+            normals: None,
+            colors: None,
         };
         let grid = Grid::over(
             &Aabb {

@@ -50,6 +50,8 @@ fn objects_are_merged_fanned_and_welded() {
         ],
         triangles: vec![[0, 1, 2], [0, 2, 3], [1, 4, 2]],
         face_ids: Some(vec![0, 0, 1]),
+        normals: None,
+        colors: None,
     };
     assert_eq!(mesh, expected);
 }

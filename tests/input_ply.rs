@@ -195,6 +195,8 @@ fn sample_mesh() -> Mesh {
             .collect(),
         triangles: vec![[0, 1, 2], [0, 2, 3], [0, 1, 4], [3, 2, 4]],
         face_ids: Some(vec![0, 0, 1, 2]),
+        normals: None,
+        colors: None,
     }
 }
 
@@ -516,6 +518,8 @@ fn triangle_soup_is_welded_in_first_occurrence_order() {
         ],
         triangles: vec![[0, 1, 2], [1, 3, 2], [0, 2, 4]],
         face_ids: None,
+        normals: None,
+        colors: None,
     };
     assert_eq!(mesh, expected);
 }
@@ -532,6 +536,8 @@ fn welding_compares_bits_and_keeps_unreferenced_vertices() {
         ],
         triangles: vec![[3, 1, 4]],
         face_ids: None,
+        normals: None,
+        colors: None,
     };
     let welded = weld_identical_positions(mesh);
     assert_eq!(
@@ -1225,6 +1231,8 @@ fn measure_binary_read_throughput() {
         positions,
         triangles: parallel,
         face_ids: None,
+        normals: None,
+        colors: None,
     });
     report("weld", bytes, triangles, start.elapsed().as_secs_f64());
     assert_eq!(mesh.positions.len(), 2237 * 2237);

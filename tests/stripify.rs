@@ -48,6 +48,8 @@ fn welded_soup(seed: u64, vertices: u32, triangle_count: usize) -> Mesh {
         positions,
         triangles,
         face_ids: None,
+        normals: None,
+        colors: None,
     }
 }
 
@@ -215,6 +217,8 @@ fn non_manifold_fan_edges_are_boundaries() {
         ]),
         triangles: vec![[0, 1, 2], [1, 0, 3], [1, 0, 4], [1, 5, 2]],
         face_ids: None,
+        normals: None,
+        colors: None,
     };
     let adjacency = Adjacency::build(&mesh);
     for fan_triangle in &adjacency.neighbours[..3] {
@@ -237,6 +241,8 @@ fn inconsistently_wound_neighbours_are_not_joined() {
         ]),
         triangles: vec![[0, 1, 2], [3, 1, 2]],
         face_ids: None,
+        normals: None,
+        colors: None,
     };
     let adjacency = Adjacency::build(&mesh);
     assert_eq!(adjacency.neighbours, vec![[NO_NEIGHBOUR; 3]; 2]);
@@ -251,6 +257,8 @@ fn two_sided_sliver_pair_is_one_strip() {
         positions: points(&[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
         triangles: vec![[0, 1, 2], [0, 2, 1]],
         face_ids: None,
+        normals: None,
+        colors: None,
     };
     let adjacency = Adjacency::build(&mesh);
     assert_eq!(adjacency.neighbours, vec![[1; 3], [0; 3]]);
@@ -346,6 +354,8 @@ fn all_centroids_equal_uses_median_splits() {
         positions,
         triangles,
         face_ids: None,
+        normals: None,
+        colors: None,
     };
     stripify_checked(&mesh, &defaults());
 }
@@ -394,6 +404,8 @@ fn small_mesh() -> impl Strategy<Value = Mesh> {
                 positions,
                 triangles,
                 face_ids: None,
+                normals: None,
+                colors: None,
             })
     })
 }

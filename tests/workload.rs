@@ -45,6 +45,8 @@ fn slab(yaw: f32) -> Mesh {
             .flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]])
             .collect(),
         face_ids: None,
+        normals: None,
+        colors: None,
     }
 }
 

@@ -327,6 +327,8 @@ pub fn octahedron_sphere(levels: u32) -> Mesh {
             [0, 3, 5],
         ],
         face_ids: None,
+        normals: None,
+        colors: None,
     };
     for _ in 0..levels {
         let mut midpoints = std::collections::HashMap::new();

@@ -54,6 +54,8 @@ pub fn read_mesh(path: &Path) -> io::Result<Mesh> {
         positions: bytemuck::pod_collect_to_vec::<u8, Point>(&bytes[24..positions_end]),
         triangles: bytemuck::pod_collect_to_vec::<u8, [u32; 3]>(&bytes[positions_end..]),
         face_ids: None,
+        normals: None,
+        colors: None,
     })
 }
 

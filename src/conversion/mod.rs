@@ -12,6 +12,7 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
+use crate::format::attributes::NormalEncoding;
 use crate::format::counts::WeldStats;
 use crate::format::grid::{Grid, MAX_GRID_BITS};
 use crate::format::writer::{FileInfo, WriteError};
@@ -68,6 +69,27 @@ pub struct BuildParams {
     /// records (see [`crate::format::VertexEncoding::F32GridNodes`]): 1 to 2 bytes less per
     /// triangle, about 12% slower AO rays. Grid files always have grid nodes.
     pub grid_nodes: bool,
+    /// Which attributes the file stores besides positions (none by default).
+    pub attributes: AttributeParams,
+}
+
+/// The attributes a file stores besides positions (config section `[attributes]`). Each costs
+/// nothing when off.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AttributeParams {
+    /// The input face index of every stored triangle.
+    pub face_ids: bool,
+    /// Per-vertex normals, and how they are encoded.
+    pub normals: NormalEncoding,
+    /// Per-vertex RGBA8 colours.
+    pub colors: bool,
+}
+
+impl AttributeParams {
+    /// Whether any attribute is stored.
+    pub fn any(&self) -> bool {
+        self.face_ids || self.normals != NormalEncoding::None || self.colors
+    }
 }
 
 impl Default for BuildParams {
@@ -78,6 +100,7 @@ impl Default for BuildParams {
             top_level: TopLevelParams::default(),
             grid_bits: None,
             grid_nodes: false,
+            attributes: AttributeParams::default(),
         }
     }
 }

@@ -59,6 +59,8 @@ pub fn weld_within_tolerance(mesh: Mesh, tolerance: f32) -> (Mesh, WeldStats) {
         positions: mesh.positions,
         triangles,
         face_ids: mesh.face_ids,
+        normals: None,
+        colors: None,
     };
     (compact(remapped, &representative), stats)
 }
@@ -82,6 +84,8 @@ fn compact(mesh: Mesh, representative: &[u32]) -> Mesh {
         positions,
         triangles,
         face_ids: mesh.face_ids,
+        normals: None,
+        colors: None,
     }
 }
 
@@ -202,6 +206,8 @@ mod tests {
             ],
             triangles: vec![[0, 1, 2], [3, 4, 5]],
             face_ids: None,
+            normals: None,
+            colors: None,
         };
         let (welded, stats) = weld_within_tolerance(mesh, 1e-5);
         assert_eq!(welded.positions.len(), 4);

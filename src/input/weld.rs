@@ -48,6 +48,8 @@ pub fn weld_identical_positions_kept(mesh: Mesh) -> (Mesh, Vec<u32>) {
         positions,
         triangles,
         face_ids: mesh.face_ids,
+        normals: None,
+        colors: None,
     };
     (welded, kept)
 }

@@ -139,6 +139,8 @@ pub fn icosphere(levels: u32) -> Mesh {
         positions,
         triangles,
         face_ids: None,
+        normals: None,
+        colors: None,
     }
 }
 
@@ -191,6 +193,8 @@ pub fn transformed(mesh: &Mesh, f: impl Fn(f32) -> f32) -> Mesh {
         positions: mesh.positions.iter().map(|p| p.map(&f)).collect(),
         triangles: mesh.triangles.clone(),
         face_ids: None,
+        normals: None,
+        colors: None,
     }
 }
 
@@ -349,6 +353,8 @@ pub fn quantized_input(mesh: &Mesh, bits: u32) -> (Mesh, Grid) {
             .collect(),
         triangles: mesh.triangles.clone(),
         face_ids: None,
+        normals: None,
+        colors: None,
     };
     (snapped, grid)
 }

@@ -6,6 +6,7 @@
 //! `#[repr(C)]`, little-endian, `Pod`, and has its size asserted at compile time, so the reader
 //! views the mapping in place with no pointer fix-up.
 
+pub mod attributes;
 pub mod counts;
 pub mod grid;
 pub mod implicit_tree;

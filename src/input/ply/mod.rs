@@ -168,6 +168,8 @@ impl PlyFile {
                 positions,
                 triangles,
                 face_ids: None,
+                normals: None,
+                colors: None,
             });
         }
         let face_count = self.face_count();
@@ -185,6 +187,8 @@ impl PlyFile {
             positions,
             triangles,
             face_ids: Some(face_ids),
+            normals: None,
+            colors: None,
         })
     }
 

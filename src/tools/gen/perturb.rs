@@ -15,6 +15,8 @@ pub fn perturbed_copies(mesh: &Mesh, amount: f32, seed: u64) -> Mesh {
         positions: Vec::with_capacity(3 * mesh.triangles.len()),
         triangles: Vec::with_capacity(mesh.triangles.len()),
         face_ids: None,
+        normals: None,
+        colors: None,
     };
     for triangle in &mesh.triangles {
         let base = out.positions.len() as u32;
