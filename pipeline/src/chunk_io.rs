@@ -13,9 +13,9 @@ use reducem::conversion::ChunkStats;
 use reducem::format::attribute_sections::{AttributeVisit, StripAttributes};
 use reducem::format::attributes::OctCode;
 use reducem::format::{StripRecord, TopNode};
-use reducem::strip_encoding::EncodedStrip;
 use reducem::geometry::{Aabb, Displacement, Point};
 use reducem::mesh::Mesh;
+use reducem::strip_encoding::EncodedStrip;
 
 const MESH_MAGIC: [u8; 8] = *b"RDMMESH1";
 const STRIP_MAGIC: [u8; 8] = *b"RDMSTRP2";
@@ -234,7 +234,8 @@ impl StripChunk {
     pub fn visit_attributes(&mut self, visit: &mut AttributeVisit) -> io::Result<()> {
         let records = self.records()?;
         let header = self.header;
-        let face_ids: Vec<u32> = self.read_records(header.attributes_offset(), header.face_id_count as usize)?;
+        let face_ids: Vec<u32> =
+            self.read_records(header.attributes_offset(), header.face_id_count as usize)?;
         let normals: Vec<OctCode> = self.read_records(
             header.attributes_offset() + header.face_id_count * 4,
             header.normal_count as usize,

@@ -193,15 +193,17 @@ fn encode_strips(
         .flat_map_iter(|(references, triangles)| {
             let mut pieces = Vec::new();
             encode_fitting(references, triangles, positions, leaf_windows, &mut pieces);
-            pieces.into_iter().map(move |(mut strip, references, triangles)| {
-                let normal_error = attributes.map_or(0.0, |source| {
-                    let (payload, error) =
-                        source.of_strip(references, &strip.vertex_sources, triangles);
-                    strip.attributes = payload;
-                    error
-                });
-                (strip, normal_error)
-            })
+            pieces
+                .into_iter()
+                .map(move |(mut strip, references, triangles)| {
+                    let normal_error = attributes.map_or(0.0, |source| {
+                        let (payload, error) =
+                            source.of_strip(references, &strip.vertex_sources, triangles);
+                        strip.attributes = payload;
+                        error
+                    });
+                    (strip, normal_error)
+                })
         })
         .collect();
     let vertex_count = match positions {

@@ -85,7 +85,11 @@ impl AttributeWriter {
                 Ok(())
             }
             AttributeSection::VertexGroups => {
-                let bytes: Vec<u8> = self.vertex_groups.iter().flat_map(|g| g.to_le_bytes()).collect();
+                let bytes: Vec<u8> = self
+                    .vertex_groups
+                    .iter()
+                    .flat_map(|g| g.to_le_bytes())
+                    .collect();
                 out.write_all(&bytes)
             }
         }

@@ -54,7 +54,12 @@ impl AttributeSource<'_> {
         if self.set.colors {
             attributes.colors = vertex_sources
                 .iter()
-                .map(|&v| self.mesh.colors.as_ref().map_or([255; 4], |c| c[v as usize]))
+                .map(|&v| {
+                    self.mesh
+                        .colors
+                        .as_ref()
+                        .map_or([255; 4], |c| c[v as usize])
+                })
                 .collect();
         }
         (attributes, normal_error)
@@ -67,7 +72,10 @@ impl AttributeSource<'_> {
         if !(length.is_finite() && length > 0.0) {
             return 0.0;
         }
-        angle_degrees(input.map(|c| c / length), decode_normal(code, self.set.normals))
+        angle_degrees(
+            input.map(|c| c / length),
+            decode_normal(code, self.set.normals),
+        )
     }
 
     /// The face id of every window: a real window's triangle's, a swap repeating the window

@@ -345,7 +345,11 @@ impl<'a> StripLayout<'a> {
         }
         block.resize(align_up(block.len() as u64, 4) as usize, 0);
         EncodedStrip {
-            vertex_sources: self.slots.iter().map(|&s| self.distinct[s as usize]).collect(),
+            vertex_sources: self
+                .slots
+                .iter()
+                .map(|&s| self.distinct[s as usize])
+                .collect(),
             attributes: StripAttributes::default(),
             bounds,
             vertex_count: self.slots.len() as u16,

@@ -82,7 +82,10 @@ fn entry_header(stream: &BitStream, at: u64, group_base: u32) -> Result<EntryHea
     let smallest = group_base as u64 + stream.read(after_base_width, base_width)?;
     let offset_width = stream.read(offset_width_at, OFFSET_WIDTH_BITS)? as u32;
     if offset_width > 32 {
-        return Err((offset_width_at, format!("offset width {offset_width} is above 32")));
+        return Err((
+            offset_width_at,
+            format!("offset width {offset_width} is above 32"),
+        ));
     }
     let delta_width_at = offset_width_at + OFFSET_WIDTH_BITS as u64;
     let delta_width = stream.read(delta_width_at, DELTA_WIDTH_BITS)? as u32;

@@ -19,6 +19,7 @@
 //! This module is the read side: it depends on the format definitions only, never on the build
 //! side, the pipeline, PLY input, progress or channel code.
 
+mod attributes;
 mod lazy;
 mod validate;
 
@@ -38,8 +39,10 @@ use super::{
     F32_VERTEX_BYTES,
 };
 use crate::geometry::Point;
+use attributes::AttributeSections;
 use lazy::LazyChecks;
 
+pub use attributes::VertexAttributes;
 pub use validate::VALIDATION_WINDOW;
 
 /// Files up to this size are validated in full when opened by [`ReducemFile::open`]: it costs
@@ -93,6 +96,7 @@ pub struct ReducemFile {
     /// The grid of [`GridNode`] boxes; `None` for f32 [`TopNode`]s.
     node_grid: Option<NodeGrid>,
     sections: [Range<usize>; 3],
+    attributes: AttributeSections,
     checks: LazyChecks,
 }
 

@@ -4,8 +4,8 @@
 //! about threads × one chunk ([`for_each_unit`]).
 
 use anyhow::Context;
-use reducem::strip_encoding::EncodedStrip;
 use reducem::conversion::{encode_chunk_on, ChunkLayout};
+use reducem::strip_encoding::EncodedStrip;
 use reducem::toplevel::TopLevelParams;
 
 use crate::chunk_io::{self, StripChunkHeader};
