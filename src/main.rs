@@ -601,6 +601,15 @@ fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<(
             stats.weld_displacement_rms
         );
     }
+    if stats.face_ids || stats.normals != "none" || stats.colors {
+        println!(
+            "  attributes         face ids {}, normals {} (max error {:.4} degrees), colours {}",
+            if stats.face_ids { "yes" } else { "no" },
+            stats.normals,
+            stats.normal_error_max_degrees,
+            if stats.colors { "yes" } else { "no" },
+        );
+    }
     println!(
         "  file               {} bytes, {:.2} bytes/triangle",
         stats.file_bytes, stats.bytes_per_triangle
