@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use reducem::conversion::{convert_mesh, BuildParams};
+use reducem::format::attributes::{AttributeSet, NormalEncoding};
 use reducem::mesh::Mesh;
 use reducem::trace::ray_file::encode_rays;
 use reducem::trace::Ray;
@@ -54,6 +55,20 @@ pub fn write_seeds(corpus: &Path) -> std::io::Result<()> {
     };
     convert_mesh(&octahedron_sphere(2), &quantized, &reducem.join("grid.rdm"))
         .map_err(std::io::Error::other)?;
+    let attributes = BuildParams {
+        attributes: AttributeSet {
+            face_ids: true,
+            normals: NormalEncoding::Oct16,
+            colors: true,
+        },
+        ..BuildParams::default()
+    };
+    convert_mesh(
+        &with_attributes(octahedron_sphere(2)),
+        &attributes,
+        &reducem.join("attributes.rdm"),
+    )
+    .map_err(std::io::Error::other)?;
 
     let rays = corpus.join("rays");
     std::fs::create_dir_all(&rays)?;
@@ -65,6 +80,17 @@ pub fn write_seeds(corpus: &Path) -> std::io::Result<()> {
     std::fs::write(ply.join("sphere-le.ply"), binary_ply(&mesh, false))?;
     std::fs::write(ply.join("sphere-be.ply"), binary_ply(&mesh, true))?;
     Ok(())
+}
+
+/// `mesh` with its positions as normals (the unit sphere's) and a colour per vertex.
+fn with_attributes(mut mesh: Mesh) -> Mesh {
+    mesh.normals = Some(mesh.positions.clone());
+    mesh.colors = Some(
+        (0..mesh.positions.len())
+            .map(|v| [v as u8, (v * 7) as u8, (v * 13) as u8, 255])
+            .collect(),
+    );
+    mesh
 }
 
 /// Rays on the unit sphere's hard spots: axis rays with ±0 components through vertices, a ray

@@ -212,6 +212,9 @@ fn exercise_file(file: &ReducemFile) {
         hit_bits(&expected)
     );
     assert_eq!(packets.occluded_chunk(&rays), single.occluded_chunk(&rays));
+    for hit in expected.iter().flatten() {
+        reducem::trace::hit_attributes(file, hit);
+    }
 }
 
 /// Axis-parallel rays through the centre and corners of the header's bounds, plus diagonal

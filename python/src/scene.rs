@@ -86,8 +86,9 @@ impl Answers {
 impl Scene {
     /// Closest hits of `rays` (`(..., 6)`: origin, direction; float32 or float64, traced in
     /// float32) on `[tnear, tfar]`, in units of each direction's length. Returns a dict:
-    /// `t_hit` float32 `(...)` (inf on a miss), `primitive_ids` uint32 `(...)` (the stored
-    /// triangle's row in `triangles()`; 4294967295 on a miss), `primitive_uvs` float32
+    /// `t_hit` float32 `(...)` (inf on a miss), `primitive_ids` uint32 `(...)` (the input
+    /// face id when the file stores face ids, else the stored triangle's row in `triangles()`;
+    /// 4294967295 on a miss), `primitive_uvs` float32
     /// `(..., 2)` (barycentric weights of the triangle's second and third corners),
     /// `primitive_normals` float32 `(..., 3)` (unit geometric normal in input winding, zero on
     /// a miss). `nthreads` > 0 traces on that many threads; `invalid="miss"` answers invalid
@@ -280,9 +281,13 @@ impl Scene {
 
     fn cast(&self, rays: &Rays, kernel: Kernel) -> Answers {
         let tracer = Tracer::new(&self.file, trace_options(kernel));
-        let index = self
-            .triangle_index
-            .get_or_init(|| TriangleIndex::new(&self.file));
+        let index = match self.file.attributes().face_ids {
+            true => None,
+            false => Some(
+                self.triangle_index
+                    .get_or_init(|| TriangleIndex::new(&self.file)),
+            ),
+        };
         let mut answers = Answers::misses(rays.traced());
         answers
             .t
@@ -334,8 +339,13 @@ impl Scene {
         all
     }
 
-    /// The row of `triangles()` that `hit` is on (fits: see [`check_ids_fit`]).
-    fn primitive_id(&self, index: &TriangleIndex, hit: &Hit) -> u32 {
+    /// The input face `hit` is on when the file stores face ids (no `index`), else its row
+    /// of `triangles()` (fits: see [`check_ids_fit`]).
+    fn primitive_id(&self, index: Option<&TriangleIndex>, hit: &Hit) -> u32 {
+        let Some(index) = index else {
+            let id = self.file.face_id(hit.strip as usize, hit.window as usize);
+            return id.unwrap_or(NO_PRIMITIVE);
+        };
         index
             .position(&self.file, hit.strip, hit.window)
             .and_then(|position| u32::try_from(position).ok())
