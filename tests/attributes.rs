@@ -369,3 +369,41 @@ fn crafted_attribute_sections_are_rejected_naming_the_byte() {
     );
     drop(file);
 }
+
+/// A lazily opened file finds a corrupt face id entry when a lookup reaches it: the lookup
+/// answers `None` and the defect names the section and byte, as for a corrupt strip.
+#[test]
+fn lazy_lookups_keep_attribute_defects() {
+    let mesh = coloured_sphere();
+    let path = temp_path("lazy-attributes.rdm");
+    convert_mesh(
+        &mesh,
+        &params(every_attribute(NormalEncoding::Oct16), None),
+        &path,
+    )
+    .expect("convert");
+    let file = ReducemFile::open_with(&path, Validation::Full).expect("open");
+    let groups: Vec<reducem::format::attributes::FaceIdGroup> =
+        bytemuck::pod_collect_to_vec(file.attribute_bytes(AttributeSection::FaceIdGroups));
+    let group = groups.len() / 2;
+    let ids = file.attribute_record().sections[AttributeSection::FaceIds.slot()];
+    let entry_byte = ids.offset + groups[group].bit_offset / 8;
+    let strip = group * reducem::format::attributes::GROUP_STRIPS;
+    let intact = file.face_id(0, 0);
+    assert!(intact.is_some());
+    drop(file);
+    let mut data = std::fs::read(&path).expect("read");
+    // Every bit set: a base width of 63, which no entry may have.
+    data[entry_byte as usize] = 0xff;
+    data[entry_byte as usize + 1] = 0xff;
+    let corrupt = temp_path("lazy-attributes-corrupt.rdm");
+    std::fs::write(&corrupt, &data).expect("write");
+    let file = ReducemFile::open_with(&corrupt, Validation::Lazy)
+        .expect("a lazy open reads only the header page");
+    assert_eq!(file.face_id(0, 0), intact);
+    assert!(file.defect().is_none());
+    assert_eq!(file.face_id(strip, 0), None);
+    let defect = file.defect().expect("the defect is kept").to_string();
+    assert!(defect.contains("face_ids at byte"), "{defect}");
+    assert!(ReducemFile::open_with(&corrupt, Validation::Full).is_err());
+}

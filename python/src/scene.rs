@@ -13,8 +13,9 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
+use reducem_core::format::attributes::{AttributeSet, NormalEncoding};
 use reducem_core::format::reader::ReducemFile;
-use reducem_core::trace::{Hit, Kernel, TraceOptions, Tracer};
+use reducem_core::trace::{hit_attributes, Hit, HitAttributes, Kernel, TraceOptions, Tracer};
 use reducem_core::triangle_index::TriangleIndex;
 
 use crate::errors::{format_error, reducem_error};
@@ -57,26 +58,40 @@ struct Answers {
     ids: Vec<u32>,
     uvs: Vec<f32>,
     normals: Vec<f32>,
+    /// Interpolated stored normals, three per ray; empty when the file has none.
+    shading_normals: Vec<f32>,
+    /// Interpolated RGBA8 colours, four per ray; empty when the file has none.
+    colors: Vec<u8>,
 }
 
 impl Answers {
-    fn misses(rays: usize) -> Answers {
+    fn misses(rays: usize, attributes: AttributeSet) -> Answers {
+        let per_ray = |present: bool, count: usize| if present { count * rays } else { 0 };
         Answers {
             t: vec![f32::INFINITY; rays],
             ids: vec![NO_PRIMITIVE; rays],
             uvs: vec![0.0; 2 * rays],
             normals: vec![0.0; 3 * rays],
+            shading_normals: vec![0.0; per_ray(attributes.normals != NormalEncoding::None, 3)],
+            colors: vec![0; per_ray(attributes.colors, 4)],
         }
     }
 
     /// These answers of the valid rays at `positions` of `total` rays, misses elsewhere.
-    fn placed(self, positions: &[usize], total: usize) -> Answers {
-        let mut all = Answers::misses(total);
+    fn placed(self, positions: &[usize], total: usize, attributes: AttributeSet) -> Answers {
+        let mut all = Answers::misses(total, attributes);
         for (k, &at) in positions.iter().enumerate() {
             all.t[at] = self.t[k];
             all.ids[at] = self.ids[k];
             all.uvs[2 * at..2 * at + 2].copy_from_slice(&self.uvs[2 * k..2 * k + 2]);
             all.normals[3 * at..3 * at + 3].copy_from_slice(&self.normals[3 * k..3 * k + 3]);
+            if !self.shading_normals.is_empty() {
+                all.shading_normals[3 * at..3 * at + 3]
+                    .copy_from_slice(&self.shading_normals[3 * k..3 * k + 3]);
+            }
+            if !self.colors.is_empty() {
+                all.colors[4 * at..4 * at + 4].copy_from_slice(&self.colors[4 * k..4 * k + 4]);
+            }
         }
         all
     }
@@ -91,8 +106,11 @@ impl Scene {
     /// 4294967295 on a miss), `primitive_uvs` float32
     /// `(..., 2)` (barycentric weights of the triangle's second and third corners),
     /// `primitive_normals` float32 `(..., 3)` (unit geometric normal in input winding, zero on
-    /// a miss). `nthreads` > 0 traces on that many threads; `invalid="miss"` answers invalid
-    /// rays (NaN, infinite, zero direction) as misses instead of raising `ValueError`.
+    /// a miss). When the file stores normals, `shading_normals` float32 `(..., 3)` (the stored
+    /// normals interpolated at the hit, zero on a miss); when it stores colours, `colors` uint8
+    /// `(..., 4)` (RGBA interpolated, zero on a miss). `nthreads` > 0 traces on that many
+    /// threads; `invalid="miss"` answers invalid rays (NaN, infinite, zero direction) as misses
+    /// instead of raising `ValueError`.
     #[pyo3(signature = (rays, tnear = 0.0, tfar = f32::INFINITY, nthreads = 0, invalid = "raise"))]
     fn cast_rays<'py>(
         &self,
@@ -115,6 +133,13 @@ impl Scene {
             "primitive_normals",
             ndarray(py, answers.normals, &with(&[3]))?,
         )?;
+        if !answers.shading_normals.is_empty() {
+            let normals = ndarray(py, answers.shading_normals, &with(&[3]))?;
+            result.set_item("shading_normals", normals)?;
+        }
+        if !answers.colors.is_empty() {
+            result.set_item("colors", ndarray(py, answers.colors, &with(&[4]))?)?;
+        }
         Ok(result)
     }
 
@@ -288,29 +313,46 @@ impl Scene {
                     .get_or_init(|| TriangleIndex::new(&self.file)),
             ),
         };
-        let mut answers = Answers::misses(rays.traced());
-        answers
-            .t
-            .par_chunks_mut(CHUNK)
-            .zip(answers.ids.par_chunks_mut(CHUNK))
-            .zip(answers.uvs.par_chunks_mut(2 * CHUNK))
-            .zip(answers.normals.par_chunks_mut(3 * CHUNK))
-            .enumerate()
-            .for_each(|(chunk, (((t, ids), uvs), normals))| {
-                let first = chunk * CHUNK;
-                let hits = tracer.intersect_chunk(&rays.chunk(first..first + t.len()));
-                for (k, hit) in hits.iter().enumerate() {
-                    let Some(hit) = hit else { continue };
-                    t[k] = hit.t;
-                    ids[k] = self.primitive_id(index, hit);
-                    uvs[2 * k..2 * k + 2].copy_from_slice(&[hit.u, hit.v]);
-                    normals[3 * k..3 * k + 3].copy_from_slice(&hit.normal);
-                }
-            });
+        let attributes = self.file.attributes();
+        let mut answers = Answers::misses(rays.traced(), attributes);
+        let hits: Vec<Option<Hit>> = (0..rays.traced())
+            .into_par_iter()
+            .step_by(CHUNK)
+            .flat_map_iter(|first| {
+                let last = (first + CHUNK).min(rays.traced());
+                tracer.intersect_chunk(&rays.chunk(first..last))
+            })
+            .collect();
+        let read: Vec<Option<(u32, Option<HitAttributes>)>> = hits
+            .par_iter()
+            .map(|hit| {
+                let hit = hit.as_ref()?;
+                let read = attributes
+                    .per_vertex()
+                    .then(|| hit_attributes(&self.file, hit));
+                Some((self.primitive_id(index, hit), read))
+            })
+            .collect();
+        for (k, (hit, read)) in hits.iter().zip(read).enumerate() {
+            let (Some(hit), Some((id, read))) = (hit, read) else {
+                continue;
+            };
+            answers.t[k] = hit.t;
+            answers.ids[k] = id;
+            answers.uvs[2 * k..2 * k + 2].copy_from_slice(&[hit.u, hit.v]);
+            answers.normals[3 * k..3 * k + 3].copy_from_slice(&hit.normal);
+            let Some(read) = read else { continue };
+            if !answers.shading_normals.is_empty() {
+                answers.shading_normals[3 * k..3 * k + 3].copy_from_slice(&read.shading_normal);
+            }
+            if let Some(color) = read.color {
+                answers.colors[4 * k..4 * k + 4].copy_from_slice(&color);
+            }
+        }
         match rays {
             Rays::Valid {
                 positions, total, ..
-            } => answers.placed(positions, *total),
+            } => answers.placed(positions, *total, attributes),
             Rays::All { .. } => answers,
         }
     }
