@@ -407,3 +407,49 @@ fn lazy_lookups_keep_attribute_defects() {
     assert!(defect.contains("face_ids at byte"), "{defect}");
     assert!(ReducemFile::open_with(&corrupt, Validation::Full).is_err());
 }
+
+/// `reducem decode` writes the attributes as PLY properties: each vertex's normal and colour
+/// after its position, each face's id after its corners, in the file's order.
+#[test]
+fn decode_writes_attribute_properties() {
+    let mesh = coloured_sphere();
+    let file = convert(
+        &mesh,
+        &params(every_attribute(NormalEncoding::Oct8), None),
+        "decode-attributes.rdm",
+    );
+    let ply = temp_path("decode-attributes.ply");
+    reducem::decode::write_ply(&file, &ply).expect("decode");
+    let bytes = std::fs::read(&ply).expect("read");
+    let end = b"end_header\n";
+    let body_start = bytes
+        .windows(end.len())
+        .position(|w| w == end)
+        .expect("header end")
+        + end.len();
+    let header = String::from_utf8_lossy(&bytes[..body_start]);
+    for property in ["property float nx\nproperty float ny\nproperty float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\nelement face", "property list uchar int vertex_indices\nproperty uint face_id\nend_header"] {
+        assert!(header.contains(property), "{header}");
+    }
+    let mut at = body_start;
+    let float = |at: usize| f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+    for s in 0..file.strip_count() {
+        let stored = file.vertex_attributes(s).unwrap();
+        for (i, position) in file.strip(s).vertices.iter().enumerate() {
+            assert_eq!([float(at), float(at + 4), float(at + 8)], position);
+            assert_eq!(
+                [float(at + 12), float(at + 16), float(at + 20)],
+                stored.normal(i).unwrap()
+            );
+            assert_eq!(bytes[at + 24..at + 28], stored.color(i).unwrap());
+            at += 28;
+        }
+    }
+    for (s, k, _, id) in stored_faces(&file) {
+        assert_eq!(bytes[at], 3, "strip {s} window {k}");
+        let written = u32::from_le_bytes(bytes[at + 13..at + 17].try_into().unwrap());
+        assert_eq!(written, id, "strip {s} window {k}");
+        at += 17;
+    }
+    assert_eq!(at, bytes.len());
+}
