@@ -3,7 +3,8 @@
 //! Every vertex becomes its nearest grid point ([`Grid::quantize`]) and is from then on the
 //! decoded position of that point ([`Grid::decode`]): Strip-RT, the strip kd-trees and the top
 //! level all work on what the reader will decode, so bounds are exact on it. Vertices that land
-//! on one grid point are welded (as bit-identical input vertices are), which keeps the strips
+//! on one grid point are welded (as bit-identical input vertices are, so vertices with
+//! different normals or colours stay apart on their common point), which keeps the strips
 //! connected across them; triangles that collapse are dropped by Strip-RT's adjacency step like
 //! any degenerate input triangle.
 //!
@@ -43,8 +44,8 @@ pub fn quantize_mesh(mesh: &Mesh, grid: &Grid) -> QuantizedMesh {
         positions: decoded,
         triangles: mesh.triangles.clone(),
         face_ids: mesh.face_ids.clone(),
-        normals: None,
-        colors: None,
+        normals: mesh.normals.clone(),
+        colors: mesh.colors.clone(),
     };
     let (welded, kept) = weld_identical_positions_kept(snapped);
     QuantizedMesh {

@@ -13,6 +13,10 @@
 //! positions and their order only, not on the thread count. Grid cells are twice the tolerance
 //! wide, so the tolerance ball of a vertex meets at most two cells per axis: eight lookups.
 //!
+//! Vertices with normals or colours move to their cluster's kept position but stay apart
+//! from vertices with other attributes there (see [`super::weld`] for why): the exact weld
+//! that follows the move joins only vertices whose attributes match.
+//!
 //! The clustering needs every position of the model, so the pipeline runs it over the whole
 //! input before the chunk partition, and a vertex shared by two chunks merges the same way in
 //! both.
@@ -50,6 +54,9 @@ pub fn tolerance_representatives(positions: &[Point], tolerance: f32) -> (Vec<u3
 /// dropping the merged vertices; kept vertices keep their order.
 pub fn weld_within_tolerance(mesh: Mesh, tolerance: f32) -> (Mesh, WeldStats) {
     let (representative, stats) = tolerance_representatives(&mesh.positions, tolerance);
+    if mesh.normals.is_some() || mesh.colors.is_some() {
+        return (snap_and_weld(mesh, &representative), stats);
+    }
     let triangles = mesh
         .triangles
         .iter()
@@ -63,6 +70,16 @@ pub fn weld_within_tolerance(mesh: Mesh, tolerance: f32) -> (Mesh, WeldStats) {
         colors: None,
     };
     (compact(remapped, &representative), stats)
+}
+
+/// Moves every vertex to its representative's position, then joins bit-identical vertices
+/// with equal attributes.
+fn snap_and_weld(mut mesh: Mesh, representative: &[u32]) -> Mesh {
+    mesh.positions = representative
+        .iter()
+        .map(|&kept| mesh.positions[kept as usize])
+        .collect();
+    super::weld_identical_positions(mesh)
 }
 
 /// Drops the merged vertices, keeping the order of the kept ones.
@@ -80,6 +97,7 @@ fn compact(mesh: Mesh, representative: &[u32]) -> Mesh {
         .iter()
         .map(|t| t.map(|v| new_index[v as usize]))
         .collect();
+    // Meshes with attributes take `snap_and_weld` instead.
     Mesh {
         positions,
         triangles,
