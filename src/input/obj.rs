@@ -27,7 +27,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use crate::input::error::{InputError, InputErrorKind, Location};
-use crate::input::obj_survey::survey;
+use crate::input::obj_survey::{survey, Totals};
 use crate::input::ply::elements::unit_to_u8;
 use crate::input::AttributeRequest;
 use crate::mesh::Mesh;
@@ -62,18 +62,14 @@ pub fn read_obj_with(path: &Path, request: AttributeRequest) -> Result<Mesh, Inp
     let surveyed = survey(path, None, request).map_err(|error| {
         InputError::new(path, Location::File, InputErrorKind::Io(error.to_string()))
     })?;
-    let (vertex_total, unknown_summary) = (surveyed.vertices, surveyed.unknown_summary());
+    let (totals, unknown_summary) = (surveyed.totals(), surveyed.unknown_summary());
     if let Some((location, kind)) = surveyed.defect_with(request) {
         return Err(InputError::new(path, location, kind));
     }
     // Materials are irrelevant to geometry; a missing .mtl file must not fail the read.
     let (models, _materials) = tobj::load_obj(path, &options).map_err(|error| {
         let kind = InputErrorKind::Obj(error.to_string());
-        located(
-            path,
-            vertex_total,
-            InputError::new(path, Location::File, kind),
-        )
+        located(path, totals, InputError::new(path, Location::File, kind))
     })?;
     let mut mesh = Mesh {
         face_ids: Some(Vec::new()),
@@ -84,7 +80,7 @@ pub fn read_obj_with(path: &Path, request: AttributeRequest) -> Result<Mesh, Inp
     let mut faces = 0;
     for model in &models {
         append_model(path, &mut mesh, &model.mesh, &mut faces)
-            .map_err(|error| located(path, vertex_total, error))?;
+            .map_err(|error| located(path, totals, error))?;
     }
     if let Some(summary) = unknown_summary {
         eprintln!("reducem: {}: {summary}", path.display());
@@ -92,11 +88,11 @@ pub fn read_obj_with(path: &Path, request: AttributeRequest) -> Result<Mesh, Inp
     Ok(mesh)
 }
 
-/// `error` placed at the first statement that a second survey, knowing the file's vertex total,
-/// finds defective (a face vertex beyond it); as it is otherwise.
-fn located(path: &Path, vertex_total: u64, error: InputError) -> InputError {
+/// `error` placed at the first statement that a second survey, knowing the file's totals,
+/// finds defective (a face vertex or normal beyond them); as it is otherwise.
+fn located(path: &Path, totals: Totals, error: InputError) -> InputError {
     let request = AttributeRequest::default();
-    match survey(path, Some(vertex_total), request)
+    match survey(path, Some(totals), request)
         .ok()
         .and_then(|s| s.defect)
     {

@@ -40,6 +40,13 @@ pub struct Survey {
 }
 
 impl Survey {
+    pub fn totals(&self) -> Totals {
+        Totals {
+            vertices: self.vertices,
+            normals: self.normals,
+        }
+    }
+
     /// The first defect, counting as defects what makes the attributes in `request` unusable:
     /// a file without any of them (reported at the file), or some faces or vertices without
     /// them while others have them (reported at the first such statement).
@@ -100,17 +107,24 @@ impl Survey {
     }
 }
 
-/// Reads `path` line by line. With `vertex_count` (the file's total, from a first survey), face
-/// vertex indices beyond it are defects too; without it only statements that are wrong on their
+/// The file's counts of the elements faces refer to, from a first survey.
+#[derive(Clone, Copy, Debug)]
+pub struct Totals {
+    pub vertices: u64,
+    pub normals: u64,
+}
+
+/// Reads `path` line by line. With `totals` (from a first survey), face vertex and normal
+/// indices beyond them are defects too; without it only statements that are wrong on their
 /// own are. Attribute values are checked only when `request` asks for them.
 pub fn survey(
     path: &Path,
-    vertex_count: Option<u64>,
+    totals: Option<Totals>,
     request: AttributeRequest,
 ) -> io::Result<Survey> {
     let file = File::open(path)?;
     let limits = Limits {
-        vertices: vertex_count,
+        totals,
         file_length: file.metadata()?.len(),
         request,
     };
@@ -275,7 +289,7 @@ impl Counts {
                         (
                             Some(vertex),
                             self.vertices,
-                            limits.vertices,
+                            limits.totals.map(|totals| totals.vertices),
                             "vertex",
                             "vertices",
                         ),
@@ -286,7 +300,13 @@ impl Counts {
                             "texture coordinate",
                             "texture coordinates",
                         ),
-                        (normal, self.normals, None, "normal", "normals"),
+                        (
+                            normal,
+                            self.normals,
+                            limits.totals.map(|totals| totals.normals),
+                            "normal",
+                            "normals",
+                        ),
                     ];
                     let out_of_range =
                         references
@@ -317,8 +337,8 @@ impl Counts {
 /// What the survey knows of the file when it checks a face.
 #[derive(Clone, Copy)]
 struct Limits {
-    /// The file's vertex total, on the second survey.
-    vertices: Option<u64>,
+    /// The file's totals, on the second survey.
+    totals: Option<Totals>,
     /// No index can exceed the file's length in bytes; this bound also keeps `tobj`'s index
     /// arithmetic from overflowing on absurd indices, so they are rejected here first.
     file_length: u64,
