@@ -88,4 +88,53 @@ mod tests {
         assert_eq!(quantized.error.count, 4);
         assert!((quantized.error.max - 0.001).abs() < 1e-9);
     }
+
+    #[test]
+    fn vertices_on_one_grid_point_with_other_colours_stay_apart() {
+        let mesh = Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [0.001, 0.0, 0.0],
+                [0.0, 0.001, 0.0],
+            ],
+            triangles: vec![[0, 1, 2], [3, 2, 1], [4, 1, 2]],
+            face_ids: Some(vec![0, 1, 1]),
+            normals: None,
+            colors: Some(vec![
+                [1, 1, 1, 255],
+                [2, 2, 2, 255],
+                [3, 3, 3, 255],
+                [1, 1, 1, 255],
+                [9, 9, 9, 255],
+            ]),
+        };
+        let grid = Grid::over(
+            &Aabb {
+                min: [0.0; 3],
+                max: [1.0; 3],
+            },
+            4,
+        );
+        let quantized = quantize_mesh(&mesh, &grid);
+        // Vertex 3 joins vertex 0 (same point, same colour); vertex 4 lands on vertex 0's point
+        // too but keeps its colour.
+        assert_eq!(
+            quantized.mesh.triangles,
+            vec![[0, 1, 2], [0, 2, 1], [3, 1, 2]]
+        );
+        assert_eq!(quantized.mesh.positions[3], quantized.mesh.positions[0]);
+        assert_eq!(quantized.points[3], quantized.points[0]);
+        assert_eq!(
+            quantized.mesh.colors,
+            Some(vec![
+                [1, 1, 1, 255],
+                [2, 2, 2, 255],
+                [3, 3, 3, 255],
+                [9, 9, 9, 255]
+            ])
+        );
+        assert_eq!(quantized.mesh.face_ids, Some(vec![0, 1, 1]));
+    }
 }

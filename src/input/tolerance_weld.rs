@@ -232,4 +232,39 @@ mod tests {
         assert_eq!(welded.triangles, vec![[0, 1, 2], [1, 3, 2]]);
         assert_eq!(stats.displacement.count, 2);
     }
+
+    #[test]
+    fn vertices_with_other_attributes_move_but_stay_apart() {
+        // Vertex 3 is a perturbed copy of vertex 1 with the same normal: it merges. Vertex 5 is
+        // one of vertex 2 with another normal: it moves onto vertex 2 but stays its own vertex.
+        let mesh = Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [1.0, 1e-6, 0.0],
+                [1.0, 1.0, 0.0],
+                [-1e-6, 1.0, 0.0],
+            ],
+            triangles: vec![[0, 1, 2], [3, 4, 5]],
+            face_ids: Some(vec![4, 9]),
+            normals: Some(vec![
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0],
+                [1.0, 0.0, 0.0],
+            ]),
+            colors: None,
+        };
+        let (welded, stats) = weld_within_tolerance(mesh, 1e-5);
+        assert_eq!(stats.displacement.count, 2);
+        assert_eq!(welded.triangles, vec![[0, 1, 2], [1, 3, 4]]);
+        assert_eq!(welded.positions[4], [0.0, 1.0, 0.0]);
+        assert_eq!(welded.positions[4], welded.positions[2]);
+        assert_eq!(welded.normals.as_ref().unwrap()[4], [1.0, 0.0, 0.0]);
+        assert_eq!(welded.normals.as_ref().unwrap()[2], [0.0, 0.0, 1.0]);
+        assert_eq!(welded.face_ids, Some(vec![4, 9]));
+    }
 }
