@@ -38,7 +38,7 @@ fn grid_point(i: u32, j: u32) -> [f32; 3] {
 
 /// Alternating normals: every edge between two quads is a crease.
 fn face_normal(i: u32, j: u32) -> [f32; 3] {
-    if (i + j) % 2 == 0 {
+    if (i + j).is_multiple_of(2) {
         [0.0, 0.0, 1.0]
     } else {
         [0.0, 0.6, 0.8]
@@ -90,7 +90,7 @@ fn obj() -> String {
     }
     text += "vn 0 0 1\nvn 0 0.6 0.8\n";
     for (i, j) in quads() {
-        let normal = if (i + j) % 2 == 0 { 1 } else { 2 };
+        let normal = if (i + j).is_multiple_of(2) { 1 } else { 2 };
         text += "f";
         for (ci, cj) in quad_corners(i, j) {
             text += &format!(" {}//{normal}", cj * (SIDE + 1) + ci + 1);

@@ -66,8 +66,11 @@ fn quads_ply(path: &Path) {
     std::fs::write(path, bytes).expect("write ply");
 }
 
-/// Each triangle's face id and its corners' position, normal and colour.
-fn records(mesh: &Mesh) -> Vec<(u32, Vec<([u32; 3], [u32; 3], [u8; 4])>)> {
+/// A triangle's face id and its corners' position and normal bits and colour.
+type Record = (u32, Vec<([u32; 3], [u32; 3], [u8; 4])>);
+
+/// Every triangle's record, sorted.
+fn records(mesh: &Mesh) -> Vec<Record> {
     let (normals, colors) = (
         mesh.normals.as_ref().unwrap(),
         mesh.colors.as_ref().unwrap(),

@@ -126,11 +126,12 @@ pub enum InputErrorKind {
     NonFiniteNormal { axis: char, value: f64 },
     #[error("colour {channel} = {value} is outside 0..1")]
     ColorOutOfRange { channel: &'static str, value: f64 },
-    /// The attribute was asked for (`[attributes]`), but the file does not have it.
+    /// The attribute was asked for (`[attributes]`), but the file does not have it. (The
+    /// reason is boxed to keep the error as small as before the variant existed.)
     #[error("{attribute} were asked for, but {reason}")]
     MissingAttribute {
         attribute: &'static str,
-        reason: String,
+        reason: Box<str>,
     },
     #[error("OBJ: {0}")]
     Obj(String),

@@ -149,6 +149,20 @@ impl VertexRole {
     }
 }
 
+/// "element 'vertex' has no `types` properties `names`".
+fn lacking(types: &str, names: &[&str]) -> Box<str> {
+    let plural = if names.len() == 1 {
+        "property"
+    } else {
+        "properties"
+    };
+    format!(
+        "element 'vertex' has no {types} {plural} {}",
+        names.join(", ")
+    )
+    .into()
+}
+
 pub const NORMAL_NAMES: [&str; 3] = ["nx", "ny", "nz"];
 pub const COLOR_NAMES: [&str; 4] = ["red", "green", "blue", "alpha"];
 
@@ -184,29 +198,13 @@ impl VertexLayout {
         if request.normals && !missing_normals.is_empty() {
             return Some(InputErrorKind::MissingAttribute {
                 attribute: "normals",
-                reason: format!(
-                    "element 'vertex' has no float or double propert{} {}",
-                    if missing_normals.len() == 1 {
-                        "y"
-                    } else {
-                        "ies"
-                    },
-                    missing_normals.join(", ")
-                ),
+                reason: lacking("float or double", &missing_normals),
             });
         }
         if request.colors && !missing_colors.is_empty() {
             return Some(InputErrorKind::MissingAttribute {
                 attribute: "colours",
-                reason: format!(
-                    "element 'vertex' has no uchar, float or double propert{} {}",
-                    if missing_colors.len() == 1 {
-                        "y"
-                    } else {
-                        "ies"
-                    },
-                    missing_colors.join(", ")
-                ),
+                reason: lacking("uchar, float or double", &missing_colors),
             });
         }
         None
