@@ -6,6 +6,7 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use crate::atomic::write_atomically;
+use crate::format::attributes::NormalEncoding;
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
 
@@ -18,39 +19,85 @@ pub fn triangles(file: &ReducemFile) -> impl Iterator<Item = [Point; 3]> + '_ {
 }
 
 /// Writes every triangle as binary little-endian PLY (`float x,y,z`; `list uchar int
-/// vertex_indices`), each strip's stored vertices once, atomically replacing `out`.
+/// vertex_indices`), each strip's stored vertices once, atomically replacing `out`. A file with
+/// attributes adds them: `float nx,ny,nz` (the decoded normal) and `uchar red,green,blue,alpha`
+/// on vertices, `uint face_id` on faces after `vertex_indices`.
 pub fn write_ply(file: &ReducemFile, out: &Path) -> io::Result<()> {
     write_atomically(out, |out| write_ply_body(file, out))
 }
 
 fn write_ply_body(file: &ReducemFile, out: &mut impl Write) -> io::Result<()> {
-    let header = file.header();
-    write!(
-        out,
-        "ply\nformat binary_little_endian 1.0\ncomment decoded by reducem from {}\n\
-         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
-         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        file.path().display(),
-        header.stored_vertex_count,
-        header.triangle_count
-    )?;
+    write_ply_header(file, out)?;
+    let attributes = file.attributes();
+    let mut record = Vec::with_capacity(28);
     for s in 0..file.strip_count() {
-        for vertex in file.strip(s).vertices.iter() {
-            out.write_all(bytemuck::cast_slice(&vertex))?;
+        let vertices = file.strip(s).vertices;
+        let stored = file.vertex_attributes(s);
+        for (index, vertex) in vertices.iter().enumerate() {
+            record.clear();
+            record.extend(bytemuck::cast_slice(&vertex));
+            if attributes.normals != NormalEncoding::None {
+                let normal = stored.and_then(|a| a.normal(index)).unwrap_or_default();
+                record.extend(bytemuck::cast_slice(&normal));
+            }
+            if attributes.colors {
+                record.extend(stored.and_then(|a| a.color(index)).unwrap_or_default());
+            }
+            out.write_all(&record)?;
         }
     }
     let mut first_vertex = 0u64;
     for s in 0..file.strip_count() {
         let view = file.strip(s);
-        for triangle in view.triangles() {
+        let windows = view.references.to_vec();
+        for k in 0..view.window_count() {
+            let Some(triangle) = crate::strip_windows::window_triangle(&windows, k) else {
+                continue;
+            };
             out.write_all(&[3])?;
             for r in triangle {
                 let index = i32::try_from(first_vertex + r as u64)
                     .map_err(|_| io::Error::other("too many vertices for PLY int indices"))?;
                 out.write_all(&index.to_le_bytes())?;
             }
+            if attributes.face_ids {
+                out.write_all(&file.face_id(s, k).unwrap_or(u32::MAX).to_le_bytes())?;
+            }
         }
         first_vertex += view.vertices.len() as u64;
     }
-    Ok(())
+    match file.defect() {
+        Some(defect) => Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            defect.to_string(),
+        )),
+        None => Ok(()),
+    }
+}
+
+fn write_ply_header(file: &ReducemFile, out: &mut impl Write) -> io::Result<()> {
+    let header = file.header();
+    let attributes = file.attributes();
+    let mut text = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment decoded by reducem from {}\n\
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
+        file.path().display(),
+        header.stored_vertex_count,
+    );
+    if attributes.normals != NormalEncoding::None {
+        text += "property float nx\nproperty float ny\nproperty float nz\n";
+    }
+    if attributes.colors {
+        text +=
+            "property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n";
+    }
+    text += &format!(
+        "element face {}\nproperty list uchar int vertex_indices\n",
+        header.triangle_count
+    );
+    if attributes.face_ids {
+        text += "property uint face_id\n";
+    }
+    text += "end_header\n";
+    out.write_all(text.as_bytes())
 }

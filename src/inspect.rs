@@ -4,6 +4,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+use crate::format::attributes::AttributeSection;
 use crate::format::reader::{ReducemFile, TopNodes};
 use crate::format::{GridNode, SectionKind, TopNode, VertexEncoding, HEADER_PAGE};
 use crate::geometry::distance;
@@ -58,6 +59,14 @@ pub struct FileStats {
     pub welded_vertices: u64,
     pub weld_displacement_max: f64,
     pub weld_displacement_rms: f64,
+    /// The attributes stored besides positions (format 2.5): whether face ids are, the normal
+    /// encoding (`none`, `oct8`, `oct16`), whether colours are.
+    pub face_ids: bool,
+    pub normals: String,
+    pub colors: bool,
+    /// Largest angle between an input normal and its stored code, in degrees; 0 without
+    /// normals.
+    pub normal_error_max_degrees: f64,
 }
 
 /// Gathers the statistics; walks every strip once for the length figures.
@@ -70,6 +79,15 @@ pub fn file_stats(file: &ReducemFile) -> FileStats {
     let mut section_total = HEADER_PAGE;
     for kind in SectionKind::ALL {
         let bytes = file.section_bytes(kind).len() as u64;
+        bytes_by_section.insert(kind.name().to_string(), bytes);
+        section_total += bytes;
+    }
+    let attributes = file.attributes();
+    for kind in AttributeSection::ALL
+        .into_iter()
+        .filter(|&k| attributes.has(k))
+    {
+        let bytes = file.attribute_bytes(kind).len() as u64;
         bytes_by_section.insert(kind.name().to_string(), bytes);
         section_total += bytes;
     }
@@ -116,6 +134,10 @@ pub fn file_stats(file: &ReducemFile) -> FileStats {
         welded_vertices: precision.welded_vertex_count,
         weld_displacement_max: precision.weld_displacement_max,
         weld_displacement_rms: precision.weld_displacement_rms,
+        face_ids: attributes.face_ids,
+        normals: attributes.normals.name().to_string(),
+        colors: attributes.colors,
+        normal_error_max_degrees: file.attribute_record().normal_error_max_degrees,
     }
 }
 

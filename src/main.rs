@@ -12,7 +12,7 @@ use reducem::format::reader::{FormatError, ReducemFile, Validation};
 use reducem::geometry::Point;
 use reducem::render::image::ImageFormat;
 use reducem::render::scene::Scene;
-use reducem::trace::ray_file::{self, RayFileError};
+use reducem::trace::ray_file::{self, HitFormat, RayFileError};
 use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
 
 #[derive(Parser)]
@@ -52,8 +52,9 @@ enum Command {
         output: PathBuf,
     },
     /// Trace a binary ray file (f32 x 8 per ray: origin, direction, tmin, tmax) and write the
-    /// closest hits (f32 x 4 per ray: t, normal; t = inf on a miss) or, with --occluded, one byte
-    /// per ray (1 = occluded). Prints a summary line on stderr.
+    /// closest hits (f32 x 4 per ray: t, normal; t = inf on a miss; --format full for 48 bytes
+    /// with face id, shading normal and colour) or, with --occluded, one byte per ray
+    /// (1 = occluded). Prints a summary line on stderr.
     #[command(after_help = exit_code::HELP)]
     Query {
         /// The ReduceM file.
@@ -71,6 +72,13 @@ enum Command {
         /// or be answered as a miss (counted in the summary).
         #[arg(long, value_enum, default_value_t = InvalidRays::Reject)]
         invalid_rays: InvalidRays,
+        /// The hit record: compact (16 bytes: f32 t, f32 x 3 geometric normal) or full (48
+        /// bytes, little endian: f32 t, u, v; u32 face id, 0xFFFFFFFF on a miss or without face
+        /// ids; f32 x 3 geometric normal; f32 x 3 shading normal, the interpolated stored normal
+        /// else the geometric one; u8 x 4 RGBA colour interpolated, zeros without colours; u32
+        /// zero).
+        #[arg(long, value_enum, default_value_t = HitRecord::Compact, conflicts_with = "occluded")]
+        format: HitRecord,
     },
     /// Render an image of the model as a scene file describes it, tracing only the effects the
     /// scene asks for. Every scene key, its default and unit: docs/SCENES.md.
@@ -164,6 +172,24 @@ fn parse_point(text: &str) -> Result<Point, String> {
     <[f32; 3]>::try_from(values).map_err(|_| format!("{text:?} is not three numbers X,Y,Z"))
 }
 
+/// `reducem query --format`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum HitRecord {
+    /// 16 bytes per ray: t and the geometric normal.
+    Compact,
+    /// 48 bytes per ray: t, barycentrics, face id, both normals and colour.
+    Full,
+}
+
+impl HitRecord {
+    fn format(self) -> HitFormat {
+        match self {
+            HitRecord::Compact => HitFormat::Compact,
+            HitRecord::Full => HitFormat::Full,
+        }
+    }
+}
+
 /// `reducem query --invalid-rays`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum InvalidRays {
@@ -242,9 +268,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             output,
             occluded,
             invalid_rays,
+            format,
         } => {
             check_output(&output, &[&file, &rays])?;
-            query(&file, &rays, &output, occluded, invalid_rays)
+            let answer = match occluded {
+                true => Answer::Occlusion,
+                false => Answer::Hits(format.format()),
+            };
+            query(&file, &rays, &output, answer, invalid_rays)
         }
         Command::Render {
             file,
@@ -298,11 +329,29 @@ fn report(
     Ok(())
 }
 
+/// What a query answers per ray.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Answer {
+    Occlusion,
+    Hits(HitFormat),
+}
+
+impl Answer {
+    /// Bytes per ray of the output file, and a miss's record.
+    fn miss(self) -> Vec<u8> {
+        match self {
+            Answer::Occlusion => ray_file::encode_occlusion(&[false]),
+            Answer::Hits(HitFormat::Compact) => ray_file::encode_hits(&[None]),
+            Answer::Hits(HitFormat::Full) => ray_file::encode_full_miss(),
+        }
+    }
+}
+
 fn query(
     path: &Path,
     rays_path: &Path,
     output: &Path,
-    occluded: bool,
+    answer: Answer,
     invalid_rays: InvalidRays,
 ) -> anyhow::Result<()> {
     let kernel = Kernel::from_env()?;
@@ -319,15 +368,15 @@ fn query(
     };
     let tracer = Tracer::new(&file, options);
     let started = Instant::now();
-    let traced = if occluded {
-        ray_file::trace_occlusion(&tracer, &rays.valid)
-    } else {
-        ray_file::trace_hits(&tracer, &rays.valid)
+    let traced = match answer {
+        Answer::Occlusion => ray_file::trace_occlusion(&tracer, &rays.valid),
+        Answer::Hits(format) => ray_file::trace_hits_as(&tracer, &rays.valid, format),
     };
     let seconds = started.elapsed().as_secs_f64();
     complete(&file)?;
-    let hits = count_hits(&traced, occluded);
-    let bytes = rays.place(traced, occluded);
+    let miss = answer.miss();
+    let hits = count_hits(&traced, &miss);
+    let bytes = rays.place(traced, &miss);
     ray_file::write_atomically(output, &bytes)
         .with_context(|| format!("writing {}", output.display()))?;
     let summary = QuerySummary {
@@ -376,37 +425,30 @@ impl QueryRays {
         })
     }
 
-    /// The output file's bytes: the valid rays' answers `traced` in their places, a miss for
+    /// The output file's bytes: the valid rays' answers `traced` in their places, `miss` for
     /// every invalid ray.
-    fn place(&self, traced: Vec<u8>, occluded: bool) -> Vec<u8> {
+    fn place(&self, traced: Vec<u8>, miss: &[u8]) -> Vec<u8> {
         let Some(records) = &self.records else {
             return traced;
         };
-        let (size, miss) = if occluded {
-            (1, ray_file::encode_occlusion(&[false]))
-        } else {
-            (ray_file::HIT_BYTES, ray_file::encode_hits(&[None]))
-        };
-        let mut answers = traced.chunks_exact(size);
+        let mut answers = traced.chunks_exact(miss.len());
         records
             .iter()
             .flat_map(|ray| match ray {
-                Some(_) => answers.next().unwrap_or(&miss),
-                None => &miss,
+                Some(_) => answers.next().unwrap_or(miss),
+                None => miss,
             })
             .copied()
             .collect()
     }
 }
 
-/// Hits (or occluded rays) among the answers of a hit (or occlusion) file.
-fn count_hits(answers: &[u8], occluded: bool) -> usize {
-    if occluded {
-        return answers.iter().filter(|&&byte| byte != 0).count();
-    }
+/// Hits (or occluded rays) among the answers of a hit (or occlusion) file: the records that
+/// differ from a miss's.
+fn count_hits(answers: &[u8], miss: &[u8]) -> usize {
     answers
-        .chunks_exact(ray_file::HIT_BYTES)
-        .filter(|record| record[..4] != f32::INFINITY.to_le_bytes())
+        .chunks_exact(miss.len())
+        .filter(|record| *record != miss)
         .count()
 }
 
@@ -557,6 +599,15 @@ fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<(
             stats.weld_tolerance,
             stats.weld_displacement_max,
             stats.weld_displacement_rms
+        );
+    }
+    if stats.face_ids || stats.normals != "none" || stats.colors {
+        println!(
+            "  attributes         face ids {}, normals {} (max error {:.4} degrees), colours {}",
+            if stats.face_ids { "yes" } else { "no" },
+            stats.normals,
+            stats.normal_error_max_degrees,
+            if stats.colors { "yes" } else { "no" },
         );
     }
     println!(

@@ -13,7 +13,7 @@ use reducem::mesh::Mesh;
 use reducem::strip_windows;
 use reducem::stripify::adjacency::{Adjacency, NO_NEIGHBOUR};
 use reducem::stripify::partition::TriangleTree;
-use reducem::stripify::{stripify, Stripification, StripifyParams};
+use reducem::stripify::{match_triangles, stripify, Stripification, StripifyParams};
 
 // ---------------------------------------------------------------------------------------------
 // Mesh builders (grids, tori and icospheres come from `common`)
@@ -94,6 +94,7 @@ fn stripify_checked(mesh: &Mesh, params: &StripifyParams) -> Stripification {
     );
     let dropped = mesh.triangles.len() - expected.len();
     assert_eq!(result.dropped_triangles, dropped as u64);
+    assert_triangle_ids(mesh, &result);
     let max_length = params.max_length.max(1);
     for s in &result.strips {
         let real = strip_windows::triangles(s).count();
@@ -111,6 +112,25 @@ fn stripify_checked(mesh: &Mesh, params: &StripifyParams) -> Stripification {
         .validate()
         .unwrap();
     result
+}
+
+/// Each real window names the mesh triangle it is (same corners, same winding), every kept
+/// triangle exactly once; matching the windows back to the mesh finds the same triangles.
+fn assert_triangle_ids(mesh: &Mesh, result: &Stripification) {
+    assert_eq!(result.triangles.len(), result.strips.len());
+    let mut seen = vec![false; mesh.triangles.len()];
+    for (strip, ids) in result.strips.iter().zip(&result.triangles) {
+        let windows: Vec<[u32; 3]> = strip_windows::triangles(strip).collect();
+        assert_eq!(windows.len(), ids.len());
+        for (window, &id) in windows.iter().zip(ids) {
+            assert_eq!(canonical(*window), canonical(mesh.triangles[id as usize]));
+            assert!(!std::mem::replace(&mut seen[id as usize], true));
+        }
+    }
+    let distinct = sorted_canonical(mesh.triangles.iter().copied());
+    if distinct.windows(2).all(|pair| pair[0] != pair[1]) {
+        assert_eq!(match_triangles(mesh, &result.strips), result.triangles);
+    }
 }
 
 fn defaults() -> StripifyParams {

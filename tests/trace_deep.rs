@@ -71,6 +71,7 @@ fn write_chain(chunk: &EncodedChunk, levels: usize, name: &str) -> std::path::Pa
         // The chain's internal boxes reach beyond the model bounds, which a node grid covers.
         grid_nodes: false,
         weld: Default::default(),
+        attributes: Default::default(),
     };
     let path = temp_path(name);
     write_file(&path, &info, &top, &chunk.strips).expect("write");

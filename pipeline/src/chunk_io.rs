@@ -10,13 +10,16 @@ use std::path::Path;
 
 use bytemuck::{Pod, Zeroable};
 use reducem::conversion::ChunkStats;
+use reducem::format::attribute_sections::{AttributeVisit, StripAttributes};
+use reducem::format::attributes::OctCode;
 use reducem::format::{StripRecord, TopNode};
 use reducem::geometry::{Aabb, Displacement, Point};
 use reducem::mesh::Mesh;
+use reducem::strip_encoding::EncodedStrip;
 
 /// Mesh chunks with attributes (version 2: a flags word after the counts).
 const MESH_MAGIC: [u8; 8] = *b"RDMMESH2";
-const STRIP_MAGIC: [u8; 8] = *b"RDMSTRP1";
+const STRIP_MAGIC: [u8; 8] = *b"RDMSTRP2";
 /// zstd level: chunks are written once and read once, so speed matters more than ratio.
 const ZSTD_LEVEL: i32 = 1;
 /// Bytes before the arrays: magic, vertex count, triangle count, flags.
@@ -112,8 +115,10 @@ pub fn read_mesh(path: &Path) -> io::Result<Mesh> {
     })
 }
 
-/// Header of a strip chunk. 128 bytes, followed by `node_count` [`TopNode`]s (chunk-local
-/// links), `strip_count` [`StripRecord`]s (chunk-local data words) and `data_bytes` strip blocks.
+/// Header of a strip chunk. 160 bytes, followed by `node_count` [`TopNode`]s (chunk-local
+/// links), `strip_count` [`StripRecord`]s (chunk-local data words), `data_bytes` strip blocks,
+/// then the strips' attributes in file order: `face_id_count` u32 face ids (one per window),
+/// `normal_count` octahedral codes (2 × i16 per stored vertex) and `color_count` RGBA8 colours.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 #[repr(C)]
 pub struct StripChunkHeader {
@@ -128,22 +133,28 @@ pub struct StripChunkHeader {
     /// Quantization error of the chunk's vertices: count, then max and sum of squares as f64.
     pub error_count: u64,
     pub error: [f64; 2],
+    pub face_id_count: u64,
+    pub normal_count: u64,
+    pub color_count: u64,
+    pub normal_error_degrees: f64,
 }
-const _: () = assert!(std::mem::size_of::<StripChunkHeader>() == 128);
+const _: () = assert!(std::mem::size_of::<StripChunkHeader>() == 160);
 
 impl StripChunkHeader {
-    pub fn new(
-        stats: &ChunkStats,
-        bounds: &Aabb,
-        nodes: usize,
-        records: usize,
-        data_bytes: usize,
-    ) -> Self {
+    /// The header of a chunk of `strips` (in file order) under `nodes`.
+    pub fn new(stats: &ChunkStats, bounds: &Aabb, nodes: usize, strips: &[&EncodedStrip]) -> Self {
+        let count = |field: fn(&StripAttributes) -> usize| {
+            strips.iter().map(|s| field(&s.attributes) as u64).sum()
+        };
         StripChunkHeader {
+            face_id_count: count(|a| a.face_ids.len()),
+            normal_count: count(|a| a.normals.len()),
+            color_count: count(|a| a.colors.len()),
+            normal_error_degrees: stats.normal_error_degrees,
             magic: STRIP_MAGIC,
-            strip_count: records as u64,
+            strip_count: strips.len() as u64,
             node_count: nodes as u64,
-            data_bytes: data_bytes as u64,
+            data_bytes: strips.iter().map(|s| s.block.len() as u64).sum(),
             stats: [
                 stats.triangles,
                 stats.dropped_triangles,
@@ -171,6 +182,7 @@ impl StripChunkHeader {
             hierarchy_vertices,
             max_strip_length,
             quantization: self.quantization(),
+            normal_error_degrees: self.normal_error_degrees,
         }
     }
 
@@ -193,20 +205,37 @@ impl StripChunkHeader {
     fn data_offset(&self) -> u64 {
         self.records_offset() + self.strip_count * std::mem::size_of::<StripRecord>() as u64
     }
+
+    fn attributes_offset(&self) -> u64 {
+        self.data_offset() + self.data_bytes
+    }
+
+    fn end(&self) -> u64 {
+        self.attributes_offset() + (self.face_id_count + self.normal_count + self.color_count) * 4
+    }
 }
 
-/// Writes a strip chunk.
+/// Writes a strip chunk of `strips` in file order.
 pub fn write_strips(
     out: &mut impl Write,
     header: &StripChunkHeader,
     nodes: &[TopNode],
     records: &[StripRecord],
-    data: &[&[u8]],
+    strips: &[&EncodedStrip],
 ) -> io::Result<()> {
     out.write_all(bytemuck::bytes_of(header))?;
     out.write_all(bytemuck::cast_slice(nodes))?;
     out.write_all(bytemuck::cast_slice(records))?;
-    data.iter().try_for_each(|block| out.write_all(block))
+    strips.iter().try_for_each(|s| out.write_all(&s.block))?;
+    for s in strips {
+        out.write_all(bytemuck::cast_slice(&s.attributes.face_ids))?;
+    }
+    for s in strips {
+        out.write_all(bytemuck::cast_slice(&s.attributes.normals))?;
+    }
+    strips
+        .iter()
+        .try_for_each(|s| out.write_all(s.attributes.colors.as_flattened()))
 }
 
 /// A strip chunk opened for reading one section at a time.
@@ -220,7 +249,7 @@ impl StripChunk {
         let mut file = BufReader::with_capacity(1 << 20, File::open(path)?);
         let mut header = StripChunkHeader::zeroed();
         file.read_exact(bytemuck::bytes_of_mut(&mut header))?;
-        let expected = header.data_offset() + header.data_bytes;
+        let expected = header.end();
         if header.magic != STRIP_MAGIC || file.get_ref().metadata()?.len() != expected {
             return Err(io::Error::new(
                 io::ErrorKind::InvalidData,
@@ -254,6 +283,34 @@ impl StripChunk {
         Ok(())
     }
 
+    /// Hands each strip's attributes to `visit`, in file order.
+    pub fn visit_attributes(&mut self, visit: &mut AttributeVisit) -> io::Result<()> {
+        let records = self.records()?;
+        let header = self.header;
+        let face_ids: Vec<u32> =
+            self.read_records(header.attributes_offset(), header.face_id_count as usize)?;
+        let normals: Vec<OctCode> = self.read_records(
+            header.attributes_offset() + header.face_id_count * 4,
+            header.normal_count as usize,
+        )?;
+        let colors: Vec<[u8; 4]> = self.read_records(
+            header.attributes_offset() + (header.face_id_count + header.normal_count) * 4,
+            header.color_count as usize,
+        )?;
+        let (mut face_ids, mut normals, mut colors) = (&face_ids[..], &normals[..], &colors[..]);
+        for record in &records {
+            let windows = record.reference_count as usize - 2;
+            let vertices = record.vertex_count as usize;
+            let attributes = StripAttributes {
+                face_ids: take(&mut face_ids, windows)?.to_vec(),
+                normals: take(&mut normals, vertices)?.to_vec(),
+                colors: take(&mut colors, vertices)?.to_vec(),
+            };
+            visit(&attributes)?;
+        }
+        Ok(())
+    }
+
     fn read_records<T: Pod>(&mut self, offset: u64, count: usize) -> io::Result<Vec<T>> {
         self.file.seek(SeekFrom::Start(offset))?;
         let mut records = vec![T::zeroed(); count];
@@ -261,4 +318,21 @@ impl StripChunk {
             .read_exact(bytemuck::cast_slice_mut(&mut records))?;
         Ok(records)
     }
+}
+
+/// The first `count` items of `items` (all of them when it is empty: an attribute the chunk
+/// does not store), which then start after them.
+fn take<'a, T>(items: &mut &'a [T], count: usize) -> io::Result<&'a [T]> {
+    if items.is_empty() {
+        return Ok(items);
+    }
+    if items.len() < count {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            "strip chunk attributes are short",
+        ));
+    }
+    let (first, rest) = items.split_at(count);
+    *items = rest;
+    Ok(first)
 }

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use reducem::conversion::AttributeParams;
+use reducem::format::attributes::AttributeSet;
 use reducem::format::attributes::NormalEncoding;
 use reducem::tools::gen::Kind;
 
@@ -310,7 +310,7 @@ impl Config {
         params.stripify.max_length = self.strip.max_length;
         params.stripify.sah_bins = self.strip.sah_bins;
         params.grid_nodes = self.strip.grid_nodes;
-        params.attributes = AttributeParams {
+        params.attributes = AttributeSet {
             face_ids: self.attributes.face_ids,
             normals: self.attributes.normals.encoding(),
             colors: self.attributes.colors,

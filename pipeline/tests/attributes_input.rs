@@ -242,7 +242,7 @@ fn mesh_chunks_round_trip_with_and_without_attributes_and_reject_bad_flags() {
 
 #[test]
 fn attribute_keys_map_into_the_build_parameters() {
-    use reducem::conversion::AttributeParams;
+    use reducem::format::attributes::AttributeSet;
     use reducem::format::attributes::NormalEncoding;
     let parse = |attributes: &str| {
         let text = format!(
@@ -253,10 +253,10 @@ fn attribute_keys_map_into_the_build_parameters() {
             .build_params()
             .attributes
     };
-    assert_eq!(parse(""), AttributeParams::default());
+    assert_eq!(parse(""), AttributeSet::default());
     assert_eq!(
         parse("face_ids = true\nnormals = \"oct8\"\n"),
-        AttributeParams {
+        AttributeSet {
             face_ids: true,
             normals: NormalEncoding::Oct8,
             colors: false,
@@ -264,7 +264,7 @@ fn attribute_keys_map_into_the_build_parameters() {
     );
     assert_eq!(
         parse("normals = \"oct16\"\ncolors = true\n"),
-        AttributeParams {
+        AttributeSet {
             face_ids: false,
             normals: NormalEncoding::Oct16,
             colors: true,

@@ -5,6 +5,7 @@ use std::io::{self, Write};
 use std::path::Path;
 
 use super::layout::{strip_records, ChunkLayout, DataWords};
+use crate::format::attribute_sections::AttributeVisit;
 use crate::format::grid::NodeGrid;
 use crate::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource, WriteError};
 use crate::format::{SectionKind, StripRecord};
@@ -81,5 +82,12 @@ impl SectionSource for InMemory<'_> {
                 .iter()
                 .try_for_each(|&s| out.write_all(&self.strips[s as usize].block)),
         }
+    }
+
+    fn visit_attributes(&mut self, visit: &mut AttributeVisit) -> io::Result<()> {
+        self.top
+            .strip_order
+            .iter()
+            .try_for_each(|&s| visit(&self.strips[s as usize].attributes))
     }
 }

@@ -39,11 +39,12 @@ impl ChunkLayout {
     }
 
     /// The strips' blocks in file order.
-    pub fn blocks<'a>(&'a self, strips: &'a [EncodedStrip]) -> impl Iterator<Item = &'a [u8]> {
-        self.top
-            .strip_order
-            .iter()
-            .map(|&s| strips[s as usize].block.as_slice())
+    /// The chunk's strips in file order.
+    pub fn strips<'a>(
+        &'a self,
+        strips: &'a [EncodedStrip],
+    ) -> impl Iterator<Item = &'a EncodedStrip> {
+        self.top.strip_order.iter().map(|&s| &strips[s as usize])
     }
 }
 

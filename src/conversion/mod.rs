@@ -12,14 +12,15 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use crate::format::attributes::NormalEncoding;
+use crate::format::attributes::AttributeSet;
 use crate::format::counts::WeldStats;
 use crate::format::grid::{Grid, MAX_GRID_BITS};
 use crate::format::writer::{FileInfo, WriteError};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 use crate::quantize::quantize_mesh;
-use crate::strip_encoding::{encode_strip, split_strip, EncodedStrip, Positions};
+use crate::strip_encoding::attributes::split_triangles;
+use crate::strip_encoding::{encode_strip, split_strip, AttributeSource, EncodedStrip, Positions};
 use crate::strip_windows;
 use crate::stripify::{stripify, Stripification, StripifyParams};
 use crate::toplevel::TopLevelParams;
@@ -70,26 +71,12 @@ pub struct BuildParams {
     /// triangle, about 12% slower AO rays. Grid files always have grid nodes.
     pub grid_nodes: bool,
     /// Which attributes the file stores besides positions (none by default).
-    pub attributes: AttributeParams,
+    pub attributes: AttributeSet,
 }
 
-/// The attributes a file stores besides positions (config section `[attributes]`). Each costs
-/// nothing when off.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct AttributeParams {
-    /// The input face index of every stored triangle.
-    pub face_ids: bool,
-    /// Per-vertex normals, and how they are encoded.
-    pub normals: NormalEncoding,
-    /// Per-vertex RGBA8 colours.
-    pub colors: bool,
-}
-
-impl AttributeParams {
-    /// Whether any attribute is stored.
-    pub fn any(&self) -> bool {
-        self.face_ids || self.normals != NormalEncoding::None || self.colors
-    }
+/// Where the attributes of strips over `mesh` come from; `None` when none is stored.
+fn attribute_source(set: AttributeSet, mesh: &Mesh) -> Option<AttributeSource<'_>> {
+    set.any().then_some(AttributeSource { mesh, set })
 }
 
 impl Default for BuildParams {
@@ -100,7 +87,7 @@ impl Default for BuildParams {
             top_level: TopLevelParams::default(),
             grid_bits: None,
             grid_nodes: false,
-            attributes: AttributeParams::default(),
+            attributes: AttributeSet::default(),
         }
     }
 }
@@ -159,7 +146,10 @@ pub fn encode_chunk(mesh: &Mesh, params: &BuildParams) -> EncodedChunk {
 /// `grid` ([`BuildParams::grid`]) or, without one, as f32 copies.
 pub fn encode_chunk_on(mesh: &Mesh, params: &BuildParams, grid: Option<&Grid>) -> EncodedChunk {
     let Some(grid) = grid else {
-        return encode_stripification(mesh, &stripify(mesh, &params.stripify), params.leaf_windows);
+        let stripification = stripify(mesh, &params.stripify);
+        let positions = Positions::F32(&mesh.positions);
+        let attributes = attribute_source(params.attributes, mesh);
+        return encode_strips(&stripification, positions, params.leaf_windows, attributes);
     };
     let quantized = quantize_mesh(mesh, grid);
     let positions = Positions::Grid {
@@ -168,14 +158,15 @@ pub fn encode_chunk_on(mesh: &Mesh, params: &BuildParams, grid: Option<&Grid>) -
         bits: grid.bits,
     };
     let stripification = stripify(&quantized.mesh, &params.stripify);
-    let mut chunk = encode_strips(&stripification, positions, params.leaf_windows);
+    let attributes = attribute_source(params.attributes, &quantized.mesh);
+    let mut chunk = encode_strips(&stripification, positions, params.leaf_windows, attributes);
     chunk.stats.quantization = quantized.error;
     chunk.grid = Some(*grid);
     chunk
 }
 
 /// Encodes strips from any stripifier (Strip-RT, or another one for comparison) over `mesh`,
-/// with f32 vertices.
+/// with f32 vertices and no attributes.
 pub fn encode_stripification(
     mesh: &Mesh,
     stripification: &Stripification,
@@ -185,6 +176,7 @@ pub fn encode_stripification(
         stripification,
         Positions::F32(&mesh.positions),
         leaf_windows,
+        None,
     )
 }
 
@@ -192,11 +184,27 @@ fn encode_strips(
     stripification: &Stripification,
     positions: Positions,
     leaf_windows: usize,
+    attributes: Option<AttributeSource>,
 ) -> EncodedChunk {
-    let strips: Vec<EncodedStrip> = stripification
+    let encoded: Vec<(EncodedStrip, f64)> = stripification
         .strips
         .par_iter()
-        .flat_map_iter(|references| encode_fitting(references, positions, leaf_windows))
+        .zip(&stripification.triangles)
+        .flat_map_iter(|(references, triangles)| {
+            let mut pieces = Vec::new();
+            encode_fitting(references, triangles, positions, leaf_windows, &mut pieces);
+            pieces
+                .into_iter()
+                .map(move |(mut strip, references, triangles)| {
+                    let normal_error = attributes.map_or(0.0, |source| {
+                        let (payload, error) =
+                            source.of_strip(references, &strip.vertex_sources, triangles);
+                        strip.attributes = payload;
+                        error
+                    });
+                    (strip, normal_error)
+                })
+        })
         .collect();
     let vertex_count = match positions {
         Positions::F32(points) => points.len(),
@@ -207,9 +215,10 @@ fn encode_strips(
         input_vertices: count_referenced_vertices(&stripification.strips, vertex_count),
         ..ChunkStats::default()
     };
-    for s in &strips {
+    for (s, normal_error) in &encoded {
         stats.stored_vertices += s.vertex_count as u64;
         stats.hierarchy_vertices += s.hierarchy_copies as u64;
+        stats.normal_error_degrees = stats.normal_error_degrees.max(*normal_error);
     }
     for references in &stripification.strips {
         let length = strip_windows::triangles(references).count() as u64;
@@ -217,25 +226,30 @@ fn encode_strips(
         stats.max_strip_length = stats.max_strip_length.max(length);
     }
     EncodedChunk {
-        strips,
+        strips: encoded.into_iter().map(|(strip, _)| strip).collect(),
         stats,
         grid: None,
     }
 }
 
+/// An encoded strip with its references and the mesh triangles of its real windows.
+type Piece<'s> = (EncodedStrip, &'s [u32], &'s [u32]);
+
 /// Encodes a strip, halving it until every piece fits 1-byte local indices.
-fn encode_fitting(
-    references: &[u32],
+fn encode_fitting<'s>(
+    references: &'s [u32],
+    triangles: &'s [u32],
     positions: Positions,
     leaf_windows: usize,
-) -> Vec<EncodedStrip> {
+    pieces: &mut Vec<Piece<'s>>,
+) {
     match encode_strip(references, positions, leaf_windows) {
-        Ok(encoded) => vec![encoded],
+        Ok(encoded) => pieces.push((encoded, references, triangles)),
         Err(_) => {
             let (first, second) = split_strip(references);
-            let mut pieces = encode_fitting(first, positions, leaf_windows);
-            pieces.extend(encode_fitting(second, positions, leaf_windows));
-            pieces
+            let (first_triangles, second_triangles) = split_triangles(first, triangles);
+            encode_fitting(first, first_triangles, positions, leaf_windows, pieces);
+            encode_fitting(second, second_triangles, positions, leaf_windows, pieces);
         }
     }
 }
@@ -294,6 +308,7 @@ pub fn write_chunk(
         grid: chunk.grid,
         grid_nodes: params.grid_nodes,
         weld: WeldStats::default(),
+        attributes: params.attributes,
     };
     write_layout(out, &info, &layout, &chunk.strips)?;
     Ok(chunk.stats)

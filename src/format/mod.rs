@@ -4,4 +4,5 @@
 
 pub use reducem_core::format::*;
 
+pub mod attribute_sections;
 pub mod writer;

@@ -10,6 +10,11 @@ use std::path::{Path, PathBuf};
 
 use xxhash_rust::xxh3::Xxh3;
 
+use super::attribute_sections::{AttributeVisit, AttributeWriter};
+use super::attributes::{
+    AttributeRecord, AttributeSection, AttributeSet, ATTRIBUTES_MINOR, ATTRIBUTE_RECORD_OFFSET,
+    GROUP_STRIPS,
+};
 use super::counts::{ChunkStats, WeldStats};
 use super::grid::{Grid, NodeGrid};
 use super::{
@@ -33,6 +38,8 @@ pub struct FileInfo {
     /// 128-byte f32 [`TopNode`]s; grid files always have grid nodes.
     pub grid_nodes: bool,
     pub weld: WeldStats,
+    /// The attributes stored besides positions (format 2.5 when any).
+    pub attributes: AttributeSet,
 }
 
 impl FileInfo {
@@ -111,6 +118,9 @@ pub struct WriteError {
 pub trait SectionSource {
     fn strip_count(&self) -> u64;
     fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()>;
+    /// Hands every strip's attribute payload to `visit`, in file order; called once per
+    /// attribute section when [`FileInfo::attributes`] stores any.
+    fn visit_attributes(&mut self, visit: &mut AttributeVisit) -> io::Result<()>;
 }
 
 /// Writes a ReduceM file whose sections come from `source`, atomically.
@@ -134,13 +144,46 @@ fn write_sections(
     out.pad_to(HEADER_PAGE)?;
     let mut entries = [SectionEntry::default(); SECTION_COUNT];
     for (entry, kind) in entries.iter_mut().zip(SectionKind::ALL) {
-        *entry = out.section(kind, |w| source.write_section(kind, w))?;
+        *entry = out.section(kind as u32, |w| source.write_section(kind, w))?;
     }
+    let attribute_record = write_attribute_sections(&mut out, info, source)?;
     let header = header(info, source.strip_count(), entries)?;
     file.seek(SeekFrom::Start(0))?;
     file.write_all(bytemuck::bytes_of(&header))?;
     file.seek(SeekFrom::Start(PRECISION_OFFSET as u64))?;
-    file.write_all(bytemuck::bytes_of(&precision(info)?))
+    file.write_all(bytemuck::bytes_of(&precision(info)?))?;
+    if let Some(record) = attribute_record {
+        file.seek(SeekFrom::Start(ATTRIBUTE_RECORD_OFFSET as u64))?;
+        file.write_all(bytemuck::bytes_of(&record))?;
+    }
+    Ok(())
+}
+
+/// Writes the attribute sections after `strip_data`, and returns their record; `None` when
+/// the file stores no attributes (it then stays byte for byte what a 2.4 writer writes).
+fn write_attribute_sections<W: Write>(
+    out: &mut SectionWriter<W>,
+    info: &FileInfo,
+    source: &mut impl SectionSource,
+) -> io::Result<Option<AttributeRecord>> {
+    let set = info.attributes;
+    if !set.any() {
+        return Ok(None);
+    }
+    let mut writer = AttributeWriter::new(set);
+    let mut record = AttributeRecord {
+        flags: AttributeRecord::flags_of(&set),
+        normal_encoding: set.normals as u32,
+        group_strips: GROUP_STRIPS as u32,
+        normal_error_max_degrees: info.stats.normal_error_degrees,
+        ..AttributeRecord::default()
+    };
+    for kind in AttributeSection::ALL.into_iter().filter(|&k| set.has(k)) {
+        record.sections[kind.slot()] = out.section(kind as u32, |w| {
+            writer.write(kind, &mut |visit| source.visit_attributes(visit), w)
+        })?;
+    }
+    Ok(Some(record.sealed()))
 }
 
 fn precision(info: &FileInfo) -> io::Result<PrecisionRecord> {
@@ -184,7 +227,10 @@ fn header(
         version_major: VERSION_MAJOR,
         // The lowest minor with what the file uses: 2.1 for lossless files with f32 nodes (the
         // precision record), so that they stay readable by 2.1 readers byte for byte.
-        version_minor: encoding.minor().max(1),
+        version_minor: match info.attributes.any() {
+            true => ATTRIBUTES_MINOR,
+            false => encoding.minor().max(1),
+        },
         endian_marker: ENDIAN_MARKER,
         header_bytes: std::mem::size_of::<Header>() as u32,
         vertex_encoding: encoding as u32,
@@ -226,7 +272,7 @@ impl<'a, W: Write> SectionWriter<'a, W> {
 
     fn section(
         &mut self,
-        kind: SectionKind,
+        kind: u32,
         body: impl FnOnce(&mut dyn Write) -> io::Result<()>,
     ) -> io::Result<SectionEntry> {
         self.pad_to(align_up(self.position, SECTION_ALIGN))?;
@@ -240,7 +286,7 @@ impl<'a, W: Write> SectionWriter<'a, W> {
         let (length, checksum) = (hashing.written, hashing.hasher.digest());
         self.position += length;
         Ok(SectionEntry {
-            kind: kind as u32,
+            kind,
             reserved: 0,
             offset,
             length,

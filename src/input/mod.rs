@@ -25,8 +25,7 @@ pub use stream::PlyStream;
 pub use tolerance_weld::{tolerance_representatives, weld_within_tolerance};
 pub use weld::{weld_identical_positions, weld_identical_positions_kept};
 
-use crate::conversion::AttributeParams;
-use crate::format::attributes::NormalEncoding;
+use crate::format::attributes::{AttributeSet, NormalEncoding};
 use crate::geometry::Point;
 use crate::mesh::Mesh;
 
@@ -42,7 +41,7 @@ pub struct AttributeRequest {
 
 impl AttributeRequest {
     /// The vertex attributes a build with `params` stores.
-    pub fn for_build(params: &AttributeParams) -> AttributeRequest {
+    pub fn for_build(params: &AttributeSet) -> AttributeRequest {
         AttributeRequest {
             normals: params.normals != NormalEncoding::None,
             colors: params.colors,

@@ -24,7 +24,11 @@
 //! on what the reader decodes, bit for bit. Their references are packed at the bits the strip's
 //! vertex count needs ([`crate::format::references`]).
 
+pub mod attributes;
+
 use std::fmt;
+
+pub use attributes::{AttributeSource, StripAttributes};
 
 use crate::format::implicit_tree::{internal_nodes, is_leaf, split_point};
 use crate::format::reader::VertexLayout;
@@ -70,6 +74,10 @@ pub struct EncodedStrip {
     /// Stored copies that exist only because a vertex bounds two kd-tree nodes.
     pub hierarchy_copies: u16,
     pub block: Vec<u8>,
+    /// The mesh vertex each stored vertex is a copy of, in stored order.
+    pub vertex_sources: Vec<u32>,
+    /// What the attribute sections store for this strip (empty when the file has none).
+    pub attributes: StripAttributes,
 }
 
 /// The strip references more distinct vertices than 1-byte local indices can address.
@@ -337,6 +345,12 @@ impl<'a> StripLayout<'a> {
         }
         block.resize(align_up(block.len() as u64, 4) as usize, 0);
         EncodedStrip {
+            vertex_sources: self
+                .slots
+                .iter()
+                .map(|&s| self.distinct[s as usize])
+                .collect(),
+            attributes: StripAttributes::default(),
             bounds,
             vertex_count: self.slots.len() as u16,
             reference_count: self.local.len() as u16,

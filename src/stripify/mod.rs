@@ -51,6 +51,8 @@ impl Default for StripifyParams {
 pub struct Stripification {
     /// Each strip as mesh vertex indices, swaps included; decoded by the rules in [`crate::strip_windows`].
     pub strips: Vec<Vec<u32>>,
+    /// For each strip, the mesh triangle of each real window, in strip order.
+    pub triangles: Vec<Vec<u32>>,
     /// Triangles dropped because they repeat a vertex or have zero area.
     pub dropped_triangles: u64,
 }
@@ -73,6 +75,44 @@ impl Stripification {
     }
 }
 
+/// The mesh triangle of every real window of `strips` made by another stripifier, which keeps
+/// input winding but may rotate a triangle's corners: each window is matched to an unused mesh
+/// triangle with the same corners in the same cyclic order (duplicates are taken in input order).
+pub fn match_triangles(mesh: &Mesh, strips: &[Vec<u32>]) -> Vec<Vec<u32>> {
+    let mut keyed: Vec<([u32; 3], u32)> = (0..mesh.triangles.len() as u32)
+        .map(|t| (canonical_rotation(mesh.triangles[t as usize]), t))
+        .collect();
+    keyed.sort_unstable();
+    let mut used = vec![false; keyed.len()];
+    strips
+        .iter()
+        .map(|strip| {
+            crate::strip_windows::triangles(strip)
+                .filter_map(|corners| {
+                    let key = canonical_rotation(corners);
+                    let first = keyed.partition_point(|(k, _)| *k < key);
+                    let slot = (first..keyed.len())
+                        .take_while(|&i| keyed[i].0 == key)
+                        .find(|&i| !used[i])?;
+                    used[slot] = true;
+                    Some(keyed[slot].1)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The rotation of a triangle's corners that starts at its smallest index.
+fn canonical_rotation([a, b, c]: [u32; 3]) -> [u32; 3] {
+    if a <= b && a <= c {
+        [a, b, c]
+    } else if b <= c {
+        [b, c, a]
+    } else {
+        [c, a, b]
+    }
+}
+
 /// Runs adjacency, SAH partitioning, greedy ordering and strip output over `mesh`.
 ///
 /// Deterministic: the same mesh and parameters give identical strips for any rayon thread count.
@@ -81,8 +121,13 @@ pub fn stripify(mesh: &Mesh, params: &StripifyParams) -> Stripification {
     let hierarchy = partition::TriangleTree::build(mesh, &adjacency.kept, params.sah_bins);
     let paths = ordering::order(&adjacency, &hierarchy, params.max_length);
     drop(hierarchy);
+    let (strips, triangles) = output::strips(mesh, &adjacency, &paths)
+        .into_iter()
+        .map(|s| (s.references, s.triangles))
+        .unzip();
     Stripification {
-        strips: output::strips(mesh, &adjacency, &paths),
+        strips,
+        triangles,
         dropped_triangles: adjacency.dropped_triangles,
     }
 }

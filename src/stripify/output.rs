@@ -37,8 +37,14 @@ use super::adjacency::{Adjacency, TURN_TO_NEXT_EDGE};
 use super::ordering::{Paths, NO_LINK};
 use crate::mesh::Mesh;
 
+/// One strip as mesh vertex indices, with the mesh triangle of each real window.
+pub struct OutputStrip {
+    pub references: Vec<u32>,
+    pub triangles: Vec<u32>,
+}
+
 /// Converts every path into a strip of mesh vertex indices.
-pub fn strips(mesh: &Mesh, adjacency: &Adjacency, paths: &Paths) -> Vec<Vec<u32>> {
+pub fn strips(mesh: &Mesh, adjacency: &Adjacency, paths: &Paths) -> Vec<OutputStrip> {
     let smaller_ends: Vec<u32> = (0..adjacency.kept.len() as u32)
         .filter(|&t| paths.is_end(t) && t <= paths.other_end[t as usize])
         .collect();
@@ -61,7 +67,7 @@ struct StripWriter<'a> {
 
 impl StripWriter<'_> {
     fn vertices(&self, local: u32) -> [u32; 3] {
-        self.mesh.triangles[self.adjacency.kept[local as usize] as usize]
+        self.mesh.triangles[self.mesh_triangle(local) as usize]
     }
 
     /// The path triangle after `current` when coming from `previous` (or from outside the path).
@@ -97,10 +103,19 @@ impl StripWriter<'_> {
         self.adjacency.turn(start, second, third) == TURN_TO_NEXT_EDGE
     }
 
-    fn strip_from(&self, start: u32) -> Vec<u32> {
+    /// The mesh triangle of path triangle `local`.
+    fn mesh_triangle(&self, local: u32) -> u32 {
+        self.adjacency.kept[local as usize]
+    }
+
+    fn strip_from(&self, start: u32) -> OutputStrip {
         let first = self.vertices(start);
+        let mut triangles = vec![self.mesh_triangle(start)];
         let Some(mut current) = self.next_on_path(NO_LINK, start) else {
-            return first.to_vec();
+            return OutputStrip {
+                references: first.to_vec(),
+                triangles,
+            };
         };
         let exit = self.adjacency.edge_towards(start, current);
         let mut strip = vec![first[(exit + 2) % 3], first[exit], first[(exit + 1) % 3]];
@@ -108,8 +123,12 @@ impl StripWriter<'_> {
         loop {
             let following = self.next_on_path(previous, current);
             self.append_triangle(&mut strip, current, following);
+            triangles.push(self.mesh_triangle(current));
             let Some(following) = following else {
-                return strip;
+                return OutputStrip {
+                    references: strip,
+                    triangles,
+                };
             };
             previous = current;
             current = following;
@@ -181,7 +200,7 @@ mod tests {
             let (mut swaps, mut opening_swaps_avoided) = (0, 0);
             for end in (0..adjacency.kept.len() as u32).filter(|&t| paths.is_end(t)) {
                 let start = writer.start_of(end);
-                let strip = writer.strip_from(start);
+                let strip = writer.strip_from(start).references;
                 let real = crate::strip_windows::triangles(&strip).count();
                 let path = walk(&writer, start);
                 assert_eq!(strip.len() - 2 - real, predicted_swaps(&adjacency, &path));

@@ -303,6 +303,7 @@ pub fn write_encoded_strips(
         grid,
         grid_nodes: false,
         weld: Default::default(),
+        attributes: Default::default(),
     };
     write_file(path, &info, &top, encoded).expect("write file");
 }

@@ -10,6 +10,201 @@
 //! projection, the one whose decoded vector is closest to the input (the survey's "precise"
 //! variant), which halves the worst error of plain rounding.
 
+use bytemuck::{Pod, Zeroable};
+
+use super::SectionEntry;
+
+/// Which attributes a file stores besides positions (the build's `[attributes]` config).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AttributeSet {
+    /// The input face id of every stored triangle.
+    pub face_ids: bool,
+    /// Per-vertex normals, and how they are encoded.
+    pub normals: NormalEncoding,
+    /// Per-vertex RGBA8 colours.
+    pub colors: bool,
+}
+
+impl AttributeSet {
+    /// Whether any attribute is stored.
+    pub fn any(&self) -> bool {
+        self.face_ids || self.normals != NormalEncoding::None || self.colors
+    }
+
+    /// Whether the per-vertex sections (and their group index) exist.
+    pub fn per_vertex(&self) -> bool {
+        self.normals != NormalEncoding::None || self.colors
+    }
+
+    /// Whether a section of `kind` exists in a file with these attributes.
+    pub fn has(&self, kind: AttributeSection) -> bool {
+        match kind {
+            AttributeSection::FaceIds | AttributeSection::FaceIdGroups => self.face_ids,
+            AttributeSection::Normals => self.normals != NormalEncoding::None,
+            AttributeSection::Colors => self.colors,
+            AttributeSection::VertexGroups => self.per_vertex(),
+        }
+    }
+}
+
+/// Strips per group of the attribute group indexes: a lookup reads one group record and at
+/// most this many strip records before its strip.
+pub const GROUP_STRIPS: usize = 16;
+
+/// The format minor that added attributes: files storing any are written as 2.5.
+pub const ATTRIBUTES_MINOR: u16 = 5;
+
+/// Where the [`AttributeRecord`] starts in the header page: after the precision record.
+pub const ATTRIBUTE_RECORD_OFFSET: usize = 288;
+
+/// The attribute sections, in file order after `strip_data`. The discriminant is the on-disk
+/// kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum AttributeSection {
+    /// One little-endian bit stream of per-strip face id entries ([`FaceIdGroup`]).
+    FaceIds = 4,
+    /// [`FaceIdGroup`] per [`GROUP_STRIPS`] strips: where the group's entries start.
+    FaceIdGroups = 5,
+    /// Per stored vertex, in strip order and each strip's stored order: an octahedral code.
+    Normals = 6,
+    /// Per stored vertex, as normals: RGBA8.
+    Colors = 7,
+    /// u64 per [`GROUP_STRIPS`] strips: stored vertices in all strips before the group.
+    VertexGroups = 8,
+}
+
+impl AttributeSection {
+    pub const ALL: [AttributeSection; 5] = [
+        AttributeSection::FaceIds,
+        AttributeSection::FaceIdGroups,
+        AttributeSection::Normals,
+        AttributeSection::Colors,
+        AttributeSection::VertexGroups,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            AttributeSection::FaceIds => "face_ids",
+            AttributeSection::FaceIdGroups => "face_id_groups",
+            AttributeSection::Normals => "normals",
+            AttributeSection::Colors => "colors",
+            AttributeSection::VertexGroups => "vertex_groups",
+        }
+    }
+
+    /// Position in the record's section table.
+    pub fn slot(self) -> usize {
+        self as usize - 4
+    }
+}
+
+/// The attribute record at byte 288 of the header page, since format 2.5 (zeros before; 2.4
+/// and older readers ignore it). 192 bytes.
+///
+/// | bytes | field |
+/// |---|---|
+/// | 288..292 | `flags`: bit 0 face ids, bit 1 normals, bit 2 colours; other bits zero |
+/// | 292..296 | `normal_encoding` ([`NormalEncoding`]): nonzero exactly when bit 1 is set |
+/// | 296..300 | `group_strips` = [`GROUP_STRIPS`] when any attribute is stored, else 0 |
+/// | 300..304 | reserved, zero |
+/// | 304..312 | `normal_error_max_degrees` f64: largest angle between an input normal and its stored code (informational) |
+/// | 312..472 | section table: 5 × [`SectionEntry`] in [`AttributeSection::ALL`] order; an absent section's entry is all zero |
+/// | 472..480 | `checksum`: XXH3-64 of bytes 288..472 |
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub struct AttributeRecord {
+    pub flags: u32,
+    pub normal_encoding: u32,
+    pub group_strips: u32,
+    pub reserved: u32,
+    pub normal_error_max_degrees: f64,
+    pub sections: [SectionEntry; 5],
+    pub checksum: u64,
+}
+const _: () = assert!(std::mem::size_of::<AttributeRecord>() == 192);
+
+/// Byte length of the attribute record prefix covered by its `checksum`.
+pub const ATTRIBUTE_CHECKSUMMED_BYTES: usize = 184;
+
+/// `AttributeRecord::flags` bits.
+pub const FLAG_FACE_IDS: u32 = 1;
+pub const FLAG_NORMALS: u32 = 2;
+pub const FLAG_COLORS: u32 = 4;
+
+impl AttributeRecord {
+    /// The record with its checksum set.
+    pub fn sealed(mut self) -> AttributeRecord {
+        self.checksum = self.computed_checksum();
+        self
+    }
+
+    pub fn computed_checksum(&self) -> u64 {
+        xxhash_rust::xxh3::xxh3_64(&bytemuck::bytes_of(self)[..ATTRIBUTE_CHECKSUMMED_BYTES])
+    }
+
+    /// The attributes the flags and encoding name (unchecked: see the reader's validation).
+    pub fn set(&self) -> AttributeSet {
+        AttributeSet {
+            face_ids: self.flags & FLAG_FACE_IDS != 0,
+            normals: NormalEncoding::from_u32(self.normal_encoding).unwrap_or_default(),
+            colors: self.flags & FLAG_COLORS != 0,
+        }
+    }
+
+    /// The flags of `set`.
+    pub fn flags_of(set: &AttributeSet) -> u32 {
+        let mut flags = 0;
+        if set.face_ids {
+            flags |= FLAG_FACE_IDS;
+        }
+        if set.normals != NormalEncoding::None {
+            flags |= FLAG_NORMALS;
+        }
+        if set.colors {
+            flags |= FLAG_COLORS;
+        }
+        flags
+    }
+}
+
+/// Where a group of [`GROUP_STRIPS`] strips starts in the `face_ids` stream. 16 bytes.
+///
+/// | bytes | field |
+/// |---|---|
+/// | 0..8 | `bit_offset`: the group's first entry, in bits from the start of `face_ids` |
+/// | 8..12 | `base`: the smallest face id in the group |
+/// | 12..16 | reserved, zero |
+///
+/// A strip's entry, in the stream's little-endian bit order (bit `b` is bit `b mod 8` of byte
+/// `b / 8`), has one id per window, swaps included (a swap repeats the id before it, or the
+/// first triangle's at the strip start), so that window `k` of a hit is entry `k`:
+///
+/// | bits | field |
+/// |---|---|
+/// | 6 | `wb`: width of `base_delta`, 0..=32 |
+/// | `wb` | `base_delta`: the strip's smallest id minus the group's `base` |
+/// | 6 | `wl`: width of an offset, 0..=32 |
+/// | 5 | `ws`: width of a delta, 0..=31 |
+/// | `n` | one flag per window (`n` = windows, from the strip record): 1 = offset, 0 = delta; window 0's is 1 |
+/// | ... | per window in order: an offset (`wl` bits, id minus the strip's smallest) or a zigzag delta (`ws` bits, id minus the previous window's) |
+///
+/// A strip's entry length follows from its header and a popcount of its flags, so a lookup
+/// skips at most [`GROUP_STRIPS`] - 1 entries without decoding their values.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+#[repr(C)]
+pub struct FaceIdGroup {
+    pub bit_offset: u64,
+    pub base: u32,
+    pub reserved: u32,
+}
+const _: () = assert!(std::mem::size_of::<FaceIdGroup>() == 16);
+
+/// Widths of a strip's face id entry header fields.
+pub const BASE_WIDTH_BITS: u32 = 6;
+pub const OFFSET_WIDTH_BITS: u32 = 6;
+pub const DELTA_WIDTH_BITS: u32 = 5;
+
 /// How per-vertex normals are stored.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[repr(u32)]
@@ -107,10 +302,7 @@ pub fn decode_normal(code: OctCode, encoding: NormalEncoding) -> [f32; 3] {
     );
     let z = 1.0 - x.abs() - y.abs();
     let (x, y) = if z < 0.0 {
-        (
-            (1.0 - y.abs()).copysign(x),
-            (1.0 - x.abs()).copysign(y),
-        )
+        ((1.0 - y.abs()).copysign(x), (1.0 - x.abs()).copysign(y))
     } else {
         (x, y)
     };

@@ -18,6 +18,9 @@ pub struct ChunkStats {
     pub max_strip_length: u64,
     /// Input vertex → stored position; empty for f32 vertices, which do not move.
     pub quantization: Displacement,
+    /// Largest angle, in degrees, between an input normal and its stored code; 0 without
+    /// normals.
+    pub normal_error_degrees: f64,
 }
 
 impl ChunkStats {
@@ -29,6 +32,7 @@ impl ChunkStats {
         self.hierarchy_vertices += other.hierarchy_vertices;
         self.max_strip_length = self.max_strip_length.max(other.max_strip_length);
         self.quantization.add(&other.quantization);
+        self.normal_error_degrees = self.normal_error_degrees.max(other.normal_error_degrees);
     }
 }
 

@@ -8,6 +8,7 @@
 
 pub mod attributes;
 pub mod counts;
+pub mod face_ids;
 pub mod grid;
 pub mod implicit_tree;
 pub mod quantized;
@@ -27,7 +28,7 @@ pub const VERSION_MAJOR: u16 = 2;
 /// ([`GridNode`], `vertex_encoding` 2), minor 3 packed references in grid files
 /// (`vertex_encoding` 3), minor 4 grid top-level nodes in lossless files (`vertex_encoding` 4).
 /// Writers write the lowest minor that has what the file uses ([`VertexEncoding::minor`]).
-pub const VERSION_MINOR: u16 = 4;
+pub const VERSION_MINOR: u16 = 5;
 /// Written as a little-endian u32; a reader on a big-endian host sees `0x0403_0201`.
 pub const ENDIAN_MARKER: u32 = 0x0102_0304;
 /// Sections start at multiples of this, so each can be mapped and paged on its own.

@@ -19,6 +19,7 @@
 //! This module is the read side: it depends on the format definitions only, never on the build
 //! side, the pipeline, PLY input, progress or channel code.
 
+mod attributes;
 mod lazy;
 mod validate;
 
@@ -28,6 +29,7 @@ use std::path::{Path, PathBuf};
 
 use memmap2::Mmap;
 
+use super::attributes::AttributeSection;
 use super::grid::{Grid, NodeGrid};
 use super::implicit_tree::internal_nodes;
 use super::quantized::{vertex_part_bytes, AxisWordLayout, GridVertices};
@@ -38,8 +40,10 @@ use super::{
     F32_VERTEX_BYTES,
 };
 use crate::geometry::Point;
+use attributes::AttributeSections;
 use lazy::LazyChecks;
 
+pub use attributes::VertexAttributes;
 pub use validate::VALIDATION_WINDOW;
 
 /// Files up to this size are validated in full when opened by [`ReducemFile::open`]: it costs
@@ -93,6 +97,7 @@ pub struct ReducemFile {
     /// The grid of [`GridNode`] boxes; `None` for f32 [`TopNode`]s.
     node_grid: Option<NodeGrid>,
     sections: [Range<usize>; 3],
+    attributes: AttributeSections,
     checks: LazyChecks,
 }
 
@@ -369,12 +374,29 @@ impl ReducemFile {
 
     /// Hashes every section and compares with the header's checksums.
     pub fn verify_checksums(&self) -> Result<(), FormatError> {
-        for (slot, kind) in SectionKind::ALL.into_iter().enumerate() {
-            let entry = &self.header.sections[slot];
-            let actual = xxhash_rust::xxh3::xxh3_64(self.section_bytes(kind));
+        let core = SectionKind::ALL
+            .into_iter()
+            .enumerate()
+            .map(|(slot, kind)| {
+                (
+                    kind.name(),
+                    &self.header.sections[slot],
+                    self.section_bytes(kind),
+                )
+            });
+        let set = self.attributes();
+        let attributes = AttributeSection::ALL
+            .into_iter()
+            .filter(|&kind| set.has(kind))
+            .map(|kind| {
+                let entry = &self.attributes.record.sections[kind.slot()];
+                (kind.name(), entry, self.attribute_bytes(kind))
+            });
+        for (name, entry, bytes) in core.chain(attributes) {
+            let actual = xxhash_rust::xxh3::xxh3_64(bytes);
             if actual != entry.checksum {
                 return Err(self.invalid(
-                    kind.name(),
+                    name,
                     entry.offset,
                     format!(
                         "checksum {actual:#018x} does not match the header's {:#018x}",

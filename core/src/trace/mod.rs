@@ -20,6 +20,7 @@
 //! from the build side or the pipeline.
 
 #[cfg(target_arch = "x86_64")]
+pub mod attributes;
 mod avx2;
 pub mod kernel;
 pub mod packet;
@@ -35,6 +36,7 @@ use rayon::prelude::*;
 
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
+pub use attributes::{hit_attributes, HitAttributes};
 pub use kernel::Kernel;
 use prepared::PreparedRay;
 use strip::{Closest, StripQuery};

@@ -17,8 +17,10 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
+use super::attributes::{hit_attributes, HitAttributes};
 use super::ray::{Hit, Ray};
 use super::Tracer;
+use crate::format::reader::ReducemFile;
 use crate::{atomic, mapping};
 
 /// Bytes per ray record.
@@ -234,6 +236,71 @@ pub fn encode_hits(hits: &[Option<Hit>]) -> Vec<u8> {
     bytes
 }
 
+/// Bytes per ray of a hit file in the full format ([`HitFormat::Full`]).
+pub const FULL_HIT_BYTES: usize = 48;
+
+/// The face id of a miss, or of a hit in a file without face ids, in the full format.
+pub const NO_FACE_ID: u32 = u32::MAX;
+
+/// The record a hit file has per ray.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HitFormat {
+    /// [`HIT_BYTES`]: f32 t (infinity on a miss), f32 × 3 geometric normal.
+    #[default]
+    Compact,
+    /// [`FULL_HIT_BYTES`], little endian: f32 t, f32 u, f32 v, u32 face id ([`NO_FACE_ID`] on
+    /// a miss or without face ids), f32 × 3 geometric normal, f32 × 3 shading normal (the
+    /// interpolated stored normal, else the geometric one), u8 × 4 RGBA colour interpolated
+    /// (zeros without colours), u32 reserved zero. A miss has t infinity and zeros elsewhere.
+    Full,
+}
+
+impl HitFormat {
+    pub fn record_bytes(self) -> usize {
+        match self {
+            HitFormat::Compact => HIT_BYTES,
+            HitFormat::Full => FULL_HIT_BYTES,
+        }
+    }
+}
+
+/// A miss's record in the full format.
+pub fn encode_full_miss() -> Vec<u8> {
+    let mut record = vec![0; FULL_HIT_BYTES];
+    encode_full_hit_or_miss(None, None, &mut record);
+    record
+}
+
+/// The full-format record of `hit` in `file` ([`HitFormat::Full`]); reads the hit's
+/// attributes.
+fn encode_full_hit(file: &ReducemFile, hit: Option<&Hit>, record: &mut [u8]) {
+    encode_full_hit_or_miss(hit, hit.map(|hit| hit_attributes(file, hit)), record);
+}
+
+fn encode_full_hit_or_miss(
+    hit: Option<&Hit>,
+    attributes: Option<HitAttributes>,
+    record: &mut [u8],
+) {
+    record.fill(0);
+    let (Some(hit), Some(attributes)) = (hit, attributes) else {
+        record[..4].copy_from_slice(&f32::INFINITY.to_le_bytes());
+        record[12..16].copy_from_slice(&NO_FACE_ID.to_le_bytes());
+        return;
+    };
+    let floats = [hit.t, hit.u, hit.v];
+    let normals = [hit.normal, attributes.shading_normal];
+    let words = floats
+        .iter()
+        .map(|f| f.to_le_bytes())
+        .chain([attributes.face_id.unwrap_or(NO_FACE_ID).to_le_bytes()])
+        .chain(normals.iter().flatten().map(|f| f.to_le_bytes()))
+        .chain([attributes.color.unwrap_or([0; 4])]);
+    for (word, out) in words.zip(record.chunks_exact_mut(4)) {
+        out.copy_from_slice(&word);
+    }
+}
+
 /// [`encode_hits`] into `bytes` (`HIT_BYTES` per hit).
 fn encode_hits_into(hits: &[Option<Hit>], bytes: &mut [u8]) {
     for (hit, record) in hits.iter().zip(bytes.chunks_exact_mut(HIT_BYTES)) {
@@ -254,11 +321,28 @@ pub fn encode_occlusion(occluded: &[bool]) -> Vec<u8> {
 
 /// The hit file's bytes for `rays`: traced and encoded chunk by chunk on every core.
 pub fn trace_hits(tracer: &Tracer, rays: &[Ray]) -> Vec<u8> {
-    let mut bytes = vec![0; rays.len() * HIT_BYTES];
+    trace_hits_as(tracer, rays, HitFormat::Compact)
+}
+
+/// The hit file's bytes for `rays` in `format`; the full format reads each final hit's
+/// attributes after its chunk is traced.
+pub fn trace_hits_as(tracer: &Tracer, rays: &[Ray], format: HitFormat) -> Vec<u8> {
+    let size = format.record_bytes();
+    let mut bytes = vec![0; rays.len() * size];
     bytes
-        .par_chunks_mut(QUERY_CHUNK * HIT_BYTES)
+        .par_chunks_mut(QUERY_CHUNK * size)
         .zip(rays.par_chunks(QUERY_CHUNK))
-        .for_each(|(out, rays)| encode_hits_into(&tracer.intersect_chunk(rays), out));
+        .for_each(|(out, rays)| {
+            let hits = tracer.intersect_chunk(rays);
+            match format {
+                HitFormat::Compact => encode_hits_into(&hits, out),
+                HitFormat::Full => {
+                    for (hit, record) in hits.iter().zip(out.chunks_exact_mut(size)) {
+                        encode_full_hit(tracer.file(), hit.as_ref(), record);
+                    }
+                }
+            }
+        });
     bytes
 }
 

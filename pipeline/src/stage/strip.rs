@@ -5,6 +5,7 @@
 
 use anyhow::Context;
 use reducem::conversion::{encode_chunk_on, ChunkLayout};
+use reducem::strip_encoding::EncodedStrip;
 use reducem::toplevel::TopLevelParams;
 
 use crate::chunk_io::{self, StripChunkHeader};
@@ -116,17 +117,16 @@ fn strip_one(job: &Job, chunked: &Chunked, chunk: usize) -> anyhow::Result<()> {
     let encoded = encode_chunk_on(&mesh, &params, grid.as_ref());
     drop(mesh);
     let layout = ChunkLayout::new(&encoded.strips, &params.top_level)?;
+    let strips: Vec<&EncodedStrip> = layout.strips(&encoded.strips).collect();
     let header = StripChunkHeader::new(
         &encoded.stats,
         &layout.bounds,
         layout.top.nodes.len(),
-        layout.records.len(),
-        layout.data_bytes as usize,
+        &strips,
     );
-    let blocks: Vec<&[u8]> = layout.blocks(&encoded.strips).collect();
     let path = job.work.file(&strip_chunk(chunk));
     reducem::atomic::write_atomically(&path, |out| {
-        chunk_io::write_strips(out, &header, &layout.top.nodes, &layout.records, &blocks)
+        chunk_io::write_strips(out, &header, &layout.top.nodes, &layout.records, &strips)
     })
     .with_context(|| format!("writing {}", path.display()))
 }

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use reducem::conversion::layout::{rebase_records, DataWords};
+use reducem::format::attribute_sections::AttributeVisit;
 use reducem::format::grid::NodeGrid;
 use reducem::format::reader::{ReducemFile, Validation};
 use reducem::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource};
@@ -55,6 +56,7 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         grid: merged.grid,
         grid_nodes: job.config.strip.grid_nodes,
         weld: merged.weld,
+        attributes: job.config.build_params().attributes,
     };
     let mut source = Spliced::new(job, merged, hierarchy, info.node_grid()?)?;
     write_streaming(&output, &info, &mut source)?;
@@ -156,5 +158,10 @@ impl SectionSource for Spliced<'_> {
                 .chunks()
                 .try_for_each(|(index, _, _)| self.chunk(index)?.copy_data(out)),
         }
+    }
+
+    fn visit_attributes(&mut self, visit: &mut AttributeVisit) -> io::Result<()> {
+        self.chunks()
+            .try_for_each(|(index, _, _)| self.chunk(index)?.visit_attributes(visit))
     }
 }

@@ -58,11 +58,12 @@ pub fn meshopt_stripification(mesh: &Mesh, max_length: usize) -> Stripification 
     let cache_ordered = meshopt::optimize_vertex_cache(&indices, vertex_count);
     let stripped = meshopt::stripify(&cache_ordered, vertex_count, RESTART)
         .expect("meshopt_stripifyBound bounds the output");
-    let strips = stripped
+    let strips: Vec<Vec<u32>> = stripped
         .split(|&i| i == RESTART)
         .flat_map(|strip| limit_length(strip, max_length.max(1)))
         .collect();
     Stripification {
+        triangles: crate::stripify::match_triangles(mesh, &strips),
         strips,
         dropped_triangles: (mesh.triangles.len() - kept.len()) as u64,
     }

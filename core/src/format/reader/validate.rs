@@ -52,6 +52,9 @@ pub(super) fn open(
     let precision = checker.precision(&header)?;
     let (layout, node_grid) = checker.layout(&header, &precision)?;
     let sections = checker.sections(&header, node_bytes(node_grid.is_some()))?;
+    let core_end = sections[section_slot(SectionKind::StripData)].end as u64;
+    let attributes = super::attributes::read_record(checker.head, &header, core_end, file_len)
+        .map_err(|(offset, detail)| checker.invalid("header", offset, detail))?;
     let map = map_file(&file).map_err(io_error)?;
     if map.len() as u64 != file_len {
         let detail = "the file changed size while it was being opened".to_string();
@@ -78,6 +81,7 @@ pub(super) fn open(
         layout,
         node_grid,
         sections,
+        attributes,
         checks,
     };
     let windows = Windows { opened: &opened };
@@ -85,6 +89,7 @@ pub(super) fn open(
     if validation == Validation::Full {
         windows.validate_strips()?;
         windows.validate_nodes()?;
+        opened.validate_attributes()?;
     }
     Ok(opened)
 }
@@ -93,7 +98,8 @@ pub(super) fn open(
 pub(super) fn validate_all(opened: &ReducemFile) -> Result<(), FormatError> {
     let windows = Windows { opened };
     windows.validate_strips()?;
-    windows.validate_nodes()
+    windows.validate_nodes()?;
+    opened.validate_attributes()
 }
 
 /// Validates node `index` of a lazily opened file alone ([`TreeCheck::check`] without the
