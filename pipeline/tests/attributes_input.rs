@@ -272,3 +272,60 @@ fn attribute_keys_map_into_the_build_parameters() {
     );
     assert_eq!(parse("normals = \"none\"\n").normals, NormalEncoding::None);
 }
+
+/// The whole job on the quads with every attribute: each stored triangle's face id names the
+/// input quad whose corners it has, each corner keeps that quad vertex's colour exactly and its
+/// normal within the oct16 bound.
+#[test]
+fn a_staged_file_keeps_each_triangles_input_face_and_its_corners_attributes() {
+    let dir = temp_dir("end-to-end");
+    let input = dir.join("quads.ply");
+    quads_ply(&input);
+    let config = write_config(
+        &dir,
+        "[input]\npath = \"quads.ply\"\n",
+        "face_ids = true\nnormals = \"oct16\"\ncolors = true\n",
+    );
+    let output = run(&config, &[]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let request = AttributeRequest {
+        normals: true,
+        colors: true,
+    };
+    let whole = read_mesh_with(&input, request).unwrap();
+    let (normals, colors) = (whole.normals.unwrap(), whole.colors.unwrap());
+    let file = reducem::format::reader::ReducemFile::open(&dir.join("out.rdm")).expect("open");
+    let mut faces_seen = Vec::new();
+    for s in 0..file.strip_count() {
+        let view = file.strip(s);
+        let stored = file.vertex_attributes(s).expect("vertex attributes");
+        let references = view.references.to_vec();
+        let points: Vec<[f32; 3]> = view.vertices.iter().collect();
+        for k in 0..view.window_count() {
+            let Some(triangle) = reducem::strip_windows::window_triangle(&references, k) else {
+                continue;
+            };
+            let face = file.face_id(s, k).expect("face id") as usize;
+            faces_seen.push(face);
+            for r in triangle {
+                let r = r as usize;
+                // The quad's own vertex at this corner: its four copies are 4·face..4·face+4.
+                let vertex = (4 * face..4 * face + 4)
+                    .find(|&v| whole.positions[v] == points[r])
+                    .unwrap_or_else(|| panic!("face {face} has no corner at {:?}", points[r]));
+                assert_eq!(stored.color(r), Some(colors[vertex]));
+                let normal = stored.normal(r).expect("normal");
+                let cos = (0..3).map(|a| normal[a] * normals[vertex][a]).sum::<f32>();
+                assert!(cos.min(1.0).acos().to_degrees() < 0.01, "{normal:?}");
+            }
+        }
+    }
+    faces_seen.sort();
+    let expected: Vec<usize> = (0..12).flat_map(|q| [q, q]).collect();
+    assert_eq!(faces_seen, expected);
+    let _ = std::fs::remove_dir_all(&dir);
+}
