@@ -99,12 +99,7 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     )?;
     let partition = chunking::partition(&*source, job.config.chunk.max_triangles)?;
     let face_ids = job.config.attributes.face_ids;
-    let spilled = Spilled {
-        source: &*source,
-        partition: &partition,
-        face_ids,
-    };
-    let triangles_per_chunk = spill(job, &spilled, &input.path)?;
+    let triangles_per_chunk = spill(job, &*source, &partition, face_ids, &input.path)?;
     let progress = job
         .progress
         .stage(UNIT, triangles_per_chunk.len() as u64, "chunks");
@@ -144,21 +139,15 @@ fn spill_path(job: &Job, chunk: usize) -> std::path::PathBuf {
     job.work.file(&format!("chunks/spill-{chunk:06}.ids"))
 }
 
-/// What [`spill`] distributes.
-struct Spilled<'a> {
-    source: &'a dyn MeshSource,
-    partition: &'a Partition,
-    face_ids: bool,
-}
-
 /// Writes every triangle's global vertex indices, and with `face_ids` its input face, to its
-/// chunk's spill file.
-fn spill(job: &Job, spilled: &Spilled, input: &Path) -> anyhow::Result<Vec<u64>> {
-    let Spilled {
-        source,
-        partition,
-        face_ids,
-    } = *spilled;
+/// chunk's spill file (`input` names the file in errors).
+fn spill(
+    job: &Job,
+    source: &dyn MeshSource,
+    partition: &Partition,
+    face_ids: bool,
+    input: &Path,
+) -> anyhow::Result<Vec<u64>> {
     let chunk_count = partition.plan.chunk_count();
     let mut writers = (0..chunk_count)
         .map(|chunk| {
@@ -177,14 +166,16 @@ fn spill(job: &Job, spilled: &Spilled, input: &Path) -> anyhow::Result<Vec<u64>>
             return;
         }
         let writer = &mut writers[chunk as usize];
-        first_error = writer.write_all(bytemuck::cast_slice(&triangle)).err();
-        if face_ids {
-            let Ok(face) = u32::try_from(face) else {
+        let written = writer.write_all(bytemuck::cast_slice(&triangle));
+        first_error = match (written, u32::try_from(face)) {
+            (Err(error), _) => Some(error),
+            (Ok(()), _) if !face_ids => None,
+            (Ok(()), Ok(face)) => writer.write_all(&face.to_le_bytes()).err(),
+            (Ok(()), Err(_)) => {
                 face_beyond_u32.get_or_insert(face);
-                return;
-            };
-            first_error = writer.write_all(&face.to_le_bytes()).err();
-        }
+                None
+            }
+        };
     })?;
     if let Some(face) = face_beyond_u32 {
         let kind = InputErrorKind::TooManyFaces {
