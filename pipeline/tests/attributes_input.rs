@@ -329,3 +329,46 @@ fn a_staged_file_keeps_each_triangles_input_face_and_its_corners_attributes() {
     assert_eq!(faces_seen, expected);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `convert` settings (the Python package's keyword arguments) reach `[attributes]`.
+#[test]
+fn convert_settings_set_the_attributes() {
+    use pipeline::convert::{convert, ConvertArgs};
+    use pipeline::run::{IfLocked, RunOptions, Shard};
+    let dir = temp_dir("convert");
+    quads_ply(&dir.join("quads.ply"));
+    let args = ConvertArgs {
+        input: dir.join("quads.ply"),
+        output: dir.join("quads.rdm"),
+        max_length: None,
+        encoding: None,
+        grid_bits: None,
+        work: Some(dir.join("work")),
+        settings: vec![
+            ("face_ids".into(), "true".into()),
+            ("normals".into(), "\"oct8\"".into()),
+            ("colors".into(), "true".into()),
+        ],
+    };
+    let options = RunOptions {
+        log_format: pipeline::progress::LogFormat::Plain,
+        clean_after: false,
+        if_locked: IfLocked::Fail,
+        stage: None,
+        shard: Shard::WHOLE,
+    };
+    convert(&args, &options).expect("convert");
+    let config = std::fs::read_to_string(dir.join("work/convert.toml")).unwrap();
+    assert!(
+        config.contains("[attributes]\nface_ids = true\nnormals = \"oct8\"\ncolors = true\n"),
+        "{config}"
+    );
+    let file = reducem::format::reader::ReducemFile::open(&dir.join("quads.rdm")).expect("open");
+    let attributes = file.attributes();
+    assert!(attributes.face_ids && attributes.colors);
+    assert_eq!(
+        attributes.normals,
+        reducem::format::attributes::NormalEncoding::Oct8
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
