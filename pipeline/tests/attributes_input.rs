@@ -372,3 +372,42 @@ fn convert_settings_set_the_attributes() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// With attributes, a job killed after its chunk stage resumes to the same bytes as one run
+/// through, for any thread count.
+#[test]
+fn jobs_with_attributes_resume_to_byte_identical_files_for_any_thread_count() {
+    let outputs: Vec<Vec<u8>> = [("1", true), ("2", false)]
+        .into_iter()
+        .map(|(threads, in_two_runs)| {
+            let dir = temp_dir(&format!("identical-{threads}"));
+            quads_ply(&dir.join("quads.ply"));
+            let config = write_config(
+                &dir,
+                "[input]\npath = \"quads.ply\"\n",
+                "face_ids = true\nnormals = \"oct16\"\ncolors = true\n",
+            );
+            let run_with = |extra: &[&str]| {
+                let output = Command::new(env!("CARGO_BIN_EXE_pipeline"))
+                    .args(["run", config.to_str().unwrap()])
+                    .args(extra)
+                    .env("RAYON_NUM_THREADS", threads)
+                    .output()
+                    .expect("run pipeline");
+                assert!(
+                    output.status.success(),
+                    "{}",
+                    String::from_utf8_lossy(&output.stderr)
+                );
+            };
+            if in_two_runs {
+                run_with(&["--stage", "chunk"]);
+            }
+            run_with(&[]);
+            let bytes = std::fs::read(dir.join("out.rdm")).expect("output");
+            let _ = std::fs::remove_dir_all(&dir);
+            bytes
+        })
+        .collect();
+    assert_eq!(outputs[0], outputs[1]);
+}
