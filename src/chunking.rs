@@ -10,22 +10,97 @@
 //! own in input order. Chunks are therefore compact regions of space, which keeps strips and the
 //! per-chunk hierarchies local, and their boundaries are the only places where strips cannot
 //! continue.
+//!
+//! Attributes travel with the triangles and vertices: every triangle carries its global input
+//! face id through the partition, and a chunk's vertices get their normals and colours from
+//! the source the way they get their positions, for the chosen vertices only, so memory stays
+//! bounded by the chunk.
+
+use std::path::Path;
 
 use crate::geometry::{Aabb, Point};
-use crate::input::{tolerance_representatives, InputError, WeldStats};
+use crate::input::{
+    read_mesh_with, tolerance_representatives, AttributeRequest, InputError, PlyStream,
+    VertexAttributes, Vertices, WeldStats,
+};
 use crate::mesh::Mesh;
 
 /// A mesh read in passes, so that a model larger than memory can be partitioned: positions in
-/// windows, triangles in input order, and positions of chosen vertices.
+/// windows, triangles in input order, and positions and attributes of chosen vertices.
 pub trait MeshSource: Sync {
     fn vertex_count(&self) -> u64;
     fn for_each_position_window(
         &self,
         visit: &mut dyn FnMut(u64, &[Point]),
     ) -> Result<(), InputError>;
+    /// Visits every triangle in input order as `visit(face_id, triangle)`: the input face it
+    /// comes from (a polygon's fan triangles share it).
     fn for_each_triangle(&self, visit: &mut dyn FnMut(u64, [u32; 3])) -> Result<(), InputError>;
     /// Positions of `sorted_ids` (strictly ascending), in that order.
     fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError>;
+    /// The attributes the source was opened with, of `sorted_ids` (strictly ascending), in that
+    /// order.
+    fn attributes_of(&self, sorted_ids: &[u32]) -> Result<VertexAttributes, InputError>;
+}
+
+/// Opens `path` as a [`MeshSource`] with the vertex attributes `request` asks for, failing
+/// before any body is read when the file lacks them. Binary PLY with fixed-size vertices
+/// streams through windows of `window_bytes`; other inputs (ASCII PLY, OBJ: small in
+/// practice) are read whole.
+pub fn open_source(
+    path: &Path,
+    request: AttributeRequest,
+    window_bytes: usize,
+) -> Result<Box<dyn MeshSource>, InputError> {
+    let is_ply = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+    if is_ply {
+        let stream = PlyStream::open(path)?;
+        stream.check_attributes(request)?;
+        if stream.is_streamable() {
+            return Ok(Box::new(WindowedPly {
+                stream,
+                request,
+                window_bytes,
+            }));
+        }
+    }
+    Ok(Box::new(read_mesh_with(path, request)?))
+}
+
+/// A binary PLY read through windows of `window_bytes`.
+struct WindowedPly {
+    stream: PlyStream,
+    request: AttributeRequest,
+    window_bytes: usize,
+}
+
+impl MeshSource for WindowedPly {
+    fn vertex_count(&self) -> u64 {
+        self.stream.vertex_count()
+    }
+
+    fn for_each_position_window(
+        &self,
+        visit: &mut dyn FnMut(u64, &[Point]),
+    ) -> Result<(), InputError> {
+        self.stream
+            .for_each_position_window(self.window_bytes, visit)
+    }
+
+    fn for_each_triangle(&self, visit: &mut dyn FnMut(u64, [u32; 3])) -> Result<(), InputError> {
+        self.stream.for_each_triangle(self.window_bytes, visit)
+    }
+
+    fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError> {
+        self.stream.positions_of(sorted_ids, self.window_bytes)
+    }
+
+    fn attributes_of(&self, sorted_ids: &[u32]) -> Result<VertexAttributes, InputError> {
+        self.stream
+            .attributes_of(sorted_ids, self.window_bytes, self.request)
+    }
 }
 
 /// A mesh already in memory (inputs that cannot be streamed, such as ASCII PLY and OBJ).
@@ -44,17 +119,25 @@ impl MeshSource for Mesh {
 
     fn for_each_triangle(&self, visit: &mut dyn FnMut(u64, [u32; 3])) -> Result<(), InputError> {
         for (index, &triangle) in self.triangles.iter().enumerate() {
-            visit(index as u64, triangle);
+            visit(self.face_id(index).into(), triangle);
         }
         Ok(())
     }
 
     fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError> {
-        Ok(sorted_ids
-            .iter()
-            .map(|&v| self.positions[v as usize])
-            .collect())
+        Ok(pick(&self.positions, sorted_ids))
     }
+
+    fn attributes_of(&self, sorted_ids: &[u32]) -> Result<VertexAttributes, InputError> {
+        Ok(VertexAttributes {
+            normals: self.normals.as_ref().map(|n| pick(n, sorted_ids)),
+            colors: self.colors.as_ref().map(|c| pick(c, sorted_ids)),
+        })
+    }
+}
+
+fn pick<T: Copy>(values: &[T], ids: &[u32]) -> Vec<T> {
+    ids.iter().map(|&v| values[v as usize]).collect()
 }
 
 /// A source whose triangles refer to `representative[v]` instead of `v`: the result of a
@@ -85,15 +168,65 @@ impl MeshSource for Remapped {
     fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError> {
         self.source.positions_of(sorted_ids)
     }
+
+    fn attributes_of(&self, sorted_ids: &[u32]) -> Result<VertexAttributes, InputError> {
+        self.source.attributes_of(sorted_ids)
+    }
+}
+
+/// A source whose vertices sit at `representative[v]`'s position but keep their own
+/// attributes: the tolerance weld of a model with attributes. Triangles keep their vertices,
+/// so a vertex whose attributes differ from its representative's stays a vertex of its own;
+/// the chunk's exact weld then joins the vertices whose positions and attributes now match.
+struct Snapped {
+    source: Box<dyn MeshSource>,
+    representative: Vec<u32>,
+}
+
+impl MeshSource for Snapped {
+    fn vertex_count(&self) -> u64 {
+        self.source.vertex_count()
+    }
+
+    fn for_each_position_window(
+        &self,
+        visit: &mut dyn FnMut(u64, &[Point]),
+    ) -> Result<(), InputError> {
+        self.source.for_each_position_window(visit)
+    }
+
+    fn for_each_triangle(&self, visit: &mut dyn FnMut(u64, [u32; 3])) -> Result<(), InputError> {
+        self.source.for_each_triangle(visit)
+    }
+
+    fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError> {
+        let representatives: Vec<u32> = pick(&self.representative, sorted_ids);
+        let mut distinct = representatives.clone();
+        distinct.sort_unstable();
+        distinct.dedup();
+        let positions = self.source.positions_of(&distinct)?;
+        Ok(representatives
+            .iter()
+            .map(|r| positions[distinct.partition_point(|d| d < r)])
+            .collect())
+    }
+
+    fn attributes_of(&self, sorted_ids: &[u32]) -> Result<VertexAttributes, InputError> {
+        self.source.attributes_of(sorted_ids)
+    }
 }
 
 /// Merges vertices of the whole model within `tolerance` ([`tolerance_representatives`]), so
 /// that every chunk sees the same merged vertices. With a positive tolerance this holds every
 /// position in memory while the merge is computed (12 bytes per vertex) and keeps the map
-/// (4 bytes per vertex); a zero tolerance returns the source as it is.
+/// (4 bytes per vertex); a zero tolerance returns the source as it is. With attributes
+/// (`request`), vertices move to their representative's position and keep their attributes
+/// ([`Snapped`]); without, triangles are remapped to the representatives, as before
+/// attributes existed, so such files stay byte-identical.
 pub fn weld_source(
     source: Box<dyn MeshSource>,
     tolerance: f32,
+    request: AttributeRequest,
 ) -> Result<(Box<dyn MeshSource>, WeldStats), InputError> {
     if tolerance.is_nan() || tolerance <= 0.0 {
         return Ok((source, WeldStats::default()));
@@ -102,6 +235,13 @@ pub fn weld_source(
     source.for_each_position_window(&mut |_, window| positions.extend_from_slice(window))?;
     let (representative, stats) = tolerance_representatives(&positions, tolerance);
     drop(positions);
+    if request.any() {
+        let snapped = Snapped {
+            source,
+            representative,
+        };
+        return Ok((Box::new(snapped), stats));
+    }
     let welded = Remapped {
         source,
         representative,
@@ -139,17 +279,17 @@ pub fn partition(source: &dyn MeshSource, max_triangles: u64) -> Result<Partitio
     })
 }
 
-/// One more pass handing every triangle, in input order, to `sink(chunk, triangle)`.
+/// One more pass handing every triangle, in input order, to `sink(chunk, face_id, triangle)`.
 pub fn distribute(
     source: &dyn MeshSource,
     partition: &Partition,
-    sink: &mut dyn FnMut(u32, [u32; 3]),
+    sink: &mut dyn FnMut(u32, u64, [u32; 3]),
 ) -> Result<(), InputError> {
     let mut seen_per_cell = vec![0u64; CELL_COUNT];
-    source.for_each_triangle(&mut |_, triangle| {
+    source.for_each_triangle(&mut |face, triangle| {
         let cell = partition.vertex_cells[triangle[0] as usize];
         let ordinal = &mut seen_per_cell[cell as usize];
-        sink(partition.plan.chunk_of(cell, *ordinal), triangle);
+        sink(partition.plan.chunk_of(cell, *ordinal), face, triangle);
         *ordinal += 1;
     })
 }
@@ -263,13 +403,15 @@ impl ChunkPlan {
 }
 
 /// Builds a chunk's mesh from its triangles as global vertex indices: the distinct vertices,
-/// ascending, become the chunk's local vertex array, with positions from `positions_of`.
+/// ascending, become the chunk's local vertex array, with positions and attributes from
+/// `vertices_of`. `face_ids` (the triangles' input faces, when kept) pass through.
 ///
 /// One sort of (vertex, corner) keys finds the distinct vertices and every corner's local
 /// index together, instead of a binary search per corner.
 pub fn local_mesh<E>(
     triangles: &[[u32; 3]],
-    positions_of: impl FnOnce(&[u32]) -> Result<Vec<Point>, E>,
+    face_ids: Option<Vec<u32>>,
+    vertices_of: impl FnOnce(&[u32]) -> Result<Vertices, E>,
 ) -> Result<Mesh, E> {
     let corners = triangles.as_flattened();
     let mut keys: Vec<u64> = corners
@@ -287,12 +429,24 @@ pub fn local_mesh<E>(
         }
         local[key as u32 as usize] = distinct.len() as u32 - 1;
     }
+    let vertices = vertices_of(&distinct)?;
     Ok(Mesh {
-        positions: positions_of(&distinct)?,
+        positions: vertices.positions,
         triangles: local.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect(),
-        face_ids: None,
-        normals: None,
-        colors: None,
+        face_ids,
+        normals: vertices.normals,
+        colors: vertices.colors,
+    })
+}
+
+/// Positions and attributes of `sorted_ids`, for [`local_mesh`].
+pub fn vertices_of(source: &dyn MeshSource, sorted_ids: &[u32]) -> Result<Vertices, InputError> {
+    let positions = source.positions_of(sorted_ids)?;
+    let VertexAttributes { normals, colors } = source.attributes_of(sorted_ids)?;
+    Ok(Vertices {
+        positions,
+        normals,
+        colors,
     })
 }
 
@@ -332,11 +486,17 @@ mod tests {
     #[test]
     fn local_mesh_renumbers_by_ascending_global_index() {
         let triangles = [[10, 4, 7], [7, 4, 2]];
-        let mesh = local_mesh(&triangles, |distinct| {
+        let mesh = local_mesh(&triangles, Some(vec![5, 9]), |distinct| {
             assert_eq!(distinct, [2, 4, 7, 10]);
-            Ok::<_, ()>(distinct.iter().map(|&v| [v as f32; 3]).collect())
+            Ok::<_, ()>(Vertices {
+                positions: distinct.iter().map(|&v| [v as f32; 3]).collect(),
+                normals: None,
+                colors: Some(distinct.iter().map(|&v| [v as u8; 4]).collect()),
+            })
         })
         .unwrap();
+        assert_eq!(mesh.face_ids, Some(vec![5, 9]));
+        assert_eq!(mesh.colors.unwrap()[1], [4; 4]);
         assert_eq!(mesh.triangles, vec![[3, 1, 2], [2, 1, 0]]);
         assert_eq!(mesh.positions[3], [10.0; 3]);
     }

@@ -2,7 +2,10 @@
 
 use std::path::PathBuf;
 
-use reducem::input::{read_mesh, read_obj, InputErrorKind, Location};
+use reducem::input::{
+    check_attributes, read_mesh, read_mesh_with, read_obj, read_obj_with, AttributeRequest,
+    InputErrorKind, Location,
+};
 use reducem::mesh::Mesh;
 
 /// A file in the temp dir, removed when dropped.
@@ -188,4 +191,166 @@ fn non_finite_obj_coordinates_are_rejected() {
         ),
         "{error}"
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Normals and colours
+
+const NORMALS: AttributeRequest = AttributeRequest {
+    normals: true,
+    colors: false,
+};
+const COLORS: AttributeRequest = AttributeRequest {
+    normals: false,
+    colors: true,
+};
+
+/// A crease: a quad in z = 0 with normal +z, and a triangle in y = 0 with normal -y sharing the
+/// quad's edge (1, 2), in a second group, the triangle's corners through negative indices and
+/// with texture coordinates.
+const CREASE: &str = "\
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+v 0.5 0 -1
+vn 0 0 1
+vn 0 -1 0
+vt 0 0
+f 1//1 2//1 3//1 4//1
+g side
+f -5/1/-1 -1/1/-1 -4/1/-1
+";
+
+/// Every triangle's corners as (position, normal), in order.
+fn corners_with_normals(mesh: &Mesh) -> Vec<[([f32; 3], [f32; 3]); 3]> {
+    let normals = mesh.normals.as_ref().expect("normals");
+    mesh.triangles
+        .iter()
+        .map(|t| t.map(|v| (mesh.positions[v as usize], normals[v as usize])))
+        .collect()
+}
+
+#[test]
+fn corners_with_different_normals_become_distinct_vertices() {
+    let file = temp_file("crease.obj", CREASE);
+    let mesh = read_mesh_with(&file.0, NORMALS).unwrap();
+    let (up, side) = ([0.0, 0.0, 1.0], [0.0, -1.0, 0.0]);
+    let expected = vec![
+        [
+            ([0.0, 0.0, 0.0], up),
+            ([1.0, 0.0, 0.0], up),
+            ([1.0, 1.0, 0.0], up),
+        ],
+        [
+            ([0.0, 0.0, 0.0], up),
+            ([1.0, 1.0, 0.0], up),
+            ([0.0, 1.0, 0.0], up),
+        ],
+        [
+            ([0.0, 0.0, 0.0], side),
+            ([0.5, 0.0, -1.0], side),
+            ([1.0, 0.0, 0.0], side),
+        ],
+    ];
+    assert_eq!(corners_with_normals(&mesh), expected);
+    assert_eq!(mesh.face_ids, Some(vec![0, 0, 1]));
+    // The shared edge's two positions carry two normals each: 4 + 3 vertices, welded or not.
+    assert_eq!(mesh.positions.len(), 7);
+    assert_eq!(read_obj_with(&file.0, NORMALS).unwrap().positions.len(), 7);
+    // Without normals, the positions weld into 5 vertices.
+    let plain = read_mesh(&file.0).unwrap();
+    assert_eq!(plain.positions.len(), 5);
+    assert_eq!(plain.normals, None);
+}
+
+#[test]
+fn obj_vertex_colours_are_read_per_vertex() {
+    let text = "v 0 0 0 1 0 0\nv 1 0 0 0 0.5 1\nv 1 1 0 0.2 0.4 0.6\nv 0 1 0 0 0 0\n\
+                f 1 2 3 4\nf 1 3 2\n";
+    let file = temp_file("colours.obj", text);
+    let mesh = read_mesh_with(&file.0, COLORS).unwrap();
+    assert_eq!(
+        mesh.colors,
+        Some(vec![
+            [255, 0, 0, 255],
+            [0, 128, 255, 255],
+            [51, 102, 153, 255],
+            [0, 0, 0, 255],
+        ])
+    );
+    assert_eq!(mesh.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 2, 1]]);
+    assert_eq!(mesh.face_ids, Some(vec![0, 0, 1]));
+    assert_eq!(read_mesh(&file.0).unwrap().colors, None);
+}
+
+#[test]
+fn obj_attribute_defects_are_located_when_asked_for() {
+    let read = |name: &str, text: &str, request: AttributeRequest| {
+        let file = temp_file(name, text);
+        let error = read_mesh_with(&file.0, request).unwrap_err();
+        assert!(error.to_string().starts_with(&file.0.display().to_string()));
+        error
+    };
+    let nan = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 nan 1\nf 1//1 2//1 3//1\n";
+    let error = read("nan-normal.obj", nan, NORMALS);
+    assert_eq!(error.location, element("normal", 0, 29, 4), "{error}");
+    assert!(matches!(
+        error.kind,
+        InputErrorKind::NonFiniteNormal { axis: 'y', .. }
+    ));
+    let file = temp_file("nan-unasked.obj", nan);
+    read_mesh(&file.0).expect("normals not asked for are not checked");
+
+    let bright = "v 0 0 0 1 1 1\nv 1 0 0 0 1.5 0\nv 0 1 0 0 0 0\nf 1 2 3\n";
+    let error = read("bright.obj", bright, COLORS);
+    assert_eq!(error.location, element("vertex", 1, 24, 2), "{error}");
+    assert_eq!(
+        error.kind,
+        InputErrorKind::ColorOutOfRange {
+            channel: "green",
+            value: 1.5
+        }
+    );
+
+    let beyond = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n";
+    let error = read("beyond.obj", beyond, NORMALS);
+    assert_eq!(error.location, element("face", 0, 40, 5), "{error}");
+    assert!(error
+        .to_string()
+        .contains("face normal index 2 out of range"));
+
+    let partly = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\nf 1//1 3 2//1\n";
+    let error = read("partly.obj", partly, NORMALS);
+    assert_eq!(error.location, element("face", 1, 57, 6), "{error}");
+
+    let some_colours = "v 0 0 0 1 1 1\nv 1 0 0\nv 0 1 0 0 0 0\nf 1 2 3\n";
+    let error = read("some-colours.obj", some_colours, COLORS);
+    assert_eq!(error.location, element("vertex", 1, 14, 2), "{error}");
+}
+
+#[test]
+fn asking_an_obj_for_attributes_it_lacks_names_them() {
+    let file = temp_file("plain.obj", TWO_OBJECTS);
+    for (request, message) in [
+        (
+            NORMALS,
+            "normals were asked for, but the file has no 'vn' statements",
+        ),
+        (
+            COLORS,
+            "colours were asked for, but no vertex has a colour ('v x y z r g b')",
+        ),
+    ] {
+        let error = check_attributes(&file.0, request).unwrap_err();
+        assert_eq!(error.location, Location::File);
+        assert_eq!(
+            error.to_string(),
+            format!("{}: {message}", file.0.display())
+        );
+        assert_eq!(
+            read_mesh_with(&file.0, request).unwrap_err().to_string(),
+            error.to_string()
+        );
+    }
 }

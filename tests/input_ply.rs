@@ -6,7 +6,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use proptest::prelude::*;
 use reducem::input::{
-    read_mesh, weld_identical_positions, InputError, InputErrorKind, Location, PlyFile,
+    check_attributes, read_mesh, read_mesh_with, weld_identical_positions, AttributeRequest,
+    InputError, InputErrorKind, Location, PlyFile, PlyStream,
 };
 use reducem::mesh::Mesh;
 
@@ -1275,4 +1276,348 @@ fn measure_speedup_over_ply_rs() {
     println!("speedup {:.1}x", theirs / ours);
     assert_eq!(ply.payload["face"].len(), mesh.triangles.len());
     let _ = std::fs::remove_file(&path);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Normals and colours
+
+/// How the attribute fixture stores its normals and colours.
+#[derive(Clone, Copy, Debug)]
+struct AttributeTypes {
+    normal: &'static str,
+    color: &'static str,
+    alpha: bool,
+}
+
+const SAMPLE_NORMALS: [[f64; 3]; 5] = [
+    [0.0, 0.0, 1.0],
+    [0.6, 0.8, 0.0],
+    [-1.0, 0.0, 0.0],
+    [0.0, -0.28, 0.96],
+    [0.1, 0.2, 0.3],
+];
+
+/// Colour channels as stored: uchar values, or the same over 255 as floats (0.5 → 128).
+const SAMPLE_COLORS: [[f64; 4]; 5] = [
+    [255.0, 0.0, 0.0, 255.0],
+    [0.0, 255.0, 0.0, 128.0],
+    [0.0, 0.0, 255.0, 0.0],
+    [51.0, 102.0, 153.0, 204.0],
+    [1.0, 254.0, 128.0, 17.0],
+];
+
+fn stored_channel(types: AttributeTypes, value: f64) -> f64 {
+    // 128 is written as 0.5, which rounds back to 128.
+    match types.color {
+        "uchar" => value,
+        _ if value == 128.0 => 0.5,
+        _ => value / 255.0,
+    }
+}
+
+/// The sample mesh with a `quality` property between positions and normals, then normals and
+/// colours; returns the file and the header length.
+fn attribute_ply(format: Format, types: AttributeTypes) -> (Vec<u8>, usize) {
+    let alpha = if types.alpha {
+        format!("property {} alpha\n", types.color)
+    } else {
+        String::new()
+    };
+    let header = format!(
+        "ply\nformat {} 1.0\nelement vertex 5\nproperty float x\nproperty float y\n\
+         property float z\nproperty float quality\nproperty {n} nx\nproperty {n} ny\n\
+         property {n} nz\nproperty {c} red\nproperty {c} green\nproperty {c} blue\n{alpha}\
+         element face 3\nproperty list uchar int vertex_indices\nend_header\n",
+        format.header_name(),
+        n = types.normal,
+        c = types.color,
+    );
+    let mut body = Body::new(format);
+    for (vertex, position) in sample_positions().iter().enumerate() {
+        for &c in position {
+            body.value("float", c);
+        }
+        body.value("float", 7.5);
+        for &n in &SAMPLE_NORMALS[vertex] {
+            body.value(types.normal, n);
+        }
+        let channels = if types.alpha { 4 } else { 3 };
+        for &channel in &SAMPLE_COLORS[vertex][..channels] {
+            body.value(types.color, stored_channel(types, channel));
+        }
+        body.end_element();
+    }
+    write_faces(&mut body, FLOAT_UCHAR_INT, &sample_faces());
+    let mut bytes = header.clone().into_bytes();
+    bytes.extend_from_slice(&body.bytes);
+    (bytes, header.len())
+}
+
+const ALL_ATTRIBUTES: AttributeRequest = AttributeRequest {
+    normals: true,
+    colors: true,
+};
+
+fn expected_normals() -> Vec<[f32; 3]> {
+    SAMPLE_NORMALS.iter().map(|n| n.map(|c| c as f32)).collect()
+}
+
+fn expected_colors(alpha: bool) -> Vec<[u8; 4]> {
+    SAMPLE_COLORS
+        .iter()
+        .map(|c| {
+            let [r, g, b, a] = c.map(|channel| channel as u8);
+            [r, g, b, if alpha { a } else { 255 }]
+        })
+        .collect()
+}
+
+fn attribute_type_variants() -> Vec<AttributeTypes> {
+    let mut variants = Vec::new();
+    for normal in ["float", "double"] {
+        for color in ["uchar", "float", "double"] {
+            for alpha in [false, true] {
+                variants.push(AttributeTypes {
+                    normal,
+                    color,
+                    alpha,
+                });
+            }
+        }
+    }
+    variants
+}
+
+#[test]
+fn normals_and_colours_are_read_exactly_in_every_encoding_and_type() {
+    for format in Format::ALL {
+        for types in attribute_type_variants() {
+            let (bytes, _) = attribute_ply(format, types);
+            let file = temp_file("attributes.ply", &bytes);
+            let mesh = read_mesh_with(file.path(), ALL_ATTRIBUTES)
+                .unwrap_or_else(|e| panic!("{format:?} {types:?}: {e}"));
+            let label = format!("{format:?} {types:?}");
+            assert_eq!(mesh.positions, sample_mesh().positions, "{label}");
+            assert_eq!(mesh.normals, Some(expected_normals()), "{label}");
+            assert_eq!(mesh.colors, Some(expected_colors(types.alpha)), "{label}");
+            assert_eq!(mesh.triangles, sample_mesh().triangles, "{label}");
+            assert_eq!(mesh.face_ids, Some(vec![0, 0, 1, 2]), "{label}");
+        }
+    }
+}
+
+#[test]
+fn attributes_not_asked_for_are_not_read() {
+    let types = AttributeTypes {
+        normal: "double",
+        color: "float",
+        alpha: true,
+    };
+    for format in Format::ALL {
+        let (bytes, _) = attribute_ply(format, types);
+        let file = temp_file("attributes.ply", &bytes);
+        let mesh = read_mesh(file.path()).expect("read");
+        assert_eq!(mesh, sample_mesh(), "{format:?}");
+        let only_colors = AttributeRequest {
+            normals: false,
+            colors: true,
+        };
+        let mesh = read_mesh_with(file.path(), only_colors).expect("read");
+        assert_eq!(mesh.normals, None);
+        assert_eq!(mesh.colors, Some(expected_colors(true)));
+    }
+}
+
+#[test]
+fn streamed_attributes_of_chosen_vertices_match_the_whole_read() {
+    let types = AttributeTypes {
+        normal: "float",
+        color: "uchar",
+        alpha: false,
+    };
+    for format in [Format::Little, Format::Big] {
+        let (bytes, _) = attribute_ply(format, types);
+        let file = temp_file("attributes.ply", &bytes);
+        let stream = PlyStream::open(file.path()).expect("open");
+        stream.check_attributes(ALL_ATTRIBUTES).expect("has them");
+        for window_bytes in [1, 40, 1 << 20] {
+            let ids = [0, 2, 3, 4];
+            let found = stream
+                .attributes_of(&ids, window_bytes, ALL_ATTRIBUTES)
+                .expect("attributes");
+            let pick = |all: Vec<[f32; 3]>| ids.iter().map(|&v| all[v as usize]).collect();
+            assert_eq!(found.normals, Some(pick(expected_normals())));
+            let colors = expected_colors(false);
+            let picked: Vec<[u8; 4]> = ids.iter().map(|&v| colors[v as usize]).collect();
+            assert_eq!(found.colors, Some(picked));
+        }
+    }
+}
+
+#[test]
+fn asking_for_attributes_the_file_lacks_names_the_missing_properties() {
+    let bytes = plain_ply(
+        Format::Little,
+        FLOAT_UCHAR_INT,
+        &sample_positions(),
+        &sample_faces(),
+    );
+    let file = temp_file("plain.ply", &bytes);
+    let error = read_mesh_with(file.path(), ALL_ATTRIBUTES).expect_err("no normals");
+    assert_eq!(error.location, Location::File);
+    assert_eq!(
+        error.to_string(),
+        format!(
+            "{}: normals were asked for, but element 'vertex' has no float or double \
+             properties nx, ny, nz",
+            file.path().display()
+        )
+    );
+    let error = check_attributes(
+        file.path(),
+        AttributeRequest {
+            normals: false,
+            colors: true,
+        },
+    )
+    .expect_err("no colours");
+    assert!(
+        error.to_string().ends_with(
+            "colours were asked for, but element 'vertex' has no uchar, float or double \
+             properties red, green, blue"
+        ),
+        "{error}"
+    );
+    // A colour in a type we do not read counts as missing, and only that channel is named.
+    let mut ushort_blue = header_only(
+        "element vertex 1\nproperty float x\nproperty float y\nproperty float z\n\
+         property uchar red\nproperty uchar green\nproperty ushort blue\n\
+         element face 0\nproperty list uchar int vertex_indices\n",
+    );
+    ushort_blue.extend_from_slice(&[0; 16]);
+    let file = temp_file("ushort.ply", &ushort_blue);
+    let error = check_attributes(file.path(), ALL_ATTRIBUTES).expect_err("no nx");
+    assert!(
+        error.to_string().contains("properties nx, ny, nz"),
+        "{error}"
+    );
+    let colors = AttributeRequest {
+        normals: false,
+        colors: true,
+    };
+    let error = check_attributes(file.path(), colors).expect_err("blue is ushort");
+    assert!(error.to_string().ends_with("property blue"), "{error}");
+}
+
+#[test]
+fn bad_normals_and_colours_name_element_and_byte() {
+    let types = AttributeTypes {
+        normal: "double",
+        color: "float",
+        alpha: false,
+    };
+    // Vertex: x y z quality (4 floats), nx ny nz (3 doubles), red green blue (3 floats).
+    let stride = 16 + 24 + 12;
+    for format in [Format::Little, Format::Big] {
+        let (mut bytes, header) = attribute_ply(format, types);
+        // Vertex 3's ny becomes NaN.
+        let at = header + 3 * stride + 16 + 8;
+        let mut nan = f64::NAN.to_le_bytes();
+        if let Format::Big = format {
+            nan.reverse();
+        }
+        bytes[at..at + 8].copy_from_slice(&nan);
+        let file = temp_file("nan.ply", &bytes);
+        let error = read_mesh_with(file.path(), ALL_ATTRIBUTES).expect_err("NaN normal");
+        assert_eq!(error.location, element_location("vertex", 3, at, None));
+        assert!(matches!(
+            error.kind,
+            InputErrorKind::NonFiniteNormal { axis: 'y', .. }
+        ));
+        // Not asked for, the NaN is never read.
+        read_mesh(file.path()).expect("normals skipped");
+
+        let (mut bytes, header) = attribute_ply(format, types);
+        // Vertex 1's blue becomes 1.5.
+        let at = header + stride + 16 + 24 + 8;
+        let mut value = 1.5f32.to_le_bytes();
+        if let Format::Big = format {
+            value.reverse();
+        }
+        bytes[at..at + 4].copy_from_slice(&value);
+        let file = temp_file("bright.ply", &bytes);
+        let error = read_mesh_with(file.path(), ALL_ATTRIBUTES).expect_err("colour > 1");
+        assert_eq!(error.location, element_location("vertex", 1, at, None));
+        assert_eq!(
+            error.kind,
+            InputErrorKind::ColorOutOfRange {
+                channel: "blue",
+                value: 1.5
+            }
+        );
+    }
+}
+
+#[test]
+fn bad_ascii_colour_names_its_line() {
+    let text = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                property float z\nproperty float red\nproperty float green\nproperty float blue\n\
+                element face 1\nproperty list uchar int vertex_indices\nend_header\n\
+                0 0 0 1 1 1\n1 0 0 0.5 -0.25 0\n0 1 0 0 0 0\n3 0 1 2\n";
+    let file = temp_file("ascii.ply", text.as_bytes());
+    let colors = AttributeRequest {
+        normals: false,
+        colors: true,
+    };
+    let error = read_mesh_with(file.path(), colors).expect_err("negative colour");
+    let at = text.find("-0.25").unwrap();
+    assert_eq!(error.location, element_location("vertex", 1, at, Some(14)));
+    assert!(matches!(
+        error.kind,
+        InputErrorKind::ColorOutOfRange {
+            channel: "green",
+            ..
+        }
+    ));
+}
+
+#[test]
+fn welding_keeps_vertices_with_different_attributes_apart() {
+    // Two triangles over one edge, each with its own copies of the edge's vertices: the copies
+    // of vertex 1 have the same normal and colour, those of vertex 2 different normals.
+    let mesh = Mesh {
+        positions: vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ],
+        triangles: vec![[0, 1, 2], [3, 4, 5]],
+        face_ids: None,
+        normals: Some(vec![
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 0.6, 0.8],
+        ]),
+        colors: Some(vec![[9, 9, 9, 255]; 6]),
+    };
+    let welded = weld_identical_positions(mesh.clone());
+    assert_eq!(welded.positions.len(), 5);
+    assert_eq!(welded.triangles, vec![[0, 1, 2], [1, 3, 4]]);
+    assert_eq!(welded.positions[4], welded.positions[2]);
+    assert_eq!(welded.normals.as_ref().unwrap()[4], [0.0, 0.6, 0.8]);
+    assert_eq!(welded.normals.as_ref().unwrap()[2], [0.0, 0.0, 1.0]);
+    // A colour difference alone keeps them apart too.
+    let mut recoloured = mesh;
+    recoloured.normals = None;
+    recoloured.colors.as_mut().unwrap()[3] = [9, 9, 8, 255];
+    let welded = weld_identical_positions(recoloured);
+    assert_eq!(welded.positions.len(), 5);
+    assert_eq!(welded.triangles, vec![[0, 1, 2], [3, 4, 2]]);
+    assert_eq!(welded.colors.unwrap()[3], [9, 9, 8, 255]);
 }

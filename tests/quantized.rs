@@ -11,7 +11,7 @@ use reducem::decode;
 use reducem::format::grid::Grid;
 use reducem::format::reader::{ReducemFile, VertexLayout};
 use reducem::geometry::{distance, Point};
-use reducem::input::weld_within_tolerance;
+use reducem::input::{weld_within_tolerance, Vertices};
 use reducem::inspect::file_stats;
 use reducem::mesh::Mesh;
 use reducem::strip_encoding::{self, EncodedStrip};
@@ -153,8 +153,12 @@ fn quadrant_chunks(mesh: &Mesh) -> Vec<Mesh> {
     quadrants
         .iter()
         .map(|triangles| {
-            local_mesh(triangles, |ids| {
-                Ok::<_, ()>(ids.iter().map(|&v| mesh.positions[v as usize]).collect())
+            local_mesh(triangles, None, |ids| {
+                let positions = ids.iter().map(|&v| mesh.positions[v as usize]).collect();
+                Ok::<_, ()>(Vertices {
+                    positions,
+                    ..Vertices::default()
+                })
             })
             .expect("positions")
         })

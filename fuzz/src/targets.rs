@@ -15,7 +15,9 @@ use std::path::{Path, PathBuf};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::decode;
 use reducem::format::reader::ReducemFile;
-use reducem::input::{read_obj, weld_identical_positions, PlyFile, PlyStream};
+use reducem::input::{
+    read_obj, read_obj_with, weld_identical_positions, AttributeRequest, PlyFile, PlyStream,
+};
 use reducem::mesh::Mesh;
 use reducem::trace::ray_file::parse_rays;
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
@@ -106,9 +108,13 @@ impl Workspace {
         std::fs::write(&path, bytes).expect("write the case to the scratch directory");
         let accepted = match target {
             Target::Ply => self.run_ply(&path),
-            Target::Obj => read_obj(&path)
-                .map(|mesh| self.convert_and_trace(&weld_identical_positions(mesh)))
-                .is_ok(),
+            Target::Obj => {
+                // Reading attributes must fail cleanly or succeed, whatever the file says.
+                let _ = read_obj_with(&path, ALL_ATTRIBUTES);
+                read_obj(&path)
+                    .map(|mesh| self.convert_and_trace(&weld_identical_positions(mesh)))
+                    .is_ok()
+            }
             Target::Reducem => ReducemFile::open(&path)
                 .map(|file| exercise_file(&file))
                 .is_ok(),
@@ -138,6 +144,7 @@ impl Workspace {
                 );
             }
         }
+        check_ply_attributes(path);
         whole
             .map(|mesh| self.convert_and_trace(&weld_identical_positions(mesh)))
             .is_ok()
@@ -157,6 +164,47 @@ impl Workspace {
         );
         exercise_file(&file);
     }
+}
+
+/// Normals and colours, for the readers that take a request.
+const ALL_ATTRIBUTES: AttributeRequest = AttributeRequest {
+    normals: true,
+    colors: true,
+};
+
+/// When the file has normals and colours, reading them whole and through `PlyStream` gives
+/// the same values (or both fail).
+fn check_ply_attributes(path: &Path) {
+    let Ok(ply) = PlyFile::open(path) else {
+        return;
+    };
+    if ply.check_attributes(ALL_ATTRIBUTES).is_err() {
+        return;
+    }
+    let whole = ply.read_mesh_with(ALL_ATTRIBUTES);
+    let Some(stream) = PlyStream::open(path).ok().filter(|s| s.is_streamable()) else {
+        return;
+    };
+    let ids: Vec<u32> = (0..stream.vertex_count().min(1 << 16) as u32).collect();
+    let streamed = stream.attributes_of(&ids, STREAM_WINDOW_BYTES, ALL_ATTRIBUTES);
+    if let (Ok(whole), Ok(streamed)) = (whole, streamed) {
+        assert_eq!(
+            (
+                first(whole.normals, ids.len()),
+                first(whole.colors, ids.len())
+            ),
+            (streamed.normals, streamed.colors),
+            "streamed attributes differ from the whole-file read"
+        );
+    }
+}
+
+/// The first `count` of `values`.
+fn first<T>(values: Option<Vec<T>>, count: usize) -> Option<Vec<T>> {
+    values.map(|mut values| {
+        values.truncate(count);
+        values
+    })
 }
 
 /// The mesh through `PlyStream`, when the file is streamable and every window reads.

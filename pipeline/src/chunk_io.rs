@@ -17,19 +17,46 @@ use reducem::geometry::{Aabb, Displacement, Point};
 use reducem::mesh::Mesh;
 use reducem::strip_encoding::EncodedStrip;
 
-const MESH_MAGIC: [u8; 8] = *b"RDMMESH1";
+/// Mesh chunks with attributes (version 2: a flags word after the counts).
+const MESH_MAGIC: [u8; 8] = *b"RDMMESH2";
 const STRIP_MAGIC: [u8; 8] = *b"RDMSTRP2";
 /// zstd level: chunks are written once and read once, so speed matters more than ratio.
 const ZSTD_LEVEL: i32 = 1;
+/// Bytes before the arrays: magic, vertex count, triangle count, flags.
+const MESH_HEADER_BYTES: usize = 32;
 
-/// Writes a mesh chunk: magic, vertex and triangle counts, positions, triangles, compressed.
+/// Which optional arrays follow the triangles, in this order.
+const HAS_FACE_IDS: u64 = 1;
+const HAS_NORMALS: u64 = 2;
+const HAS_COLORS: u64 = 4;
+
+/// Writes a mesh chunk, compressed: magic, vertex and triangle counts, flags, positions,
+/// triangles, then the face ids, normals and colours the mesh has.
 pub fn write_mesh(out: &mut impl Write, mesh: &Mesh) -> io::Result<()> {
+    let flags = [
+        (mesh.face_ids.is_some(), HAS_FACE_IDS),
+        (mesh.normals.is_some(), HAS_NORMALS),
+        (mesh.colors.is_some(), HAS_COLORS),
+    ]
+    .iter()
+    .filter(|(present, _)| *present)
+    .fold(0, |flags, (_, bit)| flags | bit);
     let mut encoder = zstd::Encoder::new(out, ZSTD_LEVEL)?;
     encoder.write_all(&MESH_MAGIC)?;
     encoder.write_all(&(mesh.positions.len() as u64).to_le_bytes())?;
     encoder.write_all(&(mesh.triangles.len() as u64).to_le_bytes())?;
+    encoder.write_all(&flags.to_le_bytes())?;
     encoder.write_all(bytemuck::cast_slice(&mesh.positions))?;
     encoder.write_all(bytemuck::cast_slice(&mesh.triangles))?;
+    if let Some(face_ids) = &mesh.face_ids {
+        encoder.write_all(bytemuck::cast_slice(face_ids))?;
+    }
+    if let Some(normals) = &mesh.normals {
+        encoder.write_all(bytemuck::cast_slice(normals))?;
+    }
+    if let Some(colors) = &mesh.colors {
+        encoder.write_all(bytemuck::cast_slice(colors))?;
+    }
     encoder.finish()?;
     Ok(())
 }
@@ -43,22 +70,48 @@ pub fn read_mesh(path: &Path) -> io::Result<Mesh> {
             format!("{}: not a mesh chunk", path.display()),
         )
     };
-    if bytes.len() < 24 || bytes[..8] != MESH_MAGIC {
+    if bytes.len() < MESH_HEADER_BYTES || bytes[..8] != MESH_MAGIC {
         return Err(invalid());
     }
-    let count =
-        |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap_or_default()) as usize;
-    let (vertices, triangles) = (count(8), count(16));
-    let positions_end = 24 + vertices * 12;
-    if bytes.len() != positions_end + triangles * 12 {
+    let word = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap_or_default());
+    let (vertices, triangles, flags) = (word(8) as usize, word(16) as usize, word(24));
+    if flags & !(HAS_FACE_IDS | HAS_NORMALS | HAS_COLORS) != 0 {
         return Err(invalid());
     }
+    let has = |bit: u64| flags & bit != 0;
+    // (present, element count, bytes per element) of each array, in file order.
+    let arrays = [
+        (true, vertices, 12),
+        (true, triangles, 12),
+        (has(HAS_FACE_IDS), triangles, 4),
+        (has(HAS_NORMALS), vertices, 12),
+        (has(HAS_COLORS), vertices, 4),
+    ];
+    let mut sections: Vec<Option<&[u8]>> = Vec::with_capacity(arrays.len());
+    let mut at = MESH_HEADER_BYTES;
+    for (present, count, size) in arrays {
+        if !present {
+            sections.push(None);
+            continue;
+        }
+        let end = count
+            .checked_mul(size)
+            .and_then(|bytes_of_array| at.checked_add(bytes_of_array))
+            .filter(|&end| end <= bytes.len())
+            .ok_or_else(invalid)?;
+        sections.push(Some(&bytes[at..end]));
+        at = end;
+    }
+    if at != bytes.len() {
+        return Err(invalid());
+    }
+    let section = |index: usize| sections[index].unwrap_or_default();
     Ok(Mesh {
-        positions: bytemuck::pod_collect_to_vec::<u8, Point>(&bytes[24..positions_end]),
-        triangles: bytemuck::pod_collect_to_vec::<u8, [u32; 3]>(&bytes[positions_end..]),
-        face_ids: None,
-        normals: None,
-        colors: None,
+        positions: bytemuck::pod_collect_to_vec::<u8, Point>(section(0)),
+        triangles: bytemuck::pod_collect_to_vec::<u8, [u32; 3]>(section(1)),
+        face_ids: sections[2].map(bytemuck::pod_collect_to_vec::<u8, u32>),
+        normals: sections[3].map(bytemuck::pod_collect_to_vec::<u8, [f32; 3]>),
+        colors: sections[4].map(bytemuck::pod_collect_to_vec::<u8, [u8; 4]>),
     })
 }
 

@@ -5,6 +5,8 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
+use reducem::format::attributes::AttributeSet;
+use reducem::format::attributes::NormalEncoding;
 use reducem::tools::gen::Kind;
 
 use crate::workdir::WorkDir;
@@ -39,6 +41,8 @@ pub struct Config {
     pub vertices: VerticesConfig,
     #[serde(default)]
     pub work: WorkConfig,
+    #[serde(default)]
+    pub attributes: AttributesConfig,
     /// The configuration file itself (where the default work directory goes).
     #[serde(skip)]
     pub source: PathBuf,
@@ -144,6 +148,39 @@ pub enum VertexEncodingName {
     F32,
     /// Points of one global grid over the model, `grid_bits` bits per axis.
     Grid,
+}
+
+/// What the file stores besides positions; all off by default, and each costs nothing when
+/// off (the input's normals and colours are not even read).
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AttributesConfig {
+    /// The input face index of every stored triangle.
+    pub face_ids: bool,
+    /// Per-vertex normals (PLY `nx ny nz`, OBJ `vn`) and their encoding.
+    pub normals: NormalEncodingName,
+    /// Per-vertex RGBA8 colours (PLY `red green blue [alpha]`, OBJ `v x y z r g b`).
+    pub colors: bool,
+}
+
+/// `[attributes] normals`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum NormalEncodingName {
+    #[default]
+    None,
+    Oct8,
+    Oct16,
+}
+
+impl NormalEncodingName {
+    pub fn encoding(self) -> NormalEncoding {
+        match self {
+            NormalEncodingName::None => NormalEncoding::None,
+            NormalEncodingName::Oct8 => NormalEncoding::Oct8,
+            NormalEncodingName::Oct16 => NormalEncoding::Oct16,
+        }
+    }
 }
 
 /// Where intermediate files go; defaults to `<configuration name>.work` next to the
@@ -273,7 +310,17 @@ impl Config {
         params.stripify.max_length = self.strip.max_length;
         params.stripify.sah_bins = self.strip.sah_bins;
         params.grid_nodes = self.strip.grid_nodes;
+        params.attributes = AttributeSet {
+            face_ids: self.attributes.face_ids,
+            normals: self.attributes.normals.encoding(),
+            colors: self.attributes.colors,
+        };
         params
+    }
+
+    /// The vertex attributes the input must provide.
+    pub fn attribute_request(&self) -> reducem::input::AttributeRequest {
+        reducem::input::AttributeRequest::for_build(&self.build_params().attributes)
     }
 }
 

@@ -28,12 +28,15 @@ pub struct ConvertArgs {
 }
 
 /// The configuration keys [`ConvertArgs::settings`] may set, with their table.
-pub const SETTING_SECTIONS: [(&str, &str); 6] = [
+pub const SETTING_SECTIONS: [(&str, &str); 9] = [
     ("leaf_windows", "strip"),
     ("sah_bins", "strip"),
     ("grid_nodes", "strip"),
     ("weld_tolerance", "vertices"),
     ("max_triangles", "chunk"),
+    ("face_ids", "attributes"),
+    ("normals", "attributes"),
+    ("colors", "attributes"),
     ("keep", "work"),
 ];
 
@@ -93,6 +96,7 @@ fn config_text(args: &ConvertArgs) -> anyhow::Result<String> {
         ("strip", strip),
         ("vertices", vertices),
         ("chunk", Vec::new()),
+        ("attributes", Vec::new()),
     ];
     let mut work_keys = String::new();
     for (key, value) in &args.settings {

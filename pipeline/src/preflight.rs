@@ -1,13 +1,14 @@
 //! Checks made before any work, so that a mistake in a job costs seconds, never its input: the
 //! output must not be an input of the job (the mesh or the configuration), the work directory
 //! must not hold the mesh or the output (`pipeline clean` removes it whole) and must be one the
-//! pipeline made (or a new or empty one), and the output's directory must take a new file.
+//! pipeline made (or a new or empty one), the output's directory must take a new file, and the
+//! input must have the vertex attributes `[attributes]` asks for.
 
 use std::path::{Component, Path, PathBuf};
 
 use anyhow::Context;
 
-use crate::config::{Config, Input};
+use crate::config::{Config, ConfigError, Input};
 use crate::workdir::WorkDir;
 
 /// How a message names the output and the work directory: as the configuration keys, or as
@@ -65,6 +66,28 @@ pub fn unsafe_paths(config: &Config, config_path: &Path, naming: Naming) -> Opti
         ));
     }
     foreign_work_dir(&work, naming)
+}
+
+/// Fails, naming the input file and the properties it lacks, when `[attributes]` asks for
+/// normals or colours that the input does not have (PLY: from the header alone; OBJ: one pass
+/// over its lines). Generated meshes have neither.
+pub fn check_input_attributes(config: &Config) -> anyhow::Result<()> {
+    let request = config.attribute_request();
+    if !request.any() {
+        return Ok(());
+    }
+    match config.input() {
+        Ok(Input::File(path)) => Ok(reducem::input::check_attributes(&path, request)?),
+        Ok(Input::Generate { .. }) => Err(ConfigError::new(
+            &config.source,
+            "[attributes] asks for normals or colours, but generated meshes ([input.generate]) \
+             have neither; give an [input] path to a mesh with them"
+                .into(),
+        )
+        .into()),
+        // `Config::parse` has already rejected an invalid `[input]`.
+        Err(message) => Err(ConfigError::new(&config.source, message).into()),
+    }
 }
 
 /// Why `pipeline clean` must not remove the work directory, if it must not.

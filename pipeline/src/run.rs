@@ -58,6 +58,7 @@ pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
     if let Some(message) = preflight::unsafe_paths(&config, config_path, Naming::Config) {
         return Err(ConfigError::new(config_path, message).into());
     }
+    preflight::check_input_attributes(&config)?;
     preflight::prepare_output(&config)?;
     let work = WorkDir::new(config.work_dir());
     work.create()

@@ -122,6 +122,17 @@ pub enum InputErrorKind {
     NonFiniteCoordinate { axis: char, value: f64 },
     #[error("coordinate {axis} = {value:e} is outside the supported range ±{max:e}", max = crate::geometry::MAX_COORDINATE)]
     CoordinateOutOfRange { axis: char, value: f64 },
+    #[error("normal {axis} is {value}, not a finite number")]
+    NonFiniteNormal { axis: char, value: f64 },
+    #[error("colour {channel} = {value} is outside 0..1")]
+    ColorOutOfRange { channel: &'static str, value: f64 },
+    /// The attribute was asked for (`[attributes]`), but the file does not have it. (The
+    /// reason is boxed to keep the error as small as before the variant existed.)
+    #[error("{attribute} were asked for, but {reason}")]
+    MissingAttribute {
+        attribute: &'static str,
+        reason: Box<str>,
+    },
     #[error("OBJ: {0}")]
     Obj(String),
 }

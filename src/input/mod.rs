@@ -19,28 +19,100 @@ use std::path::Path;
 
 pub use crate::format::counts::WeldStats;
 pub use error::{InputError, InputErrorKind, Location};
-pub use obj::read_obj;
+pub use obj::{read_obj, read_obj_with};
 pub use ply::PlyFile;
 pub use stream::PlyStream;
 pub use tolerance_weld::{tolerance_representatives, weld_within_tolerance};
 pub use weld::{weld_identical_positions, weld_identical_positions_kept};
 
+use crate::format::attributes::{AttributeSet, NormalEncoding};
+use crate::geometry::Point;
 use crate::mesh::Mesh;
+
+/// Which vertex attributes to read besides positions (face ids are always known). Attributes
+/// not asked for are skipped like any other property, so asking for none costs nothing.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AttributeRequest {
+    /// PLY `nx ny nz`, OBJ `vn` through each face corner's normal index.
+    pub normals: bool,
+    /// PLY `red green blue [alpha]`, OBJ `v x y z r g b`.
+    pub colors: bool,
+}
+
+impl AttributeRequest {
+    /// The vertex attributes a build with `params` stores.
+    pub fn for_build(params: &AttributeSet) -> AttributeRequest {
+        AttributeRequest {
+            normals: params.normals != NormalEncoding::None,
+            colors: params.colors,
+        }
+    }
+
+    pub fn any(self) -> bool {
+        self.normals || self.colors
+    }
+}
+
+/// Normals and colours of chosen vertices, parallel to them; `None` where not asked for.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VertexAttributes {
+    pub normals: Option<Vec<[f32; 3]>>,
+    pub colors: Option<Vec<[u8; 4]>>,
+}
+
+/// Vertices as read: positions, and the attributes asked for, parallel to them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Vertices {
+    pub positions: Vec<Point>,
+    pub normals: Option<Vec<[f32; 3]>>,
+    pub colors: Option<Vec<[u8; 4]>>,
+}
 
 /// Reads a mesh by file extension (`.ply` or `.obj`, any case), triangulates polygons and
 /// welds bit-identical positions.
 pub fn read_mesh(path: &Path) -> Result<Mesh, InputError> {
+    read_mesh_with(path, AttributeRequest::default())
+}
+
+/// [`read_mesh`] with the vertex attributes `request` asks for; a file without them fails
+/// before its body is read (OBJ: after one pass over its lines), naming what it lacks.
+/// Welding keeps vertices with different attributes apart.
+pub fn read_mesh_with(path: &Path, request: AttributeRequest) -> Result<Mesh, InputError> {
+    let mesh = match mesh_kind(path)? {
+        MeshKind::Ply => PlyFile::open(path)?.read_mesh_with(request)?,
+        MeshKind::Obj => read_obj_with(path, request)?,
+    };
+    Ok(weld_identical_positions(mesh))
+}
+
+/// Fails, naming the file and what it lacks, when it cannot give the attributes `request`
+/// asks for. PLY: reads the header only; OBJ: one pass over its lines.
+pub fn check_attributes(path: &Path, request: AttributeRequest) -> Result<(), InputError> {
+    if !request.any() {
+        return Ok(());
+    }
+    match mesh_kind(path)? {
+        MeshKind::Ply => PlyFile::open(path)?.check_attributes(request),
+        MeshKind::Obj => obj::check_attributes(path, request),
+    }
+}
+
+enum MeshKind {
+    Ply,
+    Obj,
+}
+
+fn mesh_kind(path: &Path) -> Result<MeshKind, InputError> {
     let extension = path
         .extension()
         .and_then(|extension| extension.to_str())
         .map(str::to_ascii_lowercase);
-    let mesh = match extension.as_deref() {
-        Some("ply") => PlyFile::open(path)?.read_mesh()?,
-        Some("obj") => read_obj(path)?,
+    match extension.as_deref() {
+        Some("ply") => Ok(MeshKind::Ply),
+        Some("obj") => Ok(MeshKind::Obj),
         _ => {
             let kind = InputErrorKind::UnsupportedExtension;
-            return Err(InputError::new(path, Location::File, kind));
+            Err(InputError::new(path, Location::File, kind))
         }
-    };
-    Ok(weld_identical_positions(mesh))
+    }
 }

@@ -9,6 +9,8 @@ use std::io::{self, BufRead, BufReader};
 use std::path::Path;
 
 use crate::input::error::{InputErrorKind, Location};
+use crate::input::ply::elements::unit_to_u8;
+use crate::input::AttributeRequest;
 
 /// Statements that carry the geometry, or are known and irrelevant to it (`s`: smoothing
 /// groups, `p`: points, `l`: lines, materials).
@@ -27,9 +29,64 @@ pub struct Survey {
     pub first_unknown: Option<(u64, u64)>,
     /// The first defective statement: where it is and what is wrong.
     pub defect: Option<(Location, InputErrorKind)>,
+    /// `vn` statements.
+    pub normals: u64,
+    /// `v` statements with a colour (`v x y z r g b`).
+    pub colored_vertices: u64,
+    /// With normals asked for: the first face corner without a normal index.
+    pub first_corner_without_normal: Option<Location>,
+    /// With colours asked for: the first vertex without a colour.
+    pub first_vertex_without_color: Option<Location>,
 }
 
 impl Survey {
+    pub fn totals(&self) -> Totals {
+        Totals {
+            vertices: self.vertices,
+            normals: self.normals,
+        }
+    }
+
+    /// The first defect, counting as defects what makes the attributes in `request` unusable:
+    /// a file without any of them (reported at the file), or some faces or vertices without
+    /// them while others have them (reported at the first such statement).
+    pub fn defect_with(mut self, request: AttributeRequest) -> Option<(Location, InputErrorKind)> {
+        if let Some(defect) = self.defect.take() {
+            return Some(defect);
+        }
+        if request.normals {
+            if self.normals == 0 {
+                let kind = InputErrorKind::MissingAttribute {
+                    attribute: "normals",
+                    reason: "the file has no 'vn' statements".into(),
+                };
+                return Some((Location::File, kind));
+            }
+            if let Some(location) = self.first_corner_without_normal.take() {
+                let kind = InputErrorKind::Obj(
+                    "face corner without a normal index (normals were asked for)".into(),
+                );
+                return Some((location, kind));
+            }
+        }
+        if request.colors {
+            if self.colored_vertices == 0 {
+                let kind = InputErrorKind::MissingAttribute {
+                    attribute: "colours",
+                    reason: "no vertex has a colour ('v x y z r g b')".into(),
+                };
+                return Some((Location::File, kind));
+            }
+            if let Some(location) = self.first_vertex_without_color.take() {
+                let kind = InputErrorKind::Obj(
+                    "vertex without a colour while others have one (colours were asked for)".into(),
+                );
+                return Some((location, kind));
+            }
+        }
+        None
+    }
+
     pub fn unknown_count(&self) -> u64 {
         self.unknown.values().sum()
     }
@@ -50,14 +107,26 @@ impl Survey {
     }
 }
 
-/// Reads `path` line by line. With `vertex_count` (the file's total, from a first survey), face
-/// vertex indices beyond it are defects too; without it only statements that are wrong on their
-/// own are.
-pub fn survey(path: &Path, vertex_count: Option<u64>) -> io::Result<Survey> {
+/// The file's counts of the elements faces refer to, from a first survey.
+#[derive(Clone, Copy, Debug)]
+pub struct Totals {
+    pub vertices: u64,
+    pub normals: u64,
+}
+
+/// Reads `path` line by line. With `totals` (from a first survey), face vertex and normal
+/// indices beyond them are defects too; without it only statements that are wrong on their
+/// own are. Attribute values are checked only when `request` asks for them.
+pub fn survey(
+    path: &Path,
+    totals: Option<Totals>,
+    request: AttributeRequest,
+) -> io::Result<Survey> {
     let file = File::open(path)?;
     let limits = Limits {
-        vertices: vertex_count,
+        totals,
         file_length: file.metadata()?.len(),
+        request,
     };
     let mut reader = BufReader::with_capacity(1 << 20, file);
     let mut survey = Survey::default();
@@ -69,6 +138,7 @@ pub fn survey(path: &Path, vertex_count: Option<u64>) -> io::Result<Survey> {
         let read = reader.read_until(b'\n', &mut bytes)? as u64;
         if read == 0 {
             survey.vertices = counts.vertices;
+            survey.normals = counts.normals;
             return Ok(survey);
         }
         place.line += 1;
@@ -97,7 +167,35 @@ impl Survey {
         if self.defect.is_none() {
             self.defect = counts.check(keyword, &fields, place, text, limits);
         }
+        self.note_attributes(counts, keyword, &fields, place, limits.request);
         counts.count(keyword);
+    }
+
+    /// Counts coloured vertices and notes the first statement without an attribute asked for.
+    fn note_attributes(
+        &mut self,
+        counts: &Counts,
+        keyword: &str,
+        fields: &[(usize, &str)],
+        place: Place,
+        request: AttributeRequest,
+    ) {
+        match keyword {
+            "v" if fields.len() == 6 => self.colored_vertices += 1,
+            "v" if request.colors && self.first_vertex_without_color.is_none() => {
+                self.first_vertex_without_color = Some(place.at("vertex", counts.vertices, 0));
+            }
+            "f" if request.normals && self.first_corner_without_normal.is_none() => {
+                let without_normal = fields.iter().find(|(_, corner)| {
+                    corner_indices(corner).is_some_and(|(_, _, normal)| normal.is_none())
+                });
+                if let Some(&(column, _)) = without_normal {
+                    let location = place.at("face", counts.faces, column);
+                    self.first_corner_without_normal = Some(location);
+                }
+            }
+            _ => {}
+        }
     }
 }
 
@@ -158,13 +256,17 @@ impl Counts {
         limits: Limits,
     ) -> Option<(Location, InputErrorKind)> {
         let (element, index, defect) = match keyword {
-            "v" => ("vertex", self.vertices, check_vertex(fields)),
+            "v" => (
+                "vertex",
+                self.vertices,
+                check_vertex(fields, limits.request),
+            ),
             "vt" => (
                 "texture coordinate",
                 self.texture_coordinates,
                 check_floats(fields, 2, "texture coordinate"),
             ),
-            "vn" => ("normal", self.normals, check_floats(fields, 3, "normal")),
+            "vn" => ("normal", self.normals, check_normal(fields, limits.request)),
             "f" => ("face", self.faces, self.check_face(fields, limits)),
             _ => return None,
         };
@@ -187,7 +289,7 @@ impl Counts {
                         (
                             Some(vertex),
                             self.vertices,
-                            limits.vertices,
+                            limits.totals.map(|totals| totals.vertices),
                             "vertex",
                             "vertices",
                         ),
@@ -198,7 +300,13 @@ impl Counts {
                             "texture coordinate",
                             "texture coordinates",
                         ),
-                        (normal, self.normals, None, "normal", "normals"),
+                        (
+                            normal,
+                            self.normals,
+                            limits.totals.map(|totals| totals.normals),
+                            "normal",
+                            "normals",
+                        ),
                     ];
                     let out_of_range =
                         references
@@ -229,11 +337,13 @@ impl Counts {
 /// What the survey knows of the file when it checks a face.
 #[derive(Clone, Copy)]
 struct Limits {
-    /// The file's vertex total, on the second survey.
-    vertices: Option<u64>,
+    /// The file's totals, on the second survey.
+    totals: Option<Totals>,
     /// No index can exceed the file's length in bytes; this bound also keeps `tobj`'s index
     /// arithmetic from overflowing on absurd indices, so they are rejected here first.
     file_length: u64,
+    /// Attributes whose values are checked.
+    request: AttributeRequest,
 }
 
 /// The elements a face corner can refer to: how many came before it, the total when known, and
@@ -277,8 +387,56 @@ fn corner_indices(corner: &str) -> Option<(i64, Option<i64>, Option<i64>)> {
     parts.next().is_none().then_some((vertex, texture, normal))
 }
 
-/// `v x y z [w | r g b]`: three coordinates in range, then nothing, a non-zero w or a colour.
-fn check_vertex(fields: &[(usize, &str)]) -> Option<(Option<usize>, InputErrorKind)> {
+/// `vn x y z`: three numbers, finite when normals are asked for.
+fn check_normal(
+    fields: &[(usize, &str)],
+    request: AttributeRequest,
+) -> Option<(Option<usize>, InputErrorKind)> {
+    if let Some(defect) = check_floats(fields, 3, "normal") {
+        return Some(defect);
+    }
+    if !request.normals {
+        return None;
+    }
+    ['x', 'y', 'z']
+        .iter()
+        .zip(fields)
+        .find_map(|(&axis, &(column, token))| {
+            let value: f32 = token.parse().ok()?;
+            let kind = InputErrorKind::NonFiniteNormal {
+                axis,
+                value: value.into(),
+            };
+            (!value.is_finite()).then_some((Some(column), kind))
+        })
+}
+
+/// The colour of `v x y z r g b`, each in 0..1, when colours are asked for.
+fn check_color(fields: &[(usize, &str)]) -> Option<(Option<usize>, InputErrorKind)> {
+    ["red", "green", "blue"]
+        .iter()
+        .zip(&fields[3..])
+        .find_map(|(&channel, &(column, token))| {
+            let kind = match token.parse::<f64>() {
+                Err(_) => InputErrorKind::MalformedToken {
+                    token: token.to_string(),
+                    expected: "number",
+                },
+                Ok(value) if unit_to_u8(value).is_none() => {
+                    InputErrorKind::ColorOutOfRange { channel, value }
+                }
+                Ok(_) => return None,
+            };
+            Some((Some(column), kind))
+        })
+}
+
+/// `v x y z [w | r g b]`: three coordinates in range, then nothing, a non-zero w or a colour
+/// (checked when colours are asked for).
+fn check_vertex(
+    fields: &[(usize, &str)],
+    request: AttributeRequest,
+) -> Option<(Option<usize>, InputErrorKind)> {
     if let Some(defect) = check_floats(fields, 3, "vertex position") {
         return Some(defect);
     }
@@ -300,7 +458,9 @@ fn check_vertex(fields: &[(usize, &str)]) -> Option<(Option<usize>, InputErrorKi
         return Some((Some(column), kind));
     }
     match fields.len() {
-        3 | 6 => None,
+        3 => None,
+        6 if request.colors => check_color(fields),
+        6 => None,
         4 if fields[3].1.parse::<f32>().is_ok_and(|w| w != 0.0) => None,
         4 => Some((
             Some(fields[3].0),

@@ -35,6 +35,7 @@ use super::ply::binary::BinaryReader;
 use super::ply::header::{BodyEncoding, Element, Endian};
 use super::ply::parallel::{self, FixedStrideElement, FixedVertex, TriangleFaces};
 use super::ply::{elements, io_error, PlyFile, PlyLayout};
+use super::{AttributeRequest, VertexAttributes};
 use crate::geometry::Point;
 use crate::mapping::map_range;
 
@@ -133,9 +134,46 @@ impl PlyStream {
         sorted_ids: &[u32],
         window_bytes: usize,
     ) -> Result<Vec<Point>, InputError> {
+        self.gather(sorted_ids, window_bytes, parallel::decode_vertex)
+    }
+
+    /// Fails naming the properties the vertices lack, if they cannot give what `request` asks.
+    pub fn check_attributes(&self, request: AttributeRequest) -> Result<(), InputError> {
+        match self.layout.header.vertex.missing(request) {
+            None => Ok(()),
+            Some(kind) => Err(InputError::new(&self.path, Location::File, kind)),
+        }
+    }
+
+    /// The attributes `request` asks for (which must have passed
+    /// [`PlyStream::check_attributes`]) of `sorted_ids`, windowed as [`PlyStream::positions_of`].
+    pub fn attributes_of(
+        &self,
+        sorted_ids: &[u32],
+        window_bytes: usize,
+        request: AttributeRequest,
+    ) -> Result<VertexAttributes, InputError> {
+        let normals = request
+            .normals
+            .then(|| self.gather(sorted_ids, window_bytes, parallel::decode_normal))
+            .transpose()?;
+        let colors = request
+            .colors
+            .then(|| self.gather(sorted_ids, window_bytes, parallel::decode_color))
+            .transpose()?;
+        Ok(VertexAttributes { normals, colors })
+    }
+
+    /// `decode` of each of `sorted_ids`, in that order, one window of vertices at a time.
+    fn gather<T>(
+        &self,
+        sorted_ids: &[u32],
+        window_bytes: usize,
+        decode: impl Fn(&FixedStrideElement, &FixedVertex, usize) -> Result<T, InputError>,
+    ) -> Result<Vec<T>, InputError> {
         let (endian, vertex) = self.streamable_vertices()?;
         let per_window = vertices_per_window(window_bytes, vertex);
-        let mut positions = Vec::with_capacity(sorted_ids.len());
+        let mut values = Vec::with_capacity(sorted_ids.len());
         let mut pending = sorted_ids;
         while let Some(&first) = pending.first() {
             let first = u64::from(first);
@@ -149,11 +187,11 @@ impl PlyStream {
             let element = self.vertex_window(&window, first, count, endian);
             for &id in &pending[..in_window] {
                 let index_in_window = (u64::from(id) - first) as usize;
-                positions.push(parallel::decode_vertex(&element, vertex, index_in_window)?);
+                values.push(decode(&element, vertex, index_in_window)?);
             }
             pending = &pending[in_window..];
         }
-        Ok(positions)
+        Ok(values)
     }
 
     /// Visits every fan triangle `(v0, vi, vi+1)` of every face in file order as

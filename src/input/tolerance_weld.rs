@@ -13,6 +13,10 @@
 //! positions and their order only, not on the thread count. Grid cells are twice the tolerance
 //! wide, so the tolerance ball of a vertex meets at most two cells per axis: eight lookups.
 //!
+//! Vertices with normals or colours move to their cluster's kept position but stay apart
+//! from vertices with other attributes there (see [`super::weld`] for why): the exact weld
+//! that follows the move joins only vertices whose attributes match.
+//!
 //! The clustering needs every position of the model, so the pipeline runs it over the whole
 //! input before the chunk partition, and a vertex shared by two chunks merges the same way in
 //! both.
@@ -50,6 +54,9 @@ pub fn tolerance_representatives(positions: &[Point], tolerance: f32) -> (Vec<u3
 /// dropping the merged vertices; kept vertices keep their order.
 pub fn weld_within_tolerance(mesh: Mesh, tolerance: f32) -> (Mesh, WeldStats) {
     let (representative, stats) = tolerance_representatives(&mesh.positions, tolerance);
+    if mesh.normals.is_some() || mesh.colors.is_some() {
+        return (snap_and_weld(mesh, &representative), stats);
+    }
     let triangles = mesh
         .triangles
         .iter()
@@ -63,6 +70,16 @@ pub fn weld_within_tolerance(mesh: Mesh, tolerance: f32) -> (Mesh, WeldStats) {
         colors: None,
     };
     (compact(remapped, &representative), stats)
+}
+
+/// Moves every vertex to its representative's position, then joins bit-identical vertices
+/// with equal attributes.
+fn snap_and_weld(mut mesh: Mesh, representative: &[u32]) -> Mesh {
+    mesh.positions = representative
+        .iter()
+        .map(|&kept| mesh.positions[kept as usize])
+        .collect();
+    super::weld_identical_positions(mesh)
 }
 
 /// Drops the merged vertices, keeping the order of the kept ones.
@@ -80,6 +97,7 @@ fn compact(mesh: Mesh, representative: &[u32]) -> Mesh {
         .iter()
         .map(|t| t.map(|v| new_index[v as usize]))
         .collect();
+    // Meshes with attributes take `snap_and_weld` instead.
     Mesh {
         positions,
         triangles,
@@ -213,5 +231,40 @@ mod tests {
         assert_eq!(welded.positions.len(), 4);
         assert_eq!(welded.triangles, vec![[0, 1, 2], [1, 3, 2]]);
         assert_eq!(stats.displacement.count, 2);
+    }
+
+    #[test]
+    fn vertices_with_other_attributes_move_but_stay_apart() {
+        // Vertex 3 is a perturbed copy of vertex 1 with the same normal: it merges. Vertex 5 is
+        // one of vertex 2 with another normal: it moves onto vertex 2 but stays its own vertex.
+        let mesh = Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [1.0, 1e-6, 0.0],
+                [1.0, 1.0, 0.0],
+                [-1e-6, 1.0, 0.0],
+            ],
+            triangles: vec![[0, 1, 2], [3, 4, 5]],
+            face_ids: Some(vec![4, 9]),
+            normals: Some(vec![
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, 1.0],
+                [1.0, 0.0, 0.0],
+            ]),
+            colors: None,
+        };
+        let (welded, stats) = weld_within_tolerance(mesh, 1e-5);
+        assert_eq!(stats.displacement.count, 2);
+        assert_eq!(welded.triangles, vec![[0, 1, 2], [1, 3, 4]]);
+        assert_eq!(welded.positions[4], [0.0, 1.0, 0.0]);
+        assert_eq!(welded.positions[4], welded.positions[2]);
+        assert_eq!(welded.normals.as_ref().unwrap()[4], [1.0, 0.0, 0.0]);
+        assert_eq!(welded.normals.as_ref().unwrap()[2], [0.0, 0.0, 1.0]);
+        assert_eq!(welded.face_ids, Some(vec![4, 9]));
     }
 }

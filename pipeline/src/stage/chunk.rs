@@ -7,6 +7,10 @@
 //! each), then each chunk gathers its positions with `positions_of` and is written on its own,
 //! so memory holds one chunk at a time, plus the 2-byte cell of every vertex (and, with a
 //! `[vertices] weld_tolerance`, every position while the model-wide weld is computed).
+//!
+//! With `[attributes] face_ids`, each spilled triangle carries its global input face id (16
+//! bytes instead of 12) and the chunk mesh keeps them; with normals or colours, each chunk
+//! reads them for its own vertices beside their positions.
 
 use std::fs::{self, File};
 use std::io::{BufReader, BufWriter, Read, Write};
@@ -14,8 +18,8 @@ use std::path::Path;
 
 use anyhow::Context;
 use reducem::chunking::{self, MeshSource, Partition};
-use reducem::geometry::{Aabb, Point};
-use reducem::input::{InputError, PlyStream, WeldStats};
+use reducem::geometry::Aabb;
+use reducem::input::{InputError, InputErrorKind, Location, WeldStats};
 use serde::{Deserialize, Serialize};
 
 use crate::chunk_io;
@@ -52,6 +56,7 @@ impl Chunked {
 }
 
 pub fn fingerprint(job: &Job, input: &ResolvedInput) -> Fingerprint {
+    let attributes = job.config.build_params().attributes;
     Fingerprint::new()
         .with("input", &input.content)
         .with("chunk.max_triangles", job.config.chunk.max_triangles)
@@ -59,6 +64,9 @@ pub fn fingerprint(job: &Job, input: &ResolvedInput) -> Fingerprint {
             "vertices.weld_tolerance",
             job.config.vertices.weld_tolerance,
         )
+        .with("attributes.face_ids", attributes.face_ids)
+        .with("attributes.normals", attributes.normals.name())
+        .with("attributes.colors", attributes.colors)
 }
 
 /// The recorded result, if the stage is fresh.
@@ -83,18 +91,21 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
         return Ok(chunked);
     }
     clear_chunks(job)?;
+    let request = job.config.attribute_request();
     let (source, weld) = chunking::weld_source(
-        open_source(&input.path)?,
+        chunking::open_source(&input.path, request, WINDOW_BYTES)?,
         job.config.vertices.weld_tolerance,
+        request,
     )?;
     let partition = chunking::partition(&*source, job.config.chunk.max_triangles)?;
-    let triangles_per_chunk = spill(job, &*source, &partition)?;
+    let face_ids = job.config.attributes.face_ids;
+    let triangles_per_chunk = spill(job, &*source, &partition, face_ids, &input.path)?;
     let progress = job
         .progress
         .stage(UNIT, triangles_per_chunk.len() as u64, "chunks");
     let chunks: Vec<usize> = (0..triangles_per_chunk.len()).collect();
     for_each_unit(&chunks, |chunk| {
-        write_chunk(job, &*source, chunk)?;
+        write_chunk(job, &*source, chunk, face_ids)?;
         progress.advance(1);
         Ok(())
     })?;
@@ -116,45 +127,6 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
 /// Bytes of input mapped at a time by the streaming passes.
 const WINDOW_BYTES: usize = 64 << 20;
 
-/// The input as a [`MeshSource`]: binary PLY streams through bounded windows; inputs that
-/// cannot be streamed (ASCII PLY, OBJ: small in practice) are read whole.
-fn open_source(path: &Path) -> anyhow::Result<Box<dyn MeshSource>> {
-    let is_ply = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
-    if is_ply {
-        let stream = PlyStream::open(path)?;
-        if stream.is_streamable() {
-            return Ok(Box::new(WindowedPly(stream)));
-        }
-    }
-    Ok(Box::new(reducem::input::read_mesh(path)?))
-}
-
-/// A binary PLY read through windows of [`WINDOW_BYTES`].
-struct WindowedPly(PlyStream);
-
-impl MeshSource for WindowedPly {
-    fn vertex_count(&self) -> u64 {
-        self.0.vertex_count()
-    }
-
-    fn for_each_position_window(
-        &self,
-        visit: &mut dyn FnMut(u64, &[Point]),
-    ) -> Result<(), InputError> {
-        self.0.for_each_position_window(WINDOW_BYTES, visit)
-    }
-
-    fn for_each_triangle(&self, visit: &mut dyn FnMut(u64, [u32; 3])) -> Result<(), InputError> {
-        self.0.for_each_triangle(WINDOW_BYTES, visit)
-    }
-
-    fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError> {
-        self.0.positions_of(sorted_ids, WINDOW_BYTES)
-    }
-}
-
 fn clear_chunks(job: &Job) -> anyhow::Result<()> {
     let dir = job.work.file("chunks");
     if dir.exists() {
@@ -167,8 +139,15 @@ fn spill_path(job: &Job, chunk: usize) -> std::path::PathBuf {
     job.work.file(&format!("chunks/spill-{chunk:06}.ids"))
 }
 
-/// Writes every triangle's global vertex indices to its chunk's spill file.
-fn spill(job: &Job, source: &dyn MeshSource, partition: &Partition) -> anyhow::Result<Vec<u64>> {
+/// Writes every triangle's global vertex indices, and with `face_ids` its input face, to its
+/// chunk's spill file (`input` names the file in errors).
+fn spill(
+    job: &Job,
+    source: &dyn MeshSource,
+    partition: &Partition,
+    face_ids: bool,
+    input: &Path,
+) -> anyhow::Result<Vec<u64>> {
     let chunk_count = partition.plan.chunk_count();
     let mut writers = (0..chunk_count)
         .map(|chunk| {
@@ -180,14 +159,30 @@ fn spill(job: &Job, source: &dyn MeshSource, partition: &Partition) -> anyhow::R
         .collect::<anyhow::Result<Vec<_>>>()?;
     let mut counts = vec![0u64; chunk_count];
     let mut first_error = None;
-    chunking::distribute(source, partition, &mut |chunk, triangle| {
+    let mut face_beyond_u32 = None;
+    chunking::distribute(source, partition, &mut |chunk, face, triangle| {
         counts[chunk as usize] += 1;
-        if first_error.is_none() {
-            first_error = writers[chunk as usize]
-                .write_all(bytemuck::cast_slice(&triangle))
-                .err();
+        if first_error.is_some() {
+            return;
         }
+        let writer = &mut writers[chunk as usize];
+        let written = writer.write_all(bytemuck::cast_slice(&triangle));
+        first_error = match (written, u32::try_from(face)) {
+            (Err(error), _) => Some(error),
+            (Ok(()), _) if !face_ids => None,
+            (Ok(()), Ok(face)) => writer.write_all(&face.to_le_bytes()).err(),
+            (Ok(()), Err(_)) => {
+                face_beyond_u32.get_or_insert(face);
+                None
+            }
+        };
     })?;
+    if let Some(face) = face_beyond_u32 {
+        let kind = InputErrorKind::TooManyFaces {
+            face_count: face + 1,
+        };
+        return Err(InputError::new(input, Location::File, kind).into());
+    }
     if let Some(error) = first_error {
         return Err(error).context("writing spill files");
     }
@@ -198,13 +193,26 @@ fn spill(job: &Job, source: &dyn MeshSource, partition: &Partition) -> anyhow::R
 }
 
 /// Turns one spill file into a mesh chunk and removes the spill.
-fn write_chunk(job: &Job, source: &dyn MeshSource, chunk: usize) -> anyhow::Result<()> {
+fn write_chunk(
+    job: &Job,
+    source: &dyn MeshSource,
+    chunk: usize,
+    face_ids: bool,
+) -> anyhow::Result<()> {
     let spill = spill_path(job, chunk);
     let mut bytes = Vec::new();
     BufReader::new(File::open(&spill)?).read_to_end(&mut bytes)?;
-    let triangles: Vec<[u32; 3]> = bytemuck::pod_collect_to_vec(&bytes);
+    let (triangles, face_ids) = if face_ids {
+        let records: Vec<[u32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
+        let triangles: Vec<[u32; 3]> = records.iter().map(|r| [r[0], r[1], r[2]]).collect();
+        (triangles, Some(records.iter().map(|r| r[3]).collect()))
+    } else {
+        (bytemuck::pod_collect_to_vec(&bytes), None)
+    };
     drop(bytes);
-    let mesh = chunking::local_mesh(&triangles, |distinct| source.positions_of(distinct))?;
+    let mesh = chunking::local_mesh(&triangles, face_ids, |distinct| {
+        chunking::vertices_of(source, distinct)
+    })?;
     let mesh = reducem::input::weld_identical_positions(mesh);
     let relative = mesh_chunk(chunk);
     let path = job.work.file(&relative);

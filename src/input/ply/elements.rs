@@ -8,23 +8,99 @@
 use crate::geometry::Point;
 use crate::input::error::InputErrorKind;
 
-use super::header::{FaceLayout, Property, Scalar, VertexLayout, VertexRole};
+use crate::input::AttributeRequest;
+
+use super::header::{FaceLayout, Property, Scalar, VertexLayout, VertexRole, COLOR_NAMES};
 use super::values::{Defect, ValueReader};
 
 const AXIS_LETTERS: [char; 3] = ['x', 'y', 'z'];
 
-pub fn read_vertex<R: ValueReader>(reader: &mut R, layout: &VertexLayout) -> Result<Point, Defect> {
-    let mut point = [0.0; 3];
+/// One vertex as read: its position and, when asked for, its normal and colour (opaque
+/// black and a zero normal when not).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VertexValues {
+    pub position: Point,
+    pub normal: [f32; 3],
+    pub color: [u8; 4],
+}
+
+/// The colour of a vertex without one in the file, or before its channels are read: alpha is
+/// opaque when the file has no `alpha`.
+pub const DEFAULT_COLOR: [u8; 4] = [0, 0, 0, 255];
+
+pub fn read_vertex<R: ValueReader>(
+    reader: &mut R,
+    layout: &VertexLayout,
+    request: AttributeRequest,
+) -> Result<VertexValues, Defect> {
+    let mut vertex = VertexValues {
+        position: [0.0; 3],
+        normal: [0.0; 3],
+        color: DEFAULT_COLOR,
+    };
     for role in &layout.roles {
         match *role {
             VertexRole::Coordinate { axis, scalar } => {
                 let value = reader.read_float(scalar)?;
-                point[axis] = narrow_coordinate(reader, axis, value)?;
+                vertex.position[axis] = narrow_coordinate(reader, axis, value)?;
             }
-            VertexRole::Skip(property) => reader.skip_property(property)?,
+            VertexRole::Normal { axis, scalar } if request.normals => {
+                vertex.normal[axis] = read_normal_component(reader, axis, scalar)?;
+            }
+            VertexRole::Color { channel, scalar } if request.colors => {
+                vertex.color[channel] = read_color_channel(reader, channel, scalar)?;
+            }
+            other => reader.skip_property(other.property())?,
         }
     }
-    Ok(point)
+    Ok(vertex)
+}
+
+/// Reads a normal component (float or double) and narrows it to f32, rejecting NaN and
+/// infinities (also doubles beyond the f32 range, which would become infinities).
+pub fn read_normal_component<R: ValueReader>(
+    reader: &mut R,
+    axis: usize,
+    scalar: Scalar,
+) -> Result<f32, Defect> {
+    let value = reader.read_float(scalar)?;
+    let narrowed = value as f32;
+    if !narrowed.is_finite() {
+        let kind = InputErrorKind::NonFiniteNormal {
+            axis: AXIS_LETTERS[axis],
+            value,
+        };
+        return Err(reader.defect_at_last_value(kind));
+    }
+    Ok(narrowed)
+}
+
+/// Reads a colour channel: uchar as it is, float or double in 0..1 scaled to 0..255 and
+/// rounded to the nearest.
+pub fn read_color_channel<R: ValueReader>(
+    reader: &mut R,
+    channel: usize,
+    scalar: Scalar,
+) -> Result<u8, Defect> {
+    if scalar == Scalar::U8 {
+        // An uchar read as an integer is within 0..=255.
+        return Ok(reader.read_integer(scalar)? as u8);
+    }
+    let value = reader.read_float(scalar)?;
+    unit_to_u8(value).ok_or_else(|| {
+        let kind = InputErrorKind::ColorOutOfRange {
+            channel: COLOR_NAMES[channel],
+            value,
+        };
+        reader.defect_at_last_value(kind)
+    })
+}
+
+/// A colour component in 0..1 as 0..255, rounded to the nearest; `None` outside 0..1 or NaN.
+pub fn unit_to_u8(value: f64) -> Option<u8> {
+    (0.0..=1.0)
+        .contains(&value)
+        .then(|| (value * 255.0).round() as u8)
 }
 
 /// Converts a coordinate to f32, rejecting NaN, infinities and magnitudes beyond

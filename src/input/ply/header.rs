@@ -16,6 +16,7 @@ use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{DefaultElement, ElementDef, Encoding, PropertyType, ScalarType};
 
 use crate::input::error::{InputError, InputErrorKind, Location};
+use crate::input::AttributeRequest;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Endian {
@@ -115,18 +116,99 @@ impl Element {
     }
 }
 
-/// What to do with one vertex property.
+/// What to do with one vertex property. Normals and colours are read only when asked for
+/// and skipped otherwise.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum VertexRole {
-    Coordinate { axis: usize, scalar: Scalar },
+    Coordinate {
+        axis: usize,
+        scalar: Scalar,
+    },
+    /// `nx`, `ny`, `nz` as float or double.
+    Normal {
+        axis: usize,
+        scalar: Scalar,
+    },
+    /// `red`, `green`, `blue`, `alpha` as uchar, float or double (0..1).
+    Color {
+        channel: usize,
+        scalar: Scalar,
+    },
     Skip(Property),
 }
+
+impl VertexRole {
+    /// The property as stored, for skipping it.
+    pub fn property(self) -> Property {
+        match self {
+            VertexRole::Coordinate { scalar, .. }
+            | VertexRole::Normal { scalar, .. }
+            | VertexRole::Color { scalar, .. } => Property::Scalar(scalar),
+            VertexRole::Skip(property) => property,
+        }
+    }
+}
+
+/// "element 'vertex' has no `types` properties `names`".
+fn lacking(types: &str, names: &[&str]) -> Box<str> {
+    let plural = if names.len() == 1 {
+        "property"
+    } else {
+        "properties"
+    };
+    format!(
+        "element 'vertex' has no {types} {plural} {}",
+        names.join(", ")
+    )
+    .into()
+}
+
+pub const NORMAL_NAMES: [&str; 3] = ["nx", "ny", "nz"];
+pub const COLOR_NAMES: [&str; 4] = ["red", "green", "blue", "alpha"];
 
 /// The vertex element and the role of each of its properties, in file order.
 #[derive(Clone, Debug)]
 pub struct VertexLayout {
     pub element: usize,
     pub roles: Vec<VertexRole>,
+}
+
+impl VertexLayout {
+    /// Why the vertices cannot give what `request` asks for, if they cannot: the first
+    /// attribute asked for and missing, and which properties it lacks.
+    pub fn missing(&self, request: AttributeRequest) -> Option<InputErrorKind> {
+        let has_normal = |axis| {
+            self.roles
+                .iter()
+                .any(|role| matches!(role, VertexRole::Normal { axis: a, .. } if *a == axis))
+        };
+        let has_color = |channel| {
+            self.roles
+                .iter()
+                .any(|role| matches!(role, VertexRole::Color { channel: c, .. } if *c == channel))
+        };
+        let missing_normals: Vec<&str> = (0..3)
+            .filter(|&axis| !has_normal(axis))
+            .map(|axis| NORMAL_NAMES[axis])
+            .collect();
+        let missing_colors: Vec<&str> = (0..3)
+            .filter(|&channel| !has_color(channel))
+            .map(|channel| COLOR_NAMES[channel])
+            .collect();
+        if request.normals && !missing_normals.is_empty() {
+            return Some(InputErrorKind::MissingAttribute {
+                attribute: "normals",
+                reason: lacking("float or double", &missing_normals),
+            });
+        }
+        if request.colors && !missing_colors.is_empty() {
+            return Some(InputErrorKind::MissingAttribute {
+                attribute: "colours",
+                reason: lacking("uchar, float or double", &missing_colors),
+            });
+        }
+        None
+    }
 }
 
 /// The face element split around its index list: properties before it and after it are
@@ -291,7 +373,7 @@ fn vertex_layout(definitions: &[&ElementDef]) -> Result<VertexLayout, InputError
         .map(|property| {
             let axis = AXIS_NAMES.iter().position(|name| *name == property.name);
             match (axis, &property.data_type) {
-                (None, data_type) => Ok(VertexRole::Skip(property_from_ply(data_type))),
+                (None, data_type) => Ok(attribute_role(&property.name, data_type)),
                 (
                     Some(axis),
                     PropertyType::Scalar(scalar @ (ScalarType::Float | ScalarType::Double)),
@@ -307,6 +389,28 @@ fn vertex_layout(definitions: &[&ElementDef]) -> Result<VertexLayout, InputError
         })
         .collect::<Result<_, _>>()?;
     Ok(VertexLayout { element, roles })
+}
+
+/// The role of a vertex property that is not a coordinate: a normal or colour component
+/// when its name and type say so, else skipped (a colour stored as, say, ushort is no colour
+/// we read; asking for colours then reports it missing).
+fn attribute_role(name: &str, data_type: &PropertyType) -> VertexRole {
+    let property = property_from_ply(data_type);
+    let Property::Scalar(scalar) = property else {
+        return VertexRole::Skip(property);
+    };
+    let float = matches!(scalar, Scalar::F32 | Scalar::F64);
+    if let Some(axis) = NORMAL_NAMES.iter().position(|n| *n == name) {
+        if float {
+            return VertexRole::Normal { axis, scalar };
+        }
+    }
+    if let Some(channel) = COLOR_NAMES.iter().position(|n| *n == name) {
+        if float || scalar == Scalar::U8 {
+            return VertexRole::Color { channel, scalar };
+        }
+    }
+    VertexRole::Skip(property)
 }
 
 fn face_layout(definitions: &[&ElementDef]) -> Result<FaceLayout, InputErrorKind> {

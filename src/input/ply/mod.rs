@@ -30,6 +30,7 @@ use memmap2::Mmap;
 
 use crate::geometry::Point;
 use crate::input::error::{InputError, InputErrorKind, Location};
+use crate::input::{AttributeRequest, Vertices};
 use crate::mapping::map_file;
 use crate::mesh::Mesh;
 
@@ -108,25 +109,37 @@ impl PlyFile {
 
     /// All vertex positions, in file order.
     pub fn read_positions(&self) -> Result<Vec<Point>, InputError> {
+        Ok(self.read_vertices(AttributeRequest::default())?.positions)
+    }
+
+    /// Fails naming the properties the vertices lack, if they cannot give what `request` asks.
+    pub fn check_attributes(&self, request: AttributeRequest) -> Result<(), InputError> {
+        match self.header.vertex.missing(request) {
+            None => Ok(()),
+            Some(kind) => Err(InputError::new(&self.path, Location::File, kind)),
+        }
+    }
+
+    /// All vertices in file order: positions, and the attributes `request` asks for (which
+    /// must have passed [`PlyFile::check_attributes`]).
+    pub fn read_vertices(&self, request: AttributeRequest) -> Result<Vertices, InputError> {
         let element = self.vertex_element();
         let start = self.vertex_start;
         match self.header.encoding {
             BodyEncoding::Binary(endian) => match FixedVertex::from_layout(&self.header.vertex) {
                 Some(vertex) if self.fits(start, element.count, vertex.stride()) => {
                     let fixed = self.fixed_stride(element, start, endian);
-                    parallel::read_positions(&fixed, &vertex)
+                    parallel_vertices(&fixed, &vertex, request)
                 }
-                _ => self.read_positions_with(&mut BinaryReader::new(
-                    &self.bytes,
-                    start.offset,
-                    endian,
-                )),
+                _ => self.read_vertices_with(
+                    &mut BinaryReader::new(&self.bytes, start.offset, endian),
+                    request,
+                ),
             },
-            BodyEncoding::Ascii => self.read_positions_with(&mut AsciiReader::new(
-                &self.bytes,
-                start.offset,
-                start.line,
-            )),
+            BodyEncoding::Ascii => self.read_vertices_with(
+                &mut AsciiReader::new(&self.bytes, start.offset, start.line),
+                request,
+            ),
         }
     }
 
@@ -160,7 +173,18 @@ impl PlyFile {
 
     /// Positions and triangles as stored, without welding, with each triangle's face.
     pub fn read_mesh(&self) -> Result<Mesh, InputError> {
-        let positions = self.read_positions()?;
+        self.read_mesh_with(AttributeRequest::default())
+    }
+
+    /// [`PlyFile::read_mesh`] with the vertex attributes `request` asks for; fails before
+    /// reading anything when the file lacks them.
+    pub fn read_mesh_with(&self, request: AttributeRequest) -> Result<Mesh, InputError> {
+        self.check_attributes(request)?;
+        let Vertices {
+            positions,
+            normals,
+            colors,
+        } = self.read_vertices(request)?;
         if let Some(triangles) = self.read_uniform_triangles() {
             // Every face is one triangle: triangle `i` is face `i`.
             let triangles = triangles?;
@@ -168,8 +192,8 @@ impl PlyFile {
                 positions,
                 triangles,
                 face_ids: None,
-                normals: None,
-                colors: None,
+                normals,
+                colors,
             });
         }
         let face_count = self.face_count();
@@ -187,8 +211,8 @@ impl PlyFile {
             positions,
             triangles,
             face_ids: Some(face_ids),
-            normals: None,
-            colors: None,
+            normals,
+            colors,
         })
     }
 
@@ -239,18 +263,30 @@ impl PlyFile {
         parallel::read_triangles(&fixed, &faces, self.vertex_count())
     }
 
-    fn read_positions_with<R: ValueReader>(
+    fn read_vertices_with<R: ValueReader>(
         &self,
         reader: &mut R,
-    ) -> Result<Vec<Point>, InputError> {
+        request: AttributeRequest,
+    ) -> Result<Vertices, InputError> {
         let element = self.vertex_element();
-        let mut positions = Vec::with_capacity(element.count as usize);
+        let count = element.count as usize;
+        let mut vertices = Vertices {
+            positions: Vec::with_capacity(count),
+            normals: request.normals.then(|| Vec::with_capacity(count)),
+            colors: request.colors.then(|| Vec::with_capacity(count)),
+        };
         for index in 0..element.count {
-            let point = elements::read_vertex(reader, &self.header.vertex)
+            let values = elements::read_vertex(reader, &self.header.vertex, request)
                 .map_err(|defect| defect.at_element(&self.path, &element.name, index))?;
-            positions.push(point);
+            vertices.positions.push(values.position);
+            if let Some(normals) = &mut vertices.normals {
+                normals.push(values.normal);
+            }
+            if let Some(colors) = &mut vertices.colors {
+                colors.push(values.color);
+            }
         }
-        Ok(positions)
+        Ok(vertices)
     }
 
     fn visit_triangles_with<R: ValueReader>(
@@ -268,6 +304,28 @@ impl PlyFile {
         }
         Ok(())
     }
+}
+
+/// Vertices of a fixed size, decoded in parallel: positions, then each attribute asked for.
+fn parallel_vertices(
+    element: &FixedStrideElement,
+    vertex: &FixedVertex,
+    request: AttributeRequest,
+) -> Result<Vertices, InputError> {
+    let positions = parallel::read_positions(element, vertex)?;
+    let normals = request
+        .normals
+        .then(|| parallel::decode_all(element, |e, i| parallel::decode_normal(e, vertex, i)))
+        .transpose()?;
+    let colors = request
+        .colors
+        .then(|| parallel::decode_all(element, |e, i| parallel::decode_color(e, vertex, i)))
+        .transpose()?;
+    Ok(Vertices {
+        positions,
+        normals,
+        colors,
+    })
 }
 
 pub(crate) fn io_error(path: &Path, error: &std::io::Error) -> InputError {

@@ -24,7 +24,9 @@ use crate::geometry::Point;
 use crate::input::error::InputError;
 
 use super::binary::BinaryReader;
-use super::elements::{narrow_coordinate, read_vertex_index};
+use super::elements::{
+    narrow_coordinate, read_color_channel, read_normal_component, read_vertex_index, DEFAULT_COLOR,
+};
 use super::header::{Endian, FaceLayout, Property, Scalar, VertexLayout, VertexRole};
 use super::values::{Defect, ValueReader};
 
@@ -55,30 +57,41 @@ impl FixedStrideElement<'_> {
     }
 }
 
-/// Offset within a vertex and type of x, y and z, plus the vertex size, when it is fixed.
+/// Offset within a vertex and type of x, y and z, of the normal and colour components the
+/// file has, plus the vertex size, when it is fixed.
 pub struct FixedVertex {
     stride: usize,
     coordinates: [(usize, Scalar); 3],
+    normal: [Option<(usize, Scalar)>; 3],
+    color: [Option<(usize, Scalar)>; 4],
 }
 
 impl FixedVertex {
     pub fn from_layout(layout: &VertexLayout) -> Option<FixedVertex> {
-        let mut coordinates = [(0, Scalar::F32); 3];
-        let mut offset = 0;
+        let mut vertex = FixedVertex {
+            stride: 0,
+            coordinates: [(0, Scalar::F32); 3],
+            normal: [None; 3],
+            color: [None; 4],
+        };
         for role in &layout.roles {
+            let offset = vertex.stride;
             match *role {
                 VertexRole::Coordinate { axis, scalar } => {
-                    coordinates[axis] = (offset, scalar);
-                    offset += scalar.size();
+                    vertex.coordinates[axis] = (offset, scalar)
                 }
-                VertexRole::Skip(Property::Scalar(scalar)) => offset += scalar.size(),
-                VertexRole::Skip(Property::List { .. }) => return None,
+                VertexRole::Normal { axis, scalar } => vertex.normal[axis] = Some((offset, scalar)),
+                VertexRole::Color { channel, scalar } => {
+                    vertex.color[channel] = Some((offset, scalar))
+                }
+                VertexRole::Skip(_) => {}
             }
+            let Property::Scalar(scalar) = role.property() else {
+                return None;
+            };
+            vertex.stride += scalar.size();
         }
-        Some(FixedVertex {
-            stride: offset,
-            coordinates,
-        })
+        Some(vertex)
     }
 
     pub fn stride(&self) -> usize {
@@ -86,30 +99,36 @@ impl FixedVertex {
     }
 }
 
+/// Decodes every instance of `element` with `decode(element, index)`, in parallel blocks; the
+/// first defect in element order wins.
+pub fn decode_all<T, F>(element: &FixedStrideElement, decode: F) -> Result<Vec<T>, InputError>
+where
+    T: Clone + Default + Send,
+    F: Fn(&FixedStrideElement, usize) -> Result<T, InputError> + Sync,
+{
+    let mut values = vec![T::default(); element.count];
+    let outcomes: Vec<Result<(), InputError>> = values
+        .par_chunks_mut(BLOCK)
+        .enumerate()
+        .map(|(block, out)| {
+            let first = block * BLOCK;
+            for (offset_in_block, value) in out.iter_mut().enumerate() {
+                *value = decode(element, first + offset_in_block)?;
+            }
+            Ok(())
+        })
+        .collect();
+    outcomes.into_iter().collect::<Result<(), _>>()?;
+    Ok(values)
+}
+
 pub fn read_positions(
     element: &FixedStrideElement,
     vertex: &FixedVertex,
 ) -> Result<Vec<Point>, InputError> {
-    let mut positions = vec![[0.0; 3]; element.count];
-    let outcomes: Vec<Result<(), InputError>> = positions
-        .par_chunks_mut(BLOCK)
-        .enumerate()
-        .map(|(block, points)| decode_vertex_block(element, vertex, block * BLOCK, points))
-        .collect();
-    outcomes.into_iter().collect::<Result<(), _>>()?;
-    Ok(positions)
-}
-
-fn decode_vertex_block(
-    element: &FixedStrideElement,
-    vertex: &FixedVertex,
-    first: usize,
-    points: &mut [Point],
-) -> Result<(), InputError> {
-    for (offset_in_block, point) in points.iter_mut().enumerate() {
-        *point = decode_vertex(element, vertex, first + offset_in_block)?;
-    }
-    Ok(())
+    decode_all(element, |element, index| {
+        decode_vertex(element, vertex, index)
+    })
 }
 
 /// Decodes instance `index` (counted from `element.start`, which must be below `element.count`).
@@ -128,6 +147,44 @@ pub fn decode_vertex(
             .map_err(|defect| element.error_at(defect, index))?;
     }
     Ok(point)
+}
+
+/// The normal of instance `index`; the caller checked that the file has all three components.
+pub fn decode_normal(
+    element: &FixedStrideElement,
+    vertex: &FixedVertex,
+    index: usize,
+) -> Result<[f32; 3], InputError> {
+    let base = element.start + index * vertex.stride;
+    let mut normal = [0.0; 3];
+    for (axis, component) in vertex.normal.iter().enumerate() {
+        let Some((offset, scalar)) = *component else {
+            continue;
+        };
+        let mut reader = element.reader_at(base + offset);
+        normal[axis] = read_normal_component(&mut reader, axis, scalar)
+            .map_err(|defect| element.error_at(defect, index))?;
+    }
+    Ok(normal)
+}
+
+/// The colour of instance `index`, alpha opaque when the file has none.
+pub fn decode_color(
+    element: &FixedStrideElement,
+    vertex: &FixedVertex,
+    index: usize,
+) -> Result<[u8; 4], InputError> {
+    let base = element.start + index * vertex.stride;
+    let mut color = DEFAULT_COLOR;
+    for (channel, component) in vertex.color.iter().enumerate() {
+        let Some((offset, scalar)) = *component else {
+            continue;
+        };
+        let mut reader = element.reader_at(base + offset);
+        color[channel] = read_color_channel(&mut reader, channel, scalar)
+            .map_err(|defect| element.error_at(defect, index))?;
+    }
+    Ok(color)
 }
 
 /// Face layout under the all-triangles assumption.
