@@ -23,7 +23,7 @@ pub struct ConvertArgs {
     pub grid_bits: Option<u32>,
     pub work: Option<PathBuf>,
     /// Further configuration keys as `(key, TOML value)`, each key one of [`SETTING_SECTIONS`]
-    /// (the Python package's `reducem.convert(..., leaf_windows=4)`); the command line has none.
+    /// (the Python package's `reducem.convert(..., leaf_windows=4)`, `pipeline convert --face-ids`).
     pub settings: Vec<(String, String)>,
 }
 

@@ -93,6 +93,8 @@ enum Command {
         #[arg(long)]
         work: Option<PathBuf>,
         #[command(flatten)]
+        attributes: AttributeFlags,
+        #[command(flatten)]
         job: JobFlags,
     },
     /// List stages and chunks as done, pending or stale, with the reason.
@@ -172,6 +174,48 @@ impl Command {
     }
 }
 
+/// `pipeline convert`'s `[attributes]` keys.
+#[derive(Clone, Debug, clap::Args)]
+struct AttributeFlags {
+    /// Store the input face id of every triangle ([attributes] face_ids).
+    #[arg(long)]
+    face_ids: bool,
+    /// Store per-vertex normals from the input: oct8 (2 bytes, within 0.64 degrees) or oct16
+    /// (4 bytes, within 0.0073 degrees) per stored vertex ([attributes] normals).
+    #[arg(long, value_parser = normal_encodings())]
+    normals: Option<String>,
+    /// Store per-vertex RGBA8 colours from the input ([attributes] colors).
+    #[arg(long)]
+    colors: bool,
+}
+
+/// The values of `--normals`, described.
+fn normal_encodings() -> clap::builder::PossibleValuesParser {
+    use clap::builder::PossibleValue;
+    clap::builder::PossibleValuesParser::new([
+        PossibleValue::new("none").help("No normals (the default)"),
+        PossibleValue::new("oct8").help("Two signed bytes per stored vertex"),
+        PossibleValue::new("oct16").help("Two signed 16-bit words per stored vertex"),
+    ])
+}
+
+impl AttributeFlags {
+    /// The flags as configuration settings (none for what was not asked for).
+    fn settings(&self) -> Vec<(String, String)> {
+        let mut settings = Vec::new();
+        if self.face_ids {
+            settings.push(("face_ids".to_string(), "true".to_string()));
+        }
+        if let Some(normals) = &self.normals {
+            settings.push(("normals".to_string(), format!("\"{normals}\"")));
+        }
+        if self.colors {
+            settings.push(("colors".to_string(), "true".to_string()));
+        }
+        settings
+    }
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Run {
@@ -195,6 +239,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             encoding,
             grid_bits,
             work,
+            attributes,
             job,
         } => {
             interrupt::install()?;
@@ -205,7 +250,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 encoding,
                 grid_bits,
                 work,
-                settings: Vec::new(),
+                settings: attributes.settings(),
             };
             convert::convert(&args, &job.options(None, run::Shard::WHOLE))
         }

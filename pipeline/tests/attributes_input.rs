@@ -411,3 +411,37 @@ fn jobs_with_attributes_resume_to_byte_identical_files_for_any_thread_count() {
         .collect();
     assert_eq!(outputs[0], outputs[1]);
 }
+
+/// `pipeline convert --face-ids --normals oct8 --colors` stores what the flags name, and
+/// without them nothing.
+#[test]
+fn convert_flags_store_the_attributes_they_name() {
+    let dir = temp_dir("convert-flags");
+    let input = dir.join("quads.ply");
+    quads_ply(&input);
+    let convert = |output: &str, flags: &[&str]| {
+        let result = Command::new(env!("CARGO_BIN_EXE_pipeline"))
+            .args(["convert", input.to_str().unwrap(), "-o"])
+            .arg(dir.join(output))
+            .args(flags)
+            .output()
+            .expect("run pipeline");
+        assert!(
+            result.status.success(),
+            "{}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+        reducem::format::reader::ReducemFile::open(&dir.join(output)).expect("open")
+    };
+    let with = convert("with.rdm", &["--face-ids", "--normals", "oct8", "--colors"]);
+    let stored = with.attributes();
+    assert!(stored.face_ids && stored.colors);
+    assert_eq!(
+        stored.normals,
+        reducem::format::attributes::NormalEncoding::Oct8
+    );
+    let without = convert("without.rdm", &[]);
+    assert!(!without.attributes().any());
+    assert_eq!(without.header().version_minor, 1);
+    let _ = std::fs::remove_dir_all(&dir);
+}
