@@ -4,6 +4,7 @@
 import json
 import shutil
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -305,3 +306,33 @@ def test_convert_errors(scan_ply, tmp_path):
     bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nend_header\n")
     with pytest.raises(reducem.ReducemError, match="bad.ply"):
         reducem.convert(bad, tmp_path / "bad.rdm")
+
+
+def _ply_triangles(path):
+    """Positions (n, 3, 3) of the triangles of a binary little-endian PLY of `pipeline gen`
+    (float x, y, z vertices; faces of three int corners)."""
+    data = Path(path).read_bytes()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode()
+    count = lambda element: int(header.split(f"element {element} ")[1].split()[0])
+    vertices, faces = count("vertex"), count("face")
+    positions = np.frombuffer(data, dtype="<f4", count=3 * vertices, offset=end).reshape(-1, 3)
+    record = np.dtype([("n", "u1"), ("corners", "<i4", 3)])
+    corners = np.frombuffer(data, dtype=record, count=faces, offset=end + 12 * vertices)["corners"]
+    return positions[corners]
+
+
+def test_face_ids_are_the_primitive_ids(scan_ply, tmp_path):
+    out = tmp_path / "faces.rdm"
+    reducem.convert(scan_ply, out, face_ids=True)
+    scene = reducem.open(out)
+    assert scene.info["face_ids"] and scene.info["normals"] == "none"
+    triangles = _ply_triangles(scan_ply).astype(np.float64)
+    centroids = triangles.mean(axis=1)
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    # From just outside each triangle's centroid straight at it: only that face is in reach.
+    rays = np.hstack([centroids + 1e-4 * normals, -normals])
+    hits = scene.cast_rays(rays, tfar=2e-4)
+    assert "shading_normals" not in hits and "colors" not in hits
+    assert np.array_equal(hits["primitive_ids"], np.arange(len(triangles), dtype=np.uint32))
