@@ -25,6 +25,9 @@ pub struct BitStream<'a> {
     bytes: &'a [u8],
 }
 
+/// Bits a lookup reads at once: a word at any bit offset holds at least 56 bits.
+const WORD_BITS: u64 = 56;
+
 impl<'a> BitStream<'a> {
     pub fn new(bytes: &'a [u8]) -> BitStream<'a> {
         BitStream { bytes }
@@ -34,34 +37,44 @@ impl<'a> BitStream<'a> {
         self.bytes.len() as u64 * 8
     }
 
-    /// The `width` (at most 32) bits at bit `at`; a defect when they pass the end.
+    /// The 56 bits from bit `at` (zeros past the end: callers check an entry's extent first).
     #[inline]
-    pub fn read(&self, at: u64, width: u32) -> Result<u64, FaceIdDefect> {
-        if at.saturating_add(width as u64) > self.bits() {
-            return Err((at, format!("a {width}-bit field passes the section end")));
-        }
-        if width == 0 {
-            return Ok(0);
-        }
+    fn word(&self, at: u64) -> u64 {
         let first = (at / 8) as usize;
-        let mut word = [0u8; 8];
-        let available = (self.bytes.len() - first).min(8);
-        word[..available].copy_from_slice(&self.bytes[first..first + available]);
-        let value = u64::from_le_bytes(word) >> (at % 8);
-        Ok(value & ((1u64 << width) - 1))
+        let word = match self.bytes.get(first..first + 8) {
+            Some(eight) => u64::from_le_bytes(eight.try_into().unwrap_or_default()),
+            None => {
+                let mut tail = [0u8; 8];
+                let start = first.min(self.bytes.len());
+                let available = self.bytes.len() - start;
+                tail[..available].copy_from_slice(&self.bytes[start..]);
+                u64::from_le_bytes(tail)
+            }
+        };
+        word >> (at % 8)
     }
 
-    /// Ones among the `count` bits at `at` (all inside the stream).
-    fn ones(&self, at: u64, count: u64) -> Result<u64, FaceIdDefect> {
+    /// The `width` (at most 56) bits at bit `at`.
+    #[inline]
+    fn field(&self, at: u64, width: u32) -> u64 {
+        self.word(at) & low_bits(width)
+    }
+
+    /// Ones among the `count` bits at `at`.
+    fn ones(&self, at: u64, count: u64) -> u64 {
         let mut ones = 0;
         let mut done = 0;
         while done < count {
-            let width = (count - done).min(32) as u32;
-            ones += self.read(at + done, width)?.count_ones() as u64;
+            let width = (count - done).min(WORD_BITS) as u32;
+            ones += self.field(at + done, width).count_ones() as u64;
             done += width as u64;
         }
-        Ok(ones)
+        ones
     }
+}
+
+fn low_bits(width: u32) -> u64 {
+    (1u64 << width) - 1
 }
 
 /// The header of one strip's entry.
@@ -74,63 +87,80 @@ struct EntryHeader {
     flags: u64,
 }
 
+/// Reads the header of the entry at bit `at` (its widths and base fit one 56-bit word).
 fn entry_header(stream: &BitStream, at: u64, group_base: u32) -> Result<EntryHeader, FaceIdDefect> {
-    let base_width = stream.read(at, BASE_WIDTH_BITS)? as u32;
-    let after_base_width = at + BASE_WIDTH_BITS as u64;
-    let offset_width_at = after_base_width + base_width as u64;
+    let word = stream.word(at);
+    let base_width = (word & low_bits(BASE_WIDTH_BITS)) as u32;
     if base_width > 32 {
         return Err((at, format!("base width {base_width} is above 32")));
     }
-    let smallest = group_base as u64 + stream.read(after_base_width, base_width)?;
-    let offset_width = stream.read(offset_width_at, OFFSET_WIDTH_BITS)? as u32;
+    let base_delta = (word >> BASE_WIDTH_BITS) & low_bits(base_width);
+    let rest = word >> (BASE_WIDTH_BITS + base_width);
+    let offset_width = (rest & low_bits(OFFSET_WIDTH_BITS)) as u32;
     if offset_width > 32 {
-        return Err((
-            offset_width_at,
-            format!("offset width {offset_width} is above 32"),
-        ));
+        let field = at + (BASE_WIDTH_BITS + base_width) as u64;
+        return Err((field, format!("offset width {offset_width} is above 32")));
     }
-    let delta_width_at = offset_width_at + OFFSET_WIDTH_BITS as u64;
-    let delta_width = stream.read(delta_width_at, DELTA_WIDTH_BITS)? as u32;
+    let delta_width = ((rest >> OFFSET_WIDTH_BITS) & low_bits(DELTA_WIDTH_BITS)) as u32;
+    let flags = at + (BASE_WIDTH_BITS + base_width + OFFSET_WIDTH_BITS + DELTA_WIDTH_BITS) as u64;
+    if flags > stream.bits() {
+        return Err((at, "the entry header passes the section end".into()));
+    }
     Ok(EntryHeader {
-        smallest,
+        smallest: group_base as u64 + base_delta,
         offset_width,
         delta_width,
-        flags: delta_width_at + DELTA_WIDTH_BITS as u64,
+        flags,
     })
 }
 
 impl EntryHeader {
-    /// The bit after the entry of a strip of `windows` windows.
+    /// The bit after the entry of a strip of `windows` windows, checked to lie in the stream.
     fn end(&self, stream: &BitStream, windows: u64) -> Result<u64, FaceIdDefect> {
-        let offsets = stream.ones(self.flags, windows)?;
-        Ok(self.flags
-            + windows
+        let flags_end = self.flags.saturating_add(windows);
+        if flags_end > stream.bits() {
+            return Err((self.flags, "the entry's flags pass the section end".into()));
+        }
+        let offsets = stream.ones(self.flags, windows);
+        let end = flags_end
             + offsets * self.offset_width as u64
-            + (windows - offsets) * self.delta_width as u64)
+            + (windows - offsets) * self.delta_width as u64;
+        match end <= stream.bits() {
+            true => Ok(end),
+            false => Err((self.flags, "the entry's ids pass the section end".into())),
+        }
     }
 
-    /// Decodes the ids of windows `0..=last`, handing each to `visit`.
+    /// Decodes the ids of windows `0..=last` of an entry inside the stream (see
+    /// [`EntryHeader::end`]), handing each to `visit`.
     fn decode(
         &self,
         stream: &BitStream,
         windows: u64,
         last: u64,
-        visit: &mut dyn FnMut(u32),
+        mut visit: impl FnMut(u32),
     ) -> Result<(), FaceIdDefect> {
         let mut value_at = self.flags + windows;
         let mut id = self.smallest;
+        let mut flags = 0;
         for window in 0..=last {
-            let flag_at = self.flags + window;
-            let is_offset = stream.read(flag_at, 1)? == 1;
+            if window % WORD_BITS == 0 {
+                flags = stream.word(self.flags + window);
+            }
+            let is_offset = flags & 1 == 1;
+            flags >>= 1;
             if window == 0 && !is_offset {
-                return Err((flag_at, "the first window's flag is not an offset".into()));
+                return Err((
+                    self.flags,
+                    "the first window's flag is not an offset".into(),
+                ));
             }
             id = if is_offset {
-                let offset = stream.read(value_at, self.offset_width)?;
+                let offset = stream.field(value_at, self.offset_width);
                 value_at += self.offset_width as u64;
                 self.smallest + offset
             } else {
-                let zigzag = stream.read(value_at, self.delta_width)?;
+                let zigzag = stream.field(value_at, self.delta_width);
                 value_at += self.delta_width as u64;
                 let delta = (zigzag >> 1) as i64 ^ -((zigzag & 1) as i64);
                 (id as i64).wrapping_add(delta) as u64
@@ -142,6 +172,26 @@ impl EntryHeader {
         }
         Ok(())
     }
+}
+
+/// The bit after the entry at bit `at` of a strip of `windows` windows, read with as few
+/// operations as the format allows: one word for the header, one per 56 flags. A lookup skips
+/// up to 15 entries this way, so this is most of its cost. Widths above 32 are defects; the
+/// entry's extent is checked by the caller's final [`EntryHeader::end`] (positions only grow,
+/// and reads past the end see zeros).
+#[inline(always)]
+fn skip_entry(stream: &BitStream, at: u64, windows: u64) -> Result<u64, FaceIdDefect> {
+    let word = stream.word(at);
+    let base_width = (word & low_bits(BASE_WIDTH_BITS)) as u32;
+    let rest = word >> (BASE_WIDTH_BITS + base_width.min(32));
+    let offset_width = rest & low_bits(OFFSET_WIDTH_BITS);
+    let delta_width = (rest >> OFFSET_WIDTH_BITS) & low_bits(DELTA_WIDTH_BITS);
+    if base_width > 32 || offset_width > 32 {
+        return Err((at, "an entry width is above 32".into()));
+    }
+    let flags = at + (BASE_WIDTH_BITS + base_width + OFFSET_WIDTH_BITS + DELTA_WIDTH_BITS) as u64;
+    let offsets = stream.ones(flags, windows);
+    Ok(flags + windows + offsets * offset_width + (windows - offsets) * delta_width)
 }
 
 /// The face id of `window` of `strip`, whose group record is `group`; `windows(s)` gives the
@@ -156,15 +206,16 @@ pub fn face_id(
     let first = strip - strip % GROUP_STRIPS;
     let mut at = group.bit_offset;
     for before in first..strip {
-        at = entry_header(stream, at, group.base)?.end(stream, windows(before))?;
+        at = skip_entry(stream, at, windows(before))?;
     }
     let header = entry_header(stream, at, group.base)?;
     let count = windows(strip);
     if window as u64 >= count {
         return Err((at, format!("window {window} of a strip of {count} windows")));
     }
+    header.end(stream, count)?;
     let mut found = 0;
-    header.decode(stream, count, window as u64, &mut |id| found = id)?;
+    header.decode(stream, count, window as u64, |id| found = id)?;
     Ok(found)
 }
 
@@ -179,10 +230,11 @@ pub fn decode_group(
     let mut at = group.bit_offset;
     for (strip, &windows) in strip_windows.iter().enumerate() {
         let header = entry_header(stream, at, group.base)?;
+        let end = header.end(stream, windows)?;
         if windows > 0 {
-            header.decode(stream, windows, windows - 1, &mut |id| visit(strip, id))?;
+            header.decode(stream, windows, windows - 1, |id| visit(strip, id))?;
         }
-        at = header.end(stream, windows)?;
+        at = end;
     }
     Ok(at)
 }
