@@ -85,18 +85,20 @@ pub fn srgb_to_linear(code: u8) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::image::srgb_bytes;
+    use crate::render::Frame;
 
     #[test]
     fn srgb_decoding_ends_exactly_and_inverts_the_encoding() {
         assert_eq!(srgb_to_linear(0), 0.0);
         assert_eq!(srgb_to_linear(255), 1.0);
-        let frame = |value: f32| super::super::Frame {
+        let frame = |value: f32| Frame {
             width: 1,
             height: 1,
             pixels: vec![[value; 3]],
         };
         for code in 0..=255u8 {
-            let encoded = super::super::image::srgb_bytes(&frame(srgb_to_linear(code)));
+            let encoded = srgb_bytes(&frame(srgb_to_linear(code)));
             assert_eq!(encoded[0], code);
         }
     }
