@@ -8,9 +8,11 @@ mod common;
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use common::{canonical_sorted, expected_triangles, grid, temp_path, torus};
+use common::{canonical_sorted, expected_triangles, grid, icosphere, temp_path, torus};
 use reducem::conversion::{encode_stripification, write_chunk, BuildParams};
+use reducem::format::attributes::AttributeSection;
 use reducem::format::reader::ReducemFile;
+use reducem::format::SECTION_ALIGN;
 use reducem::mesh::Mesh;
 use reducem::tools::report::stripifier::{limit_length, meshopt_stripification};
 use reducem::tools::report::{self, memory, sweeps, ReportConfig, ReportData, Scale, Written};
@@ -45,6 +47,7 @@ fn report_names_machine_commit_and_date_and_every_section() {
         "## 5. SAH quality",
         "## 6. Accuracy",
         "## 7. Vertex precision",
+        "## 8. Attributes",
     ] {
         assert!(text.contains(needle), "REPORT.md lacks {needle:?}");
     }
@@ -199,6 +202,67 @@ fn more_ao_samples_cost_more_rays_and_lower_the_error() {
         .all(|r| r.ao_rays == per_sample * r.samples as u64));
     let (first, last) = (rows[0], rows[rows.len() - 1]);
     assert!(last.rmse < first.rmse / 4.0, "{first:?} {last:?}");
+}
+
+#[test]
+fn attributes_cost_their_sections_and_leave_the_answers_unchanged() {
+    let (data, written) = tiny_report();
+    let rows = &data.attributes;
+    assert_eq!(rows.len(), report::attributes::VARIANTS.len());
+    let (plain, stored) = rows.split_first().expect("rows");
+    assert!(plain.section_bytes.is_empty());
+    let [oct8, oct16] = stored else {
+        panic!("two rows with attributes")
+    };
+    for row in stored {
+        assert_eq!(row.stats.triangles, plain.stats.triangles);
+        assert_eq!(
+            (row.speed.primary_hits, row.speed.ao_occluded),
+            (plain.speed.primary_hits, plain.speed.ao_occluded)
+        );
+        let sections: u64 = row.section_bytes.iter().map(|&(_, bytes)| bytes).sum();
+        let growth = row.stats.file_bytes - plain.stats.file_bytes;
+        // Each section starts on an aligned offset.
+        let padding = SECTION_ALIGN * row.section_bytes.len() as u64;
+        assert!(
+            (sections..sections + padding).contains(&growth),
+            "the file grows by {growth} for {sections} bytes of sections"
+        );
+        assert!(row.colored_vertices() >= row.stats.triangles / 3);
+        let face_ids =
+            row.bytes(AttributeSection::FaceIds) + row.bytes(AttributeSection::FaceIdGroups);
+        assert!(row.per_triangle(face_ids) <= 4.0, "{row:?}");
+    }
+    let normals = |row: &report::attributes::AttributeRow| row.bytes(AttributeSection::Normals);
+    assert_eq!(normals(oct8) * 2, normals(oct16));
+    assert_eq!(normals(oct16), 4 * oct16.colored_vertices());
+    assert_eq!(oct8.colored_vertices(), oct16.colored_vertices());
+    let text = std::fs::read_to_string(&written.report).expect("REPORT.md");
+    assert!(text.contains("| normals, oct16 | normals |"), "{text}");
+}
+
+#[test]
+fn synthetic_attributes_are_area_weighted_normals_and_positional_colours() {
+    let sphere = icosphere(3);
+    let with = report::attributes::with_synthetic_attributes(&sphere);
+    let normals = with.normals.expect("normals");
+    for (normal, position) in normals.iter().zip(&sphere.positions) {
+        let cosine: f32 = (0..3).map(|axis| normal[axis] * position[axis]).sum();
+        assert!(cosine > 0.999, "{normal:?} at {position:?}");
+    }
+    let colors = with.colors.expect("colours");
+    let bounds = sphere.bounds();
+    for (color, position) in colors.iter().zip(&sphere.positions) {
+        for axis in 0..3 {
+            if position[axis] == bounds.min[axis] {
+                assert_eq!(color[axis], 0);
+            }
+            if position[axis] == bounds.max[axis] {
+                assert_eq!(color[axis], 255);
+            }
+        }
+        assert_eq!(color[3], 255);
+    }
 }
 
 /// Converts through meshoptimizer's strips and checks that decoding gives the input back.

@@ -7,10 +7,13 @@
 //! effects). Passes run over 8×8-pixel tiles with rayon; every pixel's value depends only on its
 //! own rays and stateless samples, so the image is identical for any thread count.
 //!
-//! Shading is Lambertian with a two-sided geometric normal: `albedo × (ambient × AO + Σ lights
+//! Shading is Lambertian with a two-sided normal: `albedo × colour × (ambient × AO + Σ lights
 //! intensity × cos θ × visibility / falloff)`, point lights falling off with squared distance,
-//! then sRGB-encoded to 8-bit PNG ([`image`]).
+//! then sRGB-encoded to 8-bit PNG ([`image`]). The normal is the geometric one, or the stored
+//! vertex normals interpolated when the file has them; the colour is white, or the stored vertex
+//! colours interpolated ([`attributes`]).
 
+pub mod attributes;
 pub mod camera;
 pub mod image;
 pub mod plan;
@@ -27,6 +30,7 @@ use serde::Serialize;
 
 use crate::geometry::Aabb;
 use crate::trace::{Ray, Tracer};
+use attributes::AttributeUse;
 use camera::Camera;
 use plan::{AoPlan, Light, LightSource, Plan};
 use residency::Residency;
@@ -135,7 +139,8 @@ fn render_samples(tracer: &Tracer, scene: &Scene) -> (Frame, RenderReport) {
     let mut effects = Vec::new();
 
     let started = Instant::now();
-    let surfaces = primary_pass(tracer, &camera, &tiles, plan.width);
+    let used = AttributeUse::new(file.attributes(), &scene.shading);
+    let surfaces = primary_pass(tracer, &camera, &tiles, plan.width, used);
     effects.push(EffectReport {
         effect: "primary",
         rays: tiles.iter().map(|t| t.len() as u64).sum(),
@@ -236,7 +241,9 @@ fn primary_pass(
     camera: &Camera,
     tiles: &[Vec<u32>],
     width: u32,
+    used: AttributeUse,
 ) -> Vec<Option<Surface>> {
+    let file = tracer.file();
     over_tiles(tiles, pixel_count(tiles), |tile| {
         let rays: Vec<Ray> = tile
             .iter()
@@ -245,12 +252,16 @@ fn primary_pass(
         let hits = tracer.intersect_chunk(&rays);
         rays.iter()
             .zip(hits)
-            .map(|(ray, hit)| hit.and_then(|hit| Surface::at_hit(tracer.file(), ray, &hit)))
+            .map(|(ray, hit)| {
+                let hit = hit?;
+                Some(Surface::at_hit(file, ray, &hit)?.with_attributes(file, &hit, used))
+            })
             .collect()
     })
 }
 
-/// The shadow ray from a surface to a light, if the surface faces the light.
+/// The shadow ray from a surface to a light, if the surface faces the light by its geometric
+/// normal (a ray below the triangle's plane would only hit the triangle itself).
 fn shadow_ray(light: &Light, surface: &Surface) -> Option<Ray> {
     let (direction, tmax) = match light.source {
         LightSource::Directional { toward_light } => (toward_light, f32::INFINITY),
@@ -345,21 +356,22 @@ fn shade(
                 let lit = visibility[index].get(pixel).copied().unwrap_or(1.0);
                 light_sum += lit * irradiance(light, &surface);
             }
-            (albedo * light_sum).into()
+            (albedo * surface.color * light_sum).into()
         })
         .collect()
 }
 
-/// Unshadowed irradiance of `light` at a surface.
+/// Unshadowed irradiance of `light` at a surface, by its shading normal.
 fn irradiance(light: &Light, surface: &Surface) -> f32 {
+    let normal = surface.shading_normal;
     match light.source {
         LightSource::Directional { toward_light } => {
-            light.intensity * toward_light.dot(surface.normal).max(0.0)
+            light.intensity * toward_light.dot(normal).max(0.0)
         }
         LightSource::Point { position } => {
             let offset = position - surface.origin;
             let distance_squared = offset.length_squared().max(f32::MIN_POSITIVE);
-            let cosine = offset.normalize_or_zero().dot(surface.normal).max(0.0);
+            let cosine = offset.normalize_or_zero().dot(normal).max(0.0);
             light.intensity * cosine / distance_squared
         }
     }

@@ -49,13 +49,18 @@ pub fn offset_origin(p: Vec3, normal: Vec3) -> Vec3 {
 pub struct Surface {
     /// The hit point pushed off the surface towards the viewer.
     pub origin: Vec3,
-    /// Unit geometric normal turned towards the viewer.
+    /// Unit geometric normal turned towards the viewer: secondary rays leave around it.
     pub normal: Vec3,
+    /// Unit normal the shading uses: the geometric one, or the interpolated stored normal
+    /// ([`Surface::with_attributes`]) on the same side.
+    pub shading_normal: Vec3,
+    /// Linear RGB the scene's albedo is multiplied by: white, or the interpolated vertex colour.
+    pub color: Vec3,
 }
 
 impl Surface {
-    /// The frame at `hit`, the closest hit of `ray` in `file`; `None` only for a hit on a swap
-    /// window, which the tracer never reports.
+    /// The frame at `hit`, the closest hit of `ray` in `file`, shaded with its geometric normal
+    /// and white; `None` only for a hit on a swap window, which the tracer never reports.
     ///
     /// The point is interpolated from the triangle's corners with the hit's weights in f64 and
     /// rounded once, so it is off the plane by at most half a ULP per coordinate, the error the
@@ -82,6 +87,8 @@ impl Surface {
         Some(Surface {
             origin: offset_origin(point.as_vec3(), normal),
             normal,
+            shading_normal: normal,
+            color: Vec3::ONE,
         })
     }
 

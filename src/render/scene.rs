@@ -28,6 +28,10 @@
 //! [ambient_occlusion]
 //! samples = 16
 //! max_distance = 0.5              # model units; default 5% of the bounds' diagonal
+//!
+//! [shading]
+//! smooth = true                   # stored vertex normals, when the file has them
+//! vertex_colors = true            # stored vertex colours times the albedo, likewise
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -122,6 +126,10 @@ pub struct Shading {
     pub seed: u32,
     /// Multiplies the linear radiance before the image is encoded.
     pub exposure: f32,
+    /// Shade with the file's stored vertex normals, interpolated, when it has them.
+    pub smooth: bool,
+    /// Multiply the albedo by the file's stored vertex colours, interpolated, when it has them.
+    pub vertex_colors: bool,
 }
 
 impl Default for Shading {
@@ -132,6 +140,8 @@ impl Default for Shading {
             background: [0.05, 0.06, 0.08],
             seed: 1,
             exposure: 1.0,
+            smooth: true,
+            vertex_colors: true,
         }
     }
 }
@@ -370,6 +380,15 @@ mod tests {
             ..Shading::default()
         };
         assert_eq!(scene.shading, expected);
+    }
+
+    #[test]
+    fn stored_attributes_are_used_unless_the_scene_turns_them_off() {
+        let default = Scene::parse(Path::new("s.toml"), MINIMAL).expect("parse");
+        assert!(default.shading.smooth && default.shading.vertex_colors);
+        let text = format!("{MINIMAL}[shading]\nsmooth = false\nvertex_colors = false\n");
+        let off = Scene::parse(Path::new("s.toml"), &text).expect("parse");
+        assert!(!off.shading.smooth && !off.shading.vertex_colors);
     }
 
     #[test]

@@ -13,11 +13,14 @@
 //! 6. [`accuracy`]: ambient-occlusion samples against image error and render time.
 //! 7. [`precision`]: lossless against grid vertices of 12 to 24 bits (error, bytes, speed), and
 //!    the tolerance weld on a perturbed copy of the mesh.
+//! 8. [`attributes`]: bytes per triangle of face ids, normals and colours, and tracing speed
+//!    with and without them.
 //!
 //! [`Scale`] sets mesh and image sizes: `tiny` runs in seconds (the tests), `medium` in minutes,
 //! `full` in about half an hour on 2 cores.
 
 pub mod accuracy;
+pub mod attributes;
 #[cfg(feature = "embree")]
 #[allow(unsafe_code)]
 mod embree_peer;
@@ -126,6 +129,7 @@ pub struct ReportData {
     pub ambient_occlusion: Vec<accuracy::AoRow>,
     pub precision: Vec<precision::PrecisionRow>,
     pub weld: Vec<precision::WeldRow>,
+    pub attributes: Vec<attributes::AttributeRow>,
 }
 
 /// What [`run`] wrote.
@@ -159,6 +163,7 @@ pub fn run(config: &ReportConfig) -> anyhow::Result<(ReportData, Written)> {
     let (ambient_occlusion, images) = accuracy::collect(work, &config.out_dir, &sizes)?;
     let precision = precision::precision(&subject, work, &sizes)?;
     let weld = precision::weld(&subject, work, &sizes)?;
+    let attributes = attributes::collect(&subject, work, &sizes)?;
     let data = ReportData {
         machine,
         sizes,
@@ -170,6 +175,7 @@ pub fn run(config: &ReportConfig) -> anyhow::Result<(ReportData, Written)> {
         ambient_occlusion,
         precision,
         weld,
+        attributes,
     };
     let written = write(&data, &config.out_dir, &plots_dir, images)?;
     Ok((data, written))
@@ -196,6 +202,7 @@ fn write(
             plots_dir,
         )?,
         precision::section(&data.precision, &data.weld, plots_dir)?,
+        attributes::section(&data.attributes)?,
     ];
     let mut text = markdown::preamble(&data.machine, &data.sizes);
     let mut plots = Vec::new();
