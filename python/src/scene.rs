@@ -15,7 +15,7 @@ use pyo3::types::PyDict;
 use rayon::prelude::*;
 use reducem_core::format::attributes::{AttributeSet, NormalEncoding};
 use reducem_core::format::reader::ReducemFile;
-use reducem_core::trace::{hit_attributes, Hit, HitAttributes, Kernel, TraceOptions, Tracer};
+use reducem_core::trace::{surface_attributes, Hit, HitAttributes, Kernel, TraceOptions, Tracer};
 use reducem_core::triangle_index::TriangleIndex;
 
 use crate::errors::{format_error, reducem_error};
@@ -329,7 +329,7 @@ impl Scene {
                 let hit = hit.as_ref()?;
                 let read = attributes
                     .per_vertex()
-                    .then(|| hit_attributes(&self.file, hit));
+                    .then(|| surface_attributes(&self.file, hit));
                 Some((self.primitive_id(index, hit), read))
             })
             .collect();

@@ -1,6 +1,6 @@
 //! Stored attributes in the shading (format 2.5): the interpolated vertex normal makes smooth
 //! shading, the interpolated vertex colour multiplies the scene's albedo. Both are read for each
-//! primary ray's final hit only ([`hit_attributes`]), never during traversal.
+//! primary ray's final hit only ([`surface_attributes`]: no face id), never during traversal.
 //!
 //! Secondary rays ignore them: shadow and AO rays leave from the point pushed off the surface
 //! along the geometric normal, around the geometric normal, exactly as without attributes. So
@@ -15,7 +15,7 @@ use super::sampling::Surface;
 use super::scene::Shading;
 use crate::format::attributes::{AttributeSet, NormalEncoding};
 use crate::format::reader::ReducemFile;
-use crate::trace::{hit_attributes, Hit};
+use crate::trace::{surface_attributes, Hit};
 
 /// Which stored attributes the shading uses: those the file has and the scene leaves on.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -47,7 +47,7 @@ impl Surface {
         if !used.any() {
             return self;
         }
-        let attributes = hit_attributes(file, hit);
+        let attributes = surface_attributes(file, hit);
         let mut surface = self;
         if used.normals {
             // Two-sided like the geometric normal: turned to the side the ray came from, which

@@ -21,10 +21,18 @@ pub struct HitAttributes {
 
 /// The attributes of `hit`, a hit of a ray traced in `file`.
 pub fn hit_attributes(file: &ReducemFile, hit: &Hit) -> HitAttributes {
+    HitAttributes {
+        face_id: file.face_id(hit.strip as usize, hit.window as usize),
+        ..surface_attributes(file, hit)
+    }
+}
+
+/// The per-vertex attributes of `hit` (shading normal and colour) without its face id, for
+/// callers that shade and need no id: reading a face id is most of a full lookup's cost.
+pub fn surface_attributes(file: &ReducemFile, hit: &Hit) -> HitAttributes {
     let (strip, window) = (hit.strip as usize, hit.window as usize);
-    let face_id = file.face_id(strip, window);
     let mut attributes = HitAttributes {
-        face_id,
+        face_id: None,
         shading_normal: hit.normal,
         color: None,
     };

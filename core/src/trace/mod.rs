@@ -36,7 +36,7 @@ use rayon::prelude::*;
 
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
-pub use attributes::{hit_attributes, HitAttributes};
+pub use attributes::{hit_attributes, surface_attributes, HitAttributes};
 pub use kernel::Kernel;
 use prepared::PreparedRay;
 use strip::{Closest, StripQuery};
