@@ -107,10 +107,7 @@ pub fn decode_normal(code: OctCode, encoding: NormalEncoding) -> [f32; 3] {
     );
     let z = 1.0 - x.abs() - y.abs();
     let (x, y) = if z < 0.0 {
-        (
-            (1.0 - y.abs()).copysign(x),
-            (1.0 - x.abs()).copysign(y),
-        )
+        ((1.0 - y.abs()).copysign(x), (1.0 - x.abs()).copysign(y))
     } else {
         (x, y)
     };

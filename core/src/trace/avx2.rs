@@ -21,7 +21,12 @@
 
 use std::arch::x86_64::*;
 
+use wide::f32x8;
+
+use super::packet::{Lanes, PacketClip};
+use super::prepared::FAR_INFLATION;
 use super::strip::{by_axes, BlockEdges, BlockKernel, StripQuery, TraceArgs, BLOCK};
+use super::top::ChildBoxes;
 use super::watertight::RaySpace;
 use crate::format::vertices::VertexAccess;
 
@@ -62,7 +67,7 @@ fn trace_as<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
 /// false, with nothing traced, when this CPU lacks AVX2.
 pub(super) fn traverse_packet(
     tracer: &super::Tracer,
-    lanes: &super::packet::Lanes,
+    lanes: &Lanes,
     packet_mask: u32,
     any_hit: bool,
     closest: &mut [super::strip::Closest; super::packet::PACKET_WIDTH],
@@ -79,12 +84,75 @@ pub(super) fn traverse_packet(
 #[inline(never)]
 fn traverse_packet_detected(
     tracer: &super::Tracer,
-    lanes: &super::packet::Lanes,
+    lanes: &Lanes,
     packet_mask: u32,
     any_hit: bool,
     closest: &mut [super::strip::Closest; super::packet::PACKET_WIDTH],
 ) {
-    super::packet::traverse_inline(tracer, lanes, packet_mask, any_hit, closest)
+    super::packet::traverse_inline::<Avx2Clip>(tracer, lanes, packet_mask, any_hit, closest)
+}
+
+/// The packet's box test in 256-bit lanes. `wide`'s `f32x8` is two SSE registers in a crate
+/// compiled for SSE2, even inside a function compiled for AVX2, so `Lanes::clip_slot` there
+/// still ran two 128-bit operations per step; here each step is one `vsubps`, `vmulps`,
+/// `vmaxps` or `vminps` on eight lanes, in `Lanes::clip_slot`'s order.
+struct Avx2Clip;
+
+impl PacketClip for Avx2Clip {
+    #[inline(always)]
+    fn clip_slot(
+        lanes: &Lanes,
+        boxes: &ChildBoxes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32) {
+        // SAFETY: `Avx2Clip` is private to this module and used only by
+        // `traverse_packet_detected`, which runs only once AVX2 was detected
+        // (`traverse_packet`).
+        unsafe { clip_slot(lanes, boxes, slot, t_far) }
+    }
+}
+
+/// [`Avx2Clip::clip_slot`]: per axis the entry distance `(entry - origin) * entry_reciprocal`
+/// and the inflated exit distance `(exit - origin) * exit_reciprocal * FAR_INFLATION`, folded
+/// into the interval by `max_not_nan_x8` and `min_not_nan_x8` (`vmaxps(entry, near)` and
+/// `vminps(exit, far)` keep the interval's value where the distance is NaN, as `maxps` and
+/// `minps` do there).
+#[target_feature(enable = "avx2")]
+#[inline]
+fn clip_slot(
+    lanes: &Lanes,
+    (min, max): &ChildBoxes,
+    slot: usize,
+    t_far: f32x8,
+) -> (f32x8, f32x8, u32) {
+    let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
+    let inflation = _mm256_set1_ps(FAR_INFLATION);
+    let mut near = wide(lanes.tmin);
+    let mut far = wide(t_far);
+    for axis in 0..3 {
+        let (entry, exit) = if lanes.rays[0].negative[axis] {
+            (max[axis][slot], min[axis][slot])
+        } else {
+            (min[axis][slot], max[axis][slot])
+        };
+        let origin = wide(lanes.origin[axis]);
+        let entry = _mm256_mul_ps(
+            _mm256_sub_ps(_mm256_set1_ps(entry), origin),
+            wide(lanes.entry_reciprocal[axis]),
+        );
+        let exit = _mm256_mul_ps(
+            _mm256_mul_ps(
+                _mm256_sub_ps(_mm256_set1_ps(exit), origin),
+                wide(lanes.exit_reciprocal[axis]),
+            ),
+            inflation,
+        );
+        near = _mm256_max_ps(entry, near);
+        far = _mm256_min_ps(exit, far);
+    }
+    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+    (bytemuck::cast(near), bytemuck::cast(far), mask)
 }
 
 /// The AVX2 blocks, as a [`BlockKernel`] for the shared traversal.

@@ -26,7 +26,8 @@ use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION
 use super::ray::Ray;
 use super::strip::Closest;
 use super::top::{
-    for_each_bit, order_keys, sort_by_key, trace_ray, DeferStack, NodeGridLanes, TraceNode,
+    for_each_bit, order_keys, sort_by_key, trace_ray, ChildBoxes, DeferStack, NodeGridLanes,
+    TraceNode,
 };
 use super::Tracer;
 use crate::format::reader::TopNodes;
@@ -54,11 +55,40 @@ struct PacketDeferred {
 
 /// The packet's rays in structure-of-arrays form.
 pub(super) struct Lanes {
-    rays: [PreparedRay; PACKET_WIDTH],
-    origin: [f32x8; 3],
-    entry_reciprocal: [f32x8; 3],
-    exit_reciprocal: [f32x8; 3],
-    tmin: f32x8,
+    pub(super) rays: [PreparedRay; PACKET_WIDTH],
+    pub(super) origin: [f32x8; 3],
+    pub(super) entry_reciprocal: [f32x8; 3],
+    pub(super) exit_reciprocal: [f32x8; 3],
+    pub(super) tmin: f32x8,
+}
+
+/// How the packet's lanes are clipped against one child box: [`WideClip`] everywhere, or
+/// 256-bit AVX2 operations ([`super::avx2`]). Every implementation runs
+/// [`PreparedRay::clip_box`]'s operations in its order on each lane, so the lanes' bits agree.
+pub(super) trait PacketClip {
+    /// The lanes' interval in child `slot` of `boxes` within `[tmin, t_far]`, and the mask of
+    /// the lanes whose interval is not empty.
+    fn clip_slot(
+        lanes: &Lanes,
+        boxes: &ChildBoxes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32);
+}
+
+/// [`PacketClip`] in `wide`'s eight lanes (two SSE operations each).
+pub(super) struct WideClip;
+
+impl PacketClip for WideClip {
+    #[inline(always)]
+    fn clip_slot(
+        lanes: &Lanes,
+        boxes: &ChildBoxes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32) {
+        lanes.clip_slot(boxes, slot, t_far)
+    }
 }
 
 /// Traces up to [`PACKET_WIDTH`] rays; entry `i` is ray `i`'s closest hit (or, with `any_hit`,
@@ -125,12 +155,7 @@ impl Lanes {
     /// Lanewise [`PreparedRay::clip_box`] against child `slot` of boxes `min`..`max`
     /// (`[axis][slot]`): the same operations in the same order.
     #[inline(always)]
-    fn clip_slot(
-        &self,
-        (min, max): &super::top::ChildBoxes,
-        slot: usize,
-        t_far: f32x8,
-    ) -> (f32x8, f32x8, u32) {
+    fn clip_slot(&self, (min, max): &ChildBoxes, slot: usize, t_far: f32x8) -> (f32x8, f32x8, u32) {
         let mut near = self.tmin;
         let mut far = t_far;
         for axis in 0..3 {
@@ -155,7 +180,7 @@ impl Lanes {
     /// farthest first. Empty slots are skipped (by their link: a grid node's empty box is not
     /// missed by construction).
     #[inline(always)]
-    fn enter_children<N: TraceNode>(
+    fn enter_children<N: TraceNode, C: PacketClip>(
         &self,
         node: &N,
         decoder: &N::Decoder,
@@ -169,7 +194,7 @@ impl Lanes {
         let mut entered = ArrayVec::<(f32, PacketDeferred), TOP_WIDTH>::new();
         let occupied = node.occupied_mask();
         for slot in (0..TOP_WIDTH).take_while(|&slot| occupied & (1 << slot) != 0) {
-            let (t_near, t_far, mask) = self.clip_slot(&boxes, slot, limit);
+            let (t_near, t_far, mask) = C::clip_slot(self, &boxes, slot, limit);
             let mask = mask & active;
             if mask != 0 {
                 let key = keys[slot];
@@ -221,12 +246,12 @@ fn traverse(
     {
         return;
     }
-    traverse_inline(tracer, lanes, packet_mask, any_hit, closest)
+    traverse_inline::<WideClip>(tracer, lanes, packet_mask, any_hit, closest)
 }
 
-/// [`traverse`] compiled for the target of the function it is inlined into.
+/// [`traverse`] compiled for the target of the function it is inlined into, clipping with `C`.
 #[inline(always)]
-pub(super) fn traverse_inline(
+pub(super) fn traverse_inline<C: PacketClip>(
     tracer: &Tracer,
     lanes: &Lanes,
     packet_mask: u32,
@@ -235,11 +260,11 @@ pub(super) fn traverse_inline(
 ) {
     match tracer.file().top_nodes() {
         TopNodes::F32(nodes) => {
-            traverse_nodes(tracer, nodes, &(), lanes, packet_mask, any_hit, closest)
+            traverse_nodes::<_, C>(tracer, nodes, &(), lanes, packet_mask, any_hit, closest)
         }
         TopNodes::Grid(nodes, grid) => {
             let decoder = NodeGridLanes::new(&grid);
-            traverse_nodes(
+            traverse_nodes::<_, C>(
                 tracer,
                 nodes,
                 &decoder,
@@ -253,7 +278,7 @@ pub(super) fn traverse_inline(
 }
 
 #[inline(always)]
-fn traverse_nodes<N: TraceNode>(
+fn traverse_nodes<N: TraceNode, C: PacketClip>(
     tracer: &Tracer,
     nodes: &[N],
     decoder: &N::Decoder,
@@ -279,7 +304,7 @@ fn traverse_nodes<N: TraceNode>(
             if current.kind == INTERNAL_CHILD {
                 let node = tracer.file().top_node(nodes, current.child as usize);
                 let entered = node.and_then(|n| {
-                    lanes.enter_children(n, decoder, current.mask, limit, &mut stack)
+                    lanes.enter_children::<N, C>(n, decoder, current.mask, limit, &mut stack)
                 });
                 if let Some(nearest) = entered {
                     current = nearest;
