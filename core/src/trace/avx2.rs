@@ -23,12 +23,13 @@ use std::arch::x86_64::*;
 
 use wide::f32x8;
 
-use super::packet::{Lanes, PacketClip};
+use super::packet::{Lanes, PacketKernel};
 use super::prepared::FAR_INFLATION;
-use super::strip::{by_axes, BlockEdges, BlockKernel, StripQuery, TraceArgs, BLOCK};
+use super::strip::{by_axes, BlockEdges, BlockKernel, Closest, StripQuery, TraceArgs, BLOCK};
 use super::top::ChildBoxes;
 use super::watertight::RaySpace;
-use crate::format::vertices::VertexAccess;
+use crate::format::reader::StripView;
+use crate::format::vertices::{StripVertices, VertexAccess};
 
 /// [`StripQuery::trace`]'s strip traversal compiled for AVX2 with AVX2 blocks; the arguments
 /// back when this CPU lacks AVX2.
@@ -47,6 +48,7 @@ pub(super) fn trace<'a, 'v, V: VertexAccess>(
 
 /// [`trace`] once AVX2 is known to be there: down to the blocks, everything is compiled for it.
 #[target_feature(enable = "avx2")]
+#[inline]
 fn trace_detected<V: VertexAccess>(query: &StripQuery, vertices: V, args: TraceArgs) -> bool {
     by_axes!(trace_as, query, vertices, args)
 }
@@ -89,16 +91,16 @@ fn traverse_packet_detected(
     any_hit: bool,
     closest: &mut [super::strip::Closest; super::packet::PACKET_WIDTH],
 ) {
-    super::packet::traverse_inline::<Avx2Clip>(tracer, lanes, packet_mask, any_hit, closest)
+    super::packet::traverse_inline::<Avx2Packets>(tracer, lanes, packet_mask, any_hit, closest)
 }
 
 /// The packet's box test in 256-bit lanes. `wide`'s `f32x8` is two SSE registers in a crate
 /// compiled for SSE2, even inside a function compiled for AVX2, so `Lanes::clip_slot` there
 /// still ran two 128-bit operations per step; here each step is one `vsubps`, `vmulps`,
 /// `vmaxps` or `vminps` on eight lanes, in `Lanes::clip_slot`'s order.
-struct Avx2Clip;
+struct Avx2Packets;
 
-impl PacketClip for Avx2Clip {
+impl PacketKernel for Avx2Packets {
     #[inline(always)]
     fn clip_slot(
         lanes: &Lanes,
@@ -106,14 +108,33 @@ impl PacketClip for Avx2Clip {
         slot: usize,
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32) {
-        // SAFETY: `Avx2Clip` is private to this module and used only by
+        // SAFETY: `Avx2Packets` is private to this module and used only by
         // `traverse_packet_detected`, which runs only once AVX2 was detected
         // (`traverse_packet`).
         unsafe { clip_slot(lanes, boxes, slot, t_far) }
     }
+
+    #[inline(always)]
+    fn trace_strip(
+        query: &StripQuery,
+        view: &StripView,
+        strip: u32,
+        t_near: f32,
+        t_far: f32,
+        closest: &mut Closest,
+    ) -> bool {
+        let args = (view, strip, t_near, t_far, closest);
+        // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
+        unsafe {
+            match view.vertices {
+                StripVertices::F32(vertices) => trace_detected(query, vertices, args),
+                StripVertices::Grid(vertices) => trace_detected(query, vertices, args),
+            }
+        }
+    }
 }
 
-/// [`Avx2Clip::clip_slot`]: per axis the entry distance `(entry - origin) * entry_reciprocal`
+/// [`Avx2Packets::clip_slot`]: per axis the entry distance `(entry - origin) * entry_reciprocal`
 /// and the inflated exit distance `(exit - origin) * exit_reciprocal * FAR_INFLATION`, folded
 /// into the interval by `max_not_nan_x8` and `min_not_nan_x8` (`vmaxps(entry, near)` and
 /// `vminps(exit, far)` keep the interval's value where the distance is NaN, as `maxps` and

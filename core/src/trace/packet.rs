@@ -24,13 +24,13 @@ use wide::f32x8;
 
 use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION};
 use super::ray::Ray;
-use super::strip::Closest;
+use super::strip::{Closest, StripQuery};
 use super::top::{
     for_each_bit, order_keys, sort_by_key, trace_ray, ChildBoxes, DeferStack, NodeGridLanes,
     TraceNode,
 };
 use super::Tracer;
-use crate::format::reader::TopNodes;
+use crate::format::reader::{StripView, TopNodes};
 use crate::format::{INTERNAL_CHILD, TOP_WIDTH};
 
 /// Rays per packet at the top level.
@@ -62,10 +62,11 @@ pub(super) struct Lanes {
     pub(super) tmin: f32x8,
 }
 
-/// How the packet's lanes are clipped against one child box: [`WideClip`] everywhere, or
-/// 256-bit AVX2 operations ([`super::avx2`]). Every implementation runs
-/// [`PreparedRay::clip_box`]'s operations in its order on each lane, so the lanes' bits agree.
-pub(super) trait PacketClip {
+/// What the packet walk runs per child box and per strip: [`WideKernel`] everywhere, or the
+/// AVX2 kernel ([`super::avx2`]). Every implementation runs [`PreparedRay::clip_box`]'s
+/// operations in its order on each lane and traces strips as [`StripQuery::trace`], so the
+/// lanes' bits agree.
+pub(super) trait PacketKernel {
     /// The lanes' interval in child `slot` of `boxes` within `[tmin, t_far]`, and the mask of
     /// the lanes whose interval is not empty.
     fn clip_slot(
@@ -74,12 +75,23 @@ pub(super) trait PacketClip {
         slot: usize,
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32);
+
+    /// [`StripQuery::trace`] of one lane.
+    fn trace_strip(
+        query: &StripQuery,
+        view: &StripView,
+        strip: u32,
+        t_near: f32,
+        t_far: f32,
+        closest: &mut Closest,
+    ) -> bool;
 }
 
-/// [`PacketClip`] in `wide`'s eight lanes (two SSE operations each).
-pub(super) struct WideClip;
+/// [`PacketKernel`] in `wide`'s eight lanes (two SSE operations each), strips through
+/// [`StripQuery::trace`].
+pub(super) struct WideKernel;
 
-impl PacketClip for WideClip {
+impl PacketKernel for WideKernel {
     #[inline(always)]
     fn clip_slot(
         lanes: &Lanes,
@@ -88,6 +100,18 @@ impl PacketClip for WideClip {
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32) {
         lanes.clip_slot(boxes, slot, t_far)
+    }
+
+    #[inline(always)]
+    fn trace_strip(
+        query: &StripQuery,
+        view: &StripView,
+        strip: u32,
+        t_near: f32,
+        t_far: f32,
+        closest: &mut Closest,
+    ) -> bool {
+        query.trace(view, strip, t_near, t_far, closest)
     }
 }
 
@@ -180,7 +204,7 @@ impl Lanes {
     /// farthest first. Empty slots are skipped (by their link: a grid node's empty box is not
     /// missed by construction).
     #[inline(always)]
-    fn enter_children<N: TraceNode, C: PacketClip>(
+    fn enter_children<N: TraceNode, C: PacketKernel>(
         &self,
         node: &N,
         decoder: &N::Decoder,
@@ -246,12 +270,12 @@ fn traverse(
     {
         return;
     }
-    traverse_inline::<WideClip>(tracer, lanes, packet_mask, any_hit, closest)
+    traverse_inline::<WideKernel>(tracer, lanes, packet_mask, any_hit, closest)
 }
 
 /// [`traverse`] compiled for the target of the function it is inlined into, clipping with `C`.
 #[inline(always)]
-pub(super) fn traverse_inline<C: PacketClip>(
+pub(super) fn traverse_inline<C: PacketKernel>(
     tracer: &Tracer,
     lanes: &Lanes,
     packet_mask: u32,
@@ -278,7 +302,7 @@ pub(super) fn traverse_inline<C: PacketClip>(
 }
 
 #[inline(always)]
-fn traverse_nodes<N: TraceNode, C: PacketClip>(
+fn traverse_nodes<N: TraceNode, C: PacketKernel>(
     tracer: &Tracer,
     nodes: &[N],
     decoder: &N::Decoder,
@@ -311,7 +335,7 @@ fn traverse_nodes<N: TraceNode, C: PacketClip>(
                     continue;
                 }
             } else {
-                finished |= trace_leaf_lanes(tracer, lanes, &current, any_hit, closest);
+                finished |= trace_leaf_lanes::<C>(tracer, lanes, &current, any_hit, closest);
                 limit = bounds(closest, finished);
             }
         }
@@ -332,8 +356,11 @@ fn traverse_nodes<N: TraceNode, C: PacketClip>(
 /// Each active lane traverses the leaf's strips alone, strip after strip, so that each strip is
 /// viewed once for the packet; returns the lanes that found an occluder when `any_hit` is set.
 /// A lane visits the strips in the order and with the bounds its ray alone would
-/// ([`super::top::trace_leaf`]).
-fn trace_leaf_lanes(
+/// ([`super::top::trace_leaf`]). Inlined into the walk, so that with the AVX2 kernel the strip
+/// traversal is entered straight from code compiled for AVX2 (`C::trace_strip`), without the
+/// per-strip CPU check and calls of [`StripQuery::trace`].
+#[inline(always)]
+fn trace_leaf_lanes<C: PacketKernel>(
     tracer: &Tracer,
     lanes: &Lanes,
     leaf: &PacketDeferred,
@@ -354,7 +381,7 @@ fn trace_leaf_lanes(
                 return;
             }
             let query = tracer.query(&lanes.rays[lane], any_hit);
-            if query.trace(&view, strip, t_near[lane], t_far, closest) {
+            if C::trace_strip(&query, &view, strip, t_near[lane], t_far, closest) {
                 finished |= 1 << lane;
                 active &= !(1 << lane);
             }
