@@ -17,7 +17,10 @@
 //! order with the same bounds as its ray alone, so the results agree bit for bit even on a
 //! corrupt file whose boxes do not bound their strips (on a valid file the closest-hit rule
 //! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
-//! not depend on the order (see [`super::top`]).
+//! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children in
+//! slot order, unsorted: 1.2% fewer instructions per AO ray than the closest-hit order, and 0.4%
+//! fewer than sorting by the first active lane's entry distance (callgrind, 100k AO rays of the
+//! 1M scan).
 
 use arrayvec::ArrayVec;
 use wide::f32x8;
@@ -210,10 +213,15 @@ impl Lanes {
         decoder: &N::Decoder,
         active: u32,
         limit: f32x8,
+        any_hit: bool,
         stack: &mut DeferStack<PacketDeferred>,
     ) -> Option<PacketDeferred> {
         let boxes = node.boxes(decoder);
-        let keys = order_keys(&boxes.0, &boxes.1, &self.rays[0].negative);
+        let keys = if any_hit {
+            [0.0; TOP_WIDTH]
+        } else {
+            order_keys(&boxes.0, &boxes.1, &self.rays[0].negative)
+        };
         // Not an array of defaults: filling four 128-byte entries cost some 80 stores a node.
         let mut entered = ArrayVec::<(f32, PacketDeferred), TOP_WIDTH>::new();
         let occupied = node.occupied_mask();
@@ -233,7 +241,9 @@ impl Lanes {
                 entered.push((key, child));
             }
         }
-        sort_by_key(&mut entered);
+        if !any_hit {
+            sort_by_key(&mut entered);
+        }
         entered.iter().skip(1).rev().for_each(|e| stack.push(e.1));
         entered.first().map(|e| e.1)
     }
@@ -328,7 +338,14 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel>(
             if current.kind == INTERNAL_CHILD {
                 let node = tracer.file().top_node(nodes, current.child as usize);
                 let entered = node.and_then(|n| {
-                    lanes.enter_children::<N, C>(n, decoder, current.mask, limit, &mut stack)
+                    lanes.enter_children::<N, C>(
+                        n,
+                        decoder,
+                        current.mask,
+                        limit,
+                        any_hit,
+                        &mut stack,
+                    )
                 });
                 if let Some(nearest) = entered {
                     current = nearest;
