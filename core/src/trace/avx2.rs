@@ -229,7 +229,7 @@ fn block_edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usiz
         edge(&corners[2], &corners[0]),
         edge(&corners[0], &corners[1]),
     ];
-    let candidates = candidate_lanes(&weights) & ((1 << count) - 1);
+    let candidates = candidate_lanes(&weights) & ((1 << count) - 1) & !swap_lanes(references);
     if candidates == 0 {
         return None;
     }
@@ -239,6 +239,27 @@ fn block_edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usiz
         y: corners.map(|[_, y]| lanes(y)),
         weights: weights.map(|w| lanes(w)),
     })
+}
+
+/// The lanes whose window is a swap (two of its three references equal), which the shared
+/// block code would skip one by one (`is_real_window`): a swap has an edge of length zero, so
+/// one of its edge functions is exactly zero and it is always a candidate; on AO rays of the 1M
+/// scan most candidates were swaps. Bytewise compares of the references against themselves
+/// shifted by one and two positions, in one register.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
+    let (head, tail) = references.split_at(8);
+    let head = i64::from_le_bytes(head.try_into().expect("eight references"));
+    let tail = i16::from_le_bytes(tail.try_into().expect("two references"));
+    let all = _mm_insert_epi16::<4>(_mm_cvtsi64_si128(head), i32::from(tail));
+    let next = _mm_srli_si128::<1>(all);
+    let after = _mm_srli_si128::<2>(all);
+    let repeated = _mm_or_si128(
+        _mm_or_si128(_mm_cmpeq_epi8(all, next), _mm_cmpeq_epi8(next, after)),
+        _mm_cmpeq_epi8(all, after),
+    );
+    (_mm_movemask_epi8(repeated) as u32) & 0xff
 }
 
 /// `watertight::candidate_lanes` lanewise: `vminps`/`vmaxps` are the baseline's `minps`/`maxps`
