@@ -156,7 +156,10 @@ impl<'f> Tracer<'f> {
             let end = (start + packet::PACKET_WIDTH).min(rays.len());
             let group = if order.is_some() {
                 gathered.clear();
-                gathered.extend((start..end).map(|k| rays[ray_at(k)]));
+                // Pushed one by one: `extend` stayed an out-of-line call per packet.
+                for k in start..end {
+                    gathered.push(rays[ray_at(k)]);
+                }
                 &gathered[..]
             } else {
                 &rays[start..end]
