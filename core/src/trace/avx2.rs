@@ -203,23 +203,22 @@ fn block_edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usiz
     references: &[u8; BLOCK + 2],
     count: usize,
 ) -> Option<BlockEdges> {
-    let model = match vertices.lossless() {
-        Some(points) => transpose_corners::<KX, KY, KZ>(points, references),
-        None => load_corners(&vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(references, count + 2)),
-    };
     let origin = space.origin_on::<KX, KY, KZ>().map(|o| _mm256_set1_ps(o));
     let (shear_x, shear_y) = space.shears();
-    let (shear_x, shear_y) = (_mm256_set1_ps(shear_x), _mm256_set1_ps(shear_y));
-    // `RaySpace::transform_lanes`, lanewise the same operations.
-    let corners = model.map(|[x, y, z]| {
-        let ax = _mm256_sub_ps(x, origin[0]);
-        let ay = _mm256_sub_ps(y, origin[1]);
-        let az = _mm256_sub_ps(z, origin[2]);
-        [
-            _mm256_sub_ps(ax, _mm256_mul_ps(shear_x, az)),
-            _mm256_sub_ps(ay, _mm256_mul_ps(shear_y, az)),
-        ]
-    });
+    let shear = [_mm256_set1_ps(shear_x), _mm256_set1_ps(shear_y)];
+    let corners = match vertices.lossless() {
+        Some(points) => {
+            let (head, tail) = transpose_positions::<KX, KY, KZ>(points, references);
+            shifted_corners(
+                transform(head, &origin, &shear),
+                transform(tail, &origin, &shear),
+            )
+        }
+        None => {
+            let model = vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(references, count + 2);
+            load_corners(&model).map(|corner| transform(corner, &origin, &shear))
+        }
+    };
     // `watertight::edge_lanes`: q.x * p.y - q.y * p.x.
     let edge = |p: &[__m256; 2], q: &[__m256; 2]| {
         _mm256_sub_ps(_mm256_mul_ps(q[0], p[1]), _mm256_mul_ps(q[1], p[0]))
@@ -262,6 +261,47 @@ fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
     (_mm_movemask_epi8(repeated) as u32) & 0xff
 }
 
+/// `RaySpace::transform_lanes`, lanewise the same operations: ray-space x and y of the model
+/// positions `[x, y, z]` (in ray-space axis order).
+#[target_feature(enable = "avx2")]
+#[inline]
+fn transform(model: [__m256; 3], origin: &[__m256; 3], shear: &[__m256; 2]) -> [__m256; 2] {
+    let [x, y, z] = model;
+    let ax = _mm256_sub_ps(x, origin[0]);
+    let ay = _mm256_sub_ps(y, origin[1]);
+    let az = _mm256_sub_ps(z, origin[2]);
+    [
+        _mm256_sub_ps(ax, _mm256_mul_ps(shear[0], az)),
+        _mm256_sub_ps(ay, _mm256_mul_ps(shear[1], az)),
+    ]
+}
+
+/// The three corners `[shift]` of the block's windows from the ray-space positions of its first
+/// eight references (`head`) and last two (`tail`, lanes 0 and 1): corner `s` of lane `k` is
+/// position `k + s`, moved across lanes (`vpermps`) rather than transformed once per shift. The
+/// values are those positions' bits, so every lane is what transforming per shift gives.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn shifted_corners(head: [__m256; 2], tail: [__m256; 2]) -> [[__m256; 2]; 3] {
+    let one = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 7);
+    let two = _mm256_setr_epi32(2, 3, 4, 5, 6, 7, 7, 7);
+    let tail_high = _mm256_setr_epi32(0, 0, 0, 0, 0, 0, 0, 1);
+    let shift = |head: __m256, tail: __m256| {
+        let by_one = _mm256_blend_ps::<0b1000_0000>(
+            _mm256_permutevar8x32_ps(head, one),
+            _mm256_permutevar8x32_ps(tail, _mm256_setzero_si256()),
+        );
+        let by_two = _mm256_blend_ps::<0b1100_0000>(
+            _mm256_permutevar8x32_ps(head, two),
+            _mm256_permutevar8x32_ps(tail, tail_high),
+        );
+        (by_one, by_two)
+    };
+    let (x1, x2) = shift(head[0], tail[0]);
+    let (y1, y2) = shift(head[1], tail[1]);
+    [head, [x1, y1], [x2, y2]]
+}
+
 /// `watertight::candidate_lanes` lanewise: `vminps`/`vmaxps` are the baseline's `minps`/`maxps`
 /// on eight lanes (the second operand where either is NaN).
 #[target_feature(enable = "avx2")]
@@ -283,35 +323,45 @@ fn candidate_lanes(w: &[__m256; 3]) -> u32 {
     _mm256_movemask_ps(any) as u32
 }
 
-/// The block's corners `[shift][axis]` (axes in ray-space order `KX, KY, KZ`): lane `k` of shift
-/// `s` is coordinate `axis` of vertex `references[k + s]` of the f32 vertices. Each vertex is one
-/// 16-byte load, and each shift's eight vertices are transposed in registers: no lane goes
-/// through memory (gathers measured slower on AMD Zen, scalar stores stall the lane loads).
+/// The positions of the block's references, axes in ray-space order `KX, KY, KZ`: lane `k` of
+/// the first array is vertex `references[k]`, lanes 0 and 1 of the second are vertices
+/// `references[8]` and `references[9]` (the other lanes are copies of no meaning). Each vertex
+/// is one 16-byte load, transposed in registers.
 #[target_feature(enable = "avx2")]
 #[inline]
-fn transpose_corners<const KX: usize, const KY: usize, const KZ: usize>(
+fn transpose_positions<const KX: usize, const KY: usize, const KZ: usize>(
     points: &[[f32; 3]],
     references: &[u8; BLOCK + 2],
-) -> [[__m256; 3]; 3] {
+) -> ([__m256; 3], [__m256; 3]) {
     let flat = points.as_flattened();
-    let vertex: [__m128; BLOCK + 2] =
-        std::array::from_fn(|k| load_vertex(flat, references[k] as usize));
-    std::array::from_fn(|shift| {
-        let v = &vertex[shift..shift + BLOCK];
-        // Row `k` holds vertex `k` in its low half and vertex `k + 4` in its high half; a 4×4
-        // transpose per half then gives x, y, z of vertices 0-3 | 4-7.
-        let row: [__m256; 4] = std::array::from_fn(|k| _mm256_set_m128(v[k + 4], v[k]));
-        let xy01 = _mm256_unpacklo_ps(row[0], row[1]);
-        let xy23 = _mm256_unpacklo_ps(row[2], row[3]);
-        let zw01 = _mm256_unpackhi_ps(row[0], row[1]);
-        let zw23 = _mm256_unpackhi_ps(row[2], row[3]);
-        let model = [
-            _mm256_shuffle_ps::<0b01_00_01_00>(xy01, xy23),
-            _mm256_shuffle_ps::<0b11_10_11_10>(xy01, xy23),
-            _mm256_shuffle_ps::<0b01_00_01_00>(zw01, zw23),
-        ];
-        [model[KX], model[KY], model[KZ]]
-    })
+    let v: [__m128; BLOCK + 2] = std::array::from_fn(|k| load_vertex(flat, references[k] as usize));
+    // Row `k` holds vertex `k` in its low half and vertex `k + 4` in its high half; a 4×4
+    // transpose per half then gives x, y, z of vertices 0-3 | 4-7.
+    let row: [__m256; 4] = std::array::from_fn(|k| _mm256_set_m128(v[k + 4], v[k]));
+    let xy01 = _mm256_unpacklo_ps(row[0], row[1]);
+    let xy23 = _mm256_unpacklo_ps(row[2], row[3]);
+    let zw01 = _mm256_unpackhi_ps(row[0], row[1]);
+    let zw23 = _mm256_unpackhi_ps(row[2], row[3]);
+    let head = [
+        _mm256_shuffle_ps::<0b01_00_01_00>(xy01, xy23),
+        _mm256_shuffle_ps::<0b11_10_11_10>(xy01, xy23),
+        _mm256_shuffle_ps::<0b01_00_01_00>(zw01, zw23),
+    ];
+    // `[x8, x9, y8, y9]` and `[z8, z9, ..]`, each in both halves.
+    let xy89 = _mm256_castps128_ps256(_mm_unpacklo_ps(v[8], v[9]));
+    let zw89 = _mm256_castps128_ps256(_mm_unpackhi_ps(v[8], v[9]));
+    let tail = [
+        xy89,
+        _mm256_castps128_ps256(_mm_movehl_ps(
+            _mm256_castps256_ps128(xy89),
+            _mm256_castps256_ps128(xy89),
+        )),
+        zw89,
+    ];
+    (
+        [head[KX], head[KY], head[KZ]],
+        [tail[KX], tail[KY], tail[KZ]],
+    )
 }
 
 /// Vertex `index` of the flattened f32 vertices as `[x, y, z, any]`. A strip has at least
