@@ -5,8 +5,11 @@
 //! The baseline kernel assembles the block's corners in a stack array (scalar stores) and then
 //! loads them as lanes, and those wide loads of freshly stored scalars stall on store
 //! forwarding (the two hottest instructions in a profile of AO rays). Here each vertex of a
-//! lossless block is one 16-byte load and the corners' lanes come from an in-register
-//! transpose. (Gathering the nine corner-coordinate vectors with `vgatherdps` was measured
+//! lossless block is one 16-byte load and the positions' lanes come from an in-register
+//! transpose; each position is moved to ray space once, and the windows' second and third
+//! corners are the first corners moved across lanes (unlike the baseline, which transforms a
+//! position once per corner: in 256-bit registers `vpermps` is cheaper than that arithmetic,
+//! where the baseline's shift went through memory). (Gathering the nine corner-coordinate vectors with `vgatherdps` was measured
 //! first: 9.5% slower than the baseline kernel on an AMD EPYC, whose gathers are slow.) Grid
 //! vertices are decoded as in the baseline and loaded. The arithmetic is the
 //! baseline's, operation for operation (`vsubps`, `vmulps`, `vminps`, `vmaxps`, compares), never
@@ -14,8 +17,8 @@
 //!
 //! This is the tracer's one kernel module with `unsafe`: [`trace`] and [`traverse_packet`]
 //! check that the CPU has AVX2 before they enter the functions compiled for it
-//! (`#[target_feature]`), and the loads and
-//! stores below read and write arrays of exactly their width.
+//! (`#[target_feature]`), and the loads and stores below read and write inside their slices
+//! (each says why).
 
 #![allow(unsafe_code)]
 
