@@ -158,7 +158,10 @@ impl<'f> Tracer<'f> {
             let end = (start + packet::PACKET_WIDTH).min(rays.len());
             let group = if order.is_some() {
                 gathered.clear();
-                gathered.extend((start..end).map(|k| rays[ray_at(k)]));
+                // Pushed one by one: `extend` stayed an out-of-line call per packet.
+                for k in start..end {
+                    gathered.push(rays[ray_at(k)]);
+                }
                 &gathered[..]
             } else {
                 &rays[start..end]
@@ -211,27 +214,28 @@ impl<'f> Tracer<'f> {
 /// already come in runs of one octant as long as a packet on average, which then form packets
 /// as they are.
 fn octant_order(rays: &[Ray]) -> Option<Vec<u32>> {
-    let octant = |ray: &Ray| {
-        let [x, y, z] = ray.direction.map(|d| d.is_sign_negative() as usize);
-        x | y << 1 | z << 2
-    };
-    let runs = 1 + rays
-        .windows(2)
-        .filter(|pair| octant(&pair[0]) != octant(&pair[1]))
-        .count();
+    // Each ray's octant is found once, for the three passes below.
+    let octants: Vec<u8> = rays
+        .iter()
+        .map(|ray| {
+            let [x, y, z] = ray.direction.map(|d| d.is_sign_negative() as u8);
+            x | y << 1 | z << 2
+        })
+        .collect();
+    let runs = 1 + octants.windows(2).filter(|pair| pair[0] != pair[1]).count();
     if runs * packet::PACKET_WIDTH <= rays.len() {
         return None;
     }
     let mut starts = [0usize; 9];
-    for ray in rays {
-        starts[octant(ray) + 1] += 1;
+    for &octant in &octants {
+        starts[usize::from(octant) + 1] += 1;
     }
     for i in 1..starts.len() {
         starts[i] += starts[i - 1];
     }
     let mut order = vec![0u32; rays.len()];
-    for (index, ray) in rays.iter().enumerate() {
-        let slot = &mut starts[octant(ray)];
+    for (index, &octant) in octants.iter().enumerate() {
+        let slot = &mut starts[usize::from(octant)];
         order[*slot] = index as u32;
         *slot += 1;
     }

@@ -17,19 +17,23 @@
 //! order with the same bounds as its ray alone, so the results agree bit for bit even on a
 //! corrupt file whose boxes do not bound their strips (on a valid file the closest-hit rule
 //! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
-//! not depend on the order (see [`super::top`]).
+//! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children in
+//! slot order, unsorted: 1.2% fewer instructions per AO ray than the closest-hit order, and 0.4%
+//! fewer than sorting by the first active lane's entry distance (callgrind, 100k AO rays of the
+//! 1M scan).
 
 use arrayvec::ArrayVec;
 use wide::f32x8;
 
 use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION};
 use super::ray::Ray;
-use super::strip::Closest;
+use super::strip::{Closest, StripQuery};
 use super::top::{
-    for_each_bit, order_keys, sort_by_key, trace_ray, DeferStack, NodeGridLanes, TraceNode,
+    for_each_bit, order_keys, sort_by_key, trace_ray, ChildBoxes, DeferStack, NodeGridLanes,
+    TraceNode,
 };
 use super::Tracer;
-use crate::format::reader::TopNodes;
+use crate::format::reader::{StripView, TopNodes};
 use crate::format::{INTERNAL_CHILD, TOP_WIDTH};
 
 /// Rays per packet at the top level.
@@ -54,11 +58,64 @@ struct PacketDeferred {
 
 /// The packet's rays in structure-of-arrays form.
 pub(super) struct Lanes {
-    rays: [PreparedRay; PACKET_WIDTH],
-    origin: [f32x8; 3],
-    entry_reciprocal: [f32x8; 3],
-    exit_reciprocal: [f32x8; 3],
-    tmin: f32x8,
+    pub(super) rays: [PreparedRay; PACKET_WIDTH],
+    pub(super) origin: [f32x8; 3],
+    pub(super) entry_reciprocal: [f32x8; 3],
+    pub(super) exit_reciprocal: [f32x8; 3],
+    pub(super) tmin: f32x8,
+}
+
+/// What the packet walk runs per child box and per strip: [`WideKernel`] everywhere, or the
+/// AVX2 kernel ([`super::avx2`]). Every implementation runs [`PreparedRay::clip_box`]'s
+/// operations in its order on each lane and traces strips as [`StripQuery::trace`], so the
+/// lanes' bits agree.
+pub(super) trait PacketKernel {
+    /// The lanes' interval in child `slot` of `boxes` within `[tmin, t_far]`, and the mask of
+    /// the lanes whose interval is not empty.
+    fn clip_slot(
+        lanes: &Lanes,
+        boxes: &ChildBoxes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32);
+
+    /// [`StripQuery::trace`] of one lane.
+    fn trace_strip(
+        query: &StripQuery,
+        view: &StripView,
+        strip: u32,
+        t_near: f32,
+        t_far: f32,
+        closest: &mut Closest,
+    ) -> bool;
+}
+
+/// [`PacketKernel`] in `wide`'s eight lanes (two SSE operations each), strips through
+/// [`StripQuery::trace`].
+pub(super) struct WideKernel;
+
+impl PacketKernel for WideKernel {
+    #[inline(always)]
+    fn clip_slot(
+        lanes: &Lanes,
+        boxes: &ChildBoxes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32) {
+        lanes.clip_slot(boxes, slot, t_far)
+    }
+
+    #[inline(always)]
+    fn trace_strip(
+        query: &StripQuery,
+        view: &StripView,
+        strip: u32,
+        t_near: f32,
+        t_far: f32,
+        closest: &mut Closest,
+    ) -> bool {
+        query.trace(view, strip, t_near, t_far, closest)
+    }
 }
 
 /// Traces up to [`PACKET_WIDTH`] rays; entry `i` is ray `i`'s closest hit (or, with `any_hit`,
@@ -125,12 +182,7 @@ impl Lanes {
     /// Lanewise [`PreparedRay::clip_box`] against child `slot` of boxes `min`..`max`
     /// (`[axis][slot]`): the same operations in the same order.
     #[inline(always)]
-    fn clip_slot(
-        &self,
-        (min, max): &super::top::ChildBoxes,
-        slot: usize,
-        t_far: f32x8,
-    ) -> (f32x8, f32x8, u32) {
+    fn clip_slot(&self, (min, max): &ChildBoxes, slot: usize, t_far: f32x8) -> (f32x8, f32x8, u32) {
         let mut near = self.tmin;
         let mut far = t_far;
         for axis in 0..3 {
@@ -155,21 +207,26 @@ impl Lanes {
     /// farthest first. Empty slots are skipped (by their link: a grid node's empty box is not
     /// missed by construction).
     #[inline(always)]
-    fn enter_children<N: TraceNode>(
+    fn enter_children<N: TraceNode, C: PacketKernel>(
         &self,
         node: &N,
         decoder: &N::Decoder,
         active: u32,
         limit: f32x8,
+        any_hit: bool,
         stack: &mut DeferStack<PacketDeferred>,
     ) -> Option<PacketDeferred> {
         let boxes = node.boxes(decoder);
-        let keys = order_keys(&boxes.0, &boxes.1, &self.rays[0].negative);
+        let keys = if any_hit {
+            [0.0; TOP_WIDTH]
+        } else {
+            order_keys(&boxes.0, &boxes.1, &self.rays[0].negative)
+        };
         // Not an array of defaults: filling four 128-byte entries cost some 80 stores a node.
         let mut entered = ArrayVec::<(f32, PacketDeferred), TOP_WIDTH>::new();
         let occupied = node.occupied_mask();
         for slot in (0..TOP_WIDTH).take_while(|&slot| occupied & (1 << slot) != 0) {
-            let (t_near, t_far, mask) = self.clip_slot(&boxes, slot, limit);
+            let (t_near, t_far, mask) = C::clip_slot(self, &boxes, slot, limit);
             let mask = mask & active;
             if mask != 0 {
                 let key = keys[slot];
@@ -184,7 +241,9 @@ impl Lanes {
                 entered.push((key, child));
             }
         }
-        sort_by_key(&mut entered);
+        if !any_hit {
+            sort_by_key(&mut entered);
+        }
         entered.iter().skip(1).rev().for_each(|e| stack.push(e.1));
         entered.first().map(|e| e.1)
     }
@@ -221,12 +280,12 @@ fn traverse(
     {
         return;
     }
-    traverse_inline(tracer, lanes, packet_mask, any_hit, closest)
+    traverse_inline::<WideKernel>(tracer, lanes, packet_mask, any_hit, closest)
 }
 
-/// [`traverse`] compiled for the target of the function it is inlined into.
+/// [`traverse`] compiled for the target of the function it is inlined into, clipping with `C`.
 #[inline(always)]
-pub(super) fn traverse_inline(
+pub(super) fn traverse_inline<C: PacketKernel>(
     tracer: &Tracer,
     lanes: &Lanes,
     packet_mask: u32,
@@ -235,11 +294,11 @@ pub(super) fn traverse_inline(
 ) {
     match tracer.file().top_nodes() {
         TopNodes::F32(nodes) => {
-            traverse_nodes(tracer, nodes, &(), lanes, packet_mask, any_hit, closest)
+            traverse_nodes::<_, C>(tracer, nodes, &(), lanes, packet_mask, any_hit, closest)
         }
         TopNodes::Grid(nodes, grid) => {
             let decoder = NodeGridLanes::new(&grid);
-            traverse_nodes(
+            traverse_nodes::<_, C>(
                 tracer,
                 nodes,
                 &decoder,
@@ -253,7 +312,7 @@ pub(super) fn traverse_inline(
 }
 
 #[inline(always)]
-fn traverse_nodes<N: TraceNode>(
+fn traverse_nodes<N: TraceNode, C: PacketKernel>(
     tracer: &Tracer,
     nodes: &[N],
     decoder: &N::Decoder,
@@ -279,14 +338,21 @@ fn traverse_nodes<N: TraceNode>(
             if current.kind == INTERNAL_CHILD {
                 let node = tracer.file().top_node(nodes, current.child as usize);
                 let entered = node.and_then(|n| {
-                    lanes.enter_children(n, decoder, current.mask, limit, &mut stack)
+                    lanes.enter_children::<N, C>(
+                        n,
+                        decoder,
+                        current.mask,
+                        limit,
+                        any_hit,
+                        &mut stack,
+                    )
                 });
                 if let Some(nearest) = entered {
                     current = nearest;
                     continue;
                 }
             } else {
-                finished |= trace_leaf_lanes(tracer, lanes, &current, any_hit, closest);
+                finished |= trace_leaf_lanes::<C>(tracer, lanes, &current, any_hit, closest);
                 limit = bounds(closest, finished);
             }
         }
@@ -307,8 +373,11 @@ fn traverse_nodes<N: TraceNode>(
 /// Each active lane traverses the leaf's strips alone, strip after strip, so that each strip is
 /// viewed once for the packet; returns the lanes that found an occluder when `any_hit` is set.
 /// A lane visits the strips in the order and with the bounds its ray alone would
-/// ([`super::top::trace_leaf`]).
-fn trace_leaf_lanes(
+/// ([`super::top::trace_leaf`]). Inlined into the walk, so that with the AVX2 kernel the strip
+/// traversal is entered straight from code compiled for AVX2 (`C::trace_strip`), without the
+/// per-strip CPU check and calls of [`StripQuery::trace`].
+#[inline(always)]
+fn trace_leaf_lanes<C: PacketKernel>(
     tracer: &Tracer,
     lanes: &Lanes,
     leaf: &PacketDeferred,
@@ -329,7 +398,7 @@ fn trace_leaf_lanes(
                 return;
             }
             let query = tracer.query(&lanes.rays[lane], any_hit);
-            if query.trace(&view, strip, t_near[lane], t_far, closest) {
+            if C::trace_strip(&query, &view, strip, t_near[lane], t_far, closest) {
                 finished |= 1 << lane;
                 active &= !(1 << lane);
             }
