@@ -308,7 +308,9 @@ fn shadow_pass(
     (per_pixel.into_iter().map(|(v, _)| v).collect(), rays)
 }
 
-/// Unoccluded fraction of the hemisphere per pixel and the rays traced.
+/// Unoccluded fraction of the hemisphere per pixel and the rays traced. A tile's AO rays are
+/// traced as one batch ([`Tracer::occluded_chunk`]: grouped by octant into packets), which
+/// answers exactly as ray by ray.
 fn ao_pass(
     tracer: &Tracer,
     ao: &AoPlan,
@@ -317,22 +319,30 @@ fn ao_pass(
     tiles: &[Vec<u32>],
 ) -> (Vec<f32>, u64) {
     let per_pixel: Vec<(f32, u64)> = over_tiles(tiles, surfaces.len(), |tile| {
+        let rays: Vec<Ray> = tile
+            .iter()
+            .filter_map(|&pixel| surfaces[pixel as usize].map(|surface| (pixel, surface)))
+            .flat_map(|(pixel, surface)| {
+                (0..ao.samples).map(move |s| surface.ao_ray(seed, pixel, s, ao.max_distance))
+            })
+            .collect();
+        let mut occluded = tracer.occluded_chunk(&rays).into_iter();
         tile.iter()
             .map(|&pixel| match surfaces[pixel as usize] {
-                Some(surface) => (ao_at(tracer, ao, seed, pixel, &surface), ao.samples as u64),
+                Some(_) => {
+                    let open = occluded
+                        .by_ref()
+                        .take(ao.samples as usize)
+                        .filter(|&o| !o)
+                        .count();
+                    (open as f32 / ao.samples as f32, ao.samples as u64)
+                }
                 None => (1.0, 0),
             })
             .collect()
     });
     let rays = per_pixel.iter().map(|&(_, r)| r).sum();
     (per_pixel.into_iter().map(|(v, _)| v).collect(), rays)
-}
-
-fn ao_at(tracer: &Tracer, ao: &AoPlan, seed: u32, pixel: u32, surface: &Surface) -> f32 {
-    let open = (0..ao.samples)
-        .filter(|&s| !tracer.occluded(&surface.ao_ray(seed, pixel, s, ao.max_distance)))
-        .count();
-    open as f32 / ao.samples as f32
 }
 
 fn shade(

@@ -16,8 +16,8 @@ pub trait Engine: Sync {
     fn count_occluded(&self, rays: &[Ray]) -> usize;
 }
 
-/// ReduceM: primary rays as packets when the options say so, AO rays one by one as the
-/// renderer traces them.
+/// ReduceM: rays as batches, as the renderer and `reducem query` trace them (in packets when
+/// the options say so; AO rays grouped by octant first).
 pub struct ReduceM<'f>(pub Tracer<'f>);
 
 impl Engine for ReduceM<'_> {
@@ -25,7 +25,7 @@ impl Engine for ReduceM<'_> {
         self.0.intersect_chunk(rays).iter().flatten().count()
     }
     fn count_occluded(&self, rays: &[Ray]) -> usize {
-        rays.iter().filter(|ray| self.0.occluded(ray)).count()
+        self.0.occluded_chunk(rays).iter().filter(|&&o| o).count()
     }
 }
 
