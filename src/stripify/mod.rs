@@ -121,7 +121,7 @@ pub fn stripify(mesh: &Mesh, params: &StripifyParams) -> Stripification {
     let hierarchy = partition::TriangleTree::build(mesh, &adjacency.kept, params.sah_bins);
     let paths = ordering::order(&adjacency, &hierarchy, params.max_length);
     drop(hierarchy);
-    let (strips, triangles) = output::strips(mesh, &adjacency, &paths)
+    let (strips, triangles) = output::strips(mesh, &adjacency, &paths, params.max_length)
         .into_iter()
         .map(|s| (s.references, s.triangles))
         .unzip();

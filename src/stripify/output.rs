@@ -43,8 +43,13 @@ pub struct OutputStrip {
     pub triangles: Vec<u32>,
 }
 
-/// Converts every path into a strip of mesh vertex indices.
-pub fn strips(mesh: &Mesh, adjacency: &Adjacency, paths: &Paths) -> Vec<OutputStrip> {
+/// Converts every path (of at most `max_length` triangles) into a strip of mesh vertex indices.
+pub fn strips(
+    mesh: &Mesh,
+    adjacency: &Adjacency,
+    paths: &Paths,
+    max_length: usize,
+) -> Vec<OutputStrip> {
     let smaller_ends: Vec<u32> = (0..adjacency.kept.len() as u32)
         .filter(|&t| paths.is_end(t) && t <= paths.other_end[t as usize])
         .collect();
@@ -52,6 +57,7 @@ pub fn strips(mesh: &Mesh, adjacency: &Adjacency, paths: &Paths) -> Vec<OutputSt
         mesh,
         adjacency,
         paths,
+        capacity: max_length.clamp(1, 64),
     };
     smaller_ends
         .par_iter()
@@ -63,6 +69,8 @@ struct StripWriter<'a> {
     mesh: &'a Mesh,
     adjacency: &'a Adjacency,
     paths: &'a Paths,
+    /// Triangles to reserve room for per strip: a strip is allocated once, not grown.
+    capacity: usize,
 }
 
 impl StripWriter<'_> {
@@ -110,7 +118,8 @@ impl StripWriter<'_> {
 
     fn strip_from(&self, start: u32) -> OutputStrip {
         let first = self.vertices(start);
-        let mut triangles = vec![self.mesh_triangle(start)];
+        let mut triangles = Vec::with_capacity(self.capacity);
+        triangles.push(self.mesh_triangle(start));
         let Some(mut current) = self.next_on_path(NO_LINK, start) else {
             return OutputStrip {
                 references: first.to_vec(),
@@ -118,7 +127,8 @@ impl StripWriter<'_> {
             };
         };
         let exit = self.adjacency.edge_towards(start, current);
-        let mut strip = vec![first[(exit + 2) % 3], first[exit], first[(exit + 1) % 3]];
+        let mut strip = Vec::with_capacity(2 * self.capacity + 1);
+        strip.extend([first[(exit + 2) % 3], first[exit], first[(exit + 1) % 3]]);
         let mut previous = start;
         loop {
             let following = self.next_on_path(previous, current);
@@ -196,6 +206,7 @@ mod tests {
                 mesh: &mesh,
                 adjacency: &adjacency,
                 paths: &paths,
+                capacity: 60,
             };
             let (mut swaps, mut opening_swaps_avoided) = (0, 0);
             for end in (0..adjacency.kept.len() as u32).filter(|&t| paths.is_end(t)) {
