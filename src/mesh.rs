@@ -10,7 +10,8 @@ pub struct Mesh {
     /// For each triangle, the index of the input face it comes from: PLY `face` element order,
     /// OBJ `f` statement order across groups; a polygon's fan triangles share their polygon's.
     /// `None` where triangle `i` is face `i`: meshes made in code and PLY files of triangles
-    /// only. Pipeline chunks do not carry face ids yet (their triangles are numbered per chunk).
+    /// only. Pipeline chunks carry their triangles' global input face ids when `[attributes]
+    /// face_ids` asks for them, and `None` otherwise.
     pub face_ids: Option<Vec<u32>>,
     /// Per-vertex normals, parallel to `positions`, as read (not necessarily unit length);
     /// `None` when the input has none or they were not asked for.

@@ -7,8 +7,8 @@
 //! core, and keeps the prefix sums: 8 bytes per strip. It pages in every strip's references,
 //! which is why it is built on demand rather than at open.
 //!
-//! Once files carry input face ids (a later format), those replace these positions wherever an
-//! input-facing id is wanted; this index stays the position in the stored order.
+//! Files that store input face ids (format 2.5, [`ReducemFile::face_id`]) answer an
+//! input-facing id directly; this index stays the position in the stored order.
 
 use rayon::prelude::*;
 

@@ -88,6 +88,7 @@ struct EntryHeader {
 }
 
 /// Reads the header of the entry at bit `at` (its widths and base fit one 56-bit word).
+#[inline(always)]
 fn entry_header(stream: &BitStream, at: u64, group_base: u32) -> Result<EntryHeader, FaceIdDefect> {
     let word = stream.word(at);
     let base_width = (word & low_bits(BASE_WIDTH_BITS)) as u32;
@@ -116,6 +117,7 @@ fn entry_header(stream: &BitStream, at: u64, group_base: u32) -> Result<EntryHea
 
 impl EntryHeader {
     /// The bit after the entry of a strip of `windows` windows, checked to lie in the stream.
+    #[inline(always)]
     fn end(&self, stream: &BitStream, windows: u64) -> Result<u64, FaceIdDefect> {
         let flags_end = self.flags.saturating_add(windows);
         if flags_end > stream.bits() {
@@ -174,26 +176,6 @@ impl EntryHeader {
     }
 }
 
-/// The bit after the entry at bit `at` of a strip of `windows` windows, read with as few
-/// operations as the format allows: one word for the header, one per 56 flags. A lookup skips
-/// up to 15 entries this way, so this is most of its cost. Widths above 32 are defects; the
-/// entry's extent is checked by the caller's final [`EntryHeader::end`] (positions only grow,
-/// and reads past the end see zeros).
-#[inline(always)]
-fn skip_entry(stream: &BitStream, at: u64, windows: u64) -> Result<u64, FaceIdDefect> {
-    let word = stream.word(at);
-    let base_width = (word & low_bits(BASE_WIDTH_BITS)) as u32;
-    let rest = word >> (BASE_WIDTH_BITS + base_width.min(32));
-    let offset_width = rest & low_bits(OFFSET_WIDTH_BITS);
-    let delta_width = (rest >> OFFSET_WIDTH_BITS) & low_bits(DELTA_WIDTH_BITS);
-    if base_width > 32 || offset_width > 32 {
-        return Err((at, "an entry width is above 32".into()));
-    }
-    let flags = at + (BASE_WIDTH_BITS + base_width + OFFSET_WIDTH_BITS + DELTA_WIDTH_BITS) as u64;
-    let offsets = stream.ones(flags, windows);
-    Ok(flags + windows + offsets * offset_width + (windows - offsets) * delta_width)
-}
-
 /// The face id of `window` of `strip`, whose group record is `group`; `windows(s)` gives the
 /// window count of strip `s` (from its record).
 pub fn face_id(
@@ -206,7 +188,7 @@ pub fn face_id(
     let first = strip - strip % GROUP_STRIPS;
     let mut at = group.bit_offset;
     for before in first..strip {
-        at = skip_entry(stream, at, windows(before))?;
+        at = entry_header(stream, at, group.base)?.end(stream, windows(before))?;
     }
     let header = entry_header(stream, at, group.base)?;
     let count = windows(strip);
