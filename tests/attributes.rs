@@ -36,9 +36,15 @@ fn params(attributes: AttributeSet, grid_bits: Option<u32>) -> BuildParams {
 }
 
 fn convert(mesh: &Mesh, params: &BuildParams, name: &str) -> ReducemFile {
+    converted(mesh, params, name).1
+}
+
+/// The converted file's path and the file, validated in full.
+fn converted(mesh: &Mesh, params: &BuildParams, name: &str) -> (std::path::PathBuf, ReducemFile) {
     let path = temp_path(name);
     convert_mesh(mesh, params, &path).expect("convert");
-    ReducemFile::open_with(&path, Validation::Full).expect("open")
+    let file = ReducemFile::open_with(&path, Validation::Full).expect("open");
+    (path, file)
 }
 
 /// Every stored triangle with its face id: `(strip, window, corners, face id)`.
@@ -326,14 +332,8 @@ fn open_corrupted(source: &std::path::Path, offset: u64, bytes: &[u8], name: &st
 #[test]
 fn crafted_attribute_sections_are_rejected_naming_the_byte() {
     let mesh = coloured_sphere();
-    let path = temp_path("crafted.rdm");
-    convert_mesh(
-        &mesh,
-        &params(every_attribute(NormalEncoding::Oct16), None),
-        &path,
-    )
-    .expect("convert");
-    let file = ReducemFile::open_with(&path, Validation::Full).expect("open");
+    let params = params(every_attribute(NormalEncoding::Oct16), None);
+    let (path, file) = converted(&mesh, &params, "crafted.rdm");
     let entry = |kind: AttributeSection| file.attribute_record().sections[kind.slot()];
 
     let record_flags = open_corrupted(&path, ATTRIBUTE_RECORD_OFFSET as u64, &[0xff], "flags.rdm");
@@ -378,14 +378,8 @@ fn crafted_attribute_sections_are_rejected_naming_the_byte() {
 #[test]
 fn lazy_lookups_keep_attribute_defects() {
     let mesh = coloured_sphere();
-    let path = temp_path("lazy-attributes.rdm");
-    convert_mesh(
-        &mesh,
-        &params(every_attribute(NormalEncoding::Oct16), None),
-        &path,
-    )
-    .expect("convert");
-    let file = ReducemFile::open_with(&path, Validation::Full).expect("open");
+    let params = params(every_attribute(NormalEncoding::Oct16), None);
+    let (path, file) = converted(&mesh, &params, "lazy-attributes.rdm");
     let groups: Vec<reducem::format::attributes::FaceIdGroup> =
         bytemuck::pod_collect_to_vec(file.attribute_bytes(AttributeSection::FaceIdGroups));
     let group = groups.len() / 2;

@@ -267,23 +267,20 @@ impl HitFormat {
 /// A miss's record in the full format.
 pub fn encode_full_miss() -> Vec<u8> {
     let mut record = vec![0; FULL_HIT_BYTES];
-    encode_full_hit_or_miss(None, None, &mut record);
+    encode_full_record(None, &mut record);
     record
 }
 
 /// The full-format record of `hit` in `file` ([`HitFormat::Full`]); reads the hit's
 /// attributes.
 fn encode_full_hit(file: &ReducemFile, hit: Option<&Hit>, record: &mut [u8]) {
-    encode_full_hit_or_miss(hit, hit.map(|hit| hit_attributes(file, hit)), record);
+    encode_full_record(hit.map(|hit| (hit, hit_attributes(file, hit))), record);
 }
 
-fn encode_full_hit_or_miss(
-    hit: Option<&Hit>,
-    attributes: Option<HitAttributes>,
-    record: &mut [u8],
-) {
+/// The full-format record of a hit with its attributes, or of a miss.
+fn encode_full_record(hit: Option<(&Hit, HitAttributes)>, record: &mut [u8]) {
     record.fill(0);
-    let (Some(hit), Some(attributes)) = (hit, attributes) else {
+    let Some((hit, attributes)) = hit else {
         record[..4].copy_from_slice(&f32::INFINITY.to_le_bytes());
         record[12..16].copy_from_slice(&NO_FACE_ID.to_le_bytes());
         return;
