@@ -24,22 +24,33 @@ pub fn write_atomically(
     path: &Path,
     body: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
 ) -> io::Result<()> {
+    write_atomically_with(path, body)
+}
+
+/// [`write_atomically`] with a body that returns a value, or fails with an error of its own
+/// (say, the input turned out corrupt after the output was begun): nothing is then renamed.
+pub fn write_atomically_with<T, E: From<io::Error>>(
+    path: &Path,
+    body: impl FnOnce(&mut BufWriter<File>) -> Result<T, E>,
+) -> Result<T, E> {
     let temporary = temporary_path(path);
-    let result = write_and_sync(&temporary, body).and_then(|()| replace(&temporary, path));
+    let result = write_and_sync(&temporary, body)
+        .and_then(|value| replace(&temporary, path).map_err(E::from).map(|()| value));
     if result.is_err() {
         let _ = fs::remove_file(&temporary);
     }
     result
 }
 
-fn write_and_sync(
+fn write_and_sync<T, E: From<io::Error>>(
     path: &Path,
-    body: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
-) -> io::Result<()> {
+    body: impl FnOnce(&mut BufWriter<File>) -> Result<T, E>,
+) -> Result<T, E> {
     let mut out = BufWriter::with_capacity(1 << 20, File::create(path)?);
-    body(&mut out)?;
+    let value = body(&mut out)?;
     out.flush()?;
-    out.into_inner().map_err(|e| e.into_error())?.sync_all()
+    out.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+    Ok(value)
 }
 
 /// Renames the synced `temporary` over `path` and fsyncs the directory, so that the rename
