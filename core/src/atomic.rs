@@ -7,6 +7,7 @@
 use std::fs::{self, File};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// `dir/.name.tmp-PID`: same directory, so the rename is atomic; hidden, so globs skip it.
 pub fn temporary_path(path: &Path) -> PathBuf {
@@ -51,6 +52,57 @@ fn write_and_sync<T, E: From<io::Error>>(
     out.flush()?;
     out.into_inner().map_err(|e| e.into_error())?.sync_all()?;
     Ok(value)
+}
+
+/// Runs `write`, which writes `file` and reports each write's byte count to the function it is
+/// given, while another thread syncs the file's data to disk each time [`BACKGROUND_SYNC_BYTES`]
+/// more bytes were written: the final fsync of [`write_atomically`] then flushes only the tail,
+/// instead of the whole file after the work is done (a 67 MB hit file: 28-31 ms of fsync on the
+/// test machine's virtual disk; far more on a spinning one). Durability is unchanged: only the
+/// final fsync, before the rename, is relied on.
+pub fn write_syncing_behind<T>(
+    file: &File,
+    write: impl FnOnce(&(dyn Fn(usize) + Sync)) -> io::Result<T>,
+) -> io::Result<T> {
+    let written = AtomicUsize::new(0);
+    let done = AtomicBool::new(false);
+    std::thread::scope(|scope| {
+        let syncer = scope.spawn(|| sync_behind(file, &written, &done));
+        let wake = syncer.thread().clone();
+        let count = |bytes: usize| {
+            let before = written.fetch_add(bytes, Ordering::Release);
+            if (before + bytes) / BACKGROUND_SYNC_BYTES != before / BACKGROUND_SYNC_BYTES {
+                wake.unpark();
+            }
+        };
+        let result = write(&count);
+        done.store(true, Ordering::Release);
+        wake.unpark();
+        let synced = syncer
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        let value = result?;
+        synced.map(|()| value)
+    })
+}
+
+/// Bytes written between two background syncs of [`write_syncing_behind`].
+pub const BACKGROUND_SYNC_BYTES: usize = 8 << 20;
+
+/// The syncing thread of [`write_syncing_behind`]: syncs whenever a step more was written,
+/// until `done`.
+fn sync_behind(file: &File, written: &AtomicUsize, done: &AtomicBool) -> io::Result<()> {
+    let mut synced = 0;
+    while !done.load(Ordering::Acquire) {
+        let now = written.load(Ordering::Acquire);
+        if now - synced >= BACKGROUND_SYNC_BYTES {
+            file.sync_data()?;
+            synced = now;
+        } else {
+            std::thread::park();
+        }
+    }
+    Ok(())
 }
 
 /// Renames the synced `temporary` over `path` and fsyncs the directory, so that the rename
@@ -115,5 +167,38 @@ pub fn check_writable(path: &Path) -> io::Result<()> {
     match fs::remove_file(&temporary) {
         Err(error) if error.kind() == io::ErrorKind::NotFound => Ok(()),
         removed => removed,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A file written across several background syncs holds exactly what was written, and the
+    /// writer's value or error comes back.
+    #[test]
+    fn writing_while_syncing_behind_keeps_every_byte_and_the_outcome() {
+        let path = std::env::temp_dir().join(format!("sync-behind-{}", std::process::id()));
+        let file = File::create(&path).expect("create");
+        let block: Vec<u8> = (0..1 << 20).map(|i: u32| (i % 251) as u8).collect();
+        let blocks = 2 * BACKGROUND_SYNC_BYTES / block.len() + 3;
+        let value = write_syncing_behind(&file, |written| {
+            for _ in 0..blocks {
+                (&file).write_all(&block)?;
+                written(block.len());
+            }
+            Ok(7)
+        })
+        .expect("written");
+        assert_eq!(value, 7);
+        assert_eq!(fs::read(&path).expect("read"), block.repeat(blocks));
+        let failed = write_syncing_behind(&file, |_| -> io::Result<()> {
+            Err(io::Error::other("disk full"))
+        });
+        assert_eq!(
+            failed.expect_err("the writer's error").to_string(),
+            "disk full"
+        );
+        fs::remove_file(&path).expect("remove");
     }
 }

@@ -28,7 +28,7 @@ use super::attributes::{hit_attributes, HitAttributes};
 use super::ray::{Hit, Ray};
 use super::Tracer;
 use crate::format::reader::ReducemFile;
-use crate::mapping;
+use crate::{atomic, mapping};
 
 /// Bytes per ray record.
 pub const RAY_BYTES: usize = 32;
@@ -533,17 +533,20 @@ pub fn write_answers(
     let size = answer.record_bytes();
     let records = rays.records();
     let chunks = records.len().div_ceil(QUERY_CHUNK);
-    (0..chunks)
-        .into_par_iter()
-        .map_init(Vec::new, |buffer, chunk| {
-            let range = chunk * QUERY_CHUNK..records.len().min((chunk + 1) * QUERY_CHUNK);
-            buffer.resize(range.len() * size, 0);
-            let valid = rays.valid_in(range.clone());
-            let hits = answer_chunk(tracer, &records[range.clone()], valid, answer, buffer);
-            write_at(out, buffer, (range.start * size) as u64)?;
-            Ok(hits)
-        })
-        .try_reduce(|| 0, |a, b| Ok(a + b))
+    atomic::write_syncing_behind(out, |written| {
+        (0..chunks)
+            .into_par_iter()
+            .map_init(Vec::new, |buffer, chunk| {
+                let range = chunk * QUERY_CHUNK..records.len().min((chunk + 1) * QUERY_CHUNK);
+                buffer.resize(range.len() * size, 0);
+                let valid = rays.valid_in(range.clone());
+                let hits = answer_chunk(tracer, &records[range.clone()], valid, answer, buffer);
+                write_at(out, buffer, (range.start * size) as u64)?;
+                written(buffer.len());
+                Ok(hits)
+            })
+            .try_reduce(|| 0, |a, b| Ok(a + b))
+    })
 }
 
 /// Writes all of `bytes` at `offset` of `file`, leaving the file's cursor alone on Unix.
