@@ -26,6 +26,7 @@ use rayon::prelude::*;
 
 use super::attributes::{hit_attributes, HitAttributes};
 use super::ray::{Hit, Ray};
+use super::ray_order;
 use super::Tracer;
 use crate::format::reader::ReducemFile;
 use crate::{atomic, mapping};
@@ -523,13 +524,17 @@ fn answer_all(tracer: &Tracer, rays: &[Ray], answer: Answer) -> Vec<u8> {
 /// answers to `out`, record `i` at byte `i * answer.record_bytes()`, in input order; the hits
 /// (occluded rays) among them. Chunk by chunk on every core, each chunk encoded into a buffer
 /// its thread reuses and written at its place with a positional write (in whatever order the
-/// chunks finish): no output-sized buffer, and writing overlaps tracing.
+/// chunks finish): no output-sized buffer, and writing overlaps tracing. An incoherent batch is
+/// traced in a coherent order instead ([`ray_order`]) and its answers put back in input order.
 pub fn write_answers(
     tracer: &Tracer,
     rays: &RayFile,
     answer: Answer,
     out: &File,
 ) -> io::Result<usize> {
+    if let Some(order) = ray_order::coherent_order(rays.records()) {
+        return write_answers_in_order(tracer, rays, &order, answer, out);
+    }
     let size = answer.record_bytes();
     let records = rays.records();
     let chunks = records.len().div_ceil(QUERY_CHUNK);
@@ -547,6 +552,58 @@ pub fn write_answers(
             })
             .try_reduce(|| 0, |a, b| Ok(a + b))
     })
+}
+
+/// [`write_answers`] tracing the records in `order` (a permutation of their indices): the
+/// answers are encoded in that order into one buffer, then gathered back into input order
+/// block by block and written.
+fn write_answers_in_order(
+    tracer: &Tracer,
+    rays: &RayFile,
+    order: &[u32],
+    answer: Answer,
+    out: &File,
+) -> io::Result<usize> {
+    let size = answer.record_bytes();
+    let records = rays.records();
+    let mut answers = vec![0; order.len() * size];
+    let hits = answers
+        .par_chunks_mut(QUERY_CHUNK * size)
+        .zip(order.par_chunks(QUERY_CHUNK))
+        .map_init(
+            || (Vec::new(), Vec::new()),
+            |(gathered, valid), (answers, indices)| {
+                gathered.clear();
+                gathered.extend(indices.iter().map(|&index| records[index as usize]));
+                let valid = rays.valid.as_ref().map(|all| {
+                    valid.clear();
+                    valid.extend(indices.iter().map(|&index| all[index as usize]));
+                    &valid[..]
+                });
+                answer_chunk(tracer, gathered, valid, answer, answers)
+            },
+        )
+        .sum();
+    let mut place = vec![0u32; order.len()];
+    for (position, &index) in order.iter().enumerate() {
+        place[index as usize] = position as u32;
+    }
+    atomic::write_syncing_behind(out, |written| {
+        place.par_chunks(QUERY_CHUNK).enumerate().try_for_each_init(
+            Vec::new,
+            |buffer, (chunk, places)| {
+                buffer.clear();
+                for &position in places {
+                    let start = position as usize * size;
+                    buffer.extend_from_slice(&answers[start..start + size]);
+                }
+                write_at(out, buffer, (chunk * QUERY_CHUNK * size) as u64)?;
+                written(buffer.len());
+                Ok(())
+            },
+        )
+    })?;
+    Ok(hits)
 }
 
 /// Writes all of `bytes` at `offset` of `file`, leaving the file's cursor alone on Unix.
