@@ -108,6 +108,7 @@ fn sync_behind(file: &File, written: &AtomicUsize, done: &AtomicBool) -> io::Res
 /// Renames the synced `temporary` over `path` and fsyncs the directory, so that the rename
 /// itself survives a crash.
 pub fn replace(temporary: &Path, path: &Path) -> io::Result<()> {
+    check_replaceable(path)?;
     fs::rename(temporary, path)?;
     sync_directory(path)
 }
@@ -118,6 +119,24 @@ fn sync_directory(path: &Path) -> io::Result<()> {
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     File::open(directory)?.sync_all()
+}
+
+/// Refuses to replace anything but a regular file (following symlinks): a rename over
+/// `/dev/null`, a FIFO or a socket would put a regular file in its place (a process allowed to
+/// write in `/dev` replaced `/dev/null` itself, and every later redirection to it wrote into a
+/// file). A path that does not exist yet is fine.
+fn check_replaceable(path: &Path) -> io::Result<()> {
+    match fs::metadata(path) {
+        Ok(metadata) if !metadata.is_file() => Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!(
+                "{} is not a regular file (a device, FIFO or socket), and outputs are written \
+                 through a temporary file renamed over it: name a file",
+                path.display()
+            ),
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// Whether `a` and `b` name one existing file: the same path after canonicalisation, or the
@@ -151,6 +170,7 @@ pub fn check_writable(path: &Path) -> io::Result<()> {
             format!("{} is a directory, not a file name", path.display()),
         ));
     }
+    check_replaceable(path)?;
     let temporary = temporary_path(path);
     let directory = temporary
         .parent()
@@ -199,6 +219,30 @@ mod tests {
             failed.expect_err("the writer's error").to_string(),
             "disk full"
         );
+        fs::remove_file(&path).expect("remove");
+    }
+
+    /// A socket (like a device or a FIFO, not a regular file) is neither accepted as an output
+    /// nor replaced, and stays what it was.
+    #[cfg(unix)]
+    #[test]
+    fn an_output_that_is_not_a_regular_file_is_refused_and_left_alone() {
+        use std::os::unix::fs::FileTypeExt;
+        let path = std::env::temp_dir().join(format!("not-a-file-{}.sock", std::process::id()));
+        let _ = fs::remove_file(&path);
+        let _socket = std::os::unix::net::UnixListener::bind(&path).expect("bind a socket");
+        let refused = check_writable(&path).expect_err("a socket is not an output");
+        assert!(
+            refused.to_string().contains("not a regular file"),
+            "{refused}"
+        );
+        let written = write_atomically(&path, |out| out.write_all(b"answers"));
+        assert!(written.is_err());
+        assert!(fs::metadata(&path)
+            .expect("still there")
+            .file_type()
+            .is_socket());
+        assert!(!temporary_path(&path).exists());
         fs::remove_file(&path).expect("remove");
     }
 }
