@@ -10,8 +10,9 @@
 #   * the same for ReduceM alone on the speed setting (`[strip] max_length = FAST_LENGTH`,
 #     default 16: shorter strips, more bytes);
 #   * whole process: `reducem query` on the same rays as ray files (open, read, trace, write),
-#     median wall time of 3 runs per thread count, as Mrays/s: compare with Embree's trace-only
-#     figure above, which is what a batch job would pay on top of reading and building;
+#     median wall time of WHOLE_RUNS (default 5) alternating runs per thread count, as Mrays/s,
+#     with the median CPU time and the load average: compare with Embree's trace-only figure
+#     above, which is what a batch job would pay on top of reading and building;
 #   * with CALLGRIND=1: instructions per AO ray (callgrind, the first 100k AO rays, 1 thread,
 #     per kernel; the tracer's inclusive count divided by the rays).
 #
@@ -34,33 +35,45 @@ bench=target/release/examples/bench_trace
 reducem=target/release/reducem
 dir=/tmp/reducem-bench
 
-# Median wall seconds of three runs of the command.
-median_seconds() {
-    local times=()
-    for _ in 1 2 3; do
-        local start end
-        start=$(date +%s.%N)
-        "$@" > /dev/null 2>&1
-        end=$(date +%s.%N)
-        times+=("$(awk "BEGIN { print $end - $start }")")
-    done
-    printf '%s\n' "${times[@]}" | sort -g | sed -n 2p
+# One run of the command: "WALL CPU" seconds (CPU = user + system, which the other jobs of a
+# shared machine disturb less than the wall time).
+timed_run() {
+    local TIMEFORMAT='%R %U %S' times
+    times=$({ time "$@" > /dev/null 2>&1; } 2>&1)
+    awk '{ print $1, $2 + $3 }' <<< "$times"
 }
 
-# `reducem query` on the ray files of `rays_dir` against `model`, per thread count.
+# The median of the numbers on stdin.
+median() {
+    sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'
+}
+
+# `reducem query` on the ray files of `rays_dir` against `model`, per thread count: WHOLE_RUNS
+# (default 5) runs of each ray kind, primary and AO alternating, median wall and CPU seconds,
+# and the load average before and after (the machine may be shared).
 whole_process() {
-    local model=$1 rays_dir=$2
+    local model=$1 rays_dir=$2 runs=${WHOLE_RUNS:-5}
     local primary_rays ao_rays
     primary_rays=$(($(stat -c %s "$rays_dir/primary.rays") / 32))
     ao_rays=$(($(stat -c %s "$rays_dir/ao.rays") / 32))
     for threads in 1 2; do
-        local primary ao
-        primary=$(RAYON_NUM_THREADS=$threads median_seconds \
-            "$reducem" query "$model" --rays "$rays_dir/primary.rays" -o "$rays_dir/primary.hits")
-        ao=$(RAYON_NUM_THREADS=$threads median_seconds \
-            "$reducem" query "$model" --rays "$rays_dir/ao.rays" -o "$rays_dir/ao.occluded" --occluded)
-        awk -v t="$threads" -v pr="$primary_rays" -v p="$primary" -v ar="$ao_rays" -v a="$ao" \
-            'BEGIN { printf "  reducem query (whole process) %s thread(s): primary %7.2f Mrays/s (%.3f s), AO %7.2f Mrays/s (%.3f s)\n", t, pr / p / 1e6, p, ar / a / 1e6, a }'
+        local load_before primary=() ao=()
+        load_before=$(cut -d' ' -f1 /proc/loadavg)
+        for _ in $(seq "$runs"); do
+            primary+=("$(RAYON_NUM_THREADS=$threads timed_run "$reducem" query "$model" \
+                --rays "$rays_dir/primary.rays" -o "$rays_dir/primary.hits")")
+            ao+=("$(RAYON_NUM_THREADS=$threads timed_run "$reducem" query "$model" \
+                --rays "$rays_dir/ao.rays" -o "$rays_dir/ao.occluded" --occluded)")
+        done
+        local p pc a ac
+        p=$(printf '%s\n' "${primary[@]}" | cut -d' ' -f1 | median)
+        pc=$(printf '%s\n' "${primary[@]}" | cut -d' ' -f2 | median)
+        a=$(printf '%s\n' "${ao[@]}" | cut -d' ' -f1 | median)
+        ac=$(printf '%s\n' "${ao[@]}" | cut -d' ' -f2 | median)
+        awk -v t="$threads" -v pr="$primary_rays" -v p="$p" -v pc="$pc" -v ar="$ao_rays" \
+            -v a="$a" -v ac="$ac" -v runs="$runs" -v l0="$load_before" \
+            -v l1="$(cut -d' ' -f1 /proc/loadavg)" \
+            'BEGIN { printf "  reducem query (whole process) %s thread(s): primary %7.2f Mrays/s (%.3f s, CPU %.3f s), AO %7.2f Mrays/s (%.3f s, CPU %.3f s); median of %s, load %s -> %s\n", t, pr / p / 1e6, p, pc, ar / a / 1e6, a, ac, runs, l0, l1 }'
     done
 }
 

@@ -12,8 +12,8 @@ use reducem::format::reader::{FormatError, ReducemFile, Validation};
 use reducem::geometry::Point;
 use reducem::render::image::ImageFormat;
 use reducem::render::scene::Scene;
-use reducem::trace::ray_file::{self, HitFormat, RayFileError};
-use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
+use reducem::trace::ray_file::{self, Answer, HitFormat, InvalidRays, RayFile, RayFileError};
+use reducem::trace::{Kernel, TraceOptions, Tracer};
 
 #[derive(Parser)]
 #[command(
@@ -70,8 +70,8 @@ enum Command {
         occluded: bool,
         /// What an invalid ray (NaN, zero direction, tmin > tmax) does: reject the whole file,
         /// or be answered as a miss (counted in the summary).
-        #[arg(long, value_enum, default_value_t = InvalidRays::Reject)]
-        invalid_rays: InvalidRays,
+        #[arg(long, value_enum, default_value_t = InvalidRayAnswer::Reject)]
+        invalid_rays: InvalidRayAnswer,
         /// The hit record: compact (16 bytes: f32 t, f32 x 3 geometric normal) or full (48
         /// bytes, little endian: f32 t, u, v; u32 face id, 0xFFFFFFFF on a miss or without face
         /// ids; f32 x 3 geometric normal; f32 x 3 shading normal, the interpolated stored normal
@@ -192,11 +192,20 @@ impl HitRecord {
 
 /// `reducem query --invalid-rays`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum InvalidRays {
+enum InvalidRayAnswer {
     /// One invalid ray rejects the whole ray file (exit code 65), before anything is traced.
     Reject,
     /// Each invalid ray is answered as a miss (not occluded); the summary counts them.
     Miss,
+}
+
+impl From<InvalidRayAnswer> for InvalidRays {
+    fn from(answer: InvalidRayAnswer) -> InvalidRays {
+        match answer {
+            InvalidRayAnswer::Reject => InvalidRays::Reject,
+            InvalidRayAnswer::Miss => InvalidRays::Miss,
+        }
+    }
 }
 
 fn main() -> ExitCode {
@@ -275,7 +284,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 true => Answer::Occlusion,
                 false => Answer::Hits(format.format()),
             };
-            query(&file, &rays, &output, answer, invalid_rays)
+            query(&file, &rays, &output, answer, invalid_rays.into())
         }
         Command::Render {
             file,
@@ -329,24 +338,6 @@ fn report(
     Ok(())
 }
 
-/// What a query answers per ray.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Answer {
-    Occlusion,
-    Hits(HitFormat),
-}
-
-impl Answer {
-    /// Bytes per ray of the output file, and a miss's record.
-    fn miss(self) -> Vec<u8> {
-        match self {
-            Answer::Occlusion => ray_file::encode_occlusion(&[false]),
-            Answer::Hits(HitFormat::Compact) => ray_file::encode_hits(&[None]),
-            Answer::Hits(HitFormat::Full) => ray_file::encode_full_miss(),
-        }
-    }
-}
-
 fn query(
     path: &Path,
     rays_path: &Path,
@@ -355,101 +346,46 @@ fn query(
     invalid_rays: InvalidRays,
 ) -> anyhow::Result<()> {
     let kernel = Kernel::from_env()?;
-    // Opening validates the model and reading parses the rays: both on every core, together.
+    // Opening validates the model and mapping validates the rays: both on every core, together.
     let (rays, file) = rayon::join(
-        || QueryRays::read(rays_path, invalid_rays),
+        || RayFile::open(rays_path, invalid_rays),
         || ReducemFile::open(path),
     );
     let (rays, file) = (rays?, file?);
-    file.advise_batch(rays.valid.len());
+    if let Some(first) = rays.first_invalid() {
+        eprintln!(
+            "reducem: query: {} invalid rays answered as misses (first: {first})",
+            rays.invalid()
+        );
+    }
+    file.advise_batch(rays.len() - rays.invalid());
     let options = TraceOptions {
         kernel,
         ..TraceOptions::default()
     };
     let tracer = Tracer::new(&file, options);
-    let started = Instant::now();
-    let traced = match answer {
-        Answer::Occlusion => ray_file::trace_occlusion(&tracer, &rays.valid),
-        Answer::Hits(format) => ray_file::trace_hits_as(&tracer, &rays.valid, format),
-    };
-    let seconds = started.elapsed().as_secs_f64();
-    complete(&file)?;
-    let miss = answer.miss();
-    let hits = count_hits(&traced, &miss);
-    let bytes = rays.place(traced, &miss);
-    ray_file::write_atomically(output, &bytes)
-        .with_context(|| format!("writing {}", output.display()))?;
+    let (hits, seconds) = atomic::write_atomically_with(output, |out| {
+        let started = Instant::now();
+        let hits = ray_file::write_answers(&tracer, &rays, answer, out.get_ref())?;
+        let seconds = started.elapsed().as_secs_f64();
+        // Answers of rays that met a corrupt part of the file are incomplete: nothing is
+        // renamed into place.
+        complete(&file)?;
+        anyhow::Ok((hits, seconds))
+    })
+    .map_err(|error| match error.is::<FormatError>() {
+        true => error,
+        false => error.context(format!("writing {}", output.display())),
+    })?;
     let summary = QuerySummary {
-        rays: rays.total,
-        invalid: rays.total - rays.valid.len(),
+        rays: rays.len(),
+        invalid: rays.invalid(),
         hits,
         seconds,
         kernel,
     };
     eprintln!("{summary}");
     Ok(())
-}
-
-/// The rays of a query: the valid ones, traced as one batch, and where the invalid ones were.
-struct QueryRays {
-    valid: Vec<Ray>,
-    total: usize,
-    /// With `--invalid-rays miss`, every record in order (`None` for an invalid one), when
-    /// there was an invalid one.
-    records: Option<Vec<Option<Ray>>>,
-}
-
-impl QueryRays {
-    fn read(path: &Path, invalid_rays: InvalidRays) -> Result<QueryRays, RayFileError> {
-        if invalid_rays == InvalidRays::Reject {
-            let valid = ray_file::read_rays(path)?;
-            let total = valid.len();
-            return Ok(QueryRays {
-                valid,
-                total,
-                records: None,
-            });
-        }
-        let read = ray_file::read_rays_allowing_invalid(path)?;
-        if let Some(first) = &read.first_invalid {
-            eprintln!(
-                "reducem: query: {} invalid rays answered as misses (first: {first})",
-                read.invalid
-            );
-        }
-        let valid: Vec<Ray> = read.rays.iter().flatten().copied().collect();
-        Ok(QueryRays {
-            total: read.rays.len(),
-            records: (read.invalid > 0).then_some(read.rays),
-            valid,
-        })
-    }
-
-    /// The output file's bytes: the valid rays' answers `traced` in their places, `miss` for
-    /// every invalid ray.
-    fn place(&self, traced: Vec<u8>, miss: &[u8]) -> Vec<u8> {
-        let Some(records) = &self.records else {
-            return traced;
-        };
-        let mut answers = traced.chunks_exact(miss.len());
-        records
-            .iter()
-            .flat_map(|ray| match ray {
-                Some(_) => answers.next().unwrap_or(miss),
-                None => miss,
-            })
-            .copied()
-            .collect()
-    }
-}
-
-/// Hits (or occluded rays) among the answers of a hit (or occlusion) file: the records that
-/// differ from a miss's.
-fn count_hits(answers: &[u8], miss: &[u8]) -> usize {
-    answers
-        .chunks_exact(miss.len())
-        .filter(|record| *record != miss)
-        .count()
 }
 
 /// The query's one summary line: `key=value` fields, so that scripts can parse it and later

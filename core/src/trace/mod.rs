@@ -27,6 +27,7 @@ pub mod packet;
 pub mod prepared;
 pub mod ray;
 pub mod ray_file;
+mod ray_order;
 pub mod strip;
 pub mod top;
 pub mod watertight;

@@ -2,17 +2,25 @@
 //! traversal ([`super::prepared`], [`super::packet`]) and the ray files use them without
 //! importing from the tracer's root; re-exported there as `trace::Ray` and `trace::Hit`.
 
+use bytemuck::{Pod, Zeroable};
+
 use crate::geometry::Point;
 
 /// A ray `origin + t * direction` for `t` in `[tmin, tmax]`; `tmin >= 0`, direction non-zero
 /// (need not be unit length: `t` is in units of the direction).
-#[derive(Clone, Copy, Debug, PartialEq)]
+///
+/// `#[repr(C)]` in the field order of a ray file's record, so that on a little-endian machine a
+/// mapped ray file is read as rays in place ([`super::ray_file::RayFile`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct Ray {
     pub origin: Point,
     pub direction: Point,
     pub tmin: f32,
     pub tmax: f32,
 }
+
+const _: () = assert!(std::mem::size_of::<Ray>() == 32);
 
 /// The closest intersection of a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
