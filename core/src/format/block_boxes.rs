@@ -5,7 +5,9 @@
 //! measures a short ambient-occlusion ray that enters a strip's top-level box tests nearly every
 //! block of it. A full box per block culls about half of them: on 100k AO rays of the 1M-triangle
 //! scan, 5.37 blocks tested per ray without boxes, 2.60 with exact boxes, 3.00 with these codes
-//! (2.82 with 4-bit codes relative to the strip's own box, which the tracer does not have).
+//! (2.82 with 4-bit codes relative to the strip's own box, which the tracer does not have), all
+//! tested where the kd-tree leads; the tracer walks the blocks without the kd-tree and tests
+//! 3.19.
 //!
 //! Deviation from the paper, which culls inside a strip with its kd-tree alone: the boxes cost
 //! three bytes per block and three per strip; format 3.0 packs every file's references
