@@ -1,4 +1,5 @@
-//! The ReduceM file format, version 2: on-disk records and layout constants.
+//! The ReduceM file format, version 3 (and version 2, which it reads): on-disk records and
+//! layout constants.
 //!
 //! `docs/FORMAT.md` is the specification; this module is its code form. A file is a 4096-byte
 //! header page (magic, version, endianness marker, counts, a section table with offsets, lengths
@@ -125,7 +126,8 @@ pub enum SectionKind {
     TopNodes = 1,
     /// [`StripRecord`] array: where each strip's block starts and its sizes.
     StripRecords = 2,
-    /// Strip blocks: vertices, packed split axes, 1-byte vertex references.
+    /// Strip blocks: vertices, packed split axes, vertex references (packed since 3.0), block
+    /// boxes (since 3.0).
     StripData = 3,
 }
 

@@ -1,5 +1,6 @@
 //! A strip's vertex references as stored: one byte each (the paper's 1-byte local indices), or,
-//! in grid files since format 2.3, packed at the fewest bits that address the strip's vertices.
+//! in grid files since format 2.3 and in every file since 3.0, packed at the fewest bits that
+//! address the strip's vertices.
 //!
 //! Why pack: a strip stores on average about 20 vertices, so 5 of the 8 bits of a reference
 //! address anything; on a 10M-triangle scan at 20 grid bits the references are 1.26 of 8.4
