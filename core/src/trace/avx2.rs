@@ -198,7 +198,13 @@ impl BlockKernel for Avx2Blocks {
     }
 
     #[inline(always)]
-    fn edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+    fn edges<
+        V: VertexAccess,
+        const KX: usize,
+        const KY: usize,
+        const KZ: usize,
+        const SITE: usize,
+    >(
         space: &RaySpace,
         vertices: V,
         references: &[u8; BLOCK + 2],
@@ -206,15 +212,23 @@ impl BlockKernel for Avx2Blocks {
     ) -> Option<BlockEdges> {
         // SAFETY: `Avx2Blocks` is private to this module and used only by `trace_as`, which
         // runs only once AVX2 was detected (`trace`).
-        unsafe { block_edges::<V, KX, KY, KZ>(space, vertices, references, count) }
+        unsafe { block_edges::<V, KX, KY, KZ, SITE>(space, vertices, references, count) }
     }
 }
 
 /// [`BlockEdges`] of the block whose `BLOCK + 2` strip references are `references`, or `None`
 /// when no lane is a candidate; lanes past `count` are not candidates.
+/// `SITE` is the calling walk's (see `StripQuery::intersect_block`): one caller per
+/// instantiation, so that it is inlined.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn block_edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+fn block_edges<
+    V: VertexAccess,
+    const KX: usize,
+    const KY: usize,
+    const KZ: usize,
+    const SITE: usize,
+>(
     space: &RaySpace,
     vertices: V,
     references: &[u8; BLOCK + 2],

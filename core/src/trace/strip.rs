@@ -334,7 +334,12 @@ impl StripQuery<'_> {
             }
             let count = BOX_WINDOWS.min(windows - first);
             let block = (vertices, view, first, count);
-            if self.intersect_block::<K, V, KX, KY, KZ>(block, index, closest) && self.any_hit {
+            // Grid blocks keep one instantiation for both walks (see `intersect_block`).
+            let found = match vertices.lossless() {
+                Some(_) => self.intersect_block::<K, V, KX, KY, KZ, 1>(block, index, closest),
+                None => self.intersect_block::<K, V, KX, KY, KZ, 0>(block, index, closest),
+            };
+            if found && self.any_hit {
                 return true;
             }
         }
@@ -362,7 +367,7 @@ impl StripQuery<'_> {
         for first in (lo..hi).step_by(BLOCK) {
             let count = BLOCK.min(hi - first);
             let block = (vertices, view, first, count);
-            if self.intersect_block::<K, V, KX, KY, KZ>(block, index, closest) {
+            if self.intersect_block::<K, V, KX, KY, KZ, 0>(block, index, closest) {
                 found = true;
                 if self.any_hit {
                     return true;
@@ -372,6 +377,12 @@ impl StripQuery<'_> {
         found
     }
 
+    /// `SITE` tells the two walks' calls apart (the kd-tree's 0, the block boxes' 1): each
+    /// instantiation of the kernel then has one caller, and the AVX2 block, which is not
+    /// `inline(always)` (a `target_feature` function cannot be), is inlined again; with one
+    /// instantiation for both it was called per block and its result copied (3,228 -> 3,149
+    /// instructions per AO ray, 2,596 -> 2,572 per primary ray, callgrind as in `traverse_boxes`).
+    ///
     /// Intersects the `count <= BLOCK` windows from `first`, lane `k` being window
     /// `first + k`: the kernel `K` finds the candidate lanes ([`BlockEdges`]) with no branch on
     /// the geometry, and the rare lanes whose edges all agree go through the scalar
@@ -383,6 +394,7 @@ impl StripQuery<'_> {
         const KX: usize,
         const KY: usize,
         const KZ: usize,
+        const SITE: usize,
     >(
         &self,
         (vertices, view, first, count): (V, &StripView, usize, usize),
@@ -390,7 +402,8 @@ impl StripQuery<'_> {
         closest: &mut Closest,
     ) -> bool {
         let references = K::references(&view.references, first);
-        let Some(edges) = K::edges::<V, KX, KY, KZ>(&self.ray.space, vertices, &references, count)
+        let Some(edges) =
+            K::edges::<V, KX, KY, KZ, SITE>(&self.ray.space, vertices, &references, count)
         else {
             return false;
         };
@@ -446,7 +459,15 @@ pub(super) trait BlockKernel {
     /// The block whose `BLOCK + 2` strip references are `references`, or `None` when no lane is
     /// a candidate (the common case: nothing is stored then); lanes past `count` are not
     /// candidates.
-    fn edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+    /// `SITE` only separates the instantiations of the calling walks (see
+    /// `StripQuery::intersect_block`).
+    fn edges<
+        V: VertexAccess,
+        const KX: usize,
+        const KY: usize,
+        const KZ: usize,
+        const SITE: usize,
+    >(
         space: &RaySpace,
         vertices: V,
         references: &[u8; BLOCK + 2],
@@ -462,7 +483,13 @@ struct Sse2Blocks;
 
 impl BlockKernel for Sse2Blocks {
     #[inline(always)]
-    fn edges<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
+    fn edges<
+        V: VertexAccess,
+        const KX: usize,
+        const KY: usize,
+        const KZ: usize,
+        const SITE: usize,
+    >(
         space: &RaySpace,
         vertices: V,
         references: &[u8; BLOCK + 2],
