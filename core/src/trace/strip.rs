@@ -310,8 +310,8 @@ impl StripQuery<'_> {
     /// blocks (2.4 on average at the pipeline's strip length) costs less than descending it:
     /// measured on 100k AO rays of the 1M scan, 5.37 blocks (35.9 windows) tested per ray with
     /// the kd-tree, 3.19 (23.0) with the boxes; on 100k primary rays 3.05 (20.2) and 1.77
-    /// (12.8). Instructions per AO ray 3,545 -> 3,228 with the AVX2 kernel, 4,904 -> 4,514 with
-    /// the baseline (callgrind, references packed as format 3 stores them).
+    /// (12.8). Instructions per AO ray 3,545 -> 3,149 with the AVX2 kernel, 4,904 -> 4,537 with
+    /// the baseline (callgrind, references packed as format 3 stores them; format 2.1 before).
     #[inline(always)]
     fn traverse_boxes<
         K: BlockKernel,
