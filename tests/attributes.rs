@@ -289,8 +289,10 @@ fn attributes_leave_geometry_and_hits_unchanged() {
         &params(every_attribute(NormalEncoding::Oct8), Some(18)),
         "with.rdm",
     );
-    assert_eq!(plain.header().version_minor, 3);
-    assert_eq!(with.header().version_minor, 5);
+    for file in [&plain, &with] {
+        let header = file.header();
+        assert_eq!((header.version_major, header.version_minor), (3, 0));
+    }
     let strip_data = reducem::format::SectionKind::StripData;
     assert_eq!(
         plain.section_bytes(strip_data),

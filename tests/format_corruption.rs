@@ -316,16 +316,62 @@ fn crafted_record_links_are_rejected() {
     let nodes_in_strip = reducem::format::implicit_tree::internal_nodes(reference_count - 2, 2);
     let first_reference = data + vertex_count * 12 + reducem::format::axis_bytes(nodes_in_strip);
     let mut bad_reference = bytes.clone();
+    // References are packed at the bits the strip's vertex count needs (format 3): all ones
+    // is the largest reference that width holds, past the vertices unless they are a power of
+    // two.
+    assert!(!vertex_count.is_power_of_two());
     bad_reference[first_reference] = 255;
     let message = open_bytes("reference.rdm", &bad_reference)
         .err()
         .expect("bad reference")
         .to_string();
+    let width = reducem::format::references::packed_width(vertex_count);
     assert!(
-        message.contains("reference 0 is 255 out of range")
+        message.contains(&format!("reference 0 is {} out of range", (1 << width) - 1))
             && message.contains(&format!("at byte {first_reference}")),
         "{message}"
     );
+}
+
+/// A block box exponent outside 1..=254 (a scale that is zero, subnormal or not finite) is
+/// rejected naming the strip and the byte; box codes need no check.
+#[test]
+fn crafted_block_box_exponents_are_rejected() {
+    use reducem::format::block_boxes::area_bytes;
+    let bytes = valid_file_bytes("crafted-boxes-source.rdm");
+    let records = section_offset(&bytes, SectionKind::StripRecords);
+    let data = section_offset(&bytes, SectionKind::StripData);
+    let strips = section_range(&bytes, SectionKind::StripRecords).1 / 8;
+    let record = |s: usize| {
+        let at = records + 8 * s;
+        let field = |o: usize| u16::from_le_bytes(bytes[at + o..at + o + 2].try_into().unwrap());
+        let word = u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+        (word * 4, field(4) as usize, field(6) as usize)
+    };
+    let strip = (0..strips)
+        .find(|&s| area_bytes(record(s).2 - 2) > 0)
+        .expect("a strip with boxes");
+    let (start, vertices, references) = record(strip);
+    let nodes = reducem::format::implicit_tree::internal_nodes(references - 2, 2);
+    let area = data
+        + start
+        + vertices * 12
+        + reducem::format::axis_bytes(nodes)
+        + reducem::format::references::packed_bytes(references, vertices);
+    for (axis, exponent) in [(0, 0u8), (2, 255)] {
+        let mut crafted = bytes.clone();
+        crafted[area + axis] = exponent;
+        let message = open_error("box-exponent.rdm", &crafted);
+        assert!(
+            message.contains(&format!("strip {strip}"))
+                && message.contains(&format!("at byte {}", area + axis))
+                && message.contains(&format!("exponent {exponent} on axis {axis}")),
+            "{message}"
+        );
+    }
+    let mut codes = bytes.clone();
+    codes[area + 3] ^= 0xff;
+    assert!(open_bytes("box-codes.rdm", &codes).is_ok());
 }
 
 /// `bytes` with the precision record changed by `edit` and its checksum recomputed.
@@ -338,9 +384,10 @@ fn with_precision(bytes: &[u8], edit: impl FnOnce(&mut PrecisionRecord)) -> Vec<
     edited
 }
 
-/// `bytes` with the header claiming format minor `minor`, its checksum resealed.
-fn claiming_minor(bytes: &[u8], minor: u16) -> Vec<u8> {
+/// `bytes` with the header claiming format version `major.minor`, its checksum resealed.
+fn claiming_version(bytes: &[u8], major: u16, minor: u16) -> Vec<u8> {
     let mut claimed = bytes.to_vec();
+    claimed[8..10].copy_from_slice(&major.to_le_bytes());
     claimed[10..12].copy_from_slice(&minor.to_le_bytes());
     let checksum = xxhash_rust::xxh3::xxh3_64(&claimed[..200]);
     claimed[200..208].copy_from_slice(&checksum.to_le_bytes());
@@ -533,18 +580,27 @@ fn crafted_grid_nodes_are_rejected_naming_node_and_byte() {
 }
 
 /// A 2.2 reader rejects packed references through `vertex_encoding` 3 (unknown to it); this
-/// reader rejects that encoding in a file claiming 2.2, and a node shift on an encoding without
-/// grid nodes.
+/// reader rejects that encoding in a file claiming 2.2, the unpacked grid encodings 1 and 2 in
+/// a 3.0 file, and a node shift on an encoding without grid nodes.
 #[test]
 fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
     let bytes = grid_file_bytes("grid-nodes-version-source.rdm");
-    assert_eq!(&bytes[10..12], &3u16.to_le_bytes());
+    assert_eq!(&bytes[8..12], &[3, 0, 0, 0]);
     assert_eq!(&bytes[20..24], &3u32.to_le_bytes());
-    let message = open_error("grid-nodes-2.2.rdm", &claiming_minor(&bytes, 2));
+    let message = open_error("grid-nodes-2.2.rdm", &claiming_version(&bytes, 2, 2));
     assert!(
         message.contains("at byte 20") && message.contains("needs format 2.3"),
         "{message}"
     );
+    for encoding in [1u32, 2] {
+        let mut unpacked = bytes.clone();
+        unpacked[20..24].copy_from_slice(&encoding.to_le_bytes());
+        let message = open_error("grid-3.0-unpacked.rdm", &claiming_version(&unpacked, 3, 0));
+        assert!(
+            message.contains("at byte 20") && message.contains("not part of format 3"),
+            "{message}"
+        );
+    }
     let overflowing = with_precision(&bytes, |r| r.node_shift = 200);
     let message = open_error("node-shift.rdm", &overflowing);
     assert!(
@@ -566,9 +622,12 @@ fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
 #[test]
 fn lossless_grid_nodes_need_format_2_4_and_a_well_formed_node_grid() {
     let bytes = grid_node_file_bytes("lossless-grid-nodes-source.rdm");
-    assert_eq!(&bytes[10..12], &4u16.to_le_bytes());
+    assert_eq!(&bytes[8..12], &[3, 0, 0, 0]);
     assert_eq!(&bytes[20..24], &4u32.to_le_bytes());
-    let message = open_error("lossless-grid-nodes-2.3.rdm", &claiming_minor(&bytes, 3));
+    let message = open_error(
+        "lossless-grid-nodes-2.3.rdm",
+        &claiming_version(&bytes, 2, 3),
+    );
     assert!(
         message.contains("at byte 20") && message.contains("needs format 2.4"),
         "{message}"

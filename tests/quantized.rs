@@ -43,7 +43,11 @@ fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usiz
     }
     let file = convert_on_grid(mesh, &params, &format!("{name}-{bits}-{leaf_windows}.rdm"));
     let (quantized, grid) = quantized_input(mesh, bits);
-    let layout = VertexLayout::Grid { grid, packed: true };
+    let layout = VertexLayout::Grid {
+        grid,
+        packed: true,
+        boxes: true,
+    };
     assert_eq!(file.vertex_layout(), &layout);
     let expected = expected_triangles(&quantized);
     assert_eq!(
@@ -302,9 +306,9 @@ fn grid_node_boxes_hold_their_strips() {
     }
 }
 
-/// `bytes` (a format 2.3 grid file, opened as `file`) rewritten as format 2.2 wrote it: u32
-/// axis words, one byte per reference, `vertex_encoding` 2, the blocks, records and checksums
-/// laid out anew.
+/// `bytes` (a format 3.0 grid file, opened as `file`) rewritten as format 2.2 wrote it: u32
+/// axis words, one byte per reference, no block boxes, `vertex_encoding` 2, the blocks, records
+/// and checksums laid out anew.
 fn with_byte_references(bytes: &[u8], file: &ReducemFile) -> Vec<u8> {
     use reducem::format::quantized::{pack, AxisWordLayout};
     use reducem::format::vertices::StripVertices;
@@ -346,6 +350,7 @@ fn with_byte_references(bytes: &[u8], file: &ReducemFile) -> Vec<u8> {
     };
     seal(&mut out, records_entry, records_at, records_len);
     seal(&mut out, data_entry, data_at, data.len());
+    out[8..10].copy_from_slice(&2u16.to_le_bytes());
     out[10..12].copy_from_slice(&2u16.to_le_bytes());
     out[20..24].copy_from_slice(&2u32.to_le_bytes());
     let checksum = xxhash_rust::xxh3::xxh3_64(&out[..200]);
@@ -353,27 +358,31 @@ fn with_byte_references(bytes: &[u8], file: &ReducemFile) -> Vec<u8> {
     out
 }
 
-/// Format minors stay readable: a 2.2 grid file (u32 axis words, 1-byte references) decodes and
-/// traces exactly as the 2.3 file (both packed) of the same mesh, which is smaller.
+/// Older formats stay readable: a 2.2 grid file (u32 axis words, 1-byte references, no block
+/// boxes) decodes and traces exactly as the 3.0 file (both packed, with boxes) of the same mesh,
+/// which is smaller.
 #[test]
 fn format_2_2_grid_files_with_byte_references_read_the_same() {
     let mesh = generated(reducem::tools::gen::Kind::Scan, 20_000);
     let path = temp_path("packed-references.rdm");
     convert_mesh(&mesh, &grid_params(20, 4), &path).expect("convert");
     let packed = std::fs::read(&path).expect("read back");
-    let new = ReducemFile::open(&path).expect("open 2.3");
+    let new = ReducemFile::open(&path).expect("open 3.0");
     let bytes = with_byte_references(&packed, &new);
-    assert!(bytes.len() > packed.len());
     let old_path = temp_path("byte-references.rdm");
     std::fs::write(&old_path, &bytes).expect("write");
     let old = ReducemFile::open(&old_path).expect("open 2.2");
     old.verify_checksums().expect("2.2 checksums");
-    assert_eq!(old.header().version_minor, 2);
+    assert_eq!(
+        (old.header().version_major, old.header().version_minor),
+        (2, 2)
+    );
     assert_eq!(
         old.vertex_layout(),
         &VertexLayout::Grid {
             grid: old.precision().grid(),
-            packed: false
+            packed: false,
+            boxes: false,
         }
     );
     assert_eq!(

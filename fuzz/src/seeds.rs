@@ -1,7 +1,9 @@
 //! The generated part of the seed corpus: binary inputs that are easier to write than to keep
 //! by hand (ReduceM files, ray files, binary PLY in both byte orders). The text seeds (ASCII
 //! PLY, OBJ) are written by hand in `fuzz/corpus/`. Regenerate after a format change with
-//! `cargo run -p reducem-fuzz --release -- seed fuzz/corpus`.
+//! `cargo run -p reducem-fuzz --release -- seed fuzz/corpus`; the seeds of older formats
+//! (`reducem/*-format-2.x.rdm`, written by the writers of those versions) are kept by hand, so
+//! that the reader of every version this one reads stays fuzzed.
 
 use std::path::Path;
 

@@ -1,8 +1,8 @@
 //! Files stay byte-identical across refactorings: every generator kind, converted in memory
 //! (`reducem::conversion::convert_mesh`) and by the staged job in several chunks, with f32 vertices,
 //! grid vertices and f32 vertices with grid nodes, hashes to the value recorded when the test was
-//! written (at 7bca529). A deliberate format or build change updates the table (the failure
-//! prints the new values). `soup` hashes as `scan` does: it is scan's surface with unshared
+//! written (at 7bca529; recorded again for format 3.0's block boxes and packed references). A
+//! deliberate format or build change updates the table (the failure prints the new values). `soup` hashes as `scan` does: it is scan's surface with unshared
 //! vertices, which the bit-identical weld joins again.
 
 use std::fs;
@@ -19,24 +19,24 @@ const CHUNK_TRIANGLES: u64 = 2_000;
 /// XXH3-64 of each output: (kind, vertices, in-memory file, staged file).
 #[rustfmt::skip]
 const RECORDED: [(&str, &str, u64, u64); 18] = [
-    ("scan", "f32", 0xe5f2191d8311bc1e, 0x4cd85468f9fa9b08),
-    ("scan", "grid", 0x838f50a6e1469988, 0xb565e751c1ad468d),
-    ("scan", "f32-grid-nodes", 0x4fbb92265c3e5ae5, 0x3de1052474eb2017),
-    ("terrain", "f32", 0x9650c524ffdf0b50, 0xc6ce6bee181f7aca),
-    ("terrain", "grid", 0x86b8cb8e9e139673, 0x6c2986d6c71b3392),
-    ("terrain", "f32-grid-nodes", 0x7380ca9ceb72cfa0, 0x232462f5557f36a0),
-    ("isosurface", "f32", 0xc1a4b2b37f70be1a, 0x119ce36651a1fdfe),
-    ("isosurface", "grid", 0xdb5695fe7575f7d9, 0xeec3a96292d7c663),
-    ("isosurface", "f32-grid-nodes", 0x8f954c1a23bba5c2, 0x33261fce5ed52f3c),
-    ("cad", "f32", 0xe53dd5db1dbb3f60, 0x05e5716c49aae130),
-    ("cad", "grid", 0xc8d15e199ac4e55e, 0xe43d4ea2bbf74dc9),
-    ("cad", "f32-grid-nodes", 0xabf4e238ca228177, 0xa4c94c8fdb4d40af),
-    ("soup", "f32", 0xe5f2191d8311bc1e, 0x4cd85468f9fa9b08),
-    ("soup", "grid", 0x838f50a6e1469988, 0xb565e751c1ad468d),
-    ("soup", "f32-grid-nodes", 0x4fbb92265c3e5ae5, 0x3de1052474eb2017),
-    ("sphere", "f32", 0x81ddd2ebae834dde, 0x1afec757ea95b170),
-    ("sphere", "grid", 0xcfd4d39b5a29080f, 0xd8aef3ea5250b4e0),
-    ("sphere", "f32-grid-nodes", 0x0ed781ac63baf212, 0xfd96f083cedb05dc),
+    ("scan", "f32", 0x4cd4b9b8e2fd4d9d, 0x12b01c479dd75b57),
+    ("scan", "grid", 0x309fc8bad869e4e7, 0x9aa113305e9c476f),
+    ("scan", "f32-grid-nodes", 0x1bb3fe8590b15fd6, 0x4e405b091ce83d01),
+    ("terrain", "f32", 0xe45329068be2bc91, 0xcc73ed3b269f8784),
+    ("terrain", "grid", 0x515a612c1eabfa4b, 0xa10a9ad813631af4),
+    ("terrain", "f32-grid-nodes", 0x35196ee39146fc34, 0x08ef265ca163a35a),
+    ("isosurface", "f32", 0x0f80f572b3ec7041, 0xdebf96fc875febc0),
+    ("isosurface", "grid", 0x78a606d3c6c3e144, 0xa0327dfd93186beb),
+    ("isosurface", "f32-grid-nodes", 0x46328802ee89865c, 0x1e224e2cdaa2d050),
+    ("cad", "f32", 0xf0e9ab58537b75d9, 0xf012618ac181a7e5),
+    ("cad", "grid", 0x8d583b63e26e9bf8, 0xf6b98f9041da05ec),
+    ("cad", "f32-grid-nodes", 0x76937adea4e9a6d1, 0x6cea70893b299e71),
+    ("soup", "f32", 0x4cd4b9b8e2fd4d9d, 0x12b01c479dd75b57),
+    ("soup", "grid", 0x309fc8bad869e4e7, 0x9aa113305e9c476f),
+    ("soup", "f32-grid-nodes", 0x1bb3fe8590b15fd6, 0x4e405b091ce83d01),
+    ("sphere", "f32", 0x1ae07c033f9a339f, 0x08fc4a1d7c826bac),
+    ("sphere", "grid", 0xc0571ebc05e370cc, 0x64055232e9f04d27),
+    ("sphere", "f32-grid-nodes", 0x4e1e27603046ae33, 0xbe3220ceef91c1c3),
 ];
 
 fn temp_dir() -> PathBuf {

@@ -12,15 +12,14 @@ use xxhash_rust::xxh3::Xxh3;
 
 use super::attribute_sections::{AttributeVisit, AttributeWriter};
 use super::attributes::{
-    AttributeRecord, AttributeSection, AttributeSet, ATTRIBUTES_MINOR, ATTRIBUTE_RECORD_OFFSET,
-    GROUP_STRIPS,
+    AttributeRecord, AttributeSection, AttributeSet, ATTRIBUTE_RECORD_OFFSET, GROUP_STRIPS,
 };
 use super::counts::{ChunkStats, WeldStats};
 use super::grid::{Grid, NodeGrid};
 use super::{
     align_up, GridNode, Header, PrecisionRecord, SectionEntry, SectionKind, TopNode,
     VertexEncoding, ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, PRECISION_OFFSET,
-    SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR,
+    SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR, VERSION_MINOR,
 };
 use crate::atomic::write_atomically;
 use crate::geometry::Aabb;
@@ -152,23 +151,21 @@ fn write_sections(
     file.write_all(bytemuck::bytes_of(&header))?;
     file.seek(SeekFrom::Start(PRECISION_OFFSET as u64))?;
     file.write_all(bytemuck::bytes_of(&precision(info)?))?;
-    if let Some(record) = attribute_record {
-        file.seek(SeekFrom::Start(ATTRIBUTE_RECORD_OFFSET as u64))?;
-        file.write_all(bytemuck::bytes_of(&record))?;
-    }
+    file.seek(SeekFrom::Start(ATTRIBUTE_RECORD_OFFSET as u64))?;
+    file.write_all(bytemuck::bytes_of(&attribute_record))?;
     Ok(())
 }
 
-/// Writes the attribute sections after `strip_data`, and returns their record; `None` when
-/// the file stores no attributes (it then stays byte for byte what a 2.4 writer writes).
+/// Writes the attribute sections after `strip_data`, and returns their record (format 3 files
+/// always have one; with no attributes its flags and sections are zero).
 fn write_attribute_sections<W: Write>(
     out: &mut SectionWriter<W>,
     info: &FileInfo,
     source: &mut impl SectionSource,
-) -> io::Result<Option<AttributeRecord>> {
+) -> io::Result<AttributeRecord> {
     let set = info.attributes;
     if !set.any() {
-        return Ok(None);
+        return Ok(AttributeRecord::default().sealed());
     }
     let mut writer = AttributeWriter::new(set);
     let mut record = AttributeRecord {
@@ -183,7 +180,7 @@ fn write_attribute_sections<W: Write>(
             writer.write(kind, &mut |visit| source.visit_attributes(visit), w)
         })?;
     }
-    Ok(Some(record.sealed()))
+    Ok(record.sealed())
 }
 
 fn precision(info: &FileInfo) -> io::Result<PrecisionRecord> {
@@ -224,13 +221,9 @@ fn header(
     let encoding = info.vertex_encoding()?;
     let mut header = Header {
         magic: MAGIC,
+        // Format 3: block boxes in every strip block, whatever the encoding.
         version_major: VERSION_MAJOR,
-        // The lowest minor with what the file uses: 2.1 for lossless files with f32 nodes (the
-        // precision record), so that they stay readable by 2.1 readers byte for byte.
-        version_minor: match info.attributes.any() {
-            true => ATTRIBUTES_MINOR,
-            false => encoding.minor().max(1),
-        },
+        version_minor: VERSION_MINOR,
         endian_marker: ENDIAN_MARKER,
         header_bytes: std::mem::size_of::<Header>() as u32,
         vertex_encoding: encoding as u32,

@@ -1,5 +1,6 @@
 //! Strip encoding (paper 3.2, Fig. 2): local vertices, an implicit left-balanced spatial kd-tree
-//! whose split bounds are the strip's own reordered vertices, and 1-byte local references.
+//! whose split bounds are the strip's own reordered vertices, and 1-byte local references (packed
+//! since format 3.0).
 //!
 //! For each internal node (preorder `i`, see [`crate::format::implicit_tree`]) the encoder picks
 //! the split axis whose exact child extremes give the lowest surface-area cost, then stores at
@@ -23,8 +24,12 @@
 //! ([`crate::format::quantized`]). Decoding is monotone in the grid point, so every bound holds
 //! on what the reader decodes, bit for bit. Their references are packed at the bits the strip's
 //! vertex count needs ([`crate::format::references`]).
+//!
+//! Format 3.0 packs the references of lossless strips too and appends the strip's block boxes
+//! ([`crate::format::block_boxes`]); see there for what they cost and gain.
 
 pub mod attributes;
+mod block_boxes;
 
 use std::fmt;
 
@@ -339,10 +344,9 @@ impl<'a> StripLayout<'a> {
             .iter()
             .map(|&v| self.home[v as usize].unwrap_or_default() as u8)
             .collect();
-        match self.positions {
-            Positions::F32(_) => block.extend(references),
-            Positions::Grid { .. } => block.extend(pack(&references, self.slots.len())),
-        }
+        block.extend(pack(&references, self.slots.len()));
+        let positions: Vec<Point> = self.local.iter().map(|&v| *self.point(v)).collect();
+        block.extend(block_boxes::encode(&positions, *self.point(self.slots[0])));
         block.resize(align_up(block.len() as u64, 4) as usize, 0);
         EncodedStrip {
             vertex_sources: self
@@ -419,6 +423,32 @@ pub fn validate(
             "strip bounds {:?} differ from its vertices' {all:?}",
             strip.bounds
         ));
+    }
+    validate_boxes(&view, &referenced)
+}
+
+/// Checks that every decoded block box holds its windows' positions (`referenced`, strip
+/// order).
+fn validate_boxes(
+    view: &crate::format::reader::StripView<'_>,
+    referenced: &[Point],
+) -> Result<(), String> {
+    use crate::format::block_boxes::BOX_WINDOWS;
+    let Some(frame) = view.boxes.frame(view.vertices.point(0)) else {
+        return Ok(());
+    };
+    for (index, first) in (0..view.window_count()).step_by(BOX_WINDOWS).enumerate() {
+        let (min, max) = view
+            .boxes
+            .decode(&frame, index)
+            .ok_or_else(|| format!("block box {index} missing"))?;
+        let end = (first + BOX_WINDOWS + 2).min(referenced.len());
+        if let Some(p) = referenced[first..end]
+            .iter()
+            .find(|p| (0..3).any(|a| p[a] < min[a] || p[a] > max[a]))
+        {
+            return Err(format!("block box {index} {min:?}..{max:?} misses {p:?}"));
+        }
     }
     Ok(())
 }

@@ -1,4 +1,5 @@
-//! The ReduceM file format, version 2: on-disk records and layout constants.
+//! The ReduceM file format, version 3 (and version 2, which it reads): on-disk records and
+//! layout constants.
 //!
 //! `docs/FORMAT.md` is the specification; this module is its code form. A file is a 4096-byte
 //! header page (magic, version, endianness marker, counts, a section table with offsets, lengths
@@ -7,6 +8,7 @@
 //! views the mapping in place with no pointer fix-up.
 
 pub mod attributes;
+pub mod block_boxes;
 pub mod counts;
 pub mod face_ids;
 pub mod grid;
@@ -20,15 +22,21 @@ use bytemuck::{Pod, Zeroable};
 
 /// First eight bytes of every ReduceM file.
 pub const MAGIC: [u8; 8] = *b"REDUCEM\0";
-/// Incremented on any incompatible layout change; readers reject other majors. Version 2
-/// replaced version 1's binary top-level nodes (32 bytes) with 4-wide ones ([`TopNode`]).
-pub const VERSION_MAJOR: u16 = 2;
-/// Incremented on compatible additions; readers accept any minor of their major. Minor 1 added
-/// the [`PrecisionRecord`] and the grid vertex encoding, minor 2 grid top-level nodes
-/// ([`GridNode`], `vertex_encoding` 2), minor 3 packed references in grid files
-/// (`vertex_encoding` 3), minor 4 grid top-level nodes in lossless files (`vertex_encoding` 4).
-/// Writers write the lowest minor that has what the file uses ([`VertexEncoding::minor`]).
-pub const VERSION_MINOR: u16 = 5;
+/// Incremented on any incompatible layout change; readers reject majors they do not know.
+/// Version 2 replaced version 1's binary top-level nodes (32 bytes) with 4-wide ones
+/// ([`TopNode`]); version 3 added per-block boxes to strip blocks ([`block_boxes`]) and packs
+/// the references of every vertex encoding. Writers write version 3.
+pub const VERSION_MAJOR: u16 = 3;
+/// Incremented on compatible additions; readers accept any minor of a major they read.
+pub const VERSION_MINOR: u16 = 0;
+/// The oldest major this reader reads (version 2 files are read as before).
+pub const OLDEST_READ_MAJOR: u16 = 2;
+/// Version 2's minors: minor 1 added the [`PrecisionRecord`] and the grid vertex encoding,
+/// minor 2 grid top-level nodes ([`GridNode`], `vertex_encoding` 2), minor 3 packed references
+/// in grid files (`vertex_encoding` 3), minor 4 grid top-level nodes in lossless files
+/// (`vertex_encoding` 4), minor 5 attributes. Version 2 writers wrote the lowest minor that had
+/// what the file used ([`VertexEncoding::minor`]).
+pub const VERSION_2_LAST_MINOR: u16 = 5;
 /// Written as a little-endian u32; a reader on a big-endian host sees `0x0403_0201`.
 pub const ENDIAN_MARKER: u32 = 0x0102_0304;
 /// Sections start at multiples of this, so each can be mapped and paged on its own.
@@ -118,7 +126,8 @@ pub enum SectionKind {
     TopNodes = 1,
     /// [`StripRecord`] array: where each strip's block starts and its sizes.
     StripRecords = 2,
-    /// Strip blocks: vertices, packed split axes, 1-byte vertex references.
+    /// Strip blocks: vertices, packed split axes, vertex references (packed since 3.0), block
+    /// boxes (since 3.0).
     StripData = 3,
 }
 
@@ -204,6 +213,23 @@ pub struct Header {
     pub header_checksum: u64,
 }
 const _: () = assert!(std::mem::size_of::<Header>() == 208);
+
+impl Header {
+    /// Whether the file has the precision record (since 2.1).
+    pub fn has_precision_record(&self) -> bool {
+        self.version_major > 2 || self.version_minor >= 1
+    }
+
+    /// Whether the file has the attribute record (since 2.5).
+    pub fn has_attribute_record(&self) -> bool {
+        self.version_major > 2 || self.version_minor >= attributes::ATTRIBUTES_MINOR
+    }
+
+    /// Whether strip blocks carry per-block boxes and packed references (since 3.0).
+    pub fn has_block_boxes(&self) -> bool {
+        self.version_major >= 3
+    }
+}
 
 /// Byte length of the header prefix covered by `header_checksum`.
 pub const HEADER_CHECKSUMMED_BYTES: usize = 200;

@@ -30,6 +30,7 @@ use std::path::{Path, PathBuf};
 use memmap2::Mmap;
 
 use super::attributes::AttributeSection;
+use super::block_boxes::{self, BlockBoxes};
 use super::grid::{Grid, NodeGrid};
 use super::implicit_tree::internal_nodes;
 use super::quantized::{vertex_part_bytes, AxisWordLayout, GridVertices};
@@ -126,20 +127,29 @@ impl TopNodes<'_> {
 /// the block.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum VertexLayout {
-    /// f32 vertices, 1-byte references.
-    F32,
+    /// f32 vertices. With `boxes` (format 3) the references are packed and strips carry block
+    /// boxes ([`super::block_boxes`]); before, one byte per reference and no boxes.
+    F32 { boxes: bool },
     /// Grid vertices. `packed` since format 2.3: axis words at the grid's bits
     /// ([`AxisWordLayout::Packed`]) and references at the strip's ([`super::references`]);
-    /// before, u32 axis words and one byte per reference.
-    Grid { grid: Grid, packed: bool },
+    /// before, u32 axis words and one byte per reference. `boxes` since format 3.0 (always
+    /// with `packed`).
+    Grid {
+        grid: Grid,
+        packed: bool,
+        boxes: bool,
+    },
 }
 
 impl From<Option<Grid>> for VertexLayout {
-    /// The layout the writer gives vertices on `grid` (or f32 ones without).
+    /// The layout the writer gives vertices on `grid` (or f32 ones without): format 3.
     fn from(grid: Option<Grid>) -> VertexLayout {
-        grid.map_or(VertexLayout::F32, |grid| VertexLayout::Grid {
-            grid,
-            packed: true,
+        grid.map_or(VertexLayout::F32 { boxes: true }, |grid| {
+            VertexLayout::Grid {
+                grid,
+                packed: true,
+                boxes: true,
+            }
         })
     }
 }
@@ -155,19 +165,44 @@ impl VertexLayout {
         }
     }
 
-    /// Bytes of a block's `count` references with `vertices` vertices.
-    fn reference_bytes(&self, count: usize, vertices: usize) -> usize {
-        match self {
-            VertexLayout::Grid { packed: true, .. } => packed_bytes(count, vertices),
-            _ => count,
+    /// Whether strips carry block boxes (format 3).
+    pub fn boxes(&self) -> bool {
+        match *self {
+            VertexLayout::F32 { boxes } | VertexLayout::Grid { boxes, .. } => boxes,
         }
     }
 
-    /// The references in `bytes` (exactly [`VertexLayout::reference_bytes`] long).
+    /// Whether references are packed at the strip's bits.
+    fn packed_references(&self) -> bool {
+        match *self {
+            VertexLayout::F32 { boxes } => boxes,
+            VertexLayout::Grid { packed, .. } => packed,
+        }
+    }
+
+    /// Bytes of a block's `count` references with `vertices` vertices.
+    fn reference_bytes(&self, count: usize, vertices: usize) -> usize {
+        match self.packed_references() {
+            true => packed_bytes(count, vertices),
+            false => count,
+        }
+    }
+
+    /// Bytes of the box area of a block with `count` references.
+    fn box_bytes(&self, count: usize) -> usize {
+        match self.boxes() {
+            true => block_boxes::area_bytes(count - 2),
+            false => 0,
+        }
+    }
+
+    /// The references in the first [`VertexLayout::reference_bytes`] of `bytes`, which run
+    /// to the end of the block.
     fn references<'a>(&self, bytes: &'a [u8], count: usize, vertices: usize) -> References<'a> {
-        match self {
-            VertexLayout::Grid { packed: true, .. } => References::packed(bytes, count, vertices),
-            _ => References::bytes(bytes),
+        let stored = self.reference_bytes(count, vertices);
+        match self.packed_references() {
+            true => References::packed_before(bytes, stored, count, vertices),
+            false => References::bytes(&bytes[..stored]),
         }
     }
 }
@@ -180,6 +215,9 @@ pub struct StripView<'a> {
     pub axes: &'a [u8],
     /// References into `vertices`, swaps included.
     pub references: References<'a>,
+    /// One box per eight windows (format 3, strips of more than eight windows); empty
+    /// otherwise.
+    pub boxes: BlockBoxes<'a>,
 }
 
 impl StripView<'_> {
@@ -441,29 +479,32 @@ pub fn strip_view<'a>(
     let references = record.reference_count as usize;
     let axes_length = axis_bytes(internal_nodes(references - 2, leaf_windows));
     let reference_bytes = layout.reference_bytes(references, count);
+    let box_bytes = layout.box_bytes(references);
     let (vertices, vertex_end) = match layout {
-        VertexLayout::F32 => {
+        VertexLayout::F32 { .. } => {
             let end = start + count * F32_VERTEX_BYTES;
             (
                 StripVertices::F32(bytemuck::cast_slice(&data[start..end])),
                 end,
             )
         }
-        VertexLayout::Grid { grid, packed } => {
+        VertexLayout::Grid { grid, packed, .. } => {
             let words_layout = VertexLayout::axis_words(grid, *packed);
             let words = words_layout.read(&data[start..]);
             let end = start + vertex_part_bytes(count, &words, words_layout);
-            let block_end = end + axes_length + reference_bytes;
+            let block_end = end + axes_length + reference_bytes + box_bytes;
             let block = &data[start..block_end];
             let vertices = GridVertices::new(block, (&words, words_layout), count, grid);
             (StripVertices::Grid(vertices), end)
         }
     };
     let axes_end = vertex_end + axes_length;
-    let reference_area = &data[axes_end..axes_end + reference_bytes];
+    let references_end = axes_end + reference_bytes;
+    let block_end = references_end + box_bytes;
     StripView {
         vertices,
         axes: &data[vertex_end..axes_end],
-        references: layout.references(reference_area, references, count),
+        references: layout.references(&data[axes_end..block_end], references, count),
+        boxes: BlockBoxes::new(&data[references_end..block_end]),
     }
 }

@@ -1,10 +1,14 @@
 //! A strip's vertex references as stored: one byte each (the paper's 1-byte local indices), or,
-//! in grid files since format 2.3, packed at the fewest bits that address the strip's vertices.
+//! in grid files since format 2.3 and in every file since 3.0, packed at the fewest bits that
+//! address the strip's vertices.
 //!
 //! Why pack: a strip stores on average about 20 vertices, so 5 of the 8 bits of a reference
 //! address anything; on a 10M-triangle scan at 20 grid bits the references are 1.26 of 8.4
-//! bytes per triangle, and packing saves 0.44 of them. Lossless files keep one byte per
-//! reference, as in the paper, since there the vertices dominate anyway.
+//! bytes per triangle, and packing saves 0.44 of them. Format 2 kept one byte per reference in
+//! lossless files, as the paper does; format 3 packs them too (0.51 bytes per triangle on the
+//! 1M scan), which pays for its block boxes ([`super::block_boxes`]). Reading a tracer block
+//! then costs one load and a shift per reference ([`References::block_stream`]), or one
+//! `pdep` for eight of them in the AVX2 kernel.
 //!
 //! Packed layout: a strip with `v` vertices stores reference `k` in bits
 //! `[k w, k w + w)` of its reference bytes, least significant bit first, with
@@ -55,7 +59,11 @@ pub fn pack(references: &[u8], vertices: usize) -> Vec<u8> {
 /// A strip's references viewed in place.
 #[derive(Clone, Copy, Debug)]
 pub struct References<'a> {
+    /// The references' bytes and, for packed references, whatever of the block follows them
+    /// (loads may read it; masks drop it).
     bytes: &'a [u8],
+    /// Bytes of the references themselves.
+    stored: usize,
     count: usize,
     width: u32,
 }
@@ -65,6 +73,7 @@ impl<'a> References<'a> {
     pub fn bytes(bytes: &'a [u8]) -> References<'a> {
         References {
             bytes,
+            stored: bytes.len(),
             count: bytes.len(),
             width: 8,
         }
@@ -73,8 +82,22 @@ impl<'a> References<'a> {
     /// `count` references packed for a strip of `vertices` vertices in `bytes` (at least
     /// [`packed_bytes`] long).
     pub fn packed(bytes: &'a [u8], count: usize, vertices: usize) -> References<'a> {
+        References::packed_before(bytes, bytes.len(), count, vertices)
+    }
+
+    /// [`References::packed`] stored in the first `stored` bytes of `bytes`, the rest being
+    /// other data of the block that may be read and masked off: a strip's last block then
+    /// loads in place rather than through `References::load_tail` (format 3 blocks follow
+    /// their references with the block boxes).
+    pub fn packed_before(
+        bytes: &'a [u8],
+        stored: usize,
+        count: usize,
+        vertices: usize,
+    ) -> References<'a> {
         References {
             bytes,
+            stored,
             count,
             width: packed_width(vertices),
         }
@@ -90,7 +113,7 @@ impl<'a> References<'a> {
 
     /// Bytes the references occupy in the block.
     pub fn stored_bytes(&self) -> usize {
-        self.bytes.len()
+        self.stored
     }
 
     /// Where reference `k` starts in the stored bytes.
@@ -134,12 +157,33 @@ impl<'a> References<'a> {
     #[inline(always)]
     pub fn read_block<const N: usize>(&self, first: usize) -> [u8; N] {
         if self.width == 8 {
-            return match self.bytes.get(first..).and_then(|rest| rest.first_chunk()) {
+            let stored = &self.bytes[..self.stored];
+            return match stored.get(first..).and_then(|rest| rest.first_chunk()) {
                 Some(&block) => block,
                 None => self.read_last_byte_block(first),
             };
         }
         self.read_partial_block(first)
+    }
+
+    /// References `first .. first + N` as one little-endian bit stream of
+    /// [`References::width`] bits each (those past the last reference zero), when they are
+    /// packed and fit one load: a tracer block of ten references up to 5 bits wide, that is of
+    /// a strip of at most 32 vertices (nearly all at the pipeline's strip length).
+    #[inline(always)]
+    pub fn block_stream<const N: usize>(&self, first: usize) -> Option<u64> {
+        let width = self.width as usize;
+        if width == 8 || N * width > BITS_PER_LOAD {
+            return None;
+        }
+        let bit = first * width;
+        let kept = (self.count - first).min(N) * width;
+        Some((self.load(bit / 8) >> (bit % 8)) & ((1u64 << kept) - 1))
+    }
+
+    /// Bits per reference.
+    pub fn width(&self) -> u32 {
+        self.width
     }
 
     /// [`References::read_block`] of one byte per reference at the strip's end: eight
@@ -167,6 +211,12 @@ impl<'a> References<'a> {
         let available = self.count - first;
         let width = self.width as usize;
         let mask = (1u64 << width) - 1;
+        if let Some(stream) = self.block_stream::<N>(first) {
+            for (k, slot) in block.iter_mut().enumerate() {
+                *slot = ((stream >> (k * width)) & mask) as u8;
+            }
+            return block;
+        }
         for (chunk, slots) in block.chunks_mut(REFERENCES_PER_LOAD).enumerate() {
             let start = chunk * REFERENCES_PER_LOAD;
             let bit = (first + start) * width;

@@ -1,8 +1,8 @@
 //! Which SIMD kernel the tracer runs, chosen at run time.
 //!
 //! One portable binary: the baseline kernel is what every x86-64 CPU runs (SSE2, through
-//! `wide`), and on a CPU that reports AVX2 the strip blocks run as 256-bit operations with
-//! gathers ([`super::avx2`]). `wide` picks its instructions when the crate is compiled, so it
+//! `wide`), and on a CPU that reports AVX2 (and BMI2, whose `pdep` unpacks a block's packed
+//! references) the strip blocks run as 256-bit operations ([`super::avx2`]). `wide` picks its instructions when the crate is compiled, so it
 //! stays SSE2 inside a function compiled for AVX2; the AVX2 kernel therefore uses `std::arch`
 //! itself. Every kernel runs the same IEEE operations in the same order per lane (no fused
 //! multiply-add), so hits and occlusion answers are bit-identical whichever runs.
@@ -90,13 +90,15 @@ impl fmt::Display for Kernel {
     }
 }
 
+/// Whether the CPU runs the AVX2 kernel: AVX2, and BMI2 for its reference decoding (every
+/// CPU with AVX2 the project knows of has both).
 #[cfg(target_arch = "x86_64")]
-fn avx2_detected() -> bool {
-    std::is_x86_feature_detected!("avx2")
+pub(super) fn avx2_detected() -> bool {
+    std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("bmi2")
 }
 
 #[cfg(not(target_arch = "x86_64"))]
-fn avx2_detected() -> bool {
+pub(super) fn avx2_detected() -> bool {
     false
 }
 

@@ -11,8 +11,8 @@ use std::ops::Range;
 use super::{FormatError, ReducemFile};
 use crate::format::attributes::{
     decode_normal, read_normal, AttributeRecord, AttributeSection, AttributeSet, FaceIdGroup,
-    NormalEncoding, ATTRIBUTES_MINOR, ATTRIBUTE_CHECKSUMMED_BYTES, ATTRIBUTE_RECORD_OFFSET,
-    FLAG_COLORS, FLAG_FACE_IDS, FLAG_NORMALS, GROUP_STRIPS,
+    NormalEncoding, ATTRIBUTE_CHECKSUMMED_BYTES, ATTRIBUTE_RECORD_OFFSET, FLAG_COLORS,
+    FLAG_FACE_IDS, FLAG_NORMALS, GROUP_STRIPS,
 };
 use crate::format::face_ids::{self, BitStream, FaceIdDefect};
 use crate::format::{Header, SectionEntry, SECTION_ALIGN};
@@ -57,7 +57,7 @@ pub(super) fn read_record(
     core_end: u64,
     file_len: u64,
 ) -> Result<AttributeSections, (u64, String)> {
-    if header.version_minor < ATTRIBUTES_MINOR {
+    if !header.has_attribute_record() {
         return Ok(AttributeSections::default());
     }
     let at = |field: usize| (ATTRIBUTE_RECORD_OFFSET + field) as u64;

@@ -7,6 +7,7 @@
 //! and publish nothing but themselves (the mapping is immutable), so relaxed atomics suffice: a
 //! thread that does not see another's bit yet validates the element again, to the same outcome.
 
+use crate::format::block_boxes::BlockBoxes;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
@@ -113,5 +114,6 @@ pub(super) fn no_triangles() -> StripView<'static> {
         vertices: StripVertices::F32(&VERTICES),
         axes: &[],
         references: References::bytes(&REFERENCES),
+        boxes: BlockBoxes::default(),
     }
 }

@@ -11,14 +11,15 @@ use std::path::Path;
 use memmap2::Mmap;
 use rayon::prelude::*;
 
+use super::super::block_boxes::EXPONENTS;
 use super::super::grid::{Grid, NodeGrid, MAX_GRID_BITS};
 use super::super::implicit_tree::internal_nodes;
 use super::super::quantized::{vertex_part_bytes, AxisWord};
 use super::super::{
     axis_bytes, GridNode, Header, NodeRecord, PrecisionRecord, SectionKind, StripRecord, TopNode,
     TopSlot, VertexEncoding, ENDIAN_MARKER, F32_VERTEX_BYTES, HEADER_CHECKSUMMED_BYTES,
-    HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH, PRECISION_CHECKSUMMED_BYTES,
-    PRECISION_OFFSET, SECTION_ALIGN, TOP_WIDTH, VERSION_MAJOR,
+    HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH, OLDEST_READ_MAJOR,
+    PRECISION_CHECKSUMMED_BYTES, PRECISION_OFFSET, SECTION_ALIGN, TOP_WIDTH, VERSION_MAJOR,
 };
 use super::lazy::{LazyChecks, Passed};
 use super::{
@@ -487,11 +488,12 @@ impl BlockShape {
 
     /// Bytes of the block with vertices of `vertex_bytes`.
     fn length(&self, record: &StripRecord, nodes: usize, vertex_bytes: usize) -> u64 {
-        let references = self.layout.reference_bytes(
-            record.reference_count as usize,
-            record.vertex_count as usize,
-        );
-        (vertex_bytes + axis_bytes(nodes) + references) as u64
+        let count = record.reference_count as usize;
+        let references = self
+            .layout
+            .reference_bytes(count, record.vertex_count as usize);
+        let boxes = self.layout.box_bytes(count);
+        (vertex_bytes + axis_bytes(nodes) + references + boxes) as u64
     }
 
     /// A byte range of the strip-data section that holds the record's block: exact for f32
@@ -501,11 +503,11 @@ impl BlockShape {
         let nodes = self.nodes(record)?;
         let count = record.vertex_count as usize;
         let (shortest, longest) = match self.layout {
-            VertexLayout::F32 => {
+            VertexLayout::F32 { .. } => {
                 let length = self.length(record, nodes, count * F32_VERTEX_BYTES);
                 (length, length)
             }
-            VertexLayout::Grid { grid, packed } => {
+            VertexLayout::Grid { grid, packed, .. } => {
                 let words_layout = VertexLayout::axis_words(&grid, packed);
                 let widest = [AxisWord {
                     anchor: 0,
@@ -541,8 +543,8 @@ impl BlockShape {
         let start = record.data_word as u64 * 4;
         let available = &window[(start - window_start) as usize..];
         let vertex_bytes = match self.layout {
-            VertexLayout::F32 => record.vertex_count as usize * F32_VERTEX_BYTES,
-            VertexLayout::Grid { grid, packed } => {
+            VertexLayout::F32 { .. } => record.vertex_count as usize * F32_VERTEX_BYTES,
+            VertexLayout::Grid { grid, packed, .. } => {
                 let words_layout = VertexLayout::axis_words(&grid, packed);
                 let words = words_layout.read(available);
                 for (axis, word) in words.iter().enumerate() {
@@ -582,7 +584,8 @@ fn check_view(view: &StripView, block_end: u64, nodes: usize) -> Result<u64, Str
     let vertices = view.vertices.len();
     let references = view.references.to_vec();
     if let Some(position) = references.iter().position(|&r| r as usize >= vertices) {
-        let area_start = block_end - view.references.stored_bytes() as u64;
+        let area_start =
+            block_end - (view.boxes.stored_bytes() + view.references.stored_bytes()) as u64;
         let offset = area_start + view.references.byte_of(position) as u64;
         let detail = format!(
             "reference {position} is {} out of range ({vertices} vertices)",
@@ -590,9 +593,22 @@ fn check_view(view: &StripView, block_end: u64, nodes: usize) -> Result<u64, Str
         );
         return Err((Some(offset), detail));
     }
+    let boxes_start = block_end - view.boxes.stored_bytes() as u64;
+    let references_start = boxes_start - view.references.stored_bytes() as u64;
     if let Some(node) = (0..nodes).find(|&n| view.axis(n) > 2) {
-        let axes_start = block_end - (view.references.stored_bytes() + view.axes.len()) as u64;
+        let axes_start = references_start - view.axes.len() as u64;
         return Err((Some(axes_start), format!("node {node} has split axis 3")));
+    }
+    let exponents = view
+        .boxes
+        .exponents()
+        .unwrap_or([EXPONENTS.start().to_owned(); 3]);
+    if let Some(axis) = (0..3).find(|&axis| !EXPONENTS.contains(&exponents[axis])) {
+        let detail = format!(
+            "block box exponent {} on axis {axis} outside {EXPONENTS:?}",
+            exponents[axis]
+        );
+        return Err((Some(boxes_start + axis as u64), detail));
     }
     Ok(crate::strip_windows::triangles(&references).count() as u64)
 }
@@ -634,14 +650,15 @@ impl Checker<'_> {
             );
             return Err(self.invalid("header", 12, detail));
         }
-        if header.version_major != VERSION_MAJOR {
-            let advice = if header.version_major < VERSION_MAJOR {
+        if !(OLDEST_READ_MAJOR..=VERSION_MAJOR).contains(&header.version_major) {
+            let advice = if header.version_major < OLDEST_READ_MAJOR {
                 "an older format (version 1 had binary top-level nodes): convert the mesh again"
             } else {
                 "a newer format: use a newer reducem"
             };
             let detail = format!(
-                "format version {}.{}, this reader reads {VERSION_MAJOR}.x; {advice}",
+                "format version {}.{}, this reader reads {OLDEST_READ_MAJOR}.x to \
+                 {VERSION_MAJOR}.x; {advice}",
                 header.version_major, header.version_minor
             );
             return Err(self.invalid("header", 8, detail));
@@ -667,7 +684,7 @@ impl Checker<'_> {
 
     /// The precision record of a format 2.1 file, checksum checked; zeros for 2.0.
     fn precision(&self, header: &Header) -> Result<PrecisionRecord, FormatError> {
-        if header.version_minor == 0 {
+        if !header.has_precision_record() {
             return Ok(PrecisionRecord::default());
         }
         let bytes = &self.head[PRECISION_OFFSET..PRECISION_OFFSET + size_of::<PrecisionRecord>()];
@@ -698,11 +715,19 @@ impl Checker<'_> {
                 format!("unknown vertex encoding {}", header.vertex_encoding),
             ));
         };
-        if header.version_minor < encoding.minor() {
+        if header.version_major == 2 && header.version_minor < encoding.minor() {
             let detail = format!(
                 "vertex encoding {} needs format 2.{} or later",
                 header.vertex_encoding,
                 encoding.minor()
+            );
+            return Err(self.invalid("header", 20, detail));
+        }
+        let boxes = header.has_block_boxes();
+        if boxes && matches!(encoding, VertexEncoding::Grid | VertexEncoding::GridNodes) {
+            let detail = format!(
+                "vertex encoding {} (unpacked grid blocks) is not part of format 3",
+                header.vertex_encoding
             );
             return Err(self.invalid("header", 20, detail));
         }
@@ -719,10 +744,11 @@ impl Checker<'_> {
                 at(0),
                 format!("f32 vertices with a {}-bit grid", precision.grid_bits),
             )),
-            VertexEncoding::F32 => Ok((VertexLayout::F32, None)),
-            VertexEncoding::F32GridNodes => {
-                Ok((VertexLayout::F32, Some(self.lossless_node_grid(precision)?)))
-            }
+            VertexEncoding::F32 => Ok((VertexLayout::F32 { boxes }, None)),
+            VertexEncoding::F32GridNodes => Ok((
+                VertexLayout::F32 { boxes },
+                Some(self.lossless_node_grid(precision)?),
+            )),
             _ => {
                 let grid = precision.grid();
                 if !(1..=MAX_GRID_BITS).contains(&grid.bits) {
@@ -753,7 +779,11 @@ impl Checker<'_> {
                     None
                 };
                 let packed = encoding == VertexEncoding::GridPackedReferences;
-                let layout = VertexLayout::Grid { grid, packed };
+                let layout = VertexLayout::Grid {
+                    grid,
+                    packed,
+                    boxes,
+                };
                 Ok((layout, node_grid))
             }
         }
