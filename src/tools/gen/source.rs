@@ -3,9 +3,10 @@
 //! parallel batches, visited in order), and a chunk's vertices are computed on demand.
 //!
 //! This removes the input file from a job on a generated mesh: a billion-triangle scan's PLY is
-//! 19 GB, more than the chunk stage's own spill and chunk files, and writing then reading it
-//! back costs more than generating the mesh twice (partition needs two passes over the
-//! positions and two over the triangles).
+//! 19 GB, more than the chunk stage's own spill and chunk files. Time is about even: the chunk
+//! stage of a 100M scan takes 16.3 s generated, against 3.2 s to write the PLY and 15.6 s to
+//! hash and chunk it (partition runs the generator twice over the positions and twice over the
+//! triangles).
 //!
 //! Kinds with random access to their vertices ([`Generator::positions_of`]: scan, soup,
 //! terrain) give a chunk's positions directly; for the others, the vertex chunks holding the
