@@ -1,53 +1,78 @@
 //! The job's input: a user file, identified by its content hash (cached in the manifest while
 //! path, size and modification time are unchanged, so a rerun does not reread 5 GB), or a
-//! synthetic mesh generated into the work directory as a unit of its own.
+//! synthetic mesh, identified by its parameters and the generator's version and streamed from
+//! the generator into the chunk stage without an input file.
 
-use std::path::PathBuf;
+use std::path::Path;
 use std::time::UNIX_EPOCH;
 
 use anyhow::Context;
-use reducem::tools::gen;
+use reducem::chunking::MeshSource;
+use reducem::input::AttributeRequest;
+use reducem::tools::gen::{self, GeneratedSource};
 
 use crate::config::Input;
-use crate::fingerprint::{hash_file, Fingerprint};
-use crate::manifest::{Freshness, InputIdentity};
+use crate::fingerprint::hash_file;
+use crate::manifest::InputIdentity;
 use crate::stage::Job;
 
-/// Where the mesh is and what identifies its content.
+/// The mesh and what identifies its content.
 pub struct ResolvedInput {
-    pub path: PathBuf,
+    pub mesh: Input,
     pub content: String,
 }
 
-const GENERATE_UNIT: &str = "generate";
+impl ResolvedInput {
+    /// The mesh as the chunk stage reads it: a file through windows of `window_bytes`, or the
+    /// generator itself.
+    pub fn open(
+        &self,
+        request: AttributeRequest,
+        window_bytes: usize,
+    ) -> anyhow::Result<Box<dyn MeshSource>> {
+        Ok(match &self.mesh {
+            Input::File(path) => reducem::chunking::open_source(path, request, window_bytes)?,
+            &Input::Generate {
+                kind,
+                triangles,
+                seed,
+            } => Box::new(GeneratedSource::new(kind, triangles, seed)),
+        })
+    }
 
-/// Resolves the input, generating it first if the configuration asks for a synthetic mesh.
+    /// The input in words, for logs.
+    pub fn describe(&self) -> String {
+        match &self.mesh {
+            Input::File(path) => path.display().to_string(),
+            Input::Generate { .. } => format!(
+                "the {} (streamed from the generator, no input file)",
+                self.content.trim_start_matches(GENERATED)
+            ),
+        }
+    }
+
+    /// What names the input in errors: its path, or the configuration table of a generated mesh.
+    pub fn name(&self) -> &Path {
+        match &self.mesh {
+            Input::File(path) => path,
+            Input::Generate { .. } => Path::new("[input.generate]"),
+        }
+    }
+}
+
+/// Resolves the input, hashing a file whose identity is not cached.
 pub fn resolve(job: &Job) -> anyhow::Result<ResolvedInput> {
     match job.config.input().map_err(anyhow::Error::msg)? {
         Input::File(path) => Ok(ResolvedInput {
             content: content_hash(job, &path)?,
-            path,
+            mesh: Input::File(path),
         }),
-        Input::Generate {
-            kind,
-            triangles,
-            seed,
-        } => {
-            let generated = Generated::new(kind, triangles, seed);
-            if job.freshness(GENERATE_UNIT, &generated.fingerprint) != Freshness::Fresh {
-                job.progress.event(
-                    GENERATE_UNIT,
-                    "start",
-                    &format!("{kind:?} mesh, {triangles} triangles, seed {seed}"),
-                );
-                gen::generate(kind, triangles, seed, &job.work.file(&generated.relative))?;
-                job.complete(
-                    GENERATE_UNIT,
-                    &generated.fingerprint,
-                    std::slice::from_ref(&generated.relative),
-                )?;
-            }
-            Ok(generated.resolved(job))
+        generated => {
+            remove_former_generated_files(job)?;
+            Ok(ResolvedInput {
+                content: generated_content(&generated),
+                mesh: generated,
+            })
         }
     }
 }
@@ -63,20 +88,59 @@ pub fn peek(job: &Job) -> Result<ResolvedInput, String> {
                 .clone()
                 .filter(|c| same_identity(c, &identity));
             let content = cached.map_or_else(|| unhashed_content(&identity), |c| c.hash);
-            Ok(ResolvedInput { path, content })
+            Ok(ResolvedInput {
+                mesh: Input::File(path),
+                content,
+            })
         }
+        generated => Ok(ResolvedInput {
+            content: generated_content(&generated),
+            mesh: generated,
+        }),
+    }
+}
+
+/// Marks the content of a generated input.
+pub const GENERATED: &str = "generated: ";
+
+/// A generated mesh is fixed by its parameters and the generator's version; the words are what
+/// `status` shows when they change.
+fn generated_content(input: &Input) -> String {
+    match input {
         Input::Generate {
             kind,
             triangles,
             seed,
-        } => {
-            let generated = Generated::new(kind, triangles, seed);
-            match job.freshness(GENERATE_UNIT, &generated.fingerprint) {
-                Freshness::Fresh => Ok(generated.resolved(job)),
-                _ => Err("the generated input is not made yet".into()),
-            }
+        } => format!(
+            "{GENERATED}{kind} mesh of about {triangles} triangles, seed {seed}, generator version {}",
+            gen::GENERATOR_VERSION
+        ),
+        Input::File(path) => format!("file {}", path.display()),
+    }
+}
+
+/// Earlier versions generated the input into the work directory as a PLY file (19 GB for a
+/// billion-triangle scan); it is no longer read, so a work directory holding one loses it.
+fn remove_former_generated_files(job: &Job) -> anyhow::Result<()> {
+    let Ok(entries) = std::fs::read_dir(job.work.root()) else {
+        return Ok(());
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.starts_with("generated-") && name.ends_with(".ply") {
+            let path = entry.path();
+            std::fs::remove_file(&path).with_context(|| format!("removing {}", path.display()))?;
+            job.progress.event(
+                "input",
+                "clean",
+                &format!(
+                    "removed {}, a generated input no longer used",
+                    path.display()
+                ),
+            );
         }
     }
+    Ok(())
 }
 
 /// Marks an input content that status could not know without hashing the file.
@@ -92,34 +156,7 @@ fn unhashed_content(identity: &InputIdentity) -> String {
     )
 }
 
-/// A synthetic input: where it goes in the work directory and what it depends on.
-struct Generated {
-    relative: String,
-    fingerprint: Fingerprint,
-}
-
-impl Generated {
-    fn new(kind: gen::Kind, triangles: u64, seed: u64) -> Generated {
-        let name = kind.name();
-        Generated {
-            relative: format!("generated-{name}-{triangles}-{seed}.ply"),
-            fingerprint: Fingerprint::new()
-                .with("input.generate.kind", name)
-                .with("input.generate.triangles", triangles)
-                .with("input.generate.seed", seed),
-        }
-    }
-
-    /// The generated file's content is fixed by its parameters and the program version.
-    fn resolved(&self, job: &Job) -> ResolvedInput {
-        ResolvedInput {
-            path: job.work.file(&self.relative),
-            content: format!("generated:{}", self.fingerprint.digest()),
-        }
-    }
-}
-
-fn content_hash(job: &Job, path: &std::path::Path) -> anyhow::Result<String> {
+fn content_hash(job: &Job, path: &Path) -> anyhow::Result<String> {
     let identity = identity(path).with_context(|| format!("reading {}", path.display()))?;
     if let Some(cached) = job
         .manifest()
@@ -141,7 +178,7 @@ fn content_hash(job: &Job, path: &std::path::Path) -> anyhow::Result<String> {
     Ok(hash)
 }
 
-fn identity(path: &std::path::Path) -> std::io::Result<InputIdentity> {
+fn identity(path: &Path) -> std::io::Result<InputIdentity> {
     let meta = std::fs::metadata(path)?;
     let modified_ns = meta
         .modified()?

@@ -130,7 +130,7 @@ fn describe_change(name: &str, old: &str, new: &str) -> String {
         return format!("the {stage} stage's results changed");
     }
     match name {
-        "input" => describe_input_change(new),
+        "input" => describe_input_change(old, new),
         "top_level" => "the top-level hierarchy parameters of the program changed".into(),
         "format_version" => format!("the file format version changed from {old} to {new}"),
         "program_version" => format!("the program version changed from {old} to {new}"),
@@ -138,15 +138,22 @@ fn describe_change(name: &str, old: &str, new: &str) -> String {
     }
 }
 
-fn describe_input_change(new: &str) -> String {
+fn describe_input_change(old: &str, new: &str) -> String {
     if let Some(identity) = new.strip_prefix(crate::input::UNHASHED) {
         return format!(
             "input changed: {identity} (the next run hashes it again and redoes the work only \
              if its content differs)"
         );
     }
-    if new.starts_with("generated:") {
-        return "the generated input changed".into();
+    let generated = crate::input::GENERATED;
+    if let Some(new) = new.strip_prefix(generated) {
+        return match old.strip_prefix(generated) {
+            Some(old) => format!("the generated input changed from a {old} to a {new}"),
+            None if old.starts_with("generated:") => "the generated input is now streamed from \
+                the generator (an older version wrote it to a file)"
+                .into(),
+            None => format!("the input is now a generated {new}"),
+        };
     }
     "the input's content changed".into()
 }

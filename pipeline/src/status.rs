@@ -30,6 +30,9 @@ pub fn status(config_path: &Path) -> anyhow::Result<()> {
     let progress = Progress::new(LogFormat::Plain);
     let job = Job::new(&config, WorkDir::new(config.work_dir()), &progress);
     println!("work directory {}", job.work.root().display());
+    if let Ok(input) = input::peek(&job) {
+        println!("{:<20} {}", "input", input.describe());
+    }
     for UnitState { unit, state } in unit_states(&job) {
         match state {
             State::Done => println!("{unit:<20} done"),

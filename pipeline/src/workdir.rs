@@ -2,7 +2,7 @@
 //! goes through.
 
 use std::fs;
-use std::io::{self, Write};
+use std::io;
 use std::path::{Path, PathBuf};
 
 /// The file that marks a directory as a work directory made by pipeline: `pipeline clean`
@@ -33,18 +33,22 @@ impl WorkDir {
         self.root.join(relative)
     }
 
-    /// Creates the directory and its subdirectories, and marks it as made by pipeline.
+    /// Creates the directory, marks it as made by pipeline, then creates its subdirectories. The
+    /// marker comes first and is written in place (its content does not matter, only that it
+    /// exists), so a run killed at any moment leaves an empty directory or a marked one, never
+    /// a non-empty unmarked one that the next run would refuse as foreign.
     pub fn create(&self) -> io::Result<()> {
+        fs::create_dir_all(&self.root)?;
+        let marker = self.root.join(MARKER);
+        if !marker.exists() {
+            fs::write(
+                &marker,
+                b"A work directory of pipeline: `pipeline clean` removes it whole.\n",
+            )?;
+        }
         fs::create_dir_all(self.root.join("chunks"))?;
         fs::create_dir_all(self.root.join("strips"))?;
-        fs::create_dir_all(self.root.join("locks"))?;
-        let marker = self.root.join(MARKER);
-        if marker.exists() {
-            return Ok(());
-        }
-        reducem::atomic::write_atomically(&marker, |out| {
-            out.write_all(b"A work directory of pipeline: `pipeline clean` removes it whole.\n")
-        })
+        fs::create_dir_all(self.root.join("locks"))
     }
 
     pub fn made_by_pipeline(&self) -> bool {

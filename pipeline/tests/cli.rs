@@ -412,7 +412,7 @@ fn convert_writes_the_equivalent_config_and_resumes_like_run() {
     let status = String::from_utf8_lossy(&pipeline(&["status", config.to_str().unwrap()]).stdout)
         .to_string();
     assert!(
-        status.lines().skip(1).all(|l| l.ends_with("done")),
+        status.lines().skip(2).all(|l| l.ends_with("done")),
         "{status}"
     );
 }
@@ -580,7 +580,7 @@ fn the_default_work_directory_follows_the_config_or_an_existing_former_default()
         "{status}"
     );
     assert!(
-        status.lines().skip(1).all(|l| l.ends_with("done")),
+        status.lines().skip(2).all(|l| l.ends_with("done")),
         "{status}"
     );
 

@@ -2,8 +2,11 @@
 //! (`reducem::conversion::convert_mesh`) and by the staged job in several chunks, with f32 vertices,
 //! grid vertices and f32 vertices with grid nodes, hashes to the value recorded when the test was
 //! written (at 7bca529; recorded again for format 3.0's block boxes and packed references). A
-//! deliberate format or build change updates the table (the failure prints the new values). `soup` hashes as `scan` does: it is scan's surface with unshared
-//! vertices, which the bit-identical weld joins again.
+//! deliberate format or build change updates the table (the failure prints the new values).
+//! `soup` hashes as `scan` does: it is scan's surface with unshared vertices, which the
+//! bit-identical weld joins again. A job on `[input.generate]`, which streams the generator into
+//! the chunk stage without a file, hashes as the staged job on the PLY that `pipeline gen` writes
+//! for the same parameters.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -39,8 +42,8 @@ const RECORDED: [(&str, &str, u64, u64); 18] = [
     ("sphere", "f32-grid-nodes", 0x4e1e27603046ae33, 0xbe3220ceef91c1c3),
 ];
 
-fn temp_dir() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pipeline-golden-{}", std::process::id()));
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pipeline-golden-{}-{name}", std::process::id()));
     let _ = fs::remove_dir_all(&dir);
     fs::create_dir_all(&dir).expect("temp dir");
     dir
@@ -63,10 +66,21 @@ fn params(vertices: &str) -> BuildParams {
 /// The staged job with the in-memory path's strip length (the paper's 60, the pipeline's default
 /// when the hashes were recorded).
 fn staged(dir: &Path, input: &Path, vertices: &str, out: &Path) {
+    staged_from(dir, &format!("[input]\npath = {input:?}\n"), vertices, out);
+}
+
+/// [`staged`] on the generated mesh the golden PLY files hold, streamed from the generator.
+fn staged_generated(dir: &Path, kind_name: &str, vertices: &str, out: &Path) {
+    let input =
+        format!("[input.generate]\nkind = {kind_name:?}\ntriangles = {TRIANGLES}\nseed = 3\n");
+    staged_from(dir, &input, vertices, out);
+}
+
+fn staged_from(dir: &Path, input: &str, vertices: &str, out: &Path) {
     let config = dir.join("job.toml");
     let encoding = if vertices == "grid" { "grid" } else { "f32" };
     let body = format!(
-        "[input]\npath = {input:?}\n\n[output]\npath = {out:?}\n\n[chunk]\nmax_triangles = \
+        "{input}\n[output]\npath = {out:?}\n\n[chunk]\nmax_triangles = \
          {CHUNK_TRIANGLES}\n\n[strip]\nmax_length = 60\ngrid_nodes = {}\n\n[vertices]\nencoding = \"{encoding}\"\n",
         vertices == "f32-grid-nodes"
     );
@@ -88,7 +102,7 @@ fn hash(path: &Path) -> u64 {
 
 #[test]
 fn outputs_match_the_recorded_hashes() {
-    let dir = temp_dir();
+    let dir = temp_dir("recorded");
     let mut actual = Vec::new();
     for &(kind_name, vertices, _, _) in &RECORDED {
         let input = dir.join(format!("{kind_name}.ply"));
@@ -110,5 +124,29 @@ fn outputs_match_the_recorded_hashes() {
         actual == RECORDED,
         "outputs differ from the recorded hashes; now:\n{table}"
     );
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn generated_inputs_convert_to_the_files_of_their_ply() {
+    let dir = temp_dir("generated");
+    let cases = RECORDED
+        .iter()
+        .filter(|&&(kind_name, vertices, ..)| vertices == "f32" || kind_name == "scan");
+    for &(kind_name, vertices, _, recorded) in cases {
+        let out = dir.join(format!("{kind_name}-{vertices}.rdm"));
+        staged_generated(&dir, kind_name, vertices, &out);
+        assert_eq!(hash(&out), recorded, "{kind_name} {vertices}");
+        let work_files: Vec<_> = fs::read_dir(dir.join("job.work"))
+            .expect("work directory")
+            .map(|entry| entry.expect("entry").file_name())
+            .collect();
+        assert!(
+            !work_files
+                .iter()
+                .any(|name| name.to_string_lossy().ends_with(".ply")),
+            "no input file is written: {work_files:?}"
+        );
+    }
     let _ = fs::remove_dir_all(&dir);
 }

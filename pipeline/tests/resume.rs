@@ -133,6 +133,83 @@ fn runs_killed_at_random_moments_resume_to_identical_bytes() {
     }
 }
 
+/// A job on `[input.generate]` for the parameters of [`job`]'s input, streamed without a file.
+fn generated_job(dir: &Path) -> PathBuf {
+    let config = dir.join("generated.toml");
+    let body = "[input.generate]\nkind = \"scan\"\ntriangles = 60000\nseed = 5\n\n[output]\n\
+                path = \"generated.rdm\"\n\n[chunk]\nmax_triangles = 8000\n";
+    fs::write(&config, body).expect("config");
+    config
+}
+
+#[test]
+fn a_generated_input_killed_at_random_moments_resumes_to_the_bytes_of_its_ply() {
+    let dir = temp_dir("generated-kill");
+    run_ok(&job(&dir, ""), "2");
+    let reference = fs::read(dir.join("out.rdm")).unwrap();
+    let config = generated_job(&dir);
+    let started = Instant::now();
+    run_ok(&config, "2");
+    let full = started.elapsed();
+    assert!(reference == fs::read(dir.join("generated.rdm")).unwrap());
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    for trial in 0..4 {
+        fs::remove_dir_all(dir.join("generated.work")).unwrap();
+        fs::remove_file(dir.join("generated.rdm")).unwrap();
+        for _kill in 0..2 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let delay = full.mul_f64((state % 1000) as f64 / 1000.0);
+            let mut child = pipeline()
+                .args(["run", config.to_str().unwrap(), "--log-format", "plain"])
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("spawn");
+            std::thread::sleep(delay);
+            child.kill().expect("SIGKILL");
+            child.wait().expect("reap");
+        }
+        run_ok(&config, "2");
+        assert!(
+            reference == fs::read(dir.join("generated.rdm")).unwrap(),
+            "trial {trial}: output differs after kills"
+        );
+    }
+}
+
+#[test]
+fn a_changed_generated_input_is_named_in_status_and_reruns_from_chunk() {
+    let dir = temp_dir("generated-status");
+    let config = generated_job(&dir);
+    run_ok(&config, "2");
+    let status = |config: &Path| {
+        String::from_utf8_lossy(&run(&["status", config.to_str().unwrap()]).stdout).to_string()
+    };
+    let text = status(&config);
+    assert!(
+        text.contains(
+            "input                the scan mesh of about 60000 triangles, seed 5, generator \
+             version 1 (streamed from the generator, no input file)"
+        ),
+        "{text}"
+    );
+    assert!(text.lines().skip(2).all(|l| l.ends_with("done")), "{text}");
+    let body = fs::read_to_string(&config).unwrap();
+    fs::write(&config, body.replace("seed = 5", "seed = 6")).unwrap();
+    let text = status(&config);
+    assert!(
+        text.contains(
+            "chunk                stale: the generated input changed from a scan mesh of about \
+             60000 triangles, seed 5, generator version 1 to a scan mesh of about 60000 \
+             triangles, seed 6, generator version 1"
+        ),
+        "{text}"
+    );
+    let log = String::from_utf8_lossy(&run_ok(&config, "2").stderr).to_string();
+    assert!(!log.contains("chunk: fresh"), "{log}");
+}
+
 #[test]
 fn a_config_change_reruns_only_the_stages_it_affects() {
     let dir = temp_dir("invalidate");
@@ -140,7 +217,7 @@ fn a_config_change_reruns_only_the_stages_it_affects() {
     run_ok(&config, "2");
     let status = run(&["status", config.to_str().unwrap()]);
     let text = String::from_utf8_lossy(&status.stdout);
-    assert!(text.lines().skip(1).all(|l| l.ends_with("done")), "{text}");
+    assert!(text.lines().skip(2).all(|l| l.ends_with("done")), "{text}");
 
     let config = job(&dir, "\n[strip]\nmax_length = 30\n");
     let text =

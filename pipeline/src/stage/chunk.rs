@@ -5,8 +5,13 @@
 //! The stage is one unit: a run killed inside it redoes it from the start, since its passes
 //! share one plan. Triangles are first spilled per chunk as global vertex indices (12 bytes
 //! each), then each chunk gathers its positions with `positions_of` and is written on its own,
-//! so memory holds one chunk at a time, plus the 2-byte cell of every vertex (and, with a
-//! `[vertices] weld_tolerance`, every position while the model-wide weld is computed).
+//! so memory holds one chunk at a time per thread, plus, while partitioning, the 2-byte cell of
+//! every vertex (and, with a `[vertices] weld_tolerance`, every position while the model-wide
+//! weld is computed).
+//!
+//! A generated input (`[input.generate]`) is read the same way from the generator itself, which
+//! runs once per pass (twice over the positions, twice over the triangles) and computes each
+//! chunk's vertices on demand: no input file is written.
 //!
 //! With `[attributes] face_ids`, each spilled triangle carries its global input face id (16
 //! bytes instead of 12) and the chunk mesh keeps them; with normals or colours, each chunk
@@ -91,15 +96,30 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
         return Ok(chunked);
     }
     clear_chunks(job)?;
+    let started = std::time::Instant::now();
+    job.progress
+        .event(UNIT, "partition", &format!("reading {}", input.describe()));
     let request = job.config.attribute_request();
     let (source, weld) = chunking::weld_source(
-        chunking::open_source(&input.path, request, WINDOW_BYTES)?,
+        input.open(request, WINDOW_BYTES)?,
         job.config.vertices.weld_tolerance,
         request,
     )?;
     let partition = chunking::partition(&*source, job.config.chunk.max_triangles)?;
     let face_ids = job.config.attributes.face_ids;
-    let triangles_per_chunk = spill(job, &*source, &partition, face_ids, &input.path)?;
+    let triangles_per_chunk = spill(job, &*source, &partition, face_ids, input.name())?;
+    // Every vertex's cell (2 bytes a vertex, 1 GB for a billion triangles) is no longer needed.
+    let bounds = partition.bounds;
+    drop(partition);
+    let triangles: u64 = triangles_per_chunk.iter().sum();
+    job.progress.event(
+        UNIT,
+        "partition",
+        &format!(
+            "{triangles} triangles partitioned and spilled in {:.1} s",
+            started.elapsed().as_secs_f64()
+        ),
+    );
     let progress = job
         .progress
         .stage(UNIT, triangles_per_chunk.len() as u64, "chunks");
@@ -113,8 +133,8 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     let chunked = Chunked {
         digest: fingerprint.digest(),
         triangles_per_chunk,
-        bounds_min: partition.bounds.min,
-        bounds_max: partition.bounds.max,
+        bounds_min: bounds.min,
+        bounds_max: bounds.max,
         weld,
     };
     write_json(&job.work.file(PLAN), &chunked)?;

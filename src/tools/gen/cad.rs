@@ -21,11 +21,8 @@
 use std::f64::consts::{PI, TAU};
 use std::ops::Range;
 
-use anyhow::Result;
-
 use super::noise::Rng;
-use super::ply::{PlyWriter, Target};
-use super::{GenSummary, TRIANGLES_PER_CHUNK};
+use super::{GenSummary, Generator, TRIANGLES_PER_CHUNK};
 
 type Vec3 = [f64; 3];
 
@@ -336,32 +333,50 @@ fn part_chunks(parts: &[Part]) -> Vec<Range<usize>> {
     chunks
 }
 
-pub fn generate(triangles: u64, seed: u64, target: &Target) -> Result<GenSummary> {
-    let parts = plan_parts(triangles, seed);
-    let declared = GenSummary {
-        vertices: parts.iter().map(|p| p.shape.vertices()).sum(),
-        triangles: parts.iter().map(|p| p.shape.triangles()).sum(),
-    };
-    let chunks = part_chunks(&parts);
-    let mut writer = PlyWriter::create(target, declared)?;
-    writer.write_vertices(chunks.len(), |chunk, out| {
-        for part in &parts[chunks[chunk].clone()] {
-            part.local_mesh()
-                .positions
-                .iter()
-                .for_each(|&p| out.push(part.world(p)));
+/// The placed parts, grouped into chunks.
+pub struct Assembly {
+    parts: Vec<Part>,
+    chunks: Vec<Range<usize>>,
+}
+
+impl Assembly {
+    pub fn for_triangles(triangles: u64, seed: u64) -> Self {
+        let parts = plan_parts(triangles, seed);
+        let chunks = part_chunks(&parts);
+        Assembly { parts, chunks }
+    }
+}
+
+impl Generator for Assembly {
+    fn summary(&self) -> GenSummary {
+        GenSummary {
+            vertices: self.parts.iter().map(|p| p.shape.vertices()).sum(),
+            triangles: self.parts.iter().map(|p| p.shape.triangles()).sum(),
         }
-    })?;
-    writer.write_faces(chunks.len(), |chunk, out| {
-        for part in &parts[chunks[chunk].clone()] {
+    }
+
+    fn vertex_chunks(&self) -> usize {
+        self.chunks.len()
+    }
+
+    fn vertex_chunk(&self, chunk: usize, out: &mut Vec<[f32; 3]>) {
+        for part in &self.parts[self.chunks[chunk].clone()] {
+            let local = part.local_mesh();
+            out.extend(local.positions.iter().map(|&p| part.world(p)));
+        }
+    }
+
+    fn face_chunks(&self) -> usize {
+        self.chunks.len()
+    }
+
+    fn face_chunk(&self, chunk: usize, out: &mut Vec<[u32; 3]>) {
+        for part in &self.parts[self.chunks[chunk].clone()] {
             let offset = part.first_vertex as u32;
-            part.local_mesh()
-                .triangles
-                .iter()
-                .for_each(|t| out.push(t.map(|i| i + offset)));
+            let local = part.local_mesh();
+            out.extend(local.triangles.iter().map(|t| t.map(|i| i + offset)));
         }
-    })?;
-    writer.finish()
+    }
 }
 
 #[cfg(test)]

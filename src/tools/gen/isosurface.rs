@@ -27,13 +27,11 @@
 
 use std::ops::Range;
 
-use anyhow::Result;
 use rayon::prelude::*;
 
 use super::marching_cubes::{case_table, Case, EDGE_CORNERS};
 use super::noise::{fade, lattice_value, Rng};
-use super::ply::{FaceBuf, PlyWriter, Target, VertexBuf};
-use super::{Chunking, GenSummary, TRIANGLES_PER_CHUNK};
+use super::{Chunking, GenSummary, Generator, TRIANGLES_PER_CHUNK};
 
 /// Measured triangles per cube of the field at large resolutions.
 const TRIANGLES_PER_CELL: f64 = 0.33;
@@ -262,7 +260,7 @@ impl Volume {
         z: usize,
         lower: &[f32],
         upper: Option<&[f32]>,
-        out: &mut VertexBuf,
+        out: &mut Vec<[f32; 3]>,
     ) {
         let n = self.samples_per_side();
         self.for_each_plane_crossing(lower, |axis, x, y| {
@@ -294,7 +292,7 @@ impl Volume {
         lower: &[f32],
         upper: &[f32],
         groups: &[GroupStart],
-        out: &mut FaceBuf,
+        out: &mut Vec<[u32; 3]>,
     ) {
         let n = self.samples_per_side();
         let (here, above) = (groups[z], groups[z + 1]);
@@ -394,40 +392,73 @@ fn choose_volume(triangles: u64, seed: u64) -> (Volume, Vec<GroupCount>) {
     (volume, counts)
 }
 
-pub fn generate(triangles: u64, seed: u64, target: &Target) -> Result<GenSummary> {
-    let (volume, counts) = choose_volume(triangles, seed);
-    let mut first_id = 0;
-    let groups: Vec<GroupStart> = counts
-        .iter()
-        .map(|&count| {
-            let start = GroupStart { first_id, count };
-            first_id += count.vertices();
-            start
-        })
-        .collect();
-    let declared = GenSummary {
-        vertices: first_id,
-        triangles: counts.iter().map(|c| c.triangles).sum(),
-    };
-    let slabs = volume.slabs(declared.triangles / volume.cells as u64);
-    let planes = |slab: usize| {
-        let range = slabs.range(slab);
+/// The surface at the resolution chosen for a triangle count, with each layer's first vertex.
+pub struct Isosurface {
+    volume: Volume,
+    groups: Vec<GroupStart>,
+    summary: GenSummary,
+    slabs: Chunking,
+}
+
+impl Isosurface {
+    pub fn for_triangles(triangles: u64, seed: u64) -> Self {
+        let (volume, counts) = choose_volume(triangles, seed);
+        let mut first_id = 0;
+        let groups: Vec<GroupStart> = counts
+            .iter()
+            .map(|&count| {
+                let start = GroupStart { first_id, count };
+                first_id += count.vertices();
+                start
+            })
+            .collect();
+        let summary = GenSummary {
+            vertices: first_id,
+            triangles: counts.iter().map(|c| c.triangles).sum(),
+        };
+        let slabs = volume.slabs(summary.triangles / volume.cells as u64);
+        Isosurface {
+            volume,
+            groups,
+            summary,
+            slabs,
+        }
+    }
+
+    fn planes(&self, slab: usize) -> Range<usize> {
+        let range = self.slabs.range(slab);
         range.start as usize..range.end as usize
-    };
-    let mut writer = PlyWriter::create(target, declared)?;
-    writer.write_vertices(slabs.count(), |slab, out| {
-        volume.for_each_plane(planes(slab), |z, lower, upper| {
+    }
+}
+
+impl Generator for Isosurface {
+    fn summary(&self) -> GenSummary {
+        self.summary
+    }
+
+    fn vertex_chunks(&self) -> usize {
+        self.slabs.count()
+    }
+
+    fn vertex_chunk(&self, slab: usize, out: &mut Vec<[f32; 3]>) {
+        let volume = &self.volume;
+        volume.for_each_plane(self.planes(slab), |z, lower, upper| {
             volume.write_group_vertices(z, lower, upper, out)
         });
-    })?;
-    writer.write_faces(slabs.count(), |slab, out| {
-        volume.for_each_plane(planes(slab), |z, lower, upper| {
+    }
+
+    fn face_chunks(&self) -> usize {
+        self.slabs.count()
+    }
+
+    fn face_chunk(&self, slab: usize, out: &mut Vec<[u32; 3]>) {
+        let volume = &self.volume;
+        volume.for_each_plane(self.planes(slab), |z, lower, upper| {
             if let Some(upper) = upper {
-                volume.write_layer_faces(z, lower, upper, &groups, out);
+                volume.write_layer_faces(z, lower, upper, &self.groups, out);
             }
         });
-    })?;
-    writer.finish()
+    }
 }
 
 #[cfg(test)]

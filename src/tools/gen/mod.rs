@@ -1,13 +1,15 @@
-//! Synthetic mesh generators behind `pipeline gen KIND --triangles N -o OUT.ply`.
+//! Synthetic mesh generators behind `pipeline gen KIND --triangles N -o OUT.ply` and the
+//! pipeline's `[input.generate]`.
 //!
-//! Every generator streams a binary PLY without ever holding the mesh: the
-//! header counts are computed up front (in closed form, or for the isosurface
-//! by a counting pass), then vertices and faces are produced in independent
-//! chunks (rows of a grid, slabs of a volume, groups of parts) in parallel and
-//! written strictly in chunk order. Chunks are pure functions of
-//! `(kind, N, seed, chunk index)`, so the output is byte-identical for the
-//! same inputs regardless of thread scheduling, and memory is bounded by a few
-//! chunks in flight rather than by N.
+//! Every generator is a [`Generator`]: its counts are computed up front (in
+//! closed form, or for the isosurface by a counting pass), then vertices and
+//! faces are produced in independent chunks (rows of a grid, slabs of a
+//! volume, groups of parts). Chunks are pure functions of
+//! `(kind, N, seed, chunk index)`, so the mesh is identical for the same inputs
+//! regardless of thread scheduling, and memory is bounded by a few chunks in
+//! flight rather than by N. [`generate`] writes the chunks, produced in
+//! parallel, strictly in order to a binary PLY; [`GeneratedSource`] hands them
+//! to the out-of-core chunker directly, so a job needs no input file at all.
 //!
 //! The triangle count is the count nearest N that each construction allows;
 //! the rule is documented on each kind's module.
@@ -20,6 +22,7 @@ mod perturb;
 mod ply;
 mod scan;
 mod soup;
+mod source;
 mod sphere;
 mod terrain;
 #[cfg(test)]
@@ -31,6 +34,43 @@ use std::path::Path;
 use anyhow::Result;
 
 pub use perturb::perturbed_copies;
+pub use source::GeneratedSource;
+
+/// Changes whenever any kind's mesh changes for the same `(kind, N, seed)`: the pipeline's
+/// fingerprint of a generated input is its parameters and this version, since no file is
+/// hashed.
+pub const GENERATOR_VERSION: u32 = 1;
+
+/// A synthetic mesh as independent, deterministic chunks of vertices and of faces, in file
+/// order: concatenating the chunks gives the mesh's vertex and face arrays.
+pub trait Generator: Sync {
+    /// The mesh's counts, known before any chunk is produced.
+    fn summary(&self) -> GenSummary;
+    fn vertex_chunks(&self) -> usize;
+    /// Appends the positions of vertex chunk `chunk` to `out`.
+    fn vertex_chunk(&self, chunk: usize, out: &mut Vec<[f32; 3]>);
+    fn face_chunks(&self) -> usize;
+    /// Appends the triangles of face chunk `chunk` to `out`.
+    fn face_chunk(&self, chunk: usize, out: &mut Vec<[u32; 3]>);
+    /// The positions of `sorted_ids` (strictly ascending), bit-identical to theirs in the
+    /// chunks, for kinds that can compute a vertex without the rest of its chunk; `None`
+    /// makes the caller regenerate the chunks holding them.
+    fn positions_of(&self, _sorted_ids: &[u32]) -> Option<Vec<[f32; 3]>> {
+        None
+    }
+}
+
+/// The generator of a mesh of `kind` with about `triangles` triangles.
+pub fn generator(kind: Kind, triangles: u64, seed: u64) -> Box<dyn Generator> {
+    match kind {
+        Kind::Scan => Box::new(scan::ScanSurface::for_triangles(triangles, seed)),
+        Kind::Terrain => Box::new(terrain::Heightfield::for_triangles(triangles, seed)),
+        Kind::Isosurface => Box::new(isosurface::Isosurface::for_triangles(triangles, seed)),
+        Kind::Cad => Box::new(cad::Assembly::for_triangles(triangles, seed)),
+        Kind::Soup => Box::new(soup::Soup::for_triangles(triangles, seed)),
+        Kind::Sphere => Box::new(sphere::Icosphere::new(triangles, seed)),
+    }
+}
 
 /// The family of synthetic mesh to generate ([`Kind::description`] says what each looks like).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -137,14 +177,7 @@ pub fn generate(kind: Kind, triangles: u64, seed: u64, out: &Path) -> Result<Gen
         path: out,
         comment: &comment,
     };
-    match kind {
-        Kind::Scan => scan::generate(triangles, seed, &target),
-        Kind::Terrain => terrain::generate(triangles, seed, &target),
-        Kind::Isosurface => isosurface::generate(triangles, seed, &target),
-        Kind::Cad => cad::generate(triangles, seed, &target),
-        Kind::Soup => soup::generate(triangles, seed, &target),
-        Kind::Sphere => sphere::generate(triangles, seed, &target),
-    }
+    ply::write(&*generator(kind, triangles, seed), &target)
 }
 
 /// Splits `0..items` into consecutive chunks of `per_chunk` items (the last

@@ -2,10 +2,10 @@
 //!
 //! The header needs the element counts, so callers declare them up front and
 //! the writer checks at `finish` that exactly that many records were written.
-//! Records are produced by the caller in parallel chunks (`VertexBuf` /
-//! `FaceBuf`) and written strictly in chunk order while the next batch is
-//! being computed, which keeps the output deterministic and the memory
-//! bounded by a few chunks.
+//! Records are produced by a [`Generator`] in parallel chunks, encoded as
+//! records in the same parallel tasks (`VertexBuf` / `FaceBuf`) and written
+//! strictly in chunk order while the next batch is being computed, which
+//! keeps the output deterministic and the memory bounded by a few chunks.
 //!
 //! The file is written to a hidden temporary next to the target and moved over
 //! it only after a complete, synced write ([`crate::atomic::replace`], which
@@ -19,8 +19,24 @@ use std::path::{Path, PathBuf};
 use anyhow::{ensure, Context, Result};
 use rayon::prelude::*;
 
-use super::GenSummary;
+use super::{GenSummary, Generator};
 use crate::atomic;
+
+/// Writes `generator`'s mesh to `target`.
+pub fn write(generator: &dyn Generator, target: &Target) -> Result<GenSummary> {
+    let mut writer = PlyWriter::create(target, generator.summary())?;
+    writer.write_vertices(generator.vertex_chunks(), |chunk, out| {
+        let mut positions = Vec::new();
+        generator.vertex_chunk(chunk, &mut positions);
+        positions.into_iter().for_each(|p| out.push(p));
+    })?;
+    writer.write_faces(generator.face_chunks(), |chunk, out| {
+        let mut triangles = Vec::new();
+        generator.face_chunk(chunk, &mut triangles);
+        triangles.into_iter().for_each(|t| out.push(t));
+    })?;
+    writer.finish()
+}
 
 /// Where a generator writes and the `comment` line naming what it wrote.
 pub struct Target<'a> {

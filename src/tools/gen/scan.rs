@@ -19,11 +19,8 @@
 
 use std::f64::consts::TAU;
 
-use anyhow::Result;
-
-use super::noise::Fbm2;
-use super::ply::{PlyWriter, Target};
-use super::{Chunking, GenSummary, TRIANGLES_PER_CHUNK};
+use super::noise::{Fbm2, Fbm2Row};
+use super::{Chunking, GenSummary, Generator, TRIANGLES_PER_CHUNK};
 
 const MAJOR_RADIUS: f64 = 1.0;
 const TUBE_RADIUS: f64 = 0.35;
@@ -39,6 +36,13 @@ const NOISE_OCTAVES: u32 = 7;
 /// first corner, counter-clockwise seen from outside.
 pub const QUAD_TRIANGLES: [[(u32, u32); 3]; 2] =
     [[(0, 0), (1, 0), (1, 1)], [(0, 0), (1, 1), (0, 1)]];
+
+/// The shared part of one grid row's vertices.
+pub struct ScanRow {
+    sin_u: f64,
+    cos_u: f64,
+    noise: Fbm2Row,
+}
 
 /// The displaced torus, sampled on a `rows x columns` periodic grid.
 pub struct ScanSurface {
@@ -73,26 +77,44 @@ impl ScanSurface {
         self.rows as u64 * self.columns as u64
     }
 
-    /// Positions of grid row `row`, in column order, appended to `out`.
-    pub fn row_positions(&self, row: u32, out: &mut Vec<[f32; 3]>) {
+    /// What every vertex of grid row `row` shares: its angle around the main axis and its
+    /// noise.
+    pub fn row(&self, row: u32) -> ScanRow {
         let u = row as f64 / self.rows as f64;
         let (sin_u, cos_u) = (TAU * u).sin_cos();
-        let noise = self.noise.row(u);
-        out.extend(
-            self.tube_directions
-                .iter()
-                .enumerate()
-                .map(|(j, &(cos_v, sin_v))| {
-                    let v = j as f64 / self.columns as f64;
-                    let tube = TUBE_RADIUS + DISPLACEMENT * noise.at(v);
-                    let radial = MAJOR_RADIUS + tube * cos_v;
-                    [
-                        (radial * cos_u) as f32,
-                        (radial * sin_u) as f32,
-                        (tube * sin_v) as f32,
-                    ]
-                }),
-        );
+        ScanRow {
+            sin_u,
+            cos_u,
+            noise: self.noise.row(u),
+        }
+    }
+
+    /// The position of vertex `(row, column)` given its row's [`ScanRow`].
+    pub fn position(&self, row: &ScanRow, column: u32) -> [f32; 3] {
+        let (cos_v, sin_v) = self.tube_directions[column as usize];
+        let v = column as f64 / self.columns as f64;
+        let tube = TUBE_RADIUS + DISPLACEMENT * row.noise.at(v);
+        let radial = MAJOR_RADIUS + tube * cos_v;
+        [
+            (radial * row.cos_u) as f32,
+            (radial * row.sin_u) as f32,
+            (tube * sin_v) as f32,
+        ]
+    }
+
+    /// Positions of grid row `row`, in column order, appended to `out`.
+    pub fn row_positions(&self, row: u32, out: &mut Vec<[f32; 3]>) {
+        let frame = self.row(row);
+        out.extend((0..self.columns).map(|column| self.position(&frame, column)));
+    }
+
+    /// Chunks of whole grid rows: a vertex chunk and a face chunk cover the same rows.
+    fn row_chunks(&self) -> Chunking {
+        Chunking::by_work(
+            self.rows as u64,
+            2 * self.columns as u64,
+            TRIANGLES_PER_CHUNK,
+        )
     }
 
     /// Vertex ids of the triangles of quad `(row, column)`, wrapping around.
@@ -107,37 +129,45 @@ impl ScanSurface {
     }
 }
 
-pub fn generate(triangles: u64, seed: u64, target: &Target) -> Result<GenSummary> {
-    let surface = ScanSurface::for_triangles(triangles, seed);
-    let declared = GenSummary {
-        vertices: surface.vertices(),
-        triangles: surface.triangles(),
-    };
-    let rows = Chunking::by_work(
-        surface.rows as u64,
-        2 * surface.columns as u64,
-        TRIANGLES_PER_CHUNK,
-    );
-    let mut writer = PlyWriter::create(target, declared)?;
-    writer.write_vertices(rows.count(), |chunk, out| {
-        let mut positions = Vec::with_capacity(surface.columns as usize);
-        for row in rows.range(chunk) {
-            positions.clear();
-            surface.row_positions(row as u32, &mut positions);
-            positions.iter().for_each(|&p| out.push(p));
+impl Generator for ScanSurface {
+    fn summary(&self) -> GenSummary {
+        GenSummary {
+            vertices: self.vertices(),
+            triangles: self.triangles(),
         }
-    })?;
-    writer.write_faces(rows.count(), |chunk, out| {
-        for row in rows.range(chunk) {
-            for column in 0..surface.columns {
-                surface
-                    .quad_triangles(row as u32, column)
-                    .into_iter()
-                    .for_each(|t| out.push(t));
+    }
+
+    fn vertex_chunks(&self) -> usize {
+        self.row_chunks().count()
+    }
+
+    fn vertex_chunk(&self, chunk: usize, out: &mut Vec<[f32; 3]>) {
+        for row in self.row_chunks().range(chunk) {
+            self.row_positions(row as u32, out);
+        }
+    }
+
+    fn face_chunks(&self) -> usize {
+        self.row_chunks().count()
+    }
+
+    fn face_chunk(&self, chunk: usize, out: &mut Vec<[u32; 3]>) {
+        for row in self.row_chunks().range(chunk) {
+            for column in 0..self.columns {
+                out.extend(self.quad_triangles(row as u32, column));
             }
         }
-    })?;
-    writer.finish()
+    }
+
+    /// Vertex `i * columns + j` is `(i, j)`; the ids of one row share one [`ScanRow`].
+    fn positions_of(&self, sorted_ids: &[u32]) -> Option<Vec<[f32; 3]>> {
+        let mut positions = Vec::with_capacity(sorted_ids.len());
+        for ids in sorted_ids.chunk_by(|a, b| a / self.columns == b / self.columns) {
+            let row = self.row(ids[0] / self.columns);
+            positions.extend(ids.iter().map(|id| self.position(&row, id % self.columns)));
+        }
+        Some(positions)
+    }
 }
 
 #[cfg(test)]

@@ -23,11 +23,8 @@
 //! Triangle count: `20 k^2` with `k = max(1, round(sqrt(N / 20)))`; vertex
 //! count `10 k^2 + 2`.
 
-use anyhow::Result;
-
 use super::noise::Rng;
-use super::ply::{FaceBuf, PlyWriter, Target, VertexBuf};
-use super::{GenSummary, TRIANGLES_PER_CHUNK};
+use super::{GenSummary, Generator, TRIANGLES_PER_CHUNK};
 
 type Vec3 = [f64; 3];
 
@@ -35,7 +32,7 @@ const CORNERS: usize = 12;
 const EDGES: usize = 30;
 const FACES: usize = 20;
 
-struct Icosphere {
+pub struct Icosphere {
     /// Subdivisions per icosahedron edge.
     k: u32,
     corners: [Vec3; CORNERS],
@@ -125,7 +122,7 @@ fn outward(face: [u32; 3], corners: &[Vec3; CORNERS]) -> [u32; 3] {
 }
 
 impl Icosphere {
-    fn new(triangles: u64, seed: u64) -> Self {
+    pub fn new(triangles: u64, seed: u64) -> Self {
         let k = ((triangles as f64 / 20.0).sqrt().round() as u32).max(1);
         let (corners, faces) = icosahedron(seed);
         let mut edges: Vec<(u32, u32)> = faces
@@ -159,14 +156,6 @@ impl Icosphere {
 
     fn first_interior_id(&self) -> u64 {
         (CORNERS + EDGES * (self.k as usize - 1)) as u64
-    }
-
-    fn summary(&self) -> GenSummary {
-        let k = self.k as u64;
-        GenSummary {
-            vertices: 10 * k * k + 2,
-            triangles: 20 * k * k,
-        }
     }
 
     fn edge_point_id(&self, from: u32, to: u32, steps_from_start: u32) -> u32 {
@@ -217,9 +206,23 @@ impl Icosphere {
             .div_ceil(self.interior_rows_per_chunk)
     }
 
+    fn face_chunks_per_face(&self) -> u32 {
+        self.k.div_ceil(self.strips_per_chunk)
+    }
+}
+
+impl Generator for Icosphere {
+    fn summary(&self) -> GenSummary {
+        let k = self.k as u64;
+        GenSummary {
+            vertices: 10 * k * k + 2,
+            triangles: 20 * k * k,
+        }
+    }
+
     /// Chunk 0 holds corners and edge points, then each face's interior
     /// rows in blocks, matching the id order.
-    fn vertex_chunk(&self, chunk: usize, out: &mut VertexBuf) {
+    fn vertex_chunk(&self, chunk: usize, out: &mut Vec<[f32; 3]>) {
         if chunk == 0 {
             self.corners
                 .iter()
@@ -247,14 +250,14 @@ impl Icosphere {
         1 + FACES * self.interior_chunks_per_face() as usize
     }
 
-    fn face_chunks_per_face(&self) -> u32 {
-        self.k.div_ceil(self.strips_per_chunk)
+    fn face_chunks(&self) -> usize {
+        FACES * self.face_chunks_per_face() as usize
     }
 
     /// Strip `j` lies between lattice rows `j` and `j + 1`: upward triangles
     /// `(i,j) (i+1,j) (i,j+1)` and downward ones `(i+1,j) (i+1,j+1) (i,j+1)`,
     /// both with the face's orientation.
-    fn face_chunk(&self, chunk: usize, out: &mut FaceBuf) {
+    fn face_chunk(&self, chunk: usize, out: &mut Vec<[u32; 3]>) {
         let per_face = self.face_chunks_per_face() as usize;
         let (face, block) = (chunk / per_face, (chunk % per_face) as u32);
         let first_strip = block * self.strips_per_chunk;
@@ -269,17 +272,6 @@ impl Icosphere {
             }
         }
     }
-}
-
-pub fn generate(triangles: u64, seed: u64, target: &Target) -> Result<GenSummary> {
-    let sphere = Icosphere::new(triangles, seed);
-    let mut writer = PlyWriter::create(target, sphere.summary())?;
-    writer.write_vertices(sphere.vertex_chunks(), |chunk, out| {
-        sphere.vertex_chunk(chunk, out)
-    })?;
-    let face_chunks = FACES * sphere.face_chunks_per_face() as usize;
-    writer.write_faces(face_chunks, |chunk, out| sphere.face_chunk(chunk, out))?;
-    writer.finish()
 }
 
 #[cfg(test)]
