@@ -1,6 +1,6 @@
 //! The project's one memory mapping of a file.
 
-use std::fs::File;
+use std::fs::{self, File};
 use std::io;
 
 use memmap2::{Mmap, MmapOptions};
@@ -41,4 +41,33 @@ pub fn advise_scattered_reads(map: &Mmap) {
     // A hint only: a kernel that refuses it pages as it would have without, so the error has no
     // consequence for correctness.
     let _ = map.advise(memmap2::Advice::Random);
+}
+
+/// The memory the kernel reports it could give without swapping (`MemAvailable` of
+/// `/proc/meminfo`, free pages plus reclaimable page cache), or `None` where there is no such
+/// file (not Linux) or it does not say.
+pub fn available_memory_bytes() -> Option<u64> {
+    parse_available_memory(&fs::read_to_string("/proc/meminfo").ok()?)
+}
+
+fn parse_available_memory(meminfo: &str) -> Option<u64> {
+    let line = meminfo
+        .lines()
+        .find_map(|line| line.strip_prefix("MemAvailable:"))?;
+    let kib = line.trim().strip_suffix("kB")?.trim().parse::<u64>().ok()?;
+    kib.checked_mul(1024)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn available_memory_is_read_in_bytes() {
+        let meminfo = "MemTotal:       24683860 kB\nMemFree:         9520000 kB\n\
+                       MemAvailable:    3145728 kB\nBuffers:            1234 kB\n";
+        assert_eq!(parse_available_memory(meminfo), Some(3 << 30));
+        assert_eq!(parse_available_memory("MemTotal: 1 kB\n"), None);
+        assert_eq!(parse_available_memory("MemAvailable: lots\n"), None);
+    }
 }

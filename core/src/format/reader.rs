@@ -264,20 +264,36 @@ impl ReducemFile {
         validate::open(path, Some(validation))
     }
 
-    /// Tells the kernel how a batch of `rays` rays will read the file: a batch small for the
-    /// file (fewer than one ray per [`SCATTERED_BATCH_BYTES_PER_RAY`]) touches scattered pages,
-    /// so each page fault should read its page alone; a larger batch keeps the default
-    /// read-around, which streams the many pages it needs faster than page-by-page faults.
+    /// Tells the kernel how a batch of `rays` rays will read the file: scattered pages, each
+    /// page fault reading its page alone, when the batch is small for the file (fewer than one
+    /// ray per [`SCATTERED_BATCH_BYTES_PER_RAY`]) or when the file is larger than the memory
+    /// available ([`crate::mapping::available_memory_bytes`]); otherwise the default
+    /// read-around, which streams the many pages a large batch needs faster than page-by-page
+    /// faults.
     ///
-    /// Measured on the 300M-triangle scan (5.5 GiB, 8 MiB read-ahead, page cache cold,
-    /// `reducem query --occluded` of spread AO rays): 1 ray 0.25–0.57 s by default, 0.03 s
+    /// Small batches, measured on the 300M-triangle scan (5.5 GiB, 8 MiB read-ahead, page cache
+    /// cold, `reducem query --occluded` of spread AO rays): 1 ray 0.25–0.57 s by default, 0.03 s
     /// advised; 1,000 rays 4.9–6.0 s against 0.7–0.8 s; 10,000 rays 6.1–6.7 s against 4.8–5.2 s;
-    /// 100,000 rays 5.8–7.8 s against 18–21 s. The same frame-sized batches under a page-cache
-    /// budget were also slower advised (a 1024² primary frame warm with 4 GiB: 6.3 s against
-    /// 11.5 s), and advising the nodes "will need" (reading them all ahead) gained nothing
-    /// measurable (`scripts/bench_outofcore.sh`).
+    /// 100,000 rays 5.8–7.8 s against 18–21 s. Advising the nodes "will need" (reading them all
+    /// ahead) gained nothing measurable.
+    ///
+    /// Files larger than memory: the read-around window (8 MiB on the test machine's disk)
+    /// evicts the pages the rays keep returning to, so every frame reads the file again. On the
+    /// 500M-triangle scan (9.22 GiB) with 3 GiB available (`MODEL=scan500m.rdm BUDGETS=3
+    /// SIZES=1024 scripts/bench_outofcore.sh`, 1024², 4 AO rays per pixel, 2 threads), a warm
+    /// AO frame read 5.4 GiB and traced 0.23 Mrays/s by default, 0 bytes and 0.98 Mrays/s
+    /// advised (1.01 in core); a warm primary frame 0.27 against 0.91 Mrays/s (1.57 in core).
+    /// The price is the first frame from a cold cache: page-by-page faults traced it at 0.036
+    /// instead of 0.17 Mrays/s (AO); later frames, and later processes while the pages stay
+    /// cached, gain. (An earlier measurement on a loaded machine found the opposite with a
+    /// 4 GiB budget on the 5.5 GiB 300M scan, 73% of the file: a warm primary frame 11.5 s
+    /// advised against 6.3 s; not measured again since.)
     pub fn advise_batch(&self, rays: usize) {
-        if (rays as u64).saturating_mul(SCATTERED_BATCH_BYTES_PER_RAY) < self.file_bytes() {
+        let small_batch =
+            (rays as u64).saturating_mul(SCATTERED_BATCH_BYTES_PER_RAY) < self.file_bytes();
+        let larger_than_memory = crate::mapping::available_memory_bytes()
+            .is_some_and(|available| self.file_bytes() > available);
+        if small_batch || larger_than_memory {
             crate::mapping::advise_scattered_reads(&self.map);
         }
     }
