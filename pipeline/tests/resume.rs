@@ -6,7 +6,7 @@ use std::fs::{self, File};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use reducem::format::grid::Grid;
 use reducem::format::reader::ReducemFile;
@@ -107,10 +107,25 @@ fn runs_killed_at_random_moments_resume_to_identical_bytes() {
     run_ok(&config, "2");
     let full = started.elapsed();
     let reference = fs::read(dir.join("out.rdm")).unwrap();
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    for trial in 0..12 {
-        fs::remove_dir_all(dir.join("job.work")).unwrap();
-        fs::remove_file(dir.join("out.rdm")).unwrap();
+    kill_and_resume(&config, &dir.join("out.rdm"), &reference, full, 12, 0x2545_f491_4f6c_dd1d);
+}
+
+/// `trials` times: removes the job's work directory and output, SIGKILLs two runs of `config`
+/// at pseudo-random moments within `full` (xorshift from `seed`), runs it to the end and expects
+/// `output` to hold `reference`'s bytes.
+fn kill_and_resume(
+    config: &Path,
+    output: &Path,
+    reference: &[u8],
+    full: Duration,
+    trials: usize,
+    seed: u64,
+) {
+    let work = config.with_extension("work");
+    let mut state = seed;
+    for trial in 0..trials {
+        fs::remove_dir_all(&work).unwrap();
+        fs::remove_file(output).unwrap();
         for _kill in 0..2 {
             state ^= state << 13;
             state ^= state >> 7;
@@ -125,9 +140,9 @@ fn runs_killed_at_random_moments_resume_to_identical_bytes() {
             child.kill().expect("SIGKILL");
             child.wait().expect("reap");
         }
-        run_ok(&config, "2");
+        run_ok(config, "2");
         assert!(
-            reference == fs::read(dir.join("out.rdm")).unwrap(),
+            reference == fs::read(output).unwrap(),
             "trial {trial}: output differs after kills"
         );
     }
@@ -152,30 +167,8 @@ fn a_generated_input_killed_at_random_moments_resumes_to_the_bytes_of_its_ply() 
     run_ok(&config, "2");
     let full = started.elapsed();
     assert!(reference == fs::read(dir.join("generated.rdm")).unwrap());
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    for trial in 0..4 {
-        fs::remove_dir_all(dir.join("generated.work")).unwrap();
-        fs::remove_file(dir.join("generated.rdm")).unwrap();
-        for _kill in 0..2 {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let delay = full.mul_f64((state % 1000) as f64 / 1000.0);
-            let mut child = pipeline()
-                .args(["run", config.to_str().unwrap(), "--log-format", "plain"])
-                .stderr(Stdio::null())
-                .spawn()
-                .expect("spawn");
-            std::thread::sleep(delay);
-            child.kill().expect("SIGKILL");
-            child.wait().expect("reap");
-        }
-        run_ok(&config, "2");
-        assert!(
-            reference == fs::read(dir.join("generated.rdm")).unwrap(),
-            "trial {trial}: output differs after kills"
-        );
-    }
+    let output = dir.join("generated.rdm");
+    kill_and_resume(&config, &output, &reference, full, 4, 0x9e37_79b9_7f4a_7c15);
 }
 
 #[test]
