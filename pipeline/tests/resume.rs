@@ -107,7 +107,14 @@ fn runs_killed_at_random_moments_resume_to_identical_bytes() {
     run_ok(&config, "2");
     let full = started.elapsed();
     let reference = fs::read(dir.join("out.rdm")).unwrap();
-    kill_and_resume(&config, &dir.join("out.rdm"), &reference, full, 12, 0x2545_f491_4f6c_dd1d);
+    kill_and_resume(
+        &config,
+        &dir.join("out.rdm"),
+        &reference,
+        full,
+        12,
+        0x2545_f491_4f6c_dd1d,
+    );
 }
 
 /// `trials` times: removes the job's work directory and output, SIGKILLs two runs of `config`
