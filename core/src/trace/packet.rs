@@ -138,21 +138,22 @@ impl PacketKernel for WideKernel {
 /// Traces up to [`PACKET_WIDTH`] rays; entry `i` is ray `i`'s closest hit (or, with `any_hit`,
 /// a hit that proves occlusion). Entries past `rays.len()` are empty.
 pub fn trace_packet(tracer: &Tracer, rays: &[Ray], any_hit: bool) -> [Closest; PACKET_WIDTH] {
-    let mut closest = [Closest::none(f32::NEG_INFINITY); PACKET_WIDTH];
+    let rays = &rays[..rays.len().min(PACKET_WIDTH)];
+    let mut closest = std::array::from_fn(|lane| {
+        Closest::none(rays.get(lane).map_or(f32::NEG_INFINITY, |ray| ray.tmax))
+    });
     let Some(first) = rays.first() else {
         return closest;
     };
     let octant = first.direction.map(f32::is_sign_negative);
-    let rays = &rays[..rays.len().min(PACKET_WIDTH)];
-    let shares_octant = |ray: &Ray| ray.direction.map(f32::is_sign_negative) == octant;
-    let mut packet_mask = 0u32;
-    if rays.iter().filter(|ray| shares_octant(ray)).count() >= MIN_PACKET_LANES {
-        for (lane, ray) in rays.iter().enumerate() {
-            packet_mask |= (shares_octant(ray) as u32) << lane;
-        }
+    // The lanes sharing the first ray's octant, each ray's signs read once.
+    let mut packet_mask = rays.iter().enumerate().fold(0u32, |mask, (lane, ray)| {
+        mask | ((ray.direction.map(f32::is_sign_negative) == octant) as u32) << lane
+    });
+    if (packet_mask.count_ones() as usize) < MIN_PACKET_LANES {
+        packet_mask = 0;
     }
     for (lane, ray) in rays.iter().enumerate() {
-        closest[lane] = Closest::none(ray.tmax);
         if packet_mask & (1 << lane) == 0 {
             let prepared = PreparedRay::new(ray);
             trace_ray(
@@ -415,6 +416,9 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
 ) {
     let mut finished = 0u32;
     let mut stack = DeferStack::default();
+    // Each lane's strip query, made once for the packet rather than once per strip.
+    let queries: [StripQuery; PACKET_WIDTH] =
+        std::array::from_fn(|lane| tracer.query(&lanes.rays[lane], ANY_HIT));
     // The lanes' culling bounds change only at leaves: gathered once per leaf, not per node.
     let mut limit = bounds(closest, finished);
     // The root has no box: every lane starts with its own interval.
@@ -443,8 +447,12 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
                     continue;
                 }
             } else {
-                finished |= trace_leaf_lanes::<C, ANY_HIT>(tracer, lanes, &current, closest);
-                limit = bounds(closest, finished);
+                let found = trace_leaf_lanes::<C, ANY_HIT>(tracer, &queries, &current, closest);
+                // An occlusion lane's bound changes only when it finishes.
+                if !ANY_HIT || found != 0 {
+                    finished |= found;
+                    limit = bounds(closest, finished);
+                }
             }
         }
         loop {
@@ -470,7 +478,7 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
 #[inline(always)]
 fn trace_leaf_lanes<C: PacketKernel, const ANY_HIT: bool>(
     tracer: &Tracer,
-    lanes: &Lanes,
+    queries: &[StripQuery; PACKET_WIDTH],
     leaf: &PacketDeferred,
     closest: &mut [Closest; PACKET_WIDTH],
 ) -> u32 {
@@ -487,8 +495,7 @@ fn trace_leaf_lanes<C: PacketKernel, const ANY_HIT: bool>(
                 active &= !(1 << lane);
                 return;
             }
-            let query = tracer.query(&lanes.rays[lane], ANY_HIT);
-            if C::trace_strip(&query, &view, strip, t_near[lane], t_far, closest) {
+            if C::trace_strip(&queries[lane], &view, strip, t_near[lane], t_far, closest) {
                 finished |= 1 << lane;
                 active &= !(1 << lane);
             }
