@@ -490,8 +490,14 @@ fn trace_leaf_lanes<C: PacketKernel, const ANY_HIT: bool>(
         let view = tracer.file().strip(strip as usize);
         for_each_bit(active, |lane| {
             let closest = &mut closest[lane];
-            let t_far = t_far[lane].min(closest.reach);
-            if t_near[lane] > t_far {
+            // An occlusion lane's bound stays what its interval was clipped to until the lane
+            // finishes, so the interval needs no clipping again (nor can it be empty).
+            let t_far = if ANY_HIT {
+                t_far[lane]
+            } else {
+                t_far[lane].min(closest.reach)
+            };
+            if !ANY_HIT && t_near[lane] > t_far {
                 active &= !(1 << lane);
                 return;
             }
