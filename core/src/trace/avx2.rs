@@ -131,6 +131,12 @@ impl PacketKernel for Avx2Packets {
     }
 
     #[inline(always)]
+    fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
+        // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
+        unsafe { lanes_at_most(a, b) }
+    }
+
+    #[inline(always)]
     fn trace_strip(
         query: &StripQuery,
         view: &StripView,
@@ -183,6 +189,15 @@ fn clip_slot(lanes: &Lanes, planes: &Avx2Planes, slot: usize, t_far: f32x8) -> (
     }
     let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
     (bytemuck::cast(near), bytemuck::cast(far), mask)
+}
+
+/// [`Avx2Packets::lanes_at_most`]: one `vcmpps` (`LE_OQ`, as `cmpleps`) on eight lanes, where
+/// `wide` compares two halves.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
+    let (a, b): (__m256, __m256) = (bytemuck::cast(a), bytemuck::cast(b));
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(a, b)) as u32
 }
 
 /// A node's child box planes for [`clip_slot`]: per axis the four slots' entry and exit

@@ -89,6 +89,9 @@ pub(super) trait PacketKernel {
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32);
 
+    /// The lanes where `a <= b` (false where either is NaN), as a bit mask.
+    fn lanes_at_most(a: f32x8, b: f32x8) -> u32;
+
     /// [`StripQuery::trace`] of one lane.
     fn trace_strip(
         query: &StripQuery,
@@ -120,6 +123,11 @@ impl PacketKernel for WideKernel {
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32) {
         lanes.clip_slot(planes, slot, t_far)
+    }
+
+    #[inline(always)]
+    fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
+        a.simd_le(b).to_bitmask()
     }
 
     #[inline(always)]
@@ -459,7 +467,7 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
             let Some(deferred) = stack.pop() else {
                 return;
             };
-            let alive = deferred.t_near.simd_le(limit).to_bitmask();
+            let alive = C::lanes_at_most(deferred.t_near, limit);
             let mask = deferred.mask & alive;
             if mask != 0 {
                 current = PacketDeferred { mask, ..deferred };
