@@ -12,7 +12,8 @@
 //! planes; the lanewise box arithmetic is the scalar arithmetic of [`PreparedRay::clip_box`]
 //! operation for operation, so a lane enters exactly the boxes its ray enters alone, with the
 //! same interval for the same closest-hit bound; children are visited in an order that depends
-//! on the direction signs alone, as closest-hit single rays visit them; and a lane that is
+//! on the direction signs alone, as closest-hit single rays visit them (sorted by keys that are
+//! never NaN, the children any lane entered come in each lane's own order); and a lane that is
 //! inactive in a subtree tests nothing there. Each lane thus visits the same leaves in the same
 //! order with the same bounds as its ray alone, so the results agree bit for bit even on a
 //! corrupt file whose boxes do not bound their strips (on a valid file the closest-hit rule
@@ -245,9 +246,8 @@ impl Lanes {
     /// Clips the `active` lanes against `node`'s occupied slots; returns the child to visit
     /// first (for closest hits) and defers the others, so that they come off the stack in
     /// visiting order: [`order_keys`] order for closest hits, slot order for occlusion
-    /// (`ANY_HIT`).
-    /// Empty slots are skipped (by their link: a grid node's empty box is not missed by
-    /// construction); validated nodes hold their occupied slots first.
+    /// (`ANY_HIT`). Empty slots are skipped (by their link: a grid node's empty box is not
+    /// missed by construction); validated nodes hold their occupied slots first.
     #[inline(always)]
     fn enter_children<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
         &self,
@@ -277,8 +277,9 @@ impl Lanes {
         };
         if ANY_HIT {
             // Slot order is known before clipping: the slots are clipped last to first and
-            // each child entered goes straight onto the stack, the first one too (keeping the
-            // first out of it cost more than pushing and popping it).
+            // each child entered goes straight onto the stack, the first one too (clipping
+            // first to first and keeping the first child entered off the stack cost 3,139
+            // instead of 3,134 instructions per AO ray, callgrind, 100k rays of the 1M scan).
             let mut defer = |slot: usize| {
                 if slot < occupied {
                     if let Some(child) = clip(slot) {
@@ -286,14 +287,16 @@ impl Lanes {
                     }
                 }
             };
-            // Unrolled by hand: as a loop it stayed one, with the slot in a register.
+            // Unrolled by hand: as a loop over the slots it stayed one, with the slot in a
+            // register (3,146 instead of 3,134 instructions per AO ray).
             defer(3);
             defer(2);
             defer(1);
             defer(0);
             return None;
         }
-        // Not an array of defaults: filling four 96-byte entries cost some 60 stores a node.
+        // Not an array of defaults: zeroing four 96-byte entries and filling one per slot cost
+        // 2,412 instead of 2,313 instructions per primary ray (callgrind, 100k rays).
         let mut entered = ArrayVec::<PacketDeferred, TOP_WIDTH>::new();
         let mut slots = [0; TOP_WIDTH];
         for slot in 0..TOP_WIDTH {
@@ -319,10 +322,11 @@ impl Lanes {
     }
 }
 
-/// Insertion sort of the indices of the at most four children entered (in slot order) by their
-/// keys; stable, so equal keys keep slot order, as [`super::top::sort_by_key`] orders the children a single
-/// ray enters. The keys are never NaN ([`order_keys`]), so this order of the children any lane
-/// entered, restricted to those a lane entered, is that lane's order alone.
+/// Insertion sort of the indices of the at most four children entered (in slot order) by
+/// their keys; stable, so equal keys keep slot order, as [`super::top::sort_by_key`] orders
+/// the children a single ray enters. The keys are never NaN ([`order_keys`]), so this order of
+/// the children any lane entered, restricted to those a lane entered, is that lane's order
+/// alone.
 #[inline(always)]
 fn sort_by_keys(indices: &mut [usize], keys: &[f32; TOP_WIDTH]) {
     // The remainder spares the bounds checks.

@@ -284,8 +284,9 @@ fn enter_children<N: TraceNode>(
 /// that opens, even on a corrupt one whose boxes no longer bound their strips (where the order
 /// decides which hits are culled). A NaN key (a box with infinite or NaN bounds, in a corrupt
 /// file) counts as `-inf`: with no NaN among the keys, sorting any subset of the children gives
-/// the order of sorting them all restricted to that subset, which packets rely on (they order
-/// all occupied slots before clipping them).
+/// the order of sorting them all restricted to that subset, which packets rely on: they sort
+/// the children any of their lanes entered, and each lane must meet its own in the order it
+/// would sort them alone.
 #[inline(always)]
 pub fn order_keys(
     min: &[[f32; TOP_WIDTH]; 3],
