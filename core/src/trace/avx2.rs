@@ -131,6 +131,15 @@ impl PacketKernel for Avx2Packets {
     }
 
     #[inline(always)]
+    fn prefetch<T>(records: &[T], index: usize) {
+        let start = records.as_ptr().wrapping_add(index).cast::<i8>();
+        for offset in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch reads nothing and faults on no address; SSE is enabled.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
+        }
+    }
+
+    #[inline(always)]
     fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
         // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
         unsafe { lanes_at_most(a, b) }
