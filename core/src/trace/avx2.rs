@@ -109,17 +109,40 @@ fn traverse_packet_detected(
 struct Avx2Packets;
 
 impl PacketKernel for Avx2Packets {
+    type Planes = Avx2Planes;
+
+    #[inline(always)]
+    fn planes(lanes: &Lanes, boxes: &ChildBoxes) -> Avx2Planes {
+        // SAFETY: as for `clip_slot` below: AVX2 was detected before this runs.
+        unsafe { planes(lanes, boxes) }
+    }
+
     #[inline(always)]
     fn clip_slot(
         lanes: &Lanes,
-        boxes: &ChildBoxes,
+        planes: &Avx2Planes,
         slot: usize,
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32) {
         // SAFETY: `Avx2Packets` is private to this module and used only by
         // `traverse_packet_detected`, which runs only once AVX2 was detected
         // (`traverse_packet`).
-        unsafe { clip_slot(lanes, boxes, slot, t_far) }
+        unsafe { clip_slot(lanes, planes, slot, t_far) }
+    }
+
+    #[inline(always)]
+    fn prefetch<T>(records: &[T], index: usize) {
+        let start = records.as_ptr().wrapping_add(index).cast::<i8>();
+        for offset in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch reads nothing and faults on no address; SSE is enabled.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
+        }
+    }
+
+    #[inline(always)]
+    fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
+        // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
+        unsafe { lanes_at_most(a, b) }
     }
 
     #[inline(always)]
@@ -149,30 +172,23 @@ impl PacketKernel for Avx2Packets {
 /// `minps` do there).
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn clip_slot(
-    lanes: &Lanes,
-    (min, max): &ChildBoxes,
-    slot: usize,
-    t_far: f32x8,
-) -> (f32x8, f32x8, u32) {
+fn clip_slot(lanes: &Lanes, planes: &Avx2Planes, slot: usize, t_far: f32x8) -> (f32x8, f32x8, u32) {
     let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
     let inflation = _mm256_set1_ps(FAR_INFLATION);
+    let pick = _mm256_set1_epi32(slot as i32);
     let mut near = wide(lanes.tmin);
     let mut far = wide(t_far);
     for axis in 0..3 {
-        let (entry, exit) = if lanes.rays[0].negative[axis] {
-            (max[axis][slot], min[axis][slot])
-        } else {
-            (min[axis][slot], max[axis][slot])
-        };
+        let entry = _mm256_permutevar_ps(planes.entry[axis], pick);
+        let exit = _mm256_permutevar_ps(planes.exit[axis], pick);
         let origin = wide(lanes.origin[axis]);
         let entry = _mm256_mul_ps(
-            _mm256_sub_ps(_mm256_set1_ps(entry), origin),
+            _mm256_sub_ps(entry, origin),
             wide(lanes.entry_reciprocal[axis]),
         );
         let exit = _mm256_mul_ps(
             _mm256_mul_ps(
-                _mm256_sub_ps(_mm256_set1_ps(exit), origin),
+                _mm256_sub_ps(exit, origin),
                 wide(lanes.exit_reciprocal[axis]),
             ),
             inflation,
@@ -182,6 +198,53 @@ fn clip_slot(
     }
     let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
     (bytemuck::cast(near), bytemuck::cast(far), mask)
+}
+
+/// [`Avx2Packets::lanes_at_most`]: one `vcmpps` (`LE_OQ`, as `cmpleps`) on eight lanes, where
+/// `wide` compares two halves.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
+    let (a, b): (__m256, __m256) = (bytemuck::cast(a), bytemuck::cast(b));
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(a, b)) as u32
+}
+
+/// A node's child box planes for [`clip_slot`]: per axis the four slots' entry and exit
+/// planes, each in both 128-bit halves, so that one in-lane permute (`vpermilps`) spreads a
+/// slot's plane over all eight lanes.
+pub(super) struct Avx2Planes {
+    entry: [__m256; 3],
+    exit: [__m256; 3],
+}
+
+/// [`Avx2Packets::planes`]: the minima or maxima of each axis picked by the direction's sign
+/// with one `vblendvps` each (by `Lanes::negative_masks`), instead of a branch per slot.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn planes(lanes: &Lanes, (min, max): &ChildBoxes) -> Avx2Planes {
+    // Axis by axis, not through `array::map`, whose closure stayed a call.
+    let axis = |axis: usize| {
+        axis_planes(
+            bytemuck::cast(min[axis]),
+            bytemuck::cast(max[axis]),
+            bytemuck::cast(lanes.negative_masks[axis]),
+        )
+    };
+    let ((entry_x, exit_x), (entry_y, exit_y), (entry_z, exit_z)) = (axis(0), axis(1), axis(2));
+    Avx2Planes {
+        entry: [entry_x, entry_y, entry_z],
+        exit: [exit_x, exit_y, exit_z],
+    }
+}
+
+/// The entry and exit planes of one axis, each in both halves: `min` and `max` swapped where
+/// `negative` is set.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn axis_planes(min: __m128, max: __m128, negative: __m128) -> (__m256, __m256) {
+    let entry = _mm_blendv_ps(min, max, negative);
+    let exit = _mm_blendv_ps(max, min, negative);
+    (_mm256_set_m128(entry, entry), _mm256_set_m128(exit, exit))
 }
 
 /// The AVX2 blocks, as a [`BlockKernel`] for the shared traversal.

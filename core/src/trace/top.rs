@@ -59,11 +59,10 @@ impl TraceNode for TopNode {
         (self.child[slot], self.kind[slot])
     }
 
+    /// One SIMD compare of the four kinds, as for [`GridNode`].
     #[inline(always)]
     fn occupied_mask(&self) -> u32 {
-        (0..TOP_WIDTH).fold(0, |mask, slot| {
-            mask | ((self.kind[slot] != 0) as u32) << slot
-        })
+        u32x4::from(self.kind).simd_ne(u32x4::ZERO).to_bitmask()
     }
 }
 
@@ -283,7 +282,11 @@ fn enter_children<N: TraceNode>(
 /// distances: the rays of a packet share their signs, so each lane visits a node's children in
 /// the order it would alone, and packets give the single rays' results bit for bit on any file
 /// that opens, even on a corrupt one whose boxes no longer bound their strips (where the order
-/// decides which hits are culled).
+/// decides which hits are culled). A NaN key (a box with infinite or NaN bounds, in a corrupt
+/// file) counts as `-inf`: with no NaN among the keys, sorting any subset of the children gives
+/// the order of sorting them all restricted to that subset, which packets rely on: they sort
+/// the children any of their lanes entered, and each lane must meet its own in the order it
+/// would sort them alone.
 #[inline(always)]
 pub fn order_keys(
     min: &[[f32; TOP_WIDTH]; 3],
@@ -295,7 +298,9 @@ pub fn order_keys(
         let centre = f32x4::from(min[axis]) + f32x4::from(max[axis]);
         key = if negative { key - centre } else { key + centre };
     }
-    key.to_array()
+    let nan = key.simd_ne(key);
+    nan.bitselect(f32x4::splat(f32::NEG_INFINITY), key)
+        .to_array()
 }
 
 /// Calls `f` with the index of every set bit of `mask`, lowest first.
