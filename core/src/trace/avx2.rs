@@ -31,10 +31,15 @@ use std::arch::x86_64::*;
 use wide::f32x8;
 
 use super::packet::{Lanes, PacketKernel};
+use super::prepared::PreparedRay;
 use super::prepared::FAR_INFLATION;
-use super::strip::{by_axes, BlockEdges, BlockKernel, Closest, StripQuery, TraceArgs, BLOCK};
+use super::strip::{
+    by_axes, BlockEdges, BlockKernel, Closest, EnteredBoxes, StripQuery, TraceArgs, BLOCK,
+    BOX_GROUP,
+};
 use super::top::ChildBoxes;
 use super::watertight::RaySpace;
+use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
 use crate::format::reader::StripView;
 use crate::format::references::References;
 use crate::format::vertices::{StripVertices, VertexAccess};
@@ -214,6 +219,133 @@ impl BlockKernel for Avx2Blocks {
         // runs only once AVX2 was detected (`trace`).
         unsafe { block_edges::<V, KX, KY, KZ, SITE>(space, vertices, references, count) }
     }
+
+    #[inline(always)]
+    fn entered_boxes(
+        ray: &PreparedRay,
+        boxes: &BlockBoxes,
+        frame: &BoxFrame,
+        group: usize,
+        t_near: f32,
+        t_far: f32,
+    ) -> EnteredBoxes {
+        // SAFETY: as for `edges` above: AVX2 was detected before this runs.
+        unsafe { entered_boxes(ray, boxes.bytes(), frame, group, (t_near, t_far)) }
+    }
+}
+
+/// [`BlockKernel::entered_boxes`] for up to four boxes in one pass: lanes 0-3 hold the boxes'
+/// entry planes on an axis and lanes 4-7 their exit planes (which nibble is which follows the
+/// ray's direction), so one decode and one distance computation per axis serve every box.
+/// Per lane the operations of `BoxTest::interval`: the code less the bias (an exact integer,
+/// so converting it after the subtraction gives the same f32), times the scale, plus the
+/// anchor; minus the origin, times the reciprocal, times the inflation (times 1.0 for the
+/// entry lanes, which is exact); the entry distances folded into `t_near` by `vmaxps` and the
+/// exits into `t_far` by `vminps`, as `max_not_nan`/`min_not_nan` fold them. The folding order
+/// differs from `interval`'s, but the maximum and minimum of the same values are the same
+/// (zeros aside, which `<=` does not tell apart), so the same boxes are entered.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn entered_boxes(
+    ray: &PreparedRay,
+    area: &[u8],
+    frame: &BoxFrame,
+    group: usize,
+    (t_near, t_far): (f32, f32),
+) -> EnteredBoxes {
+    // The group's window: the three bytes before its first box (the exponents for group 0),
+    // then its boxes' codes, box `b`'s on axis `a` at byte `3 + 3 b + a`.
+    let start = BOX_GROUP * BOX_BYTES * group;
+    let window = area.get(start..).unwrap_or_default();
+    let boxes = (window.len() / BOX_BYTES).saturating_sub(1).min(BOX_GROUP);
+    let bytes = load_window(window);
+    let mut near = _mm_set1_ps(t_near);
+    let mut far = _mm_set1_ps(t_far);
+    for axis in 0..3 {
+        let a = axis as i8;
+        let codes = _mm256_cvtepu8_epi32(_mm_shuffle_epi8(
+            bytes,
+            _mm_setr_epi8(
+                3 + a,
+                6 + a,
+                9 + a,
+                12 + a,
+                3 + a,
+                6 + a,
+                9 + a,
+                12 + a,
+                -1,
+                -1,
+                -1,
+                -1,
+                -1,
+                -1,
+                -1,
+                -1,
+            ),
+        ));
+        // Entry lanes take the minimum's nibble (low) going up the axis, the maximum's going down.
+        let shifts = if ray.negative[axis] {
+            _mm256_setr_epi32(4, 4, 4, 4, 0, 0, 0, 0)
+        } else {
+            _mm256_setr_epi32(0, 0, 0, 0, 4, 4, 4, 4)
+        };
+        let codes = _mm256_and_si256(
+            _mm256_srlv_epi32(codes, shifts),
+            _mm256_set1_epi32(i32::from(MAX_CODE)),
+        );
+        let steps = _mm256_cvtepi32_ps(_mm256_sub_epi32(codes, _mm256_set1_epi32(CODE_BIAS)));
+        let planes = _mm256_add_ps(
+            _mm256_set1_ps(frame.anchor[axis]),
+            _mm256_mul_ps(steps, _mm256_set1_ps(frame.scale[axis])),
+        );
+        let reciprocals = _mm256_setr_m128(
+            _mm_set1_ps(ray.entry_reciprocal[axis]),
+            _mm_set1_ps(ray.exit_reciprocal[axis]),
+        );
+        let inflation = _mm256_setr_m128(_mm_set1_ps(1.0), _mm_set1_ps(FAR_INFLATION));
+        let distances = _mm256_mul_ps(
+            _mm256_mul_ps(
+                _mm256_sub_ps(planes, _mm256_set1_ps(ray.origin[axis])),
+                reciprocals,
+            ),
+            inflation,
+        );
+        near = _mm_max_ps(_mm256_castps256_ps128(distances), near);
+        far = _mm_min_ps(_mm256_extractf128_ps::<1>(distances), far);
+    }
+    let entered = _mm_movemask_ps(_mm_cmple_ps(near, far)) as u32;
+    let mut entry = [0.0; BOX_GROUP];
+    // SAFETY: `entry` is four f32 (16 bytes), what the unaligned store writes; SSE is enabled.
+    unsafe { _mm_storeu_ps(entry.as_mut_ptr(), near) };
+    EnteredBoxes {
+        mask: entered & ((1 << boxes) - 1),
+        near: entry,
+    }
+}
+
+/// The first sixteen bytes of `window` (zeros past its end) in one register: two overlapping
+/// eight-byte reads when it has at least eight bytes, byte by byte otherwise.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn load_window(window: &[u8]) -> __m128i {
+    let length = window.len().min(16);
+    let word = |at: usize| u64::from_le_bytes(window[at..at + 8].try_into().expect("8 bytes"));
+    let (low, high) = if length >= 8 {
+        // Bytes `length - 8 .. length` moved up to their places from byte 8 on.
+        let tail = word(length - 8);
+        (
+            word(0),
+            tail.checked_shr(8 * (16 - length) as u32).unwrap_or(0),
+        )
+    } else {
+        let low = window[..length]
+            .iter()
+            .rev()
+            .fold(0u64, |word, &byte| word << 8 | u64::from(byte));
+        (low, 0)
+    };
+    _mm_set_epi64x(high as i64, low as i64)
 }
 
 /// [`BlockEdges`] of the block whose `BLOCK + 2` strip references are `references`, or `None`
@@ -459,4 +591,25 @@ fn lanes(value: __m256) -> [f32; BLOCK] {
     // SAFETY: `lanes` is eight f32 (32 bytes), what the unaligned store writes; AVX is enabled.
     unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), value) };
     lanes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `load_window` of every length up to past sixteen gives the bytes and zeros after them.
+    #[test]
+    fn windows_load_their_bytes_and_zeros() {
+        if !super::super::kernel::avx2_detected() {
+            return;
+        }
+        let source: Vec<u8> = (1..=20).collect();
+        for length in 0..=source.len() {
+            let window = &source[..length];
+            // SAFETY: AVX2 and BMI2 were detected just above.
+            let loaded: [u8; 16] = bytemuck::cast(unsafe { load_window(window) });
+            let expected: [u8; 16] = std::array::from_fn(|i| window.get(i).copied().unwrap_or(0));
+            assert_eq!(loaded, expected, "window of {length} bytes");
+        }
+    }
 }
