@@ -214,10 +214,12 @@ impl BlockKernel for Avx2Blocks {
         vertices: V,
         references: &[u8; BLOCK + 2],
         count: usize,
+        range: (f32, f32),
     ) -> Option<BlockEdges> {
+        let block = (references, count, range);
         // SAFETY: `Avx2Blocks` is private to this module and used only by `trace_as`, which
         // runs only once AVX2 was detected (`trace`).
-        unsafe { block_edges::<V, KX, KY, KZ, SITE>(space, vertices, references, count) }
+        unsafe { block_edges::<V, KX, KY, KZ, SITE>(space, vertices, block) }
     }
 
     #[inline(always)]
@@ -349,7 +351,8 @@ fn load_window(window: &[u8]) -> __m128i {
 }
 
 /// [`BlockEdges`] of the block whose `BLOCK + 2` strip references are `references`, or `None`
-/// when no lane is a candidate; lanes past `count` are not candidates.
+/// when no lane is a candidate; lanes past `count` are not candidates, nor lanes whose `t` falls
+/// outside `range` ([`in_range_lanes`]).
 /// `SITE` is the calling walk's (see `StripQuery::intersect_block`): one caller per
 /// instantiation, so that it is inlined.
 #[target_feature(enable = "avx2,bmi2")]
@@ -363,23 +366,30 @@ fn block_edges<
 >(
     space: &RaySpace,
     vertices: V,
-    references: &[u8; BLOCK + 2],
-    count: usize,
+    (references, count, range): (&[u8; BLOCK + 2], usize, (f32, f32)),
 ) -> Option<BlockEdges> {
     let origin = space.origin_on::<KX, KY, KZ>().map(|o| _mm256_set1_ps(o));
     let (shear_x, shear_y) = space.shears();
     let shear = [_mm256_set1_ps(shear_x), _mm256_set1_ps(shear_y)];
-    let corners = match vertices.lossless() {
+    // Each corner's ray-space x and y; its offset along the ray (for `t`) is needed only for
+    // the rare blocks with candidates, so lossless blocks move it across lanes only then.
+    let (corners, offsets) = match vertices.lossless() {
         Some(points) => {
             let (head, tail) = transpose_positions::<KX, KY, KZ>(points, references);
-            shifted_corners(
-                transform(head, &origin, &shear),
-                transform(tail, &origin, &shear),
+            let [hx, hy, hz] = transform(head, &origin, &shear);
+            let [tx, ty, tz] = transform(tail, &origin, &shear);
+            (
+                shifted_corners([hx, hy], [tx, ty]),
+                Offsets::Shifted(hz, tz),
             )
         }
         None => {
             let model = vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(references, count + 2);
-            load_corners(&model).map(|corner| transform(corner, &origin, &shear))
+            let corners = load_corners(&model).map(|corner| transform(corner, &origin, &shear));
+            (
+                corners.map(|[x, y, _]| [x, y]),
+                Offsets::Corners(corners.map(|[_, _, z]| z)),
+            )
         }
     };
     // `watertight::edge_lanes`: q.x * p.y - q.y * p.x.
@@ -395,12 +405,54 @@ fn block_edges<
     if candidates == 0 {
         return None;
     }
+    let offsets = match offsets {
+        Offsets::Shifted(head, tail) => {
+            let (by_one, by_two) = shift_lanes(head, tail);
+            [head, by_one, by_two]
+        }
+        Offsets::Corners(offsets) => offsets,
+    };
+    let depths = offsets.map(|offset| _mm256_mul_ps(_mm256_set1_ps(space.scale_z()), offset));
+    let candidates = candidates & in_range_lanes(&weights, &depths, range);
+    if candidates == 0 {
+        return None;
+    }
     Some(BlockEdges {
         candidates,
         x: corners.map(|[x, _]| lanes(x)),
         y: corners.map(|[_, y]| lanes(y)),
         weights: weights.map(|w| lanes(w)),
     })
+}
+
+/// The lanes that [`resolve`](super::watertight::resolve) could accept within `range`: those
+/// with a zero weight (resolved exactly, in f64), and those whose `t` is in range, computed as
+/// `resolve` computes it, operation for operation (`(w0 z0 + w1 z1 + w2 z2) / (w0 + w1 + w2)`,
+/// never fused; its `+ 0.0` changes no comparison). Dropping the others before `resolve` sees
+/// them changes no answer: an ambient-occlusion ray starts on a triangle whose window is a
+/// candidate with `t` just below `tmin`, and this is where it is rejected.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], (tmin, tmax): (f32, f32)) -> u32 {
+    let zero = _mm256_setzero_ps();
+    let det = _mm256_add_ps(_mm256_add_ps(w[0], w[1]), w[2]);
+    let scaled = _mm256_add_ps(
+        _mm256_add_ps(_mm256_mul_ps(w[0], z[0]), _mm256_mul_ps(w[1], z[1])),
+        _mm256_mul_ps(w[2], z[2]),
+    );
+    let t = _mm256_div_ps(scaled, det);
+    let in_range = _mm256_and_ps(
+        _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_set1_ps(tmin), t),
+        _mm256_cmp_ps::<_CMP_LE_OQ>(t, _mm256_set1_ps(tmax)),
+    );
+    let on_edge = _mm256_or_ps(
+        _mm256_or_ps(
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[0], zero),
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[1], zero),
+        ),
+        _mm256_cmp_ps::<_CMP_EQ_OQ>(w[2], zero),
+    );
+    _mm256_movemask_ps(_mm256_or_ps(in_range, on_edge)) as u32
 }
 
 /// The block's references from their packed bit stream (`width` bits each): the first eight
@@ -440,10 +492,11 @@ fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
 }
 
 /// `RaySpace::transform_lanes`, lanewise the same operations: ray-space x and y of the model
-/// positions `[x, y, z]` (in ray-space axis order).
+/// positions `[x, y, z]` (in ray-space axis order), and their offset from the origin along the
+/// ray-space z axis (which `RaySpace::depth_as` scales).
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn transform(model: [__m256; 3], origin: &[__m256; 3], shear: &[__m256; 2]) -> [__m256; 2] {
+fn transform(model: [__m256; 3], origin: &[__m256; 3], shear: &[__m256; 2]) -> [__m256; 3] {
     let [x, y, z] = model;
     let ax = _mm256_sub_ps(x, origin[0]);
     let ay = _mm256_sub_ps(y, origin[1]);
@@ -451,7 +504,16 @@ fn transform(model: [__m256; 3], origin: &[__m256; 3], shear: &[__m256; 2]) -> [
     [
         _mm256_sub_ps(ax, _mm256_mul_ps(shear[0], az)),
         _mm256_sub_ps(ay, _mm256_mul_ps(shear[1], az)),
+        az,
     ]
+}
+
+/// The corners' offsets from the ray origin along the ray-space z axis, as a block computed
+/// them: once per position (to be moved across lanes), or once per corner.
+#[derive(Clone, Copy)]
+enum Offsets {
+    Shifted(__m256, __m256),
+    Corners([__m256; 3]),
 }
 
 /// The three corners `[shift]` of the block's windows from the ray-space positions of its first
@@ -461,23 +523,27 @@ fn transform(model: [__m256; 3], origin: &[__m256; 3], shear: &[__m256; 2]) -> [
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
 fn shifted_corners(head: [__m256; 2], tail: [__m256; 2]) -> [[__m256; 2]; 3] {
+    let (x1, x2) = shift_lanes(head[0], tail[0]);
+    let (y1, y2) = shift_lanes(head[1], tail[1]);
+    [head, [x1, y1], [x2, y2]]
+}
+
+/// Lanes `k + 1` and `k + 2` of the ten values `head` (lanes 0-7) and `tail` (lanes 0 and 1).
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn shift_lanes(head: __m256, tail: __m256) -> (__m256, __m256) {
     let one = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 7);
     let two = _mm256_setr_epi32(2, 3, 4, 5, 6, 7, 7, 7);
     let tail_high = _mm256_setr_epi32(0, 0, 0, 0, 0, 0, 0, 1);
-    let shift = |head: __m256, tail: __m256| {
-        let by_one = _mm256_blend_ps::<0b1000_0000>(
-            _mm256_permutevar8x32_ps(head, one),
-            _mm256_permutevar8x32_ps(tail, _mm256_setzero_si256()),
-        );
-        let by_two = _mm256_blend_ps::<0b1100_0000>(
-            _mm256_permutevar8x32_ps(head, two),
-            _mm256_permutevar8x32_ps(tail, tail_high),
-        );
-        (by_one, by_two)
-    };
-    let (x1, x2) = shift(head[0], tail[0]);
-    let (y1, y2) = shift(head[1], tail[1]);
-    [head, [x1, y1], [x2, y2]]
+    let by_one = _mm256_blend_ps::<0b1000_0000>(
+        _mm256_permutevar8x32_ps(head, one),
+        _mm256_permutevar8x32_ps(tail, _mm256_setzero_si256()),
+    );
+    let by_two = _mm256_blend_ps::<0b1100_0000>(
+        _mm256_permutevar8x32_ps(head, two),
+        _mm256_permutevar8x32_ps(tail, tail_high),
+    );
+    (by_one, by_two)
 }
 
 /// `watertight::candidate_lanes` lanewise: `vminps`/`vmaxps` are the baseline's `minps`/`maxps`

@@ -416,8 +416,9 @@ impl StripQuery<'_> {
         closest: &mut Closest,
     ) -> bool {
         let references = K::references(&view.references, first);
+        let range = (self.ray.tmin, closest.t);
         let Some(edges) =
-            K::edges::<V, KX, KY, KZ, SITE>(&self.ray.space, vertices, &references, count)
+            K::edges::<V, KX, KY, KZ, SITE>(&self.ray.space, vertices, &references, count, range)
         else {
             return false;
         };
@@ -472,7 +473,8 @@ pub(super) trait BlockKernel {
 
     /// The block whose `BLOCK + 2` strip references are `references`, or `None` when no lane is
     /// a candidate (the common case: nothing is stored then); lanes past `count` are not
-    /// candidates.
+    /// candidates. A kernel may also drop candidates that [`resolve`] would find outside `range`
+    /// (`tmin`, the closest hit's `t`) with nonzero weights, computing their `t` as it does.
     /// `SITE` only separates the instantiations of the calling walks (see
     /// `StripQuery::intersect_block`).
     fn edges<
@@ -486,6 +488,7 @@ pub(super) trait BlockKernel {
         vertices: V,
         references: &[u8; BLOCK + 2],
         count: usize,
+        range: (f32, f32),
     ) -> Option<BlockEdges>;
 
     /// The boxes of group `group` (boxes `BOX_GROUP * group ..`) that the ray enters within
@@ -545,6 +548,7 @@ impl BlockKernel for Sse2Blocks {
         vertices: V,
         references: &[u8; BLOCK + 2],
         count: usize,
+        _range: (f32, f32),
     ) -> Option<BlockEdges> {
         let model = vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(references, count + 2);
         // A position is transformed once per corner it is in (up to three times) rather than
