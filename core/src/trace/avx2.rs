@@ -30,6 +30,7 @@ use std::arch::x86_64::*;
 
 use wide::f32x8;
 
+use super::avx2_lanes::Leaf;
 use super::packet::{Lanes, PacketKernel};
 use super::prepared::PreparedRay;
 use super::prepared::FAR_INFLATION;
@@ -62,7 +63,11 @@ pub(super) fn trace<'a, 'v, V: VertexAccess>(
 /// [`trace`] once AVX2 is known to be there: down to the blocks, everything is compiled for it.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn trace_detected<V: VertexAccess>(query: &StripQuery, vertices: V, args: TraceArgs) -> bool {
+pub(super) fn trace_detected<V: VertexAccess>(
+    query: &StripQuery,
+    vertices: V,
+    args: TraceArgs,
+) -> bool {
     by_axes!(trace_as, query, vertices, args)
 }
 
@@ -125,6 +130,18 @@ impl PacketKernel for Avx2Packets {
         // `traverse_packet_detected`, which runs only once AVX2 was detected
         // (`traverse_packet`).
         unsafe { clip_slot(lanes, boxes, slot, t_far) }
+    }
+
+    #[inline(always)]
+    fn trace_leaf(
+        tracer: &super::Tracer,
+        lanes: &Lanes,
+        leaf: &Leaf,
+        any_hit: bool,
+        closest: &mut [Closest; super::packet::PACKET_WIDTH],
+    ) -> Option<u32> {
+        // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
+        Some(unsafe { super::avx2_lanes::trace_leaf(tracer, lanes, leaf, any_hit, closest) })
     }
 
     #[inline(always)]
@@ -434,6 +451,18 @@ fn block_edges<
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
 fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], (tmin, tmax): (f32, f32)) -> u32 {
+    in_range_lanes_between(w, z, _mm256_set1_ps(tmin), _mm256_set1_ps(tmax))
+}
+
+/// [`in_range_lanes`] with a range per lane.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+pub(super) fn in_range_lanes_between(
+    w: &[__m256; 3],
+    z: &[__m256; 3],
+    tmin: __m256,
+    tmax: __m256,
+) -> u32 {
     let zero = _mm256_setzero_ps();
     let det = _mm256_add_ps(_mm256_add_ps(w[0], w[1]), w[2]);
     let scaled = _mm256_add_ps(
@@ -442,8 +471,8 @@ fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], (tmin, tmax): (f32, f32)) ->
     );
     let t = _mm256_div_ps(scaled, det);
     let in_range = _mm256_and_ps(
-        _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_set1_ps(tmin), t),
-        _mm256_cmp_ps::<_CMP_LE_OQ>(t, _mm256_set1_ps(tmax)),
+        _mm256_cmp_ps::<_CMP_LE_OQ>(tmin, t),
+        _mm256_cmp_ps::<_CMP_LE_OQ>(t, tmax),
     );
     let on_edge = _mm256_or_ps(
         _mm256_or_ps(
@@ -550,7 +579,7 @@ fn shift_lanes(head: __m256, tail: __m256) -> (__m256, __m256) {
 /// on eight lanes (the second operand where either is NaN).
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn candidate_lanes(w: &[__m256; 3]) -> u32 {
+pub(super) fn candidate_lanes(w: &[__m256; 3]) -> u32 {
     let zero = _mm256_setzero_ps();
     let min = _mm256_min_ps(_mm256_min_ps(w[0], w[1]), w[2]);
     let max = _mm256_max_ps(_mm256_max_ps(w[0], w[1]), w[2]);
@@ -618,7 +647,7 @@ fn transpose_positions<const KX: usize, const KY: usize, const KZ: usize>(
 /// ten vertices per block.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn load_vertex(flat: &[f32], index: usize) -> __m128 {
+pub(super) fn load_vertex(flat: &[f32], index: usize) -> __m128 {
     assert!(flat.len() >= 4, "a strip has at least three vertices");
     let start = (3 * index).min(flat.len() - 4);
     // SAFETY: `start + 4 <= flat.len()` (clamped just above), so the unaligned load reads four

@@ -79,6 +79,20 @@ pub(super) trait PacketKernel {
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32);
 
+    /// The leaf's strips traced for the packet by the kernel's own means, or `None` for
+    /// [`trace_leaf_lanes`]' lane-by-lane walk; as that walk, returns the lanes that found an
+    /// occluder when `any_hit` is set.
+    #[cfg(target_arch = "x86_64")]
+    fn trace_leaf(
+        _tracer: &Tracer,
+        _lanes: &Lanes,
+        _leaf: &super::avx2_lanes::Leaf,
+        _any_hit: bool,
+        _closest: &mut [Closest; PACKET_WIDTH],
+    ) -> Option<u32> {
+        None
+    }
+
     /// [`StripQuery::trace`] of one lane.
     fn trace_strip(
         query: &StripQuery,
@@ -386,6 +400,19 @@ fn trace_leaf_lanes<C: PacketKernel>(
 ) -> u32 {
     let t_near = leaf.t_near.to_array();
     let t_far = leaf.t_far.to_array();
+    #[cfg(target_arch = "x86_64")]
+    {
+        let whole = super::avx2_lanes::Leaf {
+            first: leaf.child,
+            strips: leaf.kind,
+            mask: leaf.mask,
+            t_near,
+            t_far,
+        };
+        if let Some(finished) = C::trace_leaf(tracer, lanes, &whole, any_hit, closest) {
+            return finished;
+        }
+    }
     let mut finished = 0;
     let mut active = leaf.mask;
     for strip in leaf.child..leaf.child + leaf.kind {

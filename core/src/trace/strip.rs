@@ -120,7 +120,7 @@ impl Closest {
 
     /// Keeps `(t, strip, window)` if it is lexicographically smaller than the current hit.
     #[inline]
-    fn offer(&mut self, t: f32, strip: u32, window: u16, weights: [f32; 3]) {
+    pub(super) fn offer(&mut self, t: f32, strip: u32, window: u16, weights: [f32; 3]) {
         if t < self.t || (strip, window) < (self.strip, self.window) {
             *self = Closest {
                 t,
@@ -340,8 +340,9 @@ impl StripQuery<'_> {
             while mask != 0 {
                 let lane = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                // `near <= far` held; a hit found since may have moved the bound nearer.
-                if !(entered.near[lane] <= closest.reach) {
+                // `near <= far` held; a hit found since may have moved the bound nearer
+                // (`near` is never NaN: it starts from `t_near` and NaN distances keep it).
+                if entered.near[lane] > closest.reach {
                     continue;
                 }
                 let first = (group * BOX_GROUP + lane) * BOX_WINDOWS;
