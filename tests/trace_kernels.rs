@@ -6,7 +6,7 @@
 mod common;
 
 use common::*;
-use reducem::conversion::{convert_mesh, BuildParams};
+use reducem::conversion::{convert_mesh, BuildParams, PIPELINE_MAX_STRIP_LENGTH};
 use reducem::format::reader::ReducemFile;
 use reducem::input::read_mesh;
 use reducem::tools::gen::{generate, Kind};
@@ -31,18 +31,24 @@ fn probe_rays(file: &ReducemFile, mesh: &reducem::mesh::Mesh) -> Vec<Ray> {
 }
 
 fn check_kind(kind: Kind, grid_bits: Option<u32>) {
+    check_kind_with(kind, grid_bits, BuildParams::default().stripify.max_length);
+}
+
+/// [`check_kind`] with strips of at most `max_length` triangles.
+fn check_kind_with(kind: Kind, grid_bits: Option<u32>, max_length: usize) {
     let name = format!(
-        "{kind:?}-{}",
+        "{kind:?}-{}-{max_length}",
         grid_bits.map_or("f32".into(), |b| b.to_string())
     );
     let ply = temp_path(&format!("kernels-{name}.ply"));
     generate(kind, 6000, 5, &ply).expect("generate");
     let mesh = read_mesh(&ply).expect("read");
     let path = temp_path(&format!("kernels-{name}.rdm"));
-    let params = BuildParams {
+    let mut params = BuildParams {
         grid_bits,
         ..BuildParams::default()
     };
+    params.stripify.max_length = max_length;
     convert_mesh(&mesh, &params, &path).expect("convert");
     let file = ReducemFile::open(&path).expect("open");
     let rays = probe_rays(&file, &mesh);
@@ -84,5 +90,14 @@ fn every_kernel_agrees_on_lossless_files() {
 fn every_kernel_agrees_on_grid_files() {
     for kind in Kind::ALL {
         check_kind(kind, Some(16));
+    }
+}
+
+/// The pipeline's strips (at most 20 triangles): AVX2 packets test such strips for several rays
+/// at once (`avx2_lanes`), and must still give each ray's own answers.
+#[test]
+fn every_kernel_agrees_on_pipeline_length_strips() {
+    for kind in Kind::ALL {
+        check_kind_with(kind, None, PIPELINE_MAX_STRIP_LENGTH);
     }
 }

@@ -95,6 +95,16 @@ impl<'a> BlockBoxes<'a> {
         self.bytes.len()
     }
 
+    /// The area's bytes: the exponents, then the boxes' codes.
+    pub fn bytes(&self) -> &'a [u8] {
+        self.bytes
+    }
+
+    /// Boxes stored.
+    pub fn count(&self) -> usize {
+        self.bytes.len().saturating_sub(EXPONENT_BYTES) / BOX_BYTES
+    }
+
     /// The exponent bytes, one per axis (`None` without boxes).
     pub fn exponents(&self) -> Option<[u8; 3]> {
         self.bytes.first_chunk().copied()

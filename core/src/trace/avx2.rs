@@ -30,11 +30,17 @@ use std::arch::x86_64::*;
 
 use wide::f32x8;
 
+use super::avx2_lanes::Leaf;
 use super::packet::{Lanes, PacketKernel};
+use super::prepared::PreparedRay;
 use super::prepared::FAR_INFLATION;
-use super::strip::{by_axes, BlockEdges, BlockKernel, Closest, StripQuery, TraceArgs, BLOCK};
+use super::strip::{
+    by_axes, BlockEdges, BlockKernel, Closest, EnteredBoxes, StripQuery, TraceArgs, BLOCK,
+    BOX_GROUP,
+};
 use super::top::ChildBoxes;
 use super::watertight::RaySpace;
+use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
 use crate::format::reader::StripView;
 use crate::format::references::References;
 use crate::format::vertices::{StripVertices, VertexAccess};
@@ -57,7 +63,11 @@ pub(super) fn trace<'a, 'v, V: VertexAccess>(
 /// [`trace`] once AVX2 is known to be there: down to the blocks, everything is compiled for it.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn trace_detected<V: VertexAccess>(query: &StripQuery, vertices: V, args: TraceArgs) -> bool {
+pub(super) fn trace_detected<V: VertexAccess>(
+    query: &StripQuery,
+    vertices: V,
+    args: TraceArgs,
+) -> bool {
     by_axes!(trace_as, query, vertices, args)
 }
 
@@ -143,6 +153,18 @@ impl PacketKernel for Avx2Packets {
     fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
         // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
         unsafe { lanes_at_most(a, b) }
+    }
+
+    #[inline(always)]
+    fn trace_leaf(
+        tracer: &super::Tracer,
+        lanes: &Lanes,
+        leaf: &Leaf,
+        any_hit: bool,
+        closest: &mut [Closest; super::packet::PACKET_WIDTH],
+    ) -> Option<u32> {
+        // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
+        Some(unsafe { super::avx2_lanes::trace_leaf(tracer, lanes, leaf, any_hit, closest) })
     }
 
     #[inline(always)]
@@ -272,15 +294,145 @@ impl BlockKernel for Avx2Blocks {
         vertices: V,
         references: &[u8; BLOCK + 2],
         count: usize,
+        range: (f32, f32),
     ) -> Option<BlockEdges> {
+        let block = (references, count, range);
         // SAFETY: `Avx2Blocks` is private to this module and used only by `trace_as`, which
         // runs only once AVX2 was detected (`trace`).
-        unsafe { block_edges::<V, KX, KY, KZ, SITE>(space, vertices, references, count) }
+        unsafe { block_edges::<V, KX, KY, KZ, SITE>(space, vertices, block) }
+    }
+
+    #[inline(always)]
+    fn entered_boxes(
+        ray: &PreparedRay,
+        boxes: &BlockBoxes,
+        frame: &BoxFrame,
+        group: usize,
+        t_near: f32,
+        t_far: f32,
+    ) -> EnteredBoxes {
+        // SAFETY: as for `edges` above: AVX2 was detected before this runs.
+        unsafe { entered_boxes(ray, boxes.bytes(), frame, group, (t_near, t_far)) }
     }
 }
 
+/// [`BlockKernel::entered_boxes`] for up to four boxes in one pass: lanes 0-3 hold the boxes'
+/// entry planes on an axis and lanes 4-7 their exit planes (which nibble is which follows the
+/// ray's direction), so one decode and one distance computation per axis serve every box.
+/// Per lane the operations of `BoxTest::interval`: the code less the bias (an exact integer,
+/// so converting it after the subtraction gives the same f32), times the scale, plus the
+/// anchor; minus the origin, times the reciprocal, times the inflation (times 1.0 for the
+/// entry lanes, which is exact); the entry distances folded into `t_near` by `vmaxps` and the
+/// exits into `t_far` by `vminps`, as `max_not_nan`/`min_not_nan` fold them. The folding order
+/// differs from `interval`'s, but the maximum and minimum of the same values are the same
+/// (zeros aside, which `<=` does not tell apart), so the same boxes are entered.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn entered_boxes(
+    ray: &PreparedRay,
+    area: &[u8],
+    frame: &BoxFrame,
+    group: usize,
+    (t_near, t_far): (f32, f32),
+) -> EnteredBoxes {
+    // The group's window: the three bytes before its first box (the exponents for group 0),
+    // then its boxes' codes, box `b`'s on axis `a` at byte `3 + 3 b + a`.
+    let start = BOX_GROUP * BOX_BYTES * group;
+    let window = area.get(start..).unwrap_or_default();
+    let boxes = (window.len() / BOX_BYTES).saturating_sub(1).min(BOX_GROUP);
+    let bytes = load_window(window);
+    let mut near = _mm_set1_ps(t_near);
+    let mut far = _mm_set1_ps(t_far);
+    for axis in 0..3 {
+        let a = axis as i8;
+        let codes = _mm256_cvtepu8_epi32(_mm_shuffle_epi8(
+            bytes,
+            _mm_setr_epi8(
+                3 + a,
+                6 + a,
+                9 + a,
+                12 + a,
+                3 + a,
+                6 + a,
+                9 + a,
+                12 + a,
+                -1,
+                -1,
+                -1,
+                -1,
+                -1,
+                -1,
+                -1,
+                -1,
+            ),
+        ));
+        // Entry lanes take the minimum's nibble (low) going up the axis, the maximum's going down.
+        let shifts = if ray.negative[axis] {
+            _mm256_setr_epi32(4, 4, 4, 4, 0, 0, 0, 0)
+        } else {
+            _mm256_setr_epi32(0, 0, 0, 0, 4, 4, 4, 4)
+        };
+        let codes = _mm256_and_si256(
+            _mm256_srlv_epi32(codes, shifts),
+            _mm256_set1_epi32(i32::from(MAX_CODE)),
+        );
+        let steps = _mm256_cvtepi32_ps(_mm256_sub_epi32(codes, _mm256_set1_epi32(CODE_BIAS)));
+        let planes = _mm256_add_ps(
+            _mm256_set1_ps(frame.anchor[axis]),
+            _mm256_mul_ps(steps, _mm256_set1_ps(frame.scale[axis])),
+        );
+        let reciprocals = _mm256_setr_m128(
+            _mm_set1_ps(ray.entry_reciprocal[axis]),
+            _mm_set1_ps(ray.exit_reciprocal[axis]),
+        );
+        let inflation = _mm256_setr_m128(_mm_set1_ps(1.0), _mm_set1_ps(FAR_INFLATION));
+        let distances = _mm256_mul_ps(
+            _mm256_mul_ps(
+                _mm256_sub_ps(planes, _mm256_set1_ps(ray.origin[axis])),
+                reciprocals,
+            ),
+            inflation,
+        );
+        near = _mm_max_ps(_mm256_castps256_ps128(distances), near);
+        far = _mm_min_ps(_mm256_extractf128_ps::<1>(distances), far);
+    }
+    let entered = _mm_movemask_ps(_mm_cmple_ps(near, far)) as u32;
+    let mut entry = [0.0; BOX_GROUP];
+    // SAFETY: `entry` is four f32 (16 bytes), what the unaligned store writes; SSE is enabled.
+    unsafe { _mm_storeu_ps(entry.as_mut_ptr(), near) };
+    EnteredBoxes {
+        mask: entered & ((1 << boxes) - 1),
+        near: entry,
+    }
+}
+
+/// The first sixteen bytes of `window` (zeros past its end) in one register: two overlapping
+/// eight-byte reads when it has at least eight bytes, byte by byte otherwise.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn load_window(window: &[u8]) -> __m128i {
+    let length = window.len().min(16);
+    let word = |at: usize| u64::from_le_bytes(window[at..at + 8].try_into().expect("8 bytes"));
+    let (low, high) = if length >= 8 {
+        // Bytes `length - 8 .. length` moved up to their places from byte 8 on.
+        let tail = word(length - 8);
+        (
+            word(0),
+            tail.checked_shr(8 * (16 - length) as u32).unwrap_or(0),
+        )
+    } else {
+        let low = window[..length]
+            .iter()
+            .rev()
+            .fold(0u64, |word, &byte| word << 8 | u64::from(byte));
+        (low, 0)
+    };
+    _mm_set_epi64x(high as i64, low as i64)
+}
+
 /// [`BlockEdges`] of the block whose `BLOCK + 2` strip references are `references`, or `None`
-/// when no lane is a candidate; lanes past `count` are not candidates.
+/// when no lane is a candidate; lanes past `count` are not candidates, nor lanes whose `t` falls
+/// outside `range` ([`in_range_lanes`]).
 /// `SITE` is the calling walk's (see `StripQuery::intersect_block`): one caller per
 /// instantiation, so that it is inlined.
 #[target_feature(enable = "avx2,bmi2")]
@@ -294,23 +446,30 @@ fn block_edges<
 >(
     space: &RaySpace,
     vertices: V,
-    references: &[u8; BLOCK + 2],
-    count: usize,
+    (references, count, range): (&[u8; BLOCK + 2], usize, (f32, f32)),
 ) -> Option<BlockEdges> {
     let origin = space.origin_on::<KX, KY, KZ>().map(|o| _mm256_set1_ps(o));
     let (shear_x, shear_y) = space.shears();
     let shear = [_mm256_set1_ps(shear_x), _mm256_set1_ps(shear_y)];
-    let corners = match vertices.lossless() {
+    // Each corner's ray-space x and y; its offset along the ray (for `t`) is needed only for
+    // the rare blocks with candidates, so lossless blocks move it across lanes only then.
+    let (corners, offsets) = match vertices.lossless() {
         Some(points) => {
             let (head, tail) = transpose_positions::<KX, KY, KZ>(points, references);
-            shifted_corners(
-                transform(head, &origin, &shear),
-                transform(tail, &origin, &shear),
+            let [hx, hy, hz] = transform(head, &origin, &shear);
+            let [tx, ty, tz] = transform(tail, &origin, &shear);
+            (
+                shifted_corners([hx, hy], [tx, ty]),
+                Offsets::Shifted(hz, tz),
             )
         }
         None => {
             let model = vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(references, count + 2);
-            load_corners(&model).map(|corner| transform(corner, &origin, &shear))
+            let corners = load_corners(&model).map(|corner| transform(corner, &origin, &shear));
+            (
+                corners.map(|[x, y, _]| [x, y]),
+                Offsets::Corners(corners.map(|[_, _, z]| z)),
+            )
         }
     };
     // `watertight::edge_lanes`: q.x * p.y - q.y * p.x.
@@ -326,12 +485,66 @@ fn block_edges<
     if candidates == 0 {
         return None;
     }
+    let offsets = match offsets {
+        Offsets::Shifted(head, tail) => {
+            let (by_one, by_two) = shift_lanes(head, tail);
+            [head, by_one, by_two]
+        }
+        Offsets::Corners(offsets) => offsets,
+    };
+    let depths = offsets.map(|offset| _mm256_mul_ps(_mm256_set1_ps(space.scale_z()), offset));
+    let candidates = candidates & in_range_lanes(&weights, &depths, range);
+    if candidates == 0 {
+        return None;
+    }
     Some(BlockEdges {
         candidates,
         x: corners.map(|[x, _]| lanes(x)),
         y: corners.map(|[_, y]| lanes(y)),
         weights: weights.map(|w| lanes(w)),
     })
+}
+
+/// The lanes that [`resolve`](super::watertight::resolve) could accept within `range`: those
+/// with a zero weight (resolved exactly, in f64), and those whose `t` is in range, computed as
+/// `resolve` computes it, operation for operation (`(w0 z0 + w1 z1 + w2 z2) / (w0 + w1 + w2)`,
+/// never fused; its `+ 0.0` changes no comparison). Dropping the others before `resolve` sees
+/// them changes no answer: an ambient-occlusion ray starts on a triangle whose window is a
+/// candidate with `t` just below `tmin`, and this is where it is rejected.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], (tmin, tmax): (f32, f32)) -> u32 {
+    in_range_lanes_between(w, z, _mm256_set1_ps(tmin), _mm256_set1_ps(tmax))
+}
+
+/// [`in_range_lanes`] with a range per lane.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+pub(super) fn in_range_lanes_between(
+    w: &[__m256; 3],
+    z: &[__m256; 3],
+    tmin: __m256,
+    tmax: __m256,
+) -> u32 {
+    let zero = _mm256_setzero_ps();
+    let det = _mm256_add_ps(_mm256_add_ps(w[0], w[1]), w[2]);
+    let scaled = _mm256_add_ps(
+        _mm256_add_ps(_mm256_mul_ps(w[0], z[0]), _mm256_mul_ps(w[1], z[1])),
+        _mm256_mul_ps(w[2], z[2]),
+    );
+    let t = _mm256_div_ps(scaled, det);
+    let in_range = _mm256_and_ps(
+        _mm256_cmp_ps::<_CMP_LE_OQ>(tmin, t),
+        _mm256_cmp_ps::<_CMP_LE_OQ>(t, tmax),
+    );
+    let on_edge = _mm256_or_ps(
+        _mm256_or_ps(
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[0], zero),
+            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[1], zero),
+        ),
+        _mm256_cmp_ps::<_CMP_EQ_OQ>(w[2], zero),
+    );
+    _mm256_movemask_ps(_mm256_or_ps(in_range, on_edge)) as u32
 }
 
 /// The block's references from their packed bit stream (`width` bits each): the first eight
@@ -371,10 +584,11 @@ fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
 }
 
 /// `RaySpace::transform_lanes`, lanewise the same operations: ray-space x and y of the model
-/// positions `[x, y, z]` (in ray-space axis order).
+/// positions `[x, y, z]` (in ray-space axis order), and their offset from the origin along the
+/// ray-space z axis (which `RaySpace::depth_as` scales).
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn transform(model: [__m256; 3], origin: &[__m256; 3], shear: &[__m256; 2]) -> [__m256; 2] {
+fn transform(model: [__m256; 3], origin: &[__m256; 3], shear: &[__m256; 2]) -> [__m256; 3] {
     let [x, y, z] = model;
     let ax = _mm256_sub_ps(x, origin[0]);
     let ay = _mm256_sub_ps(y, origin[1]);
@@ -382,7 +596,16 @@ fn transform(model: [__m256; 3], origin: &[__m256; 3], shear: &[__m256; 2]) -> [
     [
         _mm256_sub_ps(ax, _mm256_mul_ps(shear[0], az)),
         _mm256_sub_ps(ay, _mm256_mul_ps(shear[1], az)),
+        az,
     ]
+}
+
+/// The corners' offsets from the ray origin along the ray-space z axis, as a block computed
+/// them: once per position (to be moved across lanes), or once per corner.
+#[derive(Clone, Copy)]
+enum Offsets {
+    Shifted(__m256, __m256),
+    Corners([__m256; 3]),
 }
 
 /// The three corners `[shift]` of the block's windows from the ray-space positions of its first
@@ -392,30 +615,34 @@ fn transform(model: [__m256; 3], origin: &[__m256; 3], shear: &[__m256; 2]) -> [
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
 fn shifted_corners(head: [__m256; 2], tail: [__m256; 2]) -> [[__m256; 2]; 3] {
+    let (x1, x2) = shift_lanes(head[0], tail[0]);
+    let (y1, y2) = shift_lanes(head[1], tail[1]);
+    [head, [x1, y1], [x2, y2]]
+}
+
+/// Lanes `k + 1` and `k + 2` of the ten values `head` (lanes 0-7) and `tail` (lanes 0 and 1).
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn shift_lanes(head: __m256, tail: __m256) -> (__m256, __m256) {
     let one = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 7);
     let two = _mm256_setr_epi32(2, 3, 4, 5, 6, 7, 7, 7);
     let tail_high = _mm256_setr_epi32(0, 0, 0, 0, 0, 0, 0, 1);
-    let shift = |head: __m256, tail: __m256| {
-        let by_one = _mm256_blend_ps::<0b1000_0000>(
-            _mm256_permutevar8x32_ps(head, one),
-            _mm256_permutevar8x32_ps(tail, _mm256_setzero_si256()),
-        );
-        let by_two = _mm256_blend_ps::<0b1100_0000>(
-            _mm256_permutevar8x32_ps(head, two),
-            _mm256_permutevar8x32_ps(tail, tail_high),
-        );
-        (by_one, by_two)
-    };
-    let (x1, x2) = shift(head[0], tail[0]);
-    let (y1, y2) = shift(head[1], tail[1]);
-    [head, [x1, y1], [x2, y2]]
+    let by_one = _mm256_blend_ps::<0b1000_0000>(
+        _mm256_permutevar8x32_ps(head, one),
+        _mm256_permutevar8x32_ps(tail, _mm256_setzero_si256()),
+    );
+    let by_two = _mm256_blend_ps::<0b1100_0000>(
+        _mm256_permutevar8x32_ps(head, two),
+        _mm256_permutevar8x32_ps(tail, tail_high),
+    );
+    (by_one, by_two)
 }
 
 /// `watertight::candidate_lanes` lanewise: `vminps`/`vmaxps` are the baseline's `minps`/`maxps`
 /// on eight lanes (the second operand where either is NaN).
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn candidate_lanes(w: &[__m256; 3]) -> u32 {
+pub(super) fn candidate_lanes(w: &[__m256; 3]) -> u32 {
     let zero = _mm256_setzero_ps();
     let min = _mm256_min_ps(_mm256_min_ps(w[0], w[1]), w[2]);
     let max = _mm256_max_ps(_mm256_max_ps(w[0], w[1]), w[2]);
@@ -483,7 +710,7 @@ fn transpose_positions<const KX: usize, const KY: usize, const KZ: usize>(
 /// ten vertices per block.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn load_vertex(flat: &[f32], index: usize) -> __m128 {
+pub(super) fn load_vertex(flat: &[f32], index: usize) -> __m128 {
     assert!(flat.len() >= 4, "a strip has at least three vertices");
     let start = (3 * index).min(flat.len() - 4);
     // SAFETY: `start + 4 <= flat.len()` (clamped just above), so the unaligned load reads four
@@ -522,4 +749,25 @@ fn lanes(value: __m256) -> [f32; BLOCK] {
     // SAFETY: `lanes` is eight f32 (32 bytes), what the unaligned store writes; AVX is enabled.
     unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), value) };
     lanes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `load_window` of every length up to past sixteen gives the bytes and zeros after them.
+    #[test]
+    fn windows_load_their_bytes_and_zeros() {
+        if !super::super::kernel::avx2_detected() {
+            return;
+        }
+        let source: Vec<u8> = (1..=20).collect();
+        for length in 0..=source.len() {
+            let window = &source[..length];
+            // SAFETY: AVX2 and BMI2 were detected just above.
+            let loaded: [u8; 16] = bytemuck::cast(unsafe { load_window(window) });
+            let expected: [u8; 16] = std::array::from_fn(|i| window.get(i).copied().unwrap_or(0));
+            assert_eq!(loaded, expected, "window of {length} bytes");
+        }
+    }
 }

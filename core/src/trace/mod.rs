@@ -19,9 +19,11 @@
 //! This module is read side only: it uses `format`, `geometry` and `strip_windows`, nothing
 //! from the build side or the pipeline.
 
-#[cfg(target_arch = "x86_64")]
 pub mod attributes;
+#[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx2_lanes;
 pub mod kernel;
 pub mod packet;
 pub mod prepared;

@@ -98,6 +98,20 @@ pub(super) trait PacketKernel {
     #[inline(always)]
     fn prefetch<T>(_records: &[T], _index: usize) {}
 
+    /// The leaf's strips traced for the packet by the kernel's own means, or `None` for
+    /// [`trace_leaf_lanes`]' lane-by-lane walk; as that walk, returns the lanes that found an
+    /// occluder when `any_hit` is set.
+    #[cfg(target_arch = "x86_64")]
+    fn trace_leaf(
+        _tracer: &Tracer,
+        _lanes: &Lanes,
+        _leaf: &super::avx2_lanes::Leaf,
+        _any_hit: bool,
+        _closest: &mut [Closest; PACKET_WIDTH],
+    ) -> Option<u32> {
+        None
+    }
+
     /// [`StripQuery::trace`] of one lane.
     fn trace_strip(
         query: &StripQuery,
@@ -472,7 +486,8 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
                     continue;
                 }
             } else {
-                let found = trace_leaf_lanes::<C, ANY_HIT>(tracer, &queries, &current, closest);
+                let found =
+                    trace_leaf_lanes::<C, ANY_HIT>(tracer, lanes, &queries, &current, closest);
                 // An occlusion lane's bound changes only when it finishes.
                 if !ANY_HIT || found != 0 {
                     finished |= found;
@@ -503,12 +518,26 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
 #[inline(always)]
 fn trace_leaf_lanes<C: PacketKernel, const ANY_HIT: bool>(
     tracer: &Tracer,
+    lanes: &Lanes,
     queries: &[StripQuery; PACKET_WIDTH],
     leaf: &PacketDeferred,
     closest: &mut [Closest; PACKET_WIDTH],
 ) -> u32 {
     let t_near = leaf.t_near.to_array();
     let t_far = leaf.t_far.to_array();
+    #[cfg(target_arch = "x86_64")]
+    {
+        let whole = super::avx2_lanes::Leaf {
+            first: leaf.child,
+            strips: leaf.kind,
+            mask: leaf.mask,
+            t_near,
+            t_far,
+        };
+        if let Some(finished) = C::trace_leaf(tracer, lanes, &whole, ANY_HIT, closest) {
+            return finished;
+        }
+    }
     let mut finished = 0;
     let mut active = leaf.mask;
     for strip in leaf.child..leaf.child + leaf.kind {

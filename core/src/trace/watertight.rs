@@ -183,6 +183,12 @@ impl RaySpace {
         (self.shear_x, self.shear_y)
     }
 
+    /// The factor of ray-space z, for the kernels.
+    #[inline(always)]
+    pub fn scale_z(&self) -> f32 {
+        self.scale_z
+    }
+
     /// The ray-space z of a point whose model coordinate on axis `KZ` is `along_z`: the same
     /// operations as [`RaySpace::transform_as`], so the same bits.
     #[inline(always)]
