@@ -13,7 +13,7 @@ use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
-use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
+use reducem::trace::{unit_normal, Kernel, Ray, TraceOptions, Tracer};
 
 /// Checks one ray against the reference; returns whether it hit.
 fn check_ray(tracer: &Tracer, ray: &Ray) -> bool {
@@ -70,6 +70,12 @@ fn check_hit_point(ray: &Ray, hit: &reducem::trace::Hit, corners: &[Point; 3]) {
     }
     let length: f32 = hit.normal.iter().map(|x| x * x).sum::<f32>().sqrt();
     assert!((length - 1.0).abs() < 1e-5, "normal {:?}", hit.normal);
+    assert_eq!(
+        hit.normal.map(f32::to_bits),
+        unit_normal(corners).map(f32::to_bits),
+        "normal {:?} is not its triangle's",
+        hit.normal
+    );
 }
 
 fn random_rays(mesh: &Mesh, count: usize, seed: u64) -> Vec<Ray> {

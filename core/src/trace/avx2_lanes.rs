@@ -346,10 +346,9 @@ fn trace_strip(
             let weights = [edge(&corner1, &corner2), edge(&corner2, &corner0), edge01];
             let candidates = candidate_lanes(&weights) & testing;
             if candidates != 0 && is_real(&references[window..window + 3]) {
-                let corners =
-                    [0, 1, 2].map(|k| load_vertex(flat, usize::from(references[window + k])));
-                let done =
-                    resolve_lanes(spaces, &corners, &weights, (candidates, window), &mut lanes);
+                let corners = [0, 1, 2].map(|k| references[window + k]);
+                let hit = (candidates, window, points, corners);
+                let done = resolve_lanes(spaces, &weights, hit, &mut lanes);
                 finished |= done;
                 lanes.active &= !done;
                 testing &= !done;
@@ -371,12 +370,13 @@ fn trace_strip(
 #[inline]
 fn resolve_lanes(
     spaces: &LaneSpaces,
-    positions: &[__m128; 3],
     weights: &[__m256; 3],
-    (candidates, window): (u32, usize),
+    (candidates, window, points, references): (u32, usize, &[[f32; 3]], [u8; 3]),
     lanes: &mut StripLanes,
 ) -> u32 {
     // The corners again, with their offsets along the ray: the same operations, the same bits.
+    let flat = points.as_flattened();
+    let positions = references.map(|r| load_vertex(flat, usize::from(r)));
     let corners = [
         spaces.transform(positions[0]),
         spaces.transform(positions[1]),
@@ -402,7 +402,8 @@ fn resolve_lanes(
         let closest = &mut lanes.closest[lane];
         let lane_weights = [w[0][lane], w[1][lane], w[2][lane]];
         if let Some(hit) = resolve(&c, lane_weights, tmin[lane], closest.t) {
-            closest.offer(hit.t, lanes.strip, window as u16, hit.weights);
+            let hit_window = (lanes.strip, window as u16);
+            closest.offer(hit.t, hit_window, hit.weights, (points, references));
             if lanes.any_hit {
                 done |= 1 << lane;
             }

@@ -191,15 +191,14 @@ impl<'f> Tracer<'f> {
         if !closest.found() {
             return None;
         }
-        let view = self.file.strip(closest.strip as usize);
-        let window = closest.window as usize;
-        let corners = view.window_points(window)?;
         let [w0, w1, w2] = closest.weights;
-        // Odd windows list their first two corners in the opposite order of the input winding.
-        let (u, v) = if window.is_multiple_of(2) {
-            (w1, w2)
+        let [c0, c1, c2] = closest.corners;
+        // Odd windows list their first two corners in the opposite order of the input winding
+        // (as `StripView::window_points` does).
+        let (u, v, corners) = if closest.window.is_multiple_of(2) {
+            (w1, w2, [c0, c1, c2])
         } else {
-            (w0, w2)
+            (w0, w2, [c1, c0, c2])
         };
         Some(Hit {
             t: closest.t,

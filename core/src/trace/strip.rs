@@ -66,6 +66,7 @@ use crate::format::implicit_tree::buckets;
 use crate::format::reader::StripView;
 use crate::format::references::References;
 use crate::format::vertices::{StripVertices, VertexAccess};
+use crate::geometry::Point;
 
 /// Calls `$entry::<V, KX, KY, KZ>($query, ..)` for the query's ray-space axes.
 macro_rules! by_axes {
@@ -86,7 +87,7 @@ pub(super) use by_axes;
 /// strip has fewer than 2^16 windows).
 const STRIP_STACK: usize = 20;
 
-/// The closest hit so far, with its weights in strip order (corners `s[k], s[k+1], s[k+2]`).
+/// The closest hit so far, with its weights and corners in strip order (`s[k], s[k+1], s[k+2]`).
 #[derive(Clone, Copy, Debug)]
 pub struct Closest {
     /// Hits are accepted in `[tmin, t]`: `tmax` until one is found, then the closest one's `t`.
@@ -100,6 +101,10 @@ pub struct Closest {
     pub strip: u32,
     pub window: u16,
     pub weights: [f32; 3],
+    /// The window's model-space corners, read when the hit is accepted from the vertices the
+    /// traversal has at hand: finishing the hit (its normal) then needs no second view of the
+    /// strip, which cost about 160 instructions per hit.
+    pub corners: [Point; 3],
 }
 
 impl Closest {
@@ -111,6 +116,7 @@ impl Closest {
             strip: u32::MAX,
             window: u16::MAX,
             weights: [0.0; 3],
+            corners: [[0.0; 3]; 3],
         }
     }
 
@@ -118,9 +124,19 @@ impl Closest {
         self.strip != u32::MAX
     }
 
-    /// Keeps `(t, strip, window)` if it is lexicographically smaller than the current hit.
-    #[inline]
-    pub(super) fn offer(&mut self, t: f32, strip: u32, window: u16, weights: [f32; 3]) {
+    /// Keeps `(t, strip, window)` if it is lexicographically smaller than the current hit,
+    /// reading its corners (strip references `corners`) from `vertices` only then: a ray may
+    /// be offered several hits. Out of line, so that the rare accepted hit does not weigh on
+    /// the code of the block loop around it (inlined, it cost more per strip traversed than it
+    /// saved).
+    #[inline(never)]
+    pub(super) fn offer<V: VertexAccess>(
+        &mut self,
+        t: f32,
+        (strip, window): (u32, u16),
+        weights: [f32; 3],
+        (vertices, [a, b, c]): (V, [u8; 3]),
+    ) {
         if t < self.t || (strip, window) < (self.strip, self.window) {
             *self = Closest {
                 t,
@@ -128,6 +144,12 @@ impl Closest {
                 strip,
                 window,
                 weights,
+                // Not `map`: its closure stayed a call per corner for grid vertices.
+                corners: [
+                    vertices.point(a as usize),
+                    vertices.point(b as usize),
+                    vertices.point(c as usize),
+                ],
             };
         }
     }
@@ -441,7 +463,9 @@ impl StripQuery<'_> {
             });
             let w = edges.weights.map(|w| w[lane]);
             if let Some(hit) = resolve(&c, w, self.ray.tmin, closest.t) {
-                closest.offer(hit.t, index, (first + lane) as u16, hit.weights);
+                let corners = std::array::from_fn(|k| references[lane + k]);
+                let window = (index, (first + lane) as u16);
+                closest.offer(hit.t, window, hit.weights, (vertices, corners));
                 found = true;
                 if self.any_hit {
                     return true;
