@@ -113,17 +113,7 @@ fn packets_match_single_rays_bit_for_bit() {
         }
     }
     for _ in 0..2000 {
-        let origin = [
-            rng.range(-5.0, 5.0),
-            rng.range(-5.0, 5.0),
-            rng.range(-2.0, 2.0),
-        ];
-        let target = [
-            rng.range(-5.0, 5.0),
-            rng.range(-5.0, 5.0),
-            rng.range(-2.0, 2.0),
-        ];
-        let mut ray = ray_towards(origin, target);
+        let mut ray = random_ray_in_the_slab(&mut rng);
         ray.tmax = rng.range(0.5, 3.0);
         rays.push(ray);
     }

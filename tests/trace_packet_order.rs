@@ -121,17 +121,7 @@ fn rays() -> Vec<Ray> {
     }
     let mut rng = SplitMix64::new(17);
     for _ in 0..3000 {
-        let origin = [
-            rng.range(-5.0, 5.0),
-            rng.range(-5.0, 5.0),
-            rng.range(-2.0, 2.0),
-        ];
-        let target = [
-            rng.range(-5.0, 5.0),
-            rng.range(-5.0, 5.0),
-            rng.range(-2.0, 2.0),
-        ];
-        rays.push(ray_towards(origin, target));
+        rays.push(random_ray_in_the_slab(&mut rng));
     }
     rays
 }

@@ -413,6 +413,19 @@ pub fn ray_towards(origin: Point, target: Point) -> Ray {
     }
 }
 
+/// A ray between two random points of the box `[-5, 5] × [-5, 5] × [-2, 2]`, unbounded.
+pub fn random_ray_in_the_slab(rng: &mut SplitMix64) -> Ray {
+    let mut point = || {
+        [
+            rng.range(-5.0, 5.0),
+            rng.range(-5.0, 5.0),
+            rng.range(-2.0, 2.0),
+        ]
+    };
+    let origin = point();
+    ray_towards(origin, point())
+}
+
 /// Every mesh vertex and every edge midpoint: the points rays are aimed at exactly.
 pub fn vertex_and_edge_targets(mesh: &Mesh) -> Vec<Point> {
     let mut targets = mesh.positions.clone();

@@ -9,8 +9,10 @@ use crate::tools::workload::engines::Engine;
 use crate::tools::workload::RaySet;
 use crate::trace::Ray;
 
-/// Rays handed to one rayon task: eight 8-ray packets of one 8×8 tile.
-const CHUNK: usize = 64;
+/// Rays handed to one rayon task, for every engine: as many as ReduceM's batch calls hand out,
+/// so that it groups them into packets as a user's batch would (`examples/bench_trace.rs` says
+/// what 64-ray tasks cost it; Embree, one ray at a time, is indifferent).
+const CHUNK: usize = crate::trace::BATCH_RAYS;
 
 /// Median speed of one engine on one ray set, with what it answered.
 #[derive(Clone, Copy, Debug, PartialEq)]
