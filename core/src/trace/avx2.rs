@@ -30,8 +30,7 @@ use std::arch::x86_64::*;
 
 use wide::f32x8;
 
-use super::avx2_lanes::Leaf;
-use super::packet::{Lanes, PacketKernel};
+use super::packet::{Lanes, LeafLanes, PacketKernel};
 use super::prepared::PreparedRay;
 use super::prepared::FAR_INFLATION;
 use super::strip::{
@@ -155,16 +154,21 @@ impl PacketKernel for Avx2Packets {
         unsafe { lanes_at_most(a, b) }
     }
 
+    type Together = Option<super::avx2_lanes::LaneSpaces>;
+
     #[inline(always)]
-    fn trace_leaf(
-        tracer: &super::Tracer,
-        lanes: &Lanes,
-        leaf: &Leaf,
+    fn trace_strip_together(
+        kept: &mut Self::Together,
+        packet: (&super::Tracer, &Lanes),
+        strip: (&StripView, u32),
+        leaf: &LeafLanes,
         any_hit: bool,
         closest: &mut [Closest; super::packet::PACKET_WIDTH],
     ) -> Option<u32> {
         // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
-        Some(unsafe { super::avx2_lanes::trace_leaf(tracer, lanes, leaf, any_hit, closest) })
+        unsafe {
+            super::avx2_lanes::trace_strip_together(kept, packet, strip, leaf, any_hit, closest)
+        }
     }
 
     #[inline(always)]

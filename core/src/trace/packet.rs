@@ -98,14 +98,19 @@ pub(super) trait PacketKernel {
     #[inline(always)]
     fn prefetch<T>(_records: &[T], _index: usize) {}
 
-    /// The leaf's strips traced for the packet by the kernel's own means, or `None` for
-    /// [`trace_leaf_lanes`]' lane-by-lane walk; as that walk, returns the lanes that found an
-    /// occluder when `any_hit` is set.
-    #[cfg(target_arch = "x86_64")]
-    fn trace_leaf(
-        _tracer: &Tracer,
-        _lanes: &Lanes,
-        _leaf: &super::avx2_lanes::Leaf,
+    /// What the kernel keeps from one strip of a leaf to the next for
+    /// [`PacketKernel::trace_strip_together`].
+    type Together: Default;
+
+    /// Strip `strip` traced for all the leaf's `active` lanes at once by the kernel's own means,
+    /// or `None` for the lane-by-lane walk of [`trace_leaf_lanes`]; as that walk, returns the
+    /// lanes that found an occluder when `any_hit` is set.
+    #[inline(always)]
+    fn trace_strip_together(
+        _kept: &mut Self::Together,
+        _packet: (&Tracer, &Lanes),
+        _strip: (&StripView, u32),
+        _leaf: &LeafLanes,
         _any_hit: bool,
         _closest: &mut [Closest; PACKET_WIDTH],
     ) -> Option<u32> {
@@ -129,6 +134,7 @@ pub(super) struct WideKernel;
 
 impl PacketKernel for WideKernel {
     type Planes = SlotPlanes;
+    type Together = ();
 
     #[inline(always)]
     fn planes(lanes: &Lanes, boxes: &ChildBoxes) -> SlotPlanes {
@@ -509,6 +515,14 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
     }
 }
 
+/// The lanes reaching a strip of a leaf: their mask and each lane's parameter interval in the
+/// leaf box.
+pub(super) struct LeafLanes<'a> {
+    pub active: u32,
+    pub t_near: &'a [f32; PACKET_WIDTH],
+    pub t_far: &'a [f32; PACKET_WIDTH],
+}
+
 /// Each active lane traverses the leaf's strips alone, strip after strip, so that each strip is
 /// viewed once for the packet; returns the lanes that found an occluder when `ANY_HIT` is set.
 /// A lane visits the strips in the order and with the bounds its ray alone would
@@ -525,41 +539,55 @@ fn trace_leaf_lanes<C: PacketKernel, const ANY_HIT: bool>(
 ) -> u32 {
     let t_near = leaf.t_near.to_array();
     let t_far = leaf.t_far.to_array();
-    #[cfg(target_arch = "x86_64")]
-    {
-        let whole = super::avx2_lanes::Leaf {
-            first: leaf.child,
-            strips: leaf.kind,
-            mask: leaf.mask,
-            t_near,
-            t_far,
-        };
-        if let Some(finished) = C::trace_leaf(tracer, lanes, &whole, ANY_HIT, closest) {
-            return finished;
-        }
-    }
+    let mut kept = C::Together::default();
     let mut finished = 0;
     let mut active = leaf.mask;
     for strip in leaf.child..leaf.child + leaf.kind {
+        // A closest-hit lane stops where a hit found since is nearer than its interval. (An
+        // occlusion lane's bound stays what its interval was clipped to until the lane
+        // finishes, so the interval needs no clipping again, nor can it be empty.)
+        if !ANY_HIT {
+            for_each_bit(active, |lane| {
+                if t_near[lane] > t_far[lane].min(closest[lane].reach) {
+                    active &= !(1 << lane);
+                }
+            });
+            if active == 0 {
+                break;
+            }
+        }
         let view = tracer.file().strip(strip as usize);
-        for_each_bit(active, |lane| {
-            let closest = &mut closest[lane];
-            // An occlusion lane's bound stays what its interval was clipped to until the lane
-            // finishes, so the interval needs no clipping again (nor can it be empty).
-            let t_far = if ANY_HIT {
-                t_far[lane]
-            } else {
-                t_far[lane].min(closest.reach)
-            };
-            if !ANY_HIT && t_near[lane] > t_far {
-                active &= !(1 << lane);
-                return;
-            }
-            if C::trace_strip(&queries[lane], &view, strip, t_near[lane], t_far, closest) {
-                finished |= 1 << lane;
-                active &= !(1 << lane);
-            }
+        let reaching = LeafLanes {
+            active,
+            t_near: &t_near,
+            t_far: &t_far,
+        };
+        let packet = (tracer, lanes);
+        let together = C::trace_strip_together(
+            &mut kept,
+            packet,
+            (&view, strip),
+            &reaching,
+            ANY_HIT,
+            closest,
+        );
+        let done = together.unwrap_or_else(|| {
+            let mut done = 0;
+            for_each_bit(active, |lane| {
+                let closest = &mut closest[lane];
+                let t_far = if ANY_HIT {
+                    t_far[lane]
+                } else {
+                    t_far[lane].min(closest.reach)
+                };
+                if C::trace_strip(&queries[lane], &view, strip, t_near[lane], t_far, closest) {
+                    done |= 1 << lane;
+                }
+            });
+            done
         });
+        finished |= done;
+        active &= !done;
         if active == 0 {
             break;
         }
