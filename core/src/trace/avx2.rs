@@ -1,6 +1,6 @@
 //! The AVX2 kernel of the strip block (see [`super::strip`]): eight windows in one 256-bit
 //! register per quantity, lossless vertices moved into lanes without going through memory. Also
-//! the packets' walk of the global hierarchy compiled for AVX2 ([`traverse_packet`]).
+//! the packets' walk of the global hierarchy compiled for AVX2 ([`trace_packet`]).
 //!
 //! The baseline kernel assembles the block's corners in a stack array (scalar stores) and then
 //! loads them as lanes, and those wide loads of freshly stored scalars stall on store
@@ -19,7 +19,7 @@
 //! them ([`spread_references`]) instead of a shift and a mask each: 3,408 -> 3,228 instructions
 //! per AO ray and 2,695 -> 2,596 per primary ray (callgrind, 100k rays of the 1M scan).
 //!
-//! This is the tracer's one kernel module with `unsafe`: [`trace`] and [`traverse_packet`]
+//! This is the tracer's one kernel module with `unsafe`: [`trace`] and [`trace_packet`]
 //! check that the CPU has AVX2 and BMI2 before they enter the functions compiled for them
 //! (`#[target_feature]`), and the loads and stores below read and write inside their slices
 //! (each says why).
@@ -82,33 +82,36 @@ fn trace_as<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
     query.traverse::<Avx2Blocks, V, KX, KY, KZ>(vertices, args)
 }
 
-/// The packet traversal of the global hierarchy compiled for AVX2 (see `packet::traverse`);
-/// false, with nothing traced, when this CPU lacks AVX2.
-pub(super) fn traverse_packet(
+/// `packet::trace_packet` compiled for AVX2, the rays prepared in AVX2 registers
+/// ([`super::avx2_setup`]); false, with nothing traced, when this CPU lacks AVX2.
+pub(super) fn trace_packet(
     tracer: &super::Tracer,
-    lanes: &Lanes,
-    packet_mask: u32,
+    rays: &[super::Ray],
     any_hit: bool,
-    closest: &mut [super::strip::Closest; super::packet::PACKET_WIDTH],
+    closest: &mut [Closest; super::packet::PACKET_WIDTH],
 ) -> bool {
     if !super::kernel::avx2_detected() {
         return false;
     }
     // SAFETY: the CPU supports AVX2, checked just above.
-    unsafe { traverse_packet_detected(tracer, lanes, packet_mask, any_hit, closest) };
+    unsafe { trace_packet_detected(tracer, rays, any_hit, closest) };
     true
 }
 
+/// [`trace_packet`] once AVX2 is known to be there; `rays` holds one to eight rays.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline(never)]
-fn traverse_packet_detected(
+fn trace_packet_detected(
     tracer: &super::Tracer,
-    lanes: &Lanes,
-    packet_mask: u32,
+    rays: &[super::Ray],
     any_hit: bool,
-    closest: &mut [super::strip::Closest; super::packet::PACKET_WIDTH],
+    closest: &mut [Closest; super::packet::PACKET_WIDTH],
 ) {
-    super::packet::traverse_inline::<Avx2Packets>(tracer, lanes, packet_mask, any_hit, closest)
+    let lanes = super::avx2_setup::lanes(rays);
+    // Each lane's `PreparedRay`, for the lane-by-lane strip walk and rays traced alone, made
+    // from the lanes when first needed: for a quarter of the lanes of primary rays.
+    let packet = (&lanes, &mut [None; super::packet::PACKET_WIDTH]);
+    super::packet::trace_lanes::<Avx2Packets, _>(tracer, packet, rays.len(), any_hit, closest)
 }
 
 /// The packet's box test in 256-bit lanes. `wide`'s `f32x8` is two SSE registers in a crate
@@ -134,8 +137,7 @@ impl PacketKernel for Avx2Packets {
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32) {
         // SAFETY: `Avx2Packets` is private to this module and used only by
-        // `traverse_packet_detected`, which runs only once AVX2 was detected
-        // (`traverse_packet`).
+        // `trace_packet_detected`, which runs only once AVX2 was detected (`trace_packet`).
         unsafe { clip_slot(lanes, planes, slot, t_far) }
     }
 
@@ -154,11 +156,17 @@ impl PacketKernel for Avx2Packets {
         unsafe { lanes_at_most(a, b) }
     }
 
-    type Together = Option<super::avx2_lanes::LaneSpaces>;
+    type Together = super::avx2_lanes::LaneSpaces;
+
+    #[inline(always)]
+    fn together(lanes: &Lanes) -> Self::Together {
+        // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
+        unsafe { super::avx2_lanes::LaneSpaces::new(lanes) }
+    }
 
     #[inline(always)]
     fn trace_strip_together(
-        kept: &mut Self::Together,
+        together: &Self::Together,
         packet: (&super::Tracer, &Lanes),
         strip: (&StripView, u32),
         leaf: &LeafLanes,
@@ -167,7 +175,7 @@ impl PacketKernel for Avx2Packets {
     ) -> Option<u32> {
         // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
         unsafe {
-            super::avx2_lanes::trace_strip_together(kept, packet, strip, leaf, any_hit, closest)
+            super::avx2_lanes::trace_strip_together(together, packet, strip, leaf, any_hit, closest)
         }
     }
 

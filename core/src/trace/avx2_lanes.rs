@@ -33,7 +33,7 @@
 
 use std::arch::x86_64::*;
 
-use wide::f32x8;
+use wide::{f32x8, i32x8};
 
 use super::avx2::load_vertex;
 use super::packet::{Lanes, LeafLanes, PACKET_WIDTH};
@@ -64,30 +64,33 @@ pub(super) struct LaneSpaces {
 }
 
 impl LaneSpaces {
-    /// The lanes of `lanes`' rays.
+    /// The ray spaces of `lanes`' rays, as the packet's setup computed them, with the origin's
+    /// coordinates on each lane's ray-space axes picked.
     #[target_feature(enable = "avx2,bmi2")]
+    #[inline]
     pub(super) fn new(lanes: &Lanes) -> LaneSpaces {
-        let rays = &lanes.rays;
-        let per_lane =
-            |value: &dyn Fn(usize) -> f32| -> [f32; PACKET_WIDTH] { std::array::from_fn(value) };
-        let axis = |role: usize| -> [i32; PACKET_WIDTH] {
-            std::array::from_fn(|lane| rays[lane].space.axes()[role] as i32)
-        };
-        let origin =
-            |role: usize| per_lane(&|lane| rays[lane].origin[rays[lane].space.axes()[role]]);
+        let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
+        let int = |v: i32x8| -> __m256i { bytemuck::cast(v) };
+        let axis = [
+            int(lanes.space_axes[0]),
+            int(lanes.space_axes[1]),
+            int(lanes.space_axes[2]),
+        ];
+        let origin = [
+            wide(lanes.origin[0]),
+            wide(lanes.origin[1]),
+            wide(lanes.origin[2]),
+        ];
         LaneSpaces {
-            axis: [
-                load_indices(&axis(0)),
-                load_indices(&axis(1)),
-                load_indices(&axis(2)),
+            origin: [
+                origin_on(axis[0], &origin),
+                origin_on(axis[1], &origin),
+                origin_on(axis[2], &origin),
             ],
-            origin: [load(&origin(0)), load(&origin(1)), load(&origin(2))],
-            shear: [
-                load(&per_lane(&|lane| rays[lane].space.shears().0)),
-                load(&per_lane(&|lane| rays[lane].space.shears().1)),
-            ],
-            scale_z: load(&per_lane(&|lane| rays[lane].space.scale_z())),
-            tmin: load(&per_lane(&|lane| rays[lane].tmin)),
+            axis,
+            shear: [wide(lanes.shear[0]), wide(lanes.shear[1])],
+            scale_z: wide(lanes.scale_z),
+            tmin: wide(lanes.tmin),
         }
     }
 
@@ -112,6 +115,15 @@ impl LaneSpaces {
     }
 }
 
+/// Per lane the coordinate of `origin` on the model axis `axis` (0, 1 or 2), by two blends.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn origin_on(axis: __m256i, origin: &[__m256; 3]) -> __m256 {
+    let on = |model: i32| _mm256_castsi256_ps(_mm256_cmpeq_epi32(axis, _mm256_set1_epi32(model)));
+    let x_or_y = _mm256_blendv_ps(origin[0], origin[1], on(1));
+    _mm256_blendv_ps(x_or_y, origin[2], on(2))
+}
+
 /// What the lanes bring to a strip: its index, the lanes to test, whether any hit ends a lane,
 /// and each lane's closest hit so far.
 pub(super) struct StripLanes<'a> {
@@ -124,11 +136,10 @@ pub(super) struct StripLanes<'a> {
 /// Tests strip `strip` for all the `active` lanes at once when at least [`MIN_LANES`] reach it,
 /// it is lossless, has at most [`MAX_WINDOWS`] windows and its lane-by-lane walk culls by block
 /// boxes or has a single kd leaf; returns the lanes done (an occluder found with `any_hit`), or
-/// `None` for the lane-by-lane walk. `spaces` keeps the lanes' ray spaces from one strip of the
-/// leaf to the next.
+/// `None` for the lane-by-lane walk. `spaces` are the lanes' ray spaces, made once per packet.
 #[target_feature(enable = "avx2,bmi2")]
 pub(super) fn trace_strip_together(
-    spaces: &mut Option<LaneSpaces>,
+    spaces: &LaneSpaces,
     (tracer, lanes): (&Tracer, &Lanes),
     (view, strip): (&StripView, u32),
     leaf: &LeafLanes,
@@ -145,10 +156,6 @@ pub(super) fn trace_strip_together(
     if leaf.active.count_ones() < MIN_LANES || windows > MAX_WINDOWS || !culled_alike {
         return None;
     }
-    if spaces.is_none() {
-        *spaces = Some(LaneSpaces::new(lanes));
-    }
-    let spaces = spaces.as_ref().expect("made just above");
     let blocks = entered_blocks(lanes, leaf, view, points, closest);
     let strip_lanes = StripLanes {
         strip,
@@ -198,6 +205,7 @@ fn entered_blocks(
         load(&std::array::from_fn(|lane| closest[lane].reach)),
     );
     let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
+    let negative = lanes.negative();
     for block in 0..MAX_BLOCKS {
         let Some(codes) = view.boxes.codes(block) else {
             entered.lanes[block] = 0;
@@ -208,7 +216,7 @@ fn entered_blocks(
         for (axis, &code) in codes.iter().enumerate() {
             let plane = |code: u8| decode_plane(frame.anchor[axis], frame.scale[axis], code);
             let (min, max) = (plane(code & MAX_CODE), plane(code >> 4));
-            let (entry, exit) = if lanes.rays[0].negative[axis] {
+            let (entry, exit) = if negative[axis] {
                 (max, min)
             } else {
                 (min, max)
@@ -367,14 +375,6 @@ fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], tmin: __m256, tmax: __m256) 
     super::avx2::in_range_lanes_between(w, z, tmin, tmax)
 }
 
-/// `values` as eight integer lanes.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-fn load_indices(values: &[i32; PACKET_WIDTH]) -> __m256i {
-    // SAFETY: `values` is eight i32 (32 bytes), what the unaligned load reads.
-    unsafe { _mm256_loadu_si256(values.as_ptr().cast()) }
-}
-
 /// `values` as eight lanes.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
@@ -391,4 +391,70 @@ fn lanes_of(value: __m256) -> [f32; PACKET_WIDTH] {
     // SAFETY: `lanes` is eight f32 (32 bytes), what the unaligned store writes.
     unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), value) };
     lanes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trace::prepared::PreparedRay;
+    use crate::trace::Ray;
+
+    /// Each lane of the packet's ray spaces moves a position as its ray's `RaySpace::transform`
+    /// does, bit for bit (x, y, and the depth once scaled), for directions along every
+    /// permutation of the axes, both signs, and magnitude ties.
+    #[test]
+    fn lane_spaces_transform_as_each_ray() {
+        if !super::super::kernel::avx2_detected() {
+            return;
+        }
+        let magnitudes = [
+            [1.0, 0.5, 0.25],
+            [1.0, 1.0, 0.5],
+            [0.5, 1.0, 1.0],
+            [1.0, 1.0, 1.0],
+        ];
+        let mut rays = Vec::new();
+        for [a, b, c] in magnitudes {
+            for [x, y, z] in [
+                [a, b, c],
+                [b, c, a],
+                [c, a, b],
+                [a, c, b],
+                [c, b, a],
+                [b, a, c],
+            ] {
+                for signs in 0..8 {
+                    let sign = |bit: i32| if signs >> bit & 1 == 1 { -1.0 } else { 1.0 };
+                    rays.push(Ray {
+                        origin: [0.3 * sign(0), -2.0, 7.5 + signs as f32],
+                        direction: [x * sign(0), y * sign(1), z * sign(2)],
+                        tmin: 0.0,
+                        tmax: f32::INFINITY,
+                    });
+                }
+            }
+        }
+        let positions = [[0.0, 0.0, 0.0], [1.5, -3.25, 0.125], [-1e-3, 7.0, 1e5]];
+        for packet in rays.chunks(PACKET_WIDTH) {
+            // SAFETY: AVX2 and BMI2 were detected above.
+            let lanes = unsafe { super::super::avx2_setup::lanes(packet) };
+            // SAFETY: as above.
+            let spaces = unsafe { LaneSpaces::new(&lanes) };
+            for p in positions {
+                // SAFETY: as above.
+                let [x, y, offset] =
+                    unsafe { spaces.transform(_mm_setr_ps(p[0], p[1], p[2], 0.0)) };
+                // SAFETY: as above.
+                let depth = unsafe { lanes_of(_mm256_mul_ps(spaces.scale_z, offset)) };
+                // SAFETY: as above.
+                let (x, y) = unsafe { (lanes_of(x), lanes_of(y)) };
+                for (lane, ray) in packet.iter().enumerate() {
+                    let expected = PreparedRay::new(ray).space.transform(&p);
+                    let got = [x[lane], y[lane], depth[lane]].map(f32::to_bits);
+                    let want = [expected.x, expected.y, expected.z].map(f32::to_bits);
+                    assert_eq!(got, want, "{ray:?} at {p:?}");
+                }
+            }
+        }
+    }
 }

@@ -24,6 +24,8 @@ pub mod attributes;
 mod avx2;
 #[cfg(target_arch = "x86_64")]
 mod avx2_lanes;
+#[cfg(target_arch = "x86_64")]
+mod avx2_setup;
 pub mod kernel;
 pub mod packet;
 pub mod prepared;
@@ -220,18 +222,27 @@ impl<'f> Tracer<'f> {
 /// already come in runs of one octant as long as a packet on average, which then form packets
 /// as they are.
 fn octant_order(rays: &[Ray]) -> Option<Vec<u32>> {
-    // Each ray's octant is found once, for the three passes below.
-    let octants: Vec<u8> = rays
-        .iter()
-        .map(|ray| {
-            let [x, y, z] = ray.direction.map(|d| d.is_sign_negative() as u8);
-            x | y << 1 | z << 2
-        })
-        .collect();
-    let runs = 1 + octants.windows(2).filter(|pair| pair[0] != pair[1]).count();
-    if runs * packet::PACKET_WIDTH <= rays.len() {
+    // The runs are counted without storing the octants, which camera rays do not need, and
+    // only until they are too many (checked every 64 rays, not in the loop); grouped rays then
+    // find their octants again. Callgrind, 100k rays of the 1M scan: 21 -> 14 instructions per
+    // primary ray, 46 -> 36 per AO ray.
+    let most_runs = rays.len() / packet::PACKET_WIDTH;
+    let mut previous = rays.first().map_or(0, octant);
+    let mut runs = 1;
+    for chunk in rays.chunks(64) {
+        for ray in chunk {
+            let octant = octant(ray);
+            runs += usize::from(octant != previous);
+            previous = octant;
+        }
+        if runs > most_runs {
+            break;
+        }
+    }
+    if runs <= most_runs {
         return None;
     }
+    let octants: Vec<u8> = rays.iter().map(octant).collect();
     let mut starts = [0usize; 9];
     for &octant in &octants {
         starts[usize::from(octant) + 1] += 1;
@@ -246,6 +257,13 @@ fn octant_order(rays: &[Ray]) -> Option<Vec<u32>> {
         *slot += 1;
     }
     Some(order)
+}
+
+/// The octant of `ray`'s direction: its three sign bits.
+#[inline(always)]
+fn octant(ray: &Ray) -> u8 {
+    let [x, y, z] = ray.direction.map(f32::to_bits);
+    (x >> 31 | (y >> 31) << 1 | (z >> 31) << 2) as u8
 }
 
 /// `normalize((v1 - v0) × (v2 - v0))`, in f64 so that slivers with tiny edges keep a direction.

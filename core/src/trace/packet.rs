@@ -7,6 +7,10 @@
 //! leaf each active ray traverses the strips alone. Deviation from the paper: the low-level packet width is
 //! one ray, since strip kd-trees are small and per-ray culling there pays more than SIMD width.
 //!
+//! The packet's rays are prepared once, as [`PreparedRay::new`] prepares a single ray, into
+//! structure-of-arrays `Lanes`: ray by ray and then lane by lane (`Lanes::of`), or with the
+//! AVX2 kernel eight rays at once in AVX2 registers (`super::avx2_setup`), with the same bits.
+//!
 //! Bit-identical to single rays: a packet is formed only from rays whose direction signs match
 //! the first ray's (the others are traced alone), so all lanes pick the same entry and exit
 //! planes; the lanewise box arithmetic is the scalar arithmetic of [`PreparedRay::clip_box`]
@@ -24,7 +28,7 @@
 //! 1M scan).
 
 use arrayvec::ArrayVec;
-use wide::{f32x8, u32x4};
+use wide::{f32x8, i32x8, u32x4};
 
 use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION};
 use super::ray::Ray;
@@ -32,6 +36,7 @@ use super::strip::{Closest, StripQuery};
 use super::top::{
     for_each_bit, order_keys, trace_ray, ChildBoxes, DeferStack, NodeGridLanes, TraceNode,
 };
+use super::watertight::RaySpace;
 use super::Tracer;
 use crate::format::reader::{StripView, TopNodes};
 use crate::format::{INTERNAL_CHILD, TOP_WIDTH};
@@ -56,16 +61,24 @@ struct PacketDeferred {
     t_far: f32x8,
 }
 
-/// The packet's rays in structure-of-arrays form.
+/// The packet's rays prepared ([`PreparedRay`]) in structure-of-arrays form, lane `i` holding
+/// ray `i`'s fields bit for bit (lanes past the rays repeat the last one).
 pub(super) struct Lanes {
-    pub(super) rays: [PreparedRay; PACKET_WIDTH],
     pub(super) origin: [f32x8; 3],
     pub(super) entry_reciprocal: [f32x8; 3],
     pub(super) exit_reciprocal: [f32x8; 3],
     pub(super) tmin: f32x8,
-    /// Per axis, all ones in four lanes where the direction is negative (as
-    /// [`PreparedRay::negative`] of every lane), for picking a node's planes without branches.
+    pub(super) tmax: f32x8,
+    /// Per axis, bit `i` set where lane `i`'s direction is negative ([`PreparedRay::negative`]).
+    pub(super) signs: [u32; 3],
+    /// Per axis, all ones in four lanes where the packet's direction (lane 0's) is negative,
+    /// for picking a node's planes without branches.
     pub(super) negative_masks: [u32x4; 3],
+    /// The lanes' [`RaySpace`]s: `space_axes[role]` is the model axis of ray-space axis `role`
+    /// (x, y, z).
+    pub(super) space_axes: [i32x8; 3],
+    pub(super) shear: [f32x8; 2],
+    pub(super) scale_z: f32x8,
 }
 
 /// What the packet walk runs per child box and per strip: [`WideKernel`] everywhere, or the
@@ -98,16 +111,19 @@ pub(super) trait PacketKernel {
     #[inline(always)]
     fn prefetch<T>(_records: &[T], _index: usize) {}
 
-    /// What the kernel keeps from one strip of a leaf to the next for
+    /// What the kernel makes of the packet's lanes once for
     /// [`PacketKernel::trace_strip_together`].
-    type Together: Default;
+    type Together;
+
+    /// [`PacketKernel::Together`] of the packet `lanes`.
+    fn together(lanes: &Lanes) -> Self::Together;
 
     /// Strip `strip` traced for all the leaf's `active` lanes at once by the kernel's own means,
     /// or `None` for the lane-by-lane walk of [`trace_leaf_lanes`]; as that walk, returns the
     /// lanes that found an occluder when `any_hit` is set.
     #[inline(always)]
     fn trace_strip_together(
-        _kept: &mut Self::Together,
+        _together: &Self::Together,
         _packet: (&Tracer, &Lanes),
         _strip: (&StripView, u32),
         _leaf: &LeafLanes,
@@ -135,6 +151,9 @@ pub(super) struct WideKernel;
 impl PacketKernel for WideKernel {
     type Planes = SlotPlanes;
     type Together = ();
+
+    #[inline(always)]
+    fn together(_lanes: &Lanes) {}
 
     #[inline(always)]
     fn planes(lanes: &Lanes, boxes: &ChildBoxes) -> SlotPlanes {
@@ -171,74 +190,204 @@ impl PacketKernel for WideKernel {
 
 /// Traces up to [`PACKET_WIDTH`] rays; entry `i` is ray `i`'s closest hit (or, with `any_hit`,
 /// a hit that proves occlusion). Entries past `rays.len()` are empty.
+///
+/// With the AVX2 kernel on a CPU that has it, the packet is prepared and walked in code
+/// compiled for AVX2 ([`super::avx2::trace_packet`]): the rays are prepared in AVX2 registers
+/// ([`super::avx2_setup`]), and each `wide` eight-lane operation of the box tests is one 256-bit
+/// instruction instead of two 128-bit ones (2.7% fewer instructions per AO ray and 4% per
+/// primary ray for the walk, callgrind, 100k rays of the 1M scan; 9% less CPU time for 3.8M AO
+/// rays on one thread). The arithmetic is the same, so the lanes' bits are.
 pub fn trace_packet(tracer: &Tracer, rays: &[Ray], any_hit: bool) -> [Closest; PACKET_WIDTH] {
     let rays = &rays[..rays.len().min(PACKET_WIDTH)];
     let mut closest = std::array::from_fn(|lane| {
         Closest::none(rays.get(lane).map_or(f32::NEG_INFINITY, |ray| ray.tmax))
     });
-    let Some(first) = rays.first() else {
+    if rays.is_empty() {
         return closest;
-    };
-    let octant = first.direction.map(f32::is_sign_negative);
-    // The lanes sharing the first ray's octant, each ray's signs read once.
-    let mut packet_mask = rays.iter().enumerate().fold(0u32, |mask, (lane, ray)| {
-        mask | ((ray.direction.map(f32::is_sign_negative) == octant) as u32) << lane
-    });
-    if (packet_mask.count_ones() as usize) < MIN_PACKET_LANES {
-        packet_mask = 0;
     }
-    for (lane, ray) in rays.iter().enumerate() {
-        if packet_mask & (1 << lane) == 0 {
-            let prepared = PreparedRay::new(ray);
-            trace_ray(
-                tracer.file(),
-                &tracer.query(&prepared, any_hit),
-                &mut closest[lane],
-            );
-        }
+    #[cfg(target_arch = "x86_64")]
+    if tracer.options().kernel == super::Kernel::Avx2
+        && super::avx2::trace_packet(tracer, rays, any_hit, &mut closest)
+    {
+        return closest;
     }
-    if packet_mask != 0 {
-        let lanes = Lanes::new(rays);
-        traverse(tracer, &lanes, packet_mask, any_hit, &mut closest);
-    }
+    let mut prepared = prepare(rays);
+    let lanes = Lanes::of(&prepared);
+    trace_lanes::<WideKernel, _>(
+        tracer,
+        (&lanes, &mut prepared),
+        rays.len(),
+        any_hit,
+        &mut closest,
+    );
     closest
 }
 
+/// The packet's rays as [`PreparedRay`]s, for the lane-by-lane strip walk and the rays traced
+/// alone: all made by the setup, or each made from the lanes when first needed.
+pub(super) trait LaneRays {
+    /// Lane `lane`'s ray, as [`PreparedRay::new`] makes it.
+    fn ray(&mut self, lanes: &Lanes, lane: usize) -> &PreparedRay;
+}
+
+impl LaneRays for [PreparedRay; PACKET_WIDTH] {
+    #[inline(always)]
+    fn ray(&mut self, _lanes: &Lanes, lane: usize) -> &PreparedRay {
+        &self[lane % PACKET_WIDTH]
+    }
+}
+
+impl LaneRays for [Option<PreparedRay>; PACKET_WIDTH] {
+    #[inline(always)]
+    fn ray(&mut self, lanes: &Lanes, lane: usize) -> &PreparedRay {
+        self[lane % PACKET_WIDTH].get_or_insert_with(|| lanes.prepared(lane))
+    }
+}
+
+/// [`PreparedRay::new`] of each of `rays` (at least one, at most [`PACKET_WIDTH`]); lanes past
+/// them repeat the last ray.
+pub(super) fn prepare(rays: &[Ray]) -> [PreparedRay; PACKET_WIDTH] {
+    std::array::from_fn(|lane| PreparedRay::new(&rays[lane.min(rays.len() - 1)]))
+}
+
+/// [`trace_packet`] of the packet's first `count` lanes, compiled for the target of the
+/// function it is inlined into, clipping with `C`: the lanes sharing lane 0's direction signs
+/// walk the hierarchy together when there are at least [`MIN_PACKET_LANES`] of them, the
+/// others are traced alone. `prepared` gives the lanes' rays as [`PreparedRay`]s.
+#[inline(always)]
+pub(super) fn trace_lanes<C: PacketKernel, P: LaneRays>(
+    tracer: &Tracer,
+    (lanes, prepared): (&Lanes, &mut P),
+    count: usize,
+    any_hit: bool,
+    closest: &mut [Closest; PACKET_WIDTH],
+) {
+    let mut packet_mask = lanes.octant_lanes(count);
+    if (packet_mask.count_ones() as usize) < MIN_PACKET_LANES {
+        packet_mask = 0;
+    }
+    for_each_bit(!packet_mask & ((1 << count) - 1), |lane| {
+        let ray = prepared.ray(lanes, lane);
+        trace_ray(
+            tracer.file(),
+            &tracer.query(ray, any_hit),
+            &mut closest[lane],
+        );
+    });
+    if packet_mask != 0 {
+        let packet = (lanes, prepared);
+        if any_hit {
+            traverse_file::<C, P, true>(tracer, packet, packet_mask, closest)
+        } else {
+            traverse_file::<C, P, false>(tracer, packet, packet_mask, closest)
+        }
+    }
+}
+
 impl Lanes {
-    fn new(rays: &[Ray]) -> Lanes {
-        let prepared: [PreparedRay; PACKET_WIDTH] =
-            std::array::from_fn(|lane| PreparedRay::new(&rays[lane.min(rays.len() - 1)]));
+    /// The lanes of the `prepared` rays, stored lane by lane.
+    pub(super) fn of(prepared: &[PreparedRay; PACKET_WIDTH]) -> Lanes {
         // Plain stores lane by lane: gathering each field through a closure per field cost
         // about 5% of an AO ray's instructions.
         let mut origin = [[0.0; PACKET_WIDTH]; 3];
         let mut entry_reciprocal = [[0.0; PACKET_WIDTH]; 3];
         let mut exit_reciprocal = [[0.0; PACKET_WIDTH]; 3];
+        let mut space_axes = [[0; PACKET_WIDTH]; 3];
+        let mut shear = [[0.0; PACKET_WIDTH]; 2];
+        let mut scale_z = [0.0; PACKET_WIDTH];
         let mut tmin = [0.0; PACKET_WIDTH];
+        let mut tmax = [0.0; PACKET_WIDTH];
+        let mut signs = [0; 3];
         for (lane, ray) in prepared.iter().enumerate() {
+            let axes = ray.space.axes();
             for axis in 0..3 {
                 origin[axis][lane] = ray.origin[axis];
                 entry_reciprocal[axis][lane] = ray.entry_reciprocal[axis];
                 exit_reciprocal[axis][lane] = ray.exit_reciprocal[axis];
+                signs[axis] |= u32::from(ray.negative[axis]) << lane;
+                space_axes[axis][lane] = axes[axis] as i32;
             }
+            (shear[0][lane], shear[1][lane]) = ray.space.shears();
+            scale_z[lane] = ray.space.scale_z();
             tmin[lane] = ray.tmin;
+            tmax[lane] = ray.tmax;
         }
         Lanes {
             origin: origin.map(f32x8::from),
             entry_reciprocal: entry_reciprocal.map(f32x8::from),
             exit_reciprocal: exit_reciprocal.map(f32x8::from),
             tmin: f32x8::from(tmin),
-            negative_masks: prepared[0]
-                .negative
-                .map(|negative| u32x4::splat(if negative { u32::MAX } else { 0 })),
-            rays: prepared,
+            tmax: f32x8::from(tmax),
+            negative_masks: Lanes::negative_masks(&signs),
+            signs,
+            space_axes: space_axes.map(i32x8::from),
+            shear: shear.map(f32x8::from),
+            scale_z: f32x8::from(scale_z),
+        }
+    }
+
+    /// The field `negative_masks` from the lanes' `signs`.
+    pub(super) fn negative_masks(signs: &[u32; 3]) -> [u32x4; 3] {
+        signs.map(|signs| u32x4::splat(0u32.wrapping_sub(signs & 1)))
+    }
+
+    /// The packet's direction signs: lane 0's [`PreparedRay::negative`].
+    #[inline(always)]
+    pub(super) fn negative(&self) -> [bool; 3] {
+        self.signs.map(|signs| signs & 1 != 0)
+    }
+
+    /// The first `count` lanes whose direction signs are lane 0's, as a bit mask.
+    #[inline(always)]
+    fn octant_lanes(&self, count: usize) -> u32 {
+        self.signs.iter().fold((1 << count) - 1, |mask, &signs| {
+            mask & !(signs ^ 0u32.wrapping_sub(signs & 1))
+        })
+    }
+
+    /// Lane `lane`'s ray as [`PreparedRay::new`] makes it, bit for bit.
+    pub(super) fn prepared(&self, lane: usize) -> PreparedRay {
+        // The remainder spares the bounds checks; each field is read by hand, not through
+        // `array::map`, which stayed an out-of-line call of 121 instructions a lane (by hand:
+        // 27 fewer instructions per primary ray, 39 per AO ray; callgrind, 100k rays of the 1M
+        // scan).
+        let lane = lane % PACKET_WIDTH;
+        let at = |values: &[f32x8; 3]| {
+            [
+                values[0].as_array()[lane],
+                values[1].as_array()[lane],
+                values[2].as_array()[lane],
+            ]
+        };
+        let origin = at(&self.origin);
+        let axis = |role: usize| self.space_axes[role].as_array()[lane] as usize;
+        let space = RaySpace::from_parts(
+            origin,
+            [axis(0), axis(1), axis(2)],
+            [
+                self.shear[0].as_array()[lane],
+                self.shear[1].as_array()[lane],
+            ],
+            self.scale_z.as_array()[lane],
+        );
+        let negative = |axis: usize| self.signs[axis] >> lane & 1 != 0;
+        PreparedRay {
+            origin,
+            exit_reciprocal: at(&self.exit_reciprocal),
+            entry_reciprocal: at(&self.entry_reciprocal),
+            negative: [negative(0), negative(1), negative(2)],
+            space,
+            tmin: self.tmin.as_array()[lane],
+            tmax: self.tmax.as_array()[lane],
         }
     }
 
     /// [`PacketKernel::planes`] in plain arrays.
     #[inline(always)]
     fn planes(&self, (min, max): &ChildBoxes) -> SlotPlanes {
+        let negative = self.negative();
         let pick = |axis: usize, entry: bool| {
-            if self.rays[0].negative[axis] == entry {
+            if negative[axis] == entry {
                 max[axis]
             } else {
                 min[axis]
@@ -344,7 +493,7 @@ impl Lanes {
         let mut order = [0, 1, 2, 3];
         let order = &mut order[..entered.len()];
         if order.len() > 1 {
-            let keys = order_keys(&boxes.0, &boxes.1, &self.rays[0].negative);
+            let keys = order_keys(&boxes.0, &boxes.1, &self.negative());
             sort_by_keys(order, &slots.map(|slot| keys[slot % TOP_WIDTH]));
         }
         for &index in order.iter().skip(1).rev() {
@@ -391,78 +540,38 @@ fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> f32x8 {
     }))
 }
 
-/// Walks the global hierarchy with the packet's lanes. With the AVX2 kernel on a CPU that has
-/// it, the walk is compiled for AVX2 ([`super::avx2::traverse_packet`]), where each `wide`
-/// eight-lane operation of the box tests is one 256-bit instruction instead of two 128-bit ones:
-/// 2.7% fewer instructions per AO ray and 4% per primary ray (callgrind, 100k rays of the 1M
-/// scan), 9% less CPU time for 3.8M AO rays on one thread. The arithmetic is the same, so the
-/// lanes' bits are.
-fn traverse(
-    tracer: &Tracer,
-    lanes: &Lanes,
-    packet_mask: u32,
-    any_hit: bool,
-    closest: &mut [Closest; PACKET_WIDTH],
-) {
-    #[cfg(target_arch = "x86_64")]
-    if tracer.options().kernel == super::Kernel::Avx2
-        && super::avx2::traverse_packet(tracer, lanes, packet_mask, any_hit, closest)
-    {
-        return;
-    }
-    traverse_inline::<WideKernel>(tracer, lanes, packet_mask, any_hit, closest)
-}
-
-/// [`traverse`] compiled for the target of the function it is inlined into, clipping with `C`.
+/// The walk of the global hierarchy with the packet's lanes, for occlusion (`ANY_HIT`) or
+/// closest hits: one walk each, so that neither tests the query's kind per node or per strip.
 #[inline(always)]
-pub(super) fn traverse_inline<C: PacketKernel>(
+fn traverse_file<C: PacketKernel, P: LaneRays, const ANY_HIT: bool>(
     tracer: &Tracer,
-    lanes: &Lanes,
-    packet_mask: u32,
-    any_hit: bool,
-    closest: &mut [Closest; PACKET_WIDTH],
-) {
-    if any_hit {
-        traverse_file::<C, true>(tracer, lanes, packet_mask, closest)
-    } else {
-        traverse_file::<C, false>(tracer, lanes, packet_mask, closest)
-    }
-}
-
-/// [`traverse_inline`] for occlusion (`ANY_HIT`) or closest hits: one walk each, so that
-/// neither tests the query's kind per node or per strip.
-#[inline(always)]
-fn traverse_file<C: PacketKernel, const ANY_HIT: bool>(
-    tracer: &Tracer,
-    lanes: &Lanes,
+    packet: (&Lanes, &mut P),
     packet_mask: u32,
     closest: &mut [Closest; PACKET_WIDTH],
 ) {
     match tracer.file().top_nodes() {
         TopNodes::F32(nodes) => {
-            traverse_nodes::<_, C, ANY_HIT>(tracer, nodes, &(), lanes, packet_mask, closest)
+            traverse_nodes::<_, C, P, ANY_HIT>(tracer, (nodes, &()), packet, packet_mask, closest)
         }
         TopNodes::Grid(nodes, grid) => {
             let decoder = NodeGridLanes::new(&grid);
-            traverse_nodes::<_, C, ANY_HIT>(tracer, nodes, &decoder, lanes, packet_mask, closest)
+            let nodes = (nodes, &decoder);
+            traverse_nodes::<_, C, P, ANY_HIT>(tracer, nodes, packet, packet_mask, closest)
         }
     }
 }
 
 #[inline(always)]
-fn traverse_nodes<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
+fn traverse_nodes<N: TraceNode, C: PacketKernel, P: LaneRays, const ANY_HIT: bool>(
     tracer: &Tracer,
-    nodes: &[N],
-    decoder: &N::Decoder,
-    lanes: &Lanes,
+    (nodes, decoder): (&[N], &N::Decoder),
+    (lanes, prepared): (&Lanes, &mut P),
     packet_mask: u32,
     closest: &mut [Closest; PACKET_WIDTH],
 ) {
     let mut finished = 0u32;
     let mut stack = DeferStack::default();
-    // Each lane's strip query, made once for the packet rather than once per strip.
-    let queries: [StripQuery; PACKET_WIDTH] =
-        std::array::from_fn(|lane| tracer.query(&lanes.rays[lane], ANY_HIT));
+    let together = C::together(lanes);
     // The lanes' culling bounds change only at leaves: gathered once per leaf, not per node.
     let mut limit = bounds(closest, finished);
     // The root has no box: every lane starts with its own interval.
@@ -492,8 +601,8 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
                     continue;
                 }
             } else {
-                let found =
-                    trace_leaf_lanes::<C, ANY_HIT>(tracer, lanes, &queries, &current, closest);
+                let packet = (tracer, lanes, &together);
+                let found = trace_leaf_lanes::<C, P, ANY_HIT>(packet, prepared, &current, closest);
                 // An occlusion lane's bound changes only when it finishes.
                 if !ANY_HIT || found != 0 {
                     finished |= found;
@@ -530,16 +639,14 @@ pub(super) struct LeafLanes<'a> {
 /// traversal is entered straight from code compiled for AVX2 (`C::trace_strip`), without the
 /// per-strip CPU check and calls of [`StripQuery::trace`].
 #[inline(always)]
-fn trace_leaf_lanes<C: PacketKernel, const ANY_HIT: bool>(
-    tracer: &Tracer,
-    lanes: &Lanes,
-    queries: &[StripQuery; PACKET_WIDTH],
+fn trace_leaf_lanes<C: PacketKernel, P: LaneRays, const ANY_HIT: bool>(
+    (tracer, lanes, together): (&Tracer, &Lanes, &C::Together),
+    prepared: &mut P,
     leaf: &PacketDeferred,
     closest: &mut [Closest; PACKET_WIDTH],
 ) -> u32 {
     let t_near = leaf.t_near.to_array();
     let t_far = leaf.t_far.to_array();
-    let mut kept = C::Together::default();
     let mut finished = 0;
     let mut active = leaf.mask;
     for strip in leaf.child..leaf.child + leaf.kind {
@@ -563,15 +670,15 @@ fn trace_leaf_lanes<C: PacketKernel, const ANY_HIT: bool>(
             t_far: &t_far,
         };
         let packet = (tracer, lanes);
-        let together = C::trace_strip_together(
-            &mut kept,
+        let tested = C::trace_strip_together(
+            together,
             packet,
             (&view, strip),
             &reaching,
             ANY_HIT,
             closest,
         );
-        let done = together.unwrap_or_else(|| {
+        let done = tested.unwrap_or_else(|| {
             let mut done = 0;
             for_each_bit(active, |lane| {
                 let closest = &mut closest[lane];
@@ -580,7 +687,9 @@ fn trace_leaf_lanes<C: PacketKernel, const ANY_HIT: bool>(
                 } else {
                     t_far[lane].min(closest.reach)
                 };
-                if C::trace_strip(&queries[lane], &view, strip, t_near[lane], t_far, closest) {
+                let ray = prepared.ray(lanes, lane);
+                let query = tracer.query(ray, ANY_HIT);
+                if C::trace_strip(&query, &view, strip, t_near[lane], t_far, closest) {
                     done |= 1 << lane;
                 }
             });

@@ -84,6 +84,23 @@ impl RaySpace {
         }
     }
 
+    /// The ray space whose fields [`RaySpace::new`] computed elsewhere (eight at once for a
+    /// packet's lanes): `axes` as [`RaySpace::axes`], the shears as [`RaySpace::shears`].
+    pub(super) fn from_parts(
+        origin: Point,
+        axes: [usize; 3],
+        [shear_x, shear_y]: [f32; 2],
+        scale_z: f32,
+    ) -> RaySpace {
+        RaySpace {
+            origin,
+            axes,
+            shear_x,
+            shear_y,
+            scale_z,
+        }
+    }
+
     /// Ray-space x, y and z axes as model axes (one of six permutations).
     #[inline(always)]
     pub fn axes(&self) -> [usize; 3] {
