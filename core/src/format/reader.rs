@@ -394,9 +394,9 @@ impl ReducemFile {
     #[inline(never)]
     fn strip_on_first_view(&self, index: usize) -> StripView<'_> {
         match validate::check_strip(self, index) {
-            Ok(()) => {
+            Ok(view) => {
                 self.checks.strips.set(index);
-                self.strip_in_place(index)
+                view
             }
             Err(defect) => {
                 self.checks.keep(defect);

@@ -260,6 +260,45 @@ impl<'a> References<'a> {
         }
     }
 
+    /// The position of the first reference that is `limit` or more, if any: for a strip of
+    /// `limit` vertices, the first that names no vertex.
+    ///
+    /// A dozen word operations per load of [`BITS_PER_LOAD`] bits (eleven 5-bit references)
+    /// rather than a load, a mask and a comparison per reference: this runs on every strip's
+    /// first view. Per field of `w` bits, the comparison is split at the field's top bit: with
+    /// that bit set in the value and clear in the limit, subtracting the limit's low bits never
+    /// borrows across fields, and the difference's top bit says whether the low bits reach the
+    /// limit's; the top bits then decide.
+    #[inline]
+    pub fn first_at_least(&self, limit: usize) -> Option<usize> {
+        let width = self.width as usize;
+        if limit >> width != 0 {
+            return None;
+        }
+        let per_load = BITS_PER_LOAD / width;
+        let field = (1u64 << width) - 1;
+        let ones = ((1u64 << (per_load * width)) - 1) / field;
+        let top = ones << (width - 1);
+        let low = ones * field & !top;
+        let limit = ones * limit as u64;
+        let (limit_top, limit_low) = (limit & top, limit & low);
+        let mut first = 0;
+        while first < self.count {
+            let bit = first * width;
+            let stream = self.load(bit / 8) >> (bit % 8);
+            let kept = (self.count - first).min(per_load) * width;
+            let (value_top, value_low) = (stream & top, stream & low);
+            let low_reaches = ((value_low | top) - limit_low) & top;
+            let at_least = (value_top & !limit_top) | (!(value_top ^ limit_top) & low_reaches);
+            let found = at_least & top & ((1u64 << kept) - 1);
+            if found != 0 {
+                return Some(first + found.trailing_zeros() as usize / width);
+            }
+            first += per_load;
+        }
+        None
+    }
+
     /// Every reference, one byte each.
     pub fn to_vec(&self) -> Vec<u8> {
         let mut all = vec![0; self.count];
@@ -302,6 +341,39 @@ mod tests {
                 let block: [u8; 10] = view.read_block(count - 3);
                 assert_eq!(block[..3], references[count - 3..]);
                 assert_eq!(block[3..], [0; 7]);
+            }
+        }
+    }
+
+    /// The word-parallel search finds the same reference as a scan, for every width, limit
+    /// and position, in packed and byte areas, with other data after the references.
+    #[test]
+    fn first_reference_at_least_a_limit_matches_a_scan() {
+        for vertices in [
+            3usize, 4, 5, 7, 8, 9, 17, 31, 32, 33, 100, 128, 129, 200, 256,
+        ] {
+            for count in [3usize, 4, 10, 11, 12, 23, 57, 61, 200] {
+                let references: Vec<u8> = (0..count)
+                    .map(|k| ((k * 7919 + vertices * 31) % vertices) as u8)
+                    .collect();
+                let mut bytes = pack(&references, vertices);
+                let stored = bytes.len();
+                bytes.extend([0xff; 5]);
+                let packed = References::packed_before(&bytes, stored, count, vertices);
+                let unpacked = References::bytes(&references);
+                for limit in 1..=vertices {
+                    let scan = references.iter().position(|&r| usize::from(r) >= limit);
+                    assert_eq!(
+                        packed.first_at_least(limit),
+                        scan,
+                        "{vertices} {count} {limit}"
+                    );
+                    assert_eq!(
+                        unpacked.first_at_least(limit),
+                        scan,
+                        "bytes {count} {limit}"
+                    );
+                }
             }
         }
     }
