@@ -95,11 +95,18 @@ impl<'a> References<'a> {
         count: usize,
         vertices: usize,
     ) -> References<'a> {
+        References::packed_at(bytes, stored, count, packed_width(vertices))
+    }
+
+    /// [`References::packed_before`] with the width known: [`packed_width`] of the strip's
+    /// vertices, which the reader computes anyway for the area's length.
+    #[inline(always)]
+    pub fn packed_at(bytes: &'a [u8], stored: usize, count: usize, width: u32) -> References<'a> {
         References {
             bytes,
             stored,
             count,
-            width: packed_width(vertices),
+            width,
         }
     }
 

@@ -13,7 +13,6 @@ use rayon::prelude::*;
 
 use super::super::block_boxes::EXPONENTS;
 use super::super::grid::{Grid, NodeGrid, MAX_GRID_BITS};
-use super::super::implicit_tree::internal_nodes;
 use super::super::quantized::{vertex_part_bytes, AxisWord};
 use super::super::references::References;
 use super::super::{
@@ -24,8 +23,8 @@ use super::super::{
 };
 use super::lazy::{LazyChecks, Passed};
 use super::{
-    section_slot, strip_view, FormatError, ReducemFile, StripView, Validation, VertexLayout,
-    EAGER_VALIDATION_BYTES,
+    section_slot, view_block, FormatError, PartTable, ReducemFile, StripView, Validation,
+    VertexLayout, EAGER_VALIDATION_BYTES,
 };
 use crate::mapping::{map_file, map_range};
 
@@ -85,6 +84,7 @@ pub(super) fn open(
         sections,
         attributes,
         checks,
+        parts: PartTable::new(header.leaf_windows as usize, layout.boxes()),
     };
     let windows = Windows { opened: &opened };
     windows.check_strip_count()?;
@@ -142,7 +142,7 @@ pub(super) fn check_strip(
         ));
     };
     let shape = BlockShape {
-        leaf_windows: opened.leaf_windows(),
+        parts: &opened.parts,
         layout: opened.layout,
     };
     shape
@@ -226,7 +226,7 @@ impl Windows<'_> {
         let data = self.section(SectionKind::StripData);
         let data_len = data.end - data.start;
         let shape = BlockShape {
-            leaf_windows: self.opened.leaf_windows(),
+            parts: &self.opened.parts,
             layout: self.opened.layout,
         };
         let mut triangles = 0;
@@ -460,12 +460,13 @@ impl TreeCheck<'_> {
 type StripDefect = (Option<u64>, String);
 
 /// What a strip block's length depends on besides its record.
-struct BlockShape {
-    leaf_windows: usize,
+struct BlockShape<'a> {
+    /// The file's node counts and part lengths by reference count.
+    parts: &'a PartTable,
     layout: VertexLayout,
 }
 
-impl BlockShape {
+impl BlockShape<'_> {
     /// Checks a record's counts and returns its kd-tree's internal node count.
     fn nodes(&self, record: &StripRecord) -> Result<usize, StripDefect> {
         let vertices = record.vertex_count as usize;
@@ -476,7 +477,7 @@ impl BlockShape {
                 format!("{vertices} vertices and {references} references"),
             ));
         }
-        let nodes = internal_nodes(references - 2, self.leaf_windows);
+        let nodes = self.parts.nodes(references);
         if 2 * nodes > vertices {
             let detail = format!(
                 "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
@@ -493,7 +494,7 @@ impl BlockShape {
         let references = self
             .layout
             .reference_bytes(count, record.vertex_count as usize);
-        let boxes = self.layout.box_bytes(count);
+        let (_, boxes) = self.parts.lengths(count);
         (vertex_bytes + axis_bytes(nodes) + references + boxes) as u64
     }
 
@@ -620,7 +621,8 @@ impl BlockShape {
             data_word: 0,
             ..*record
         };
-        let view = strip_view(block, &local, self.leaf_windows, &self.layout);
+        let parts = self.parts.lengths(record.reference_count as usize);
+        let view = view_block(block, &local, parts, &self.layout);
         Ok(CheckedBlock {
             view,
             end: start + length,
