@@ -56,6 +56,22 @@ pub fn pack(references: &[u8], vertices: usize) -> Vec<u8> {
     bytes
 }
 
+/// The eight `width`-bit fields at the bottom of `stream` (`width` at most 7), one per byte,
+/// least significant first: the upper four fields moved up to bit 32, then in each half the upper
+/// two to bit 16, then in each quarter the upper one to bit 8. Each step's mask keeps the fields
+/// it moves and drops those a shift brought down from the part above, which at 7 bits a field
+/// end below the moved fields' destination.
+#[inline(always)]
+fn spread_to_bytes(stream: u64, width: usize) -> u64 {
+    let field = (1u64 << width) - 1;
+    let quads = stream & ((1u64 << (4 * width)) - 1)
+        | (stream >> (4 * width) & ((1u64 << (4 * width)) - 1)) << 32;
+    let pairs_mask = ((1u64 << (2 * width)) - 1) * 0x0000_0001_0000_0001;
+    let pairs = quads & pairs_mask | (quads >> (2 * width) & pairs_mask) << 16;
+    let singles_mask = field * 0x0001_0001_0001_0001;
+    pairs & singles_mask | (pairs >> width & singles_mask) << 8
+}
+
 /// A strip's references viewed in place.
 #[derive(Clone, Copy, Debug)]
 pub struct References<'a> {
@@ -136,9 +152,10 @@ impl<'a> References<'a> {
         one[0]
     }
 
-    /// References `first .. first + out.len()` into `out`. Packed references are read with
-    /// one 8-byte load per as many of them as fit in [`BITS_PER_LOAD`] (a tracer block of ten
-    /// 5-bit references needs one) rather than one load each.
+    /// References `first .. first + out.len()` into `out`. Packed references (at most 7 bits)
+    /// are read eight at a time, with one 8-byte load and three word steps that move each of
+    /// them into a byte of its own ([`spread_to_bytes`]), rather than a shift, a mask and a
+    /// store each.
     #[inline(always)]
     pub fn read_into(&self, first: usize, out: &mut [u8]) {
         if self.width == 8 {
@@ -146,15 +163,26 @@ impl<'a> References<'a> {
             return;
         }
         let width = self.width as usize;
-        let per_load = BITS_PER_LOAD / width;
-        let mask = (1u64 << width) - 1;
-        for (group, slots) in out.chunks_mut(per_load).enumerate() {
-            let bit = (first + group * per_load) * width;
-            let stream = self.load(bit / 8) >> (bit % 8);
-            for (k, slot) in slots.iter_mut().enumerate() {
-                *slot = ((stream >> (k * width)) & mask) as u8;
+        let (groups, tail) = out.as_chunks_mut::<8>();
+        let mut next = first;
+        for group in groups {
+            *group = spread_to_bytes(self.eight_at(next), width).to_le_bytes();
+            next += 8;
+        }
+        if !tail.is_empty() {
+            let bytes = spread_to_bytes(self.eight_at(next), width).to_le_bytes();
+            for (slot, byte) in tail.iter_mut().zip(bytes) {
+                *slot = byte;
             }
         }
+    }
+
+    /// The bit stream from reference `first` on: at least 57 bits, eight references of up to 7
+    /// bits.
+    #[inline(always)]
+    fn eight_at(&self, first: usize) -> u64 {
+        let bit = first * self.width as usize;
+        self.load(bit / 8) >> (bit % 8)
     }
 
     /// References `first .. first + N` (`first` below [`References::len`]), positions past the
@@ -380,6 +408,29 @@ mod tests {
                         scan,
                         "bytes {count} {limit}"
                     );
+                }
+            }
+        }
+    }
+
+    /// Reading any run of references from any position gives the packed references, for every
+    /// width, with other data after the area.
+    #[test]
+    fn packed_runs_read_back_from_every_position() {
+        for vertices in [3usize, 4, 5, 9, 16, 17, 32, 33, 64, 65, 128, 129, 256] {
+            let count = 41;
+            let references: Vec<u8> = (0..count)
+                .map(|k| ((k * 7919 + vertices * 13) % vertices) as u8)
+                .collect();
+            let mut bytes = pack(&references, vertices);
+            let stored = bytes.len();
+            bytes.extend([0xa5; 6]);
+            let view = References::packed_before(&bytes, stored, count, vertices);
+            for first in 0..count {
+                for length in 0..=count - first {
+                    let mut out = vec![0u8; length];
+                    view.read_into(first, &mut out);
+                    assert_eq!(out, references[first..first + length], "{vertices} {first}");
                 }
             }
         }
