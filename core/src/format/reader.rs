@@ -394,7 +394,7 @@ impl ReducemFile {
                 view
             }
             Err(defect) => {
-                self.checks.keep(defect);
+                self.checks.keep(*defect);
                 lazy::no_triangles()
             }
         }
