@@ -63,13 +63,12 @@ pub fn pack(references: &[u8], vertices: usize) -> Vec<u8> {
 /// end below the moved fields' destination.
 #[inline(always)]
 fn spread_to_bytes(stream: u64, width: usize) -> u64 {
-    let field = (1u64 << width) - 1;
-    let quads = stream & ((1u64 << (4 * width)) - 1)
-        | (stream >> (4 * width) & ((1u64 << (4 * width)) - 1)) << 32;
-    let pairs_mask = ((1u64 << (2 * width)) - 1) * 0x0000_0001_0000_0001;
-    let pairs = quads & pairs_mask | (quads >> (2 * width) & pairs_mask) << 16;
-    let singles_mask = field * 0x0001_0001_0001_0001;
-    pairs & singles_mask | (pairs >> width & singles_mask) << 8
+    let quad_mask = (1u64 << (4 * width)) - 1;
+    let quads = (stream & quad_mask) | (((stream >> (4 * width)) & quad_mask) << 32);
+    let pair_mask = ((1u64 << (2 * width)) - 1) * 0x0000_0001_0000_0001;
+    let pairs = (quads & pair_mask) | (((quads >> (2 * width)) & pair_mask) << 16);
+    let single_mask = ((1u64 << width) - 1) * 0x0001_0001_0001_0001;
+    (pairs & single_mask) | (((pairs >> width) & single_mask) << 8)
 }
 
 /// A strip's references viewed in place.
@@ -314,7 +313,7 @@ impl<'a> References<'a> {
         let field = (1u64 << width) - 1;
         let ones = ((1u64 << (per_load * width)) - 1) / field;
         let top = ones << (width - 1);
-        let low = ones * field & !top;
+        let low = (ones * field) & !top;
         let limit = ones * limit as u64;
         let (limit_top, limit_low) = (limit & top, limit & low);
         let mut first = 0;
