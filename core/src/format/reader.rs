@@ -410,8 +410,9 @@ impl ReducemFile {
     #[inline]
     fn strip_in_place(&self, index: usize) -> StripView<'_> {
         let records = &self.sections[section_slot(SectionKind::StripRecords)];
+        let count = records.len() / size_of::<StripRecord>();
+        assert!(index < count, "strip {index} outside 0..{count}");
         let at = records.start + index * size_of::<StripRecord>();
-        assert!(at < records.end, "strip {index} outside the record array");
         let record: StripRecord = bytemuck::pod_read_unaligned(&self.map[at..at + 8]);
         let data = &self.map[self.sections[section_slot(SectionKind::StripData)].start..];
         let parts = self.parts.lengths(record.reference_count as usize);
