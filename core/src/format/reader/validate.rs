@@ -130,8 +130,8 @@ fn check_node_of<N: NodeRecord>(opened: &ReducemFile, index: usize) -> Result<()
 /// axes and box exponents), and returns its view.
 ///
 /// The defect is boxed: a result as large as the view and the error side by side cost a copy
-/// through `memcpy` and three more moves of the view on every first view (74 instructions of
-/// 647, callgrind, 1M primary rays on the 1M scan).
+/// through `memcpy` and more moves of the view on every first view (33 instructions of 648,
+/// callgrind, 1M primary rays on the 1M scan).
 pub(super) fn check_strip(
     opened: &ReducemFile,
     index: usize,
