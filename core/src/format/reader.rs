@@ -24,6 +24,7 @@ mod lazy;
 mod validate;
 
 use std::fs::File;
+use std::mem::size_of;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -34,7 +35,7 @@ use super::block_boxes::{self, BlockBoxes};
 use super::grid::{Grid, NodeGrid};
 use super::implicit_tree::internal_nodes;
 use super::quantized::{vertex_part_bytes, AxisWordLayout, GridVertices};
-use super::references::{packed_bytes, References};
+use super::references::{packed_bytes, packed_width, References, MIN_PACKED_BYTES};
 use super::vertices::StripVertices;
 use super::{
     axis_bytes, GridNode, Header, PrecisionRecord, SectionKind, StripRecord, TopNode,
@@ -100,6 +101,8 @@ pub struct ReducemFile {
     sections: [Range<usize>; 3],
     attributes: AttributeSections,
     checks: LazyChecks,
+    /// The lengths of blocks' split axes and boxes by reference count, for views.
+    parts: PartTable,
 }
 
 /// The top-level nodes of a file, in the record its vertex encoding implies.
@@ -185,14 +188,6 @@ impl VertexLayout {
         match self.packed_references() {
             true => packed_bytes(count, vertices),
             false => count,
-        }
-    }
-
-    /// Bytes of the box area of a block with `count` references.
-    fn box_bytes(&self, count: usize) -> usize {
-        match self.boxes() {
-            true => block_boxes::area_bytes(count - 2),
-            false => 0,
         }
     }
 }
@@ -394,26 +389,34 @@ impl ReducemFile {
     #[inline(never)]
     fn strip_on_first_view(&self, index: usize) -> StripView<'_> {
         match validate::check_strip(self, index) {
-            Ok(()) => {
+            Ok(view) => {
                 self.checks.strips.set(index);
-                self.strip_in_place(index)
+                view
             }
             Err(defect) => {
-                self.checks.keep(defect);
+                self.checks.keep(*defect);
                 lazy::no_triangles()
             }
         }
     }
 
     /// The view of a strip known to be valid.
+    ///
+    /// The record is read from the mapping at its offset, and the block viewed in the mapping
+    /// from the strip-data section's start: the sections lie inside the mapping (checked at
+    /// open) and a valid block inside its section, so the view is the same as through the
+    /// sections' slices, whose bounds and alignment checks, and those of the record slice, cost
+    /// 10 of a view's 146 instructions (callgrind, 1M primary rays on the 1M scan).
     #[inline]
     fn strip_in_place(&self, index: usize) -> StripView<'_> {
-        strip_view(
-            self.section_bytes(SectionKind::StripData),
-            &self.strip_records()[index],
-            self.leaf_windows(),
-            &self.layout,
-        )
+        let records = &self.sections[section_slot(SectionKind::StripRecords)];
+        let count = records.len() / size_of::<StripRecord>();
+        assert!(index < count, "strip {index} outside 0..{count}");
+        let at = records.start + index * size_of::<StripRecord>();
+        let record: StripRecord = bytemuck::pod_read_unaligned(&self.map[at..at + 8]);
+        let data = &self.map[self.sections[section_slot(SectionKind::StripData)].start..];
+        let parts = self.parts.lengths(record.reference_count as usize);
+        view_block(data, &record, parts, &self.layout)
     }
 
     /// Hashes every section and compares with the header's checksums.
@@ -471,13 +474,11 @@ fn section_slot(kind: SectionKind) -> usize {
 }
 
 /// Views a strip's block. The record must be one an opened [`ReducemFile`] holds (validated at
-/// open by `BlockShape::check` in `reader/validate.rs`) or describe a block the build side just
-/// encoded; any other record may panic on a slice bound.
+/// open or on first view by `BlockShape` in `reader/validate.rs`) or describe a block the build
+/// side just encoded; any other record may panic on a slice bound.
 ///
-/// One branch on the layout, each arm computing its block's parts with the layout's variant
-/// known: this runs for every strip a ray (or packet) enters, and with the layout matched again
-/// for each part a lossless format 3 view cost 190 instructions, 153 now (callgrind, strips'
-/// first views by 100k primary rays on the 1M scan).
+/// An opened file views its strips through [`view_block`] with its [`PartTable`]; this computes
+/// the part lengths instead.
 #[inline]
 pub fn strip_view<'a>(
     data: &'a [u8],
@@ -485,15 +486,97 @@ pub fn strip_view<'a>(
     leaf_windows: usize,
     layout: &VertexLayout,
 ) -> StripView<'a> {
-    let start = record.data_word as usize * 4;
+    let count = record.reference_count as usize;
+    let parts = part_lengths(count, leaf_windows, layout.boxes());
+    view_block(data, record, parts, layout)
+}
+
+/// Bytes of the split axes and of the block boxes of a block with `count` references.
+#[inline(always)]
+fn part_lengths(count: usize, leaf_windows: usize, boxes: bool) -> (usize, usize) {
+    let axes = axis_bytes(internal_nodes(count - 2, leaf_windows));
+    match boxes {
+        true => (axes, block_boxes::area_bytes(count - 2)),
+        false => (axes, 0),
+    }
+}
+
+/// A block's kd-tree node count and [`part_lengths`] for the reference counts of nearly every
+/// strip, computed at open: looking them up rather than computing them (a division by the leaf
+/// size or a shift, two roundings, a branch on the box area) took a view from 136 to 113
+/// instructions (callgrind, 1M primary rays on the 1M scan).
+#[derive(Clone, Debug)]
+pub(super) struct PartTable {
+    leaf_windows: usize,
+    boxes: bool,
+    /// Internal kd-tree nodes, split-axis bytes and box bytes for each reference count below
+    /// [`PART_TABLE_COUNTS`] (zeros below 3, which no valid record has): at most 253, 64 and
+    /// 99.
+    entries: [[u8; 3]; PART_TABLE_COUNTS],
+}
+
+/// Reference counts [`PartTable`] holds: strips of up to 256 references, the most a strip of
+/// [`super::MAX_STRIP_VERTICES`] vertices has without swaps.
+const PART_TABLE_COUNTS: usize = 257;
+
+impl PartTable {
+    pub(super) fn new(leaf_windows: usize, boxes: bool) -> PartTable {
+        let entries = std::array::from_fn(|count| match count {
+            0..3 => [0; 3],
+            _ => {
+                let nodes = internal_nodes(count - 2, leaf_windows);
+                let (axes, box_bytes) = part_lengths(count, leaf_windows, boxes);
+                [nodes as u8, axes as u8, box_bytes as u8]
+            }
+        });
+        PartTable {
+            leaf_windows,
+            boxes,
+            entries,
+        }
+    }
+
+    /// Internal kd-tree nodes of a block of `count` references (at least 3).
+    #[inline(always)]
+    pub(super) fn nodes(&self, count: usize) -> usize {
+        match self.entries.get(count) {
+            Some(&[nodes, _, _]) => nodes as usize,
+            None => internal_nodes(count - 2, self.leaf_windows),
+        }
+    }
+
+    /// [`part_lengths`] of a block of `count` references (at least 3).
+    #[inline(always)]
+    pub(super) fn lengths(&self, count: usize) -> (usize, usize) {
+        match self.entries.get(count) {
+            Some(&[_, axes, boxes]) => (axes as usize, boxes as usize),
+            None => part_lengths(count, self.leaf_windows, self.boxes),
+        }
+    }
+}
+
+/// Views `record`'s block, whose split axes and boxes take `parts` bytes ([`part_lengths`]).
+///
+/// One branch on the layout, each arm computing its block's parts with the layout's variant
+/// known: this runs for every strip a ray (or packet) enters, and with the layout matched again
+/// for each part a lossless format 3 view cost 190 instructions, 153 then (callgrind, strips'
+/// first views by 100k primary rays on the 1M scan). The block is sliced once from its start
+/// and split into its parts, each length computed once (the reference width was computed
+/// twice): 166 to 146 instructions per view (1M primary rays on the 1M scan).
+#[inline(always)]
+pub(super) fn view_block<'a>(
+    data: &'a [u8],
+    record: &StripRecord,
+    parts: (usize, usize),
+    layout: &VertexLayout,
+) -> StripView<'a> {
+    let block = &data[record.data_word as usize * 4..];
     let count = record.vertex_count as usize;
     match *layout {
         VertexLayout::F32 { boxes } => {
-            let vertex_end = start + count * F32_VERTEX_BYTES;
-            let layout = VertexLayout::F32 { boxes };
-            let parts = BlockParts::new(vertex_end, record, leaf_windows, &layout);
-            let vertices = StripVertices::F32(bytemuck::cast_slice(&data[start..vertex_end]));
-            parts.view(data, vertices)
+            let parts = BlockParts::new(record, parts, &VertexLayout::F32 { boxes });
+            let (vertices, after) = block.split_at(count * F32_VERTEX_BYTES);
+            parts.view(after, StripVertices::F32(bytemuck::cast_slice(vertices)))
         }
         VertexLayout::Grid {
             grid,
@@ -501,72 +584,107 @@ pub fn strip_view<'a>(
             boxes,
         } => {
             let words_layout = VertexLayout::axis_words(&grid, packed);
-            let words = words_layout.read(&data[start..]);
-            let vertex_end = start + vertex_part_bytes(count, &words, words_layout);
+            let words = words_layout.read(block);
+            let vertex_bytes = vertex_part_bytes(count, &words, words_layout);
             let layout = VertexLayout::Grid {
                 grid,
                 packed,
                 boxes,
             };
-            let parts = BlockParts::new(vertex_end, record, leaf_windows, &layout);
-            let block = &data[start..parts.block_end];
+            let parts = BlockParts::new(record, parts, &layout);
+            let block = &block[..vertex_bytes + parts.bytes()];
             let vertices = GridVertices::new(block, (&words, words_layout), count, &grid);
-            parts.view(data, StripVertices::Grid(vertices))
+            parts.view(&block[vertex_bytes..], StripVertices::Grid(vertices))
         }
     }
 }
 
-/// Where the parts after a block's vertices end in the strip-data section: split axes, then
-/// references, then block boxes.
+/// The lengths of the parts after a block's vertices: split axes, then references, then block
+/// boxes.
 struct BlockParts {
-    vertex_end: usize,
-    axes_end: usize,
-    references_end: usize,
-    block_end: usize,
+    axes: usize,
     references: usize,
-    vertices: usize,
-    /// References packed at the strip's bits (else one byte each).
+    boxes: usize,
+    count: usize,
+    /// Bits per reference: 8 for one byte each.
+    width: u32,
+    /// References packed at `width` bits (else one byte each).
     packed: bool,
 }
 
 impl BlockParts {
-    /// The parts of `record`'s block whose vertices end at `vertex_end`; `layout` is best a
-    /// value the caller built, whose variant the compiler then knows.
+    /// The parts of `record`'s block, whose split axes and boxes take `(axes, boxes)` bytes;
+    /// `layout` is best a value the caller built, whose variant the compiler then knows.
     #[inline(always)]
     fn new(
-        vertex_end: usize,
         record: &StripRecord,
-        leaf_windows: usize,
+        (axes, boxes): (usize, usize),
         layout: &VertexLayout,
     ) -> BlockParts {
-        let vertices = record.vertex_count as usize;
-        let references = record.reference_count as usize;
-        let axes_end = vertex_end + axis_bytes(internal_nodes(references - 2, leaf_windows));
-        let references_end = axes_end + layout.reference_bytes(references, vertices);
+        let count = record.reference_count as usize;
+        let packed = layout.packed_references();
+        let width = match packed {
+            true => packed_width(record.vertex_count as usize),
+            false => 8,
+        };
         BlockParts {
-            vertex_end,
-            axes_end,
-            references_end,
-            block_end: references_end + layout.box_bytes(references),
-            references,
-            vertices,
-            packed: layout.packed_references(),
+            axes,
+            references: match packed {
+                true => (count * width as usize).div_ceil(8).max(MIN_PACKED_BYTES),
+                false => count,
+            },
+            boxes,
+            count,
+            width,
+            packed,
         }
     }
 
+    /// Bytes of the parts.
     #[inline(always)]
-    fn view<'a>(&self, data: &'a [u8], vertices: StripVertices<'a>) -> StripView<'a> {
-        let after_axes = &data[self.axes_end..self.block_end];
-        let stored = self.references_end - self.axes_end;
+    fn bytes(&self) -> usize {
+        self.axes + self.references + self.boxes
+    }
+
+    /// The view of the parts at the start of `after_vertices`, the block's bytes after its
+    /// vertices (and possibly more).
+    #[inline(always)]
+    fn view<'a>(&self, after_vertices: &'a [u8], vertices: StripVertices<'a>) -> StripView<'a> {
+        let (axes, after_axes) = after_vertices.split_at(self.axes);
+        let after_axes = &after_axes[..self.references + self.boxes];
+        let (stored, boxes) = after_axes.split_at(self.references);
         let references = match self.packed {
-            true => References::packed_before(after_axes, stored, self.references, self.vertices),
-            false => References::bytes(&after_axes[..stored]),
+            true => References::packed_at(after_axes, self.references, self.count, self.width),
+            false => References::bytes(stored),
         };
         StripView {
             vertices,
-            axes: &data[self.vertex_end..self.axes_end],
+            axes,
             references,
-            boxes: BlockBoxes::new(&after_axes[stored..]),
+            boxes: BlockBoxes::new(boxes),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table a file's views read gives the lengths the validation checked, for every leaf
+    /// size and reference count, inside the table and past it.
+    #[test]
+    fn part_table_agrees_with_computed_lengths() {
+        for leaf_windows in 1..=255 {
+            for boxes in [false, true] {
+                let table = PartTable::new(leaf_windows, boxes);
+                for count in 3..PART_TABLE_COUNTS + 40 {
+                    let case = format!("leaf {leaf_windows}, boxes {boxes}, {count} references");
+                    let computed = part_lengths(count, leaf_windows, boxes);
+                    assert_eq!(table.lengths(count), computed, "{case}");
+                    let nodes = internal_nodes(count - 2, leaf_windows);
+                    assert_eq!(table.nodes(count), nodes, "{case}");
+                }
+            }
         }
     }
 }

@@ -56,6 +56,21 @@ pub fn pack(references: &[u8], vertices: usize) -> Vec<u8> {
     bytes
 }
 
+/// The eight `width`-bit fields at the bottom of `stream` (`width` at most 7), one per byte,
+/// least significant first: the upper four fields moved up to bit 32, then in each half the upper
+/// two to bit 16, then in each quarter the upper one to bit 8. Each step's mask keeps the fields
+/// it moves and drops those a shift brought down from the part above, which at 7 bits a field
+/// end below the moved fields' destination.
+#[inline(always)]
+fn spread_to_bytes(stream: u64, width: usize) -> u64 {
+    let quad_mask = (1u64 << (4 * width)) - 1;
+    let quads = (stream & quad_mask) | (((stream >> (4 * width)) & quad_mask) << 32);
+    let pair_mask = ((1u64 << (2 * width)) - 1) * 0x0000_0001_0000_0001;
+    let pairs = (quads & pair_mask) | (((quads >> (2 * width)) & pair_mask) << 16);
+    let single_mask = ((1u64 << width) - 1) * 0x0001_0001_0001_0001;
+    (pairs & single_mask) | (((pairs >> width) & single_mask) << 8)
+}
+
 /// A strip's references viewed in place.
 #[derive(Clone, Copy, Debug)]
 pub struct References<'a> {
@@ -95,11 +110,18 @@ impl<'a> References<'a> {
         count: usize,
         vertices: usize,
     ) -> References<'a> {
+        References::packed_at(bytes, stored, count, packed_width(vertices))
+    }
+
+    /// [`References::packed_before`] with the width known: [`packed_width`] of the strip's
+    /// vertices, which the reader computes anyway for the area's length.
+    #[inline(always)]
+    pub fn packed_at(bytes: &'a [u8], stored: usize, count: usize, width: u32) -> References<'a> {
         References {
             bytes,
             stored,
             count,
-            width: packed_width(vertices),
+            width,
         }
     }
 
@@ -129,9 +151,10 @@ impl<'a> References<'a> {
         one[0]
     }
 
-    /// References `first .. first + out.len()` into `out`. Packed references are read with
-    /// one 8-byte load per as many of them as fit in [`BITS_PER_LOAD`] (a tracer block of ten
-    /// 5-bit references needs one) rather than one load each.
+    /// References `first .. first + out.len()` into `out`. Packed references (at most 7 bits)
+    /// are read eight at a time, with one 8-byte load and three word steps that move each of
+    /// them into a byte of its own ([`spread_to_bytes`]), rather than a shift, a mask and a
+    /// store each.
     #[inline(always)]
     pub fn read_into(&self, first: usize, out: &mut [u8]) {
         if self.width == 8 {
@@ -139,15 +162,26 @@ impl<'a> References<'a> {
             return;
         }
         let width = self.width as usize;
-        let per_load = BITS_PER_LOAD / width;
-        let mask = (1u64 << width) - 1;
-        for (group, slots) in out.chunks_mut(per_load).enumerate() {
-            let bit = (first + group * per_load) * width;
-            let stream = self.load(bit / 8) >> (bit % 8);
-            for (k, slot) in slots.iter_mut().enumerate() {
-                *slot = ((stream >> (k * width)) & mask) as u8;
+        let (groups, tail) = out.as_chunks_mut::<8>();
+        let mut next = first;
+        for group in groups {
+            *group = spread_to_bytes(self.eight_at(next), width).to_le_bytes();
+            next += 8;
+        }
+        if !tail.is_empty() {
+            let bytes = spread_to_bytes(self.eight_at(next), width).to_le_bytes();
+            for (slot, byte) in tail.iter_mut().zip(bytes) {
+                *slot = byte;
             }
         }
+    }
+
+    /// The bit stream from reference `first` on: at least 57 bits, eight references of up to 7
+    /// bits.
+    #[inline(always)]
+    fn eight_at(&self, first: usize) -> u64 {
+        let bit = first * self.width as usize;
+        self.load(bit / 8) >> (bit % 8)
     }
 
     /// References `first .. first + N` (`first` below [`References::len`]), positions past the
@@ -260,6 +294,45 @@ impl<'a> References<'a> {
         }
     }
 
+    /// The position of the first reference that is `limit` or more, if any: for a strip of
+    /// `limit` vertices, the first that names no vertex.
+    ///
+    /// A dozen word operations per load of [`BITS_PER_LOAD`] bits (eleven 5-bit references)
+    /// rather than a load, a mask and a comparison per reference: this runs on every strip's
+    /// first view. Per field of `w` bits, the comparison is split at the field's top bit: with
+    /// that bit set in the value and clear in the limit, subtracting the limit's low bits never
+    /// borrows across fields, and the difference's top bit says whether the low bits reach the
+    /// limit's; the top bits then decide.
+    #[inline]
+    pub fn first_at_least(&self, limit: usize) -> Option<usize> {
+        let width = self.width as usize;
+        if limit >> width != 0 {
+            return None;
+        }
+        let per_load = BITS_PER_LOAD / width;
+        let field = (1u64 << width) - 1;
+        let ones = ((1u64 << (per_load * width)) - 1) / field;
+        let top = ones << (width - 1);
+        let low = (ones * field) & !top;
+        let limit = ones * limit as u64;
+        let (limit_top, limit_low) = (limit & top, limit & low);
+        let mut first = 0;
+        while first < self.count {
+            let bit = first * width;
+            let stream = self.load(bit / 8) >> (bit % 8);
+            let kept = (self.count - first).min(per_load) * width;
+            let (value_top, value_low) = (stream & top, stream & low);
+            let low_reaches = ((value_low | top) - limit_low) & top;
+            let at_least = (value_top & !limit_top) | (!(value_top ^ limit_top) & low_reaches);
+            let found = at_least & top & ((1u64 << kept) - 1);
+            if found != 0 {
+                return Some(first + found.trailing_zeros() as usize / width);
+            }
+            first += per_load;
+        }
+        None
+    }
+
     /// Every reference, one byte each.
     pub fn to_vec(&self) -> Vec<u8> {
         let mut all = vec![0; self.count];
@@ -302,6 +375,62 @@ mod tests {
                 let block: [u8; 10] = view.read_block(count - 3);
                 assert_eq!(block[..3], references[count - 3..]);
                 assert_eq!(block[3..], [0; 7]);
+            }
+        }
+    }
+
+    /// The word-parallel search finds the same reference as a scan, for every width, limit
+    /// and position, in packed and byte areas, with other data after the references.
+    #[test]
+    fn first_reference_at_least_a_limit_matches_a_scan() {
+        for vertices in [
+            3usize, 4, 5, 7, 8, 9, 17, 31, 32, 33, 100, 128, 129, 200, 256,
+        ] {
+            for count in [3usize, 4, 10, 11, 12, 23, 57, 61, 200] {
+                let references: Vec<u8> = (0..count)
+                    .map(|k| ((k * 7919 + vertices * 31) % vertices) as u8)
+                    .collect();
+                let mut bytes = pack(&references, vertices);
+                let stored = bytes.len();
+                bytes.extend([0xff; 5]);
+                let packed = References::packed_before(&bytes, stored, count, vertices);
+                let unpacked = References::bytes(&references);
+                for limit in 1..=vertices {
+                    let scan = references.iter().position(|&r| usize::from(r) >= limit);
+                    assert_eq!(
+                        packed.first_at_least(limit),
+                        scan,
+                        "{vertices} {count} {limit}"
+                    );
+                    assert_eq!(
+                        unpacked.first_at_least(limit),
+                        scan,
+                        "bytes {count} {limit}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Reading any run of references from any position gives the packed references, for every
+    /// width, with other data after the area.
+    #[test]
+    fn packed_runs_read_back_from_every_position() {
+        for vertices in [3usize, 4, 5, 9, 16, 17, 32, 33, 64, 65, 128, 129, 256] {
+            let count = 41;
+            let references: Vec<u8> = (0..count)
+                .map(|k| ((k * 7919 + vertices * 13) % vertices) as u8)
+                .collect();
+            let mut bytes = pack(&references, vertices);
+            let stored = bytes.len();
+            bytes.extend([0xa5; 6]);
+            let view = References::packed_before(&bytes, stored, count, vertices);
+            for first in 0..count {
+                for length in 0..=count - first {
+                    let mut out = vec![0u8; length];
+                    view.read_into(first, &mut out);
+                    assert_eq!(out, references[first..first + length], "{vertices} {first}");
+                }
             }
         }
     }
