@@ -384,7 +384,9 @@ fn query(
         seconds,
         kernel,
     };
-    eprintln!("{summary}");
+    // One write: runs sharing a log (cron jobs) never interleave their summaries.
+    let line = format!("{summary}\n");
+    let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
     Ok(())
 }
 

@@ -86,8 +86,12 @@ pub fn write_syncing_behind<T>(
     })
 }
 
-/// Bytes written between two background syncs of [`write_syncing_behind`].
-pub const BACKGROUND_SYNC_BYTES: usize = 8 << 20;
+/// Bytes written between two background syncs of [`write_syncing_behind`]: at most what is
+/// left to flush when the writing ends, which the final fsync then waits for. With 8 MiB, a
+/// `reducem query` of 1M camera rays (a 16 MiB hit file, 2 threads) took 0.212 s (median of 15
+/// alternating runs) while other jobs wrote to the same disk, and 0.160 s with 1 MiB; on an idle
+/// disk 0.068 and 0.067 s.
+pub const BACKGROUND_SYNC_BYTES: usize = 1 << 20;
 
 /// The syncing thread of [`write_syncing_behind`]: syncs whenever a step more was written,
 /// until `done`.
