@@ -127,14 +127,23 @@ impl<'f> Tracer<'f> {
 
     /// [`Tracer::intersect`] over consecutive rays on the calling thread.
     pub fn intersect_chunk(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
-        if !self.options.packets {
-            return rays.iter().map(|ray| self.intersect(ray)).collect();
-        }
         let mut hits = vec![None; rays.len()];
-        self.trace_by_octant(rays, false, |index, closest| {
-            hits[index] = self.finish(closest)
-        });
+        self.intersect_each(rays, |index, hit| hits[index] = hit);
         hits
+    }
+
+    /// [`Tracer::intersect_chunk`] handing ray `i`'s closest hit to `each(i, hit)`, in no
+    /// particular order of `i`, rather than collecting them.
+    pub fn intersect_each(&self, rays: &[Ray], mut each: impl FnMut(usize, Option<Hit>)) {
+        if !self.options.packets {
+            for (index, ray) in rays.iter().enumerate() {
+                each(index, self.intersect(ray));
+            }
+            return;
+        }
+        self.trace_by_octant(rays, false, |index, closest| {
+            each(index, self.finish(closest))
+        });
     }
 
     /// [`Tracer::occluded`] over consecutive rays on the calling thread.
@@ -163,6 +172,7 @@ impl<'f> Tracer<'f> {
         let order = octant_order(rays);
         let ray_at = |k: usize| order.as_ref().map_or(k, |order| order[k] as usize);
         let mut gathered = ArrayVec::<Ray, { packet::PACKET_WIDTH }>::new();
+        let mut found = [Closest::none(f32::NEG_INFINITY); packet::PACKET_WIDTH];
         for start in (0..rays.len()).step_by(packet::PACKET_WIDTH) {
             let end = (start + packet::PACKET_WIDTH).min(rays.len());
             let group = if order.is_some() {
@@ -175,8 +185,8 @@ impl<'f> Tracer<'f> {
             } else {
                 &rays[start..end]
             };
-            let closest = packet::trace_packet(self, group, any_hit);
-            for (k, closest) in (start..end).zip(&closest) {
+            packet::trace_packet(self, group, any_hit, &mut found);
+            for (k, closest) in (start..end).zip(&found) {
                 answer(ray_at(k), closest);
             }
         }

@@ -382,13 +382,32 @@ fn encode_full_record(hit: Option<(&Hit, HitAttributes)>, record: &mut [u8]) {
 /// `+inf 0 0 0`.
 fn encode_hits_into(hits: &[Option<Hit>], bytes: &mut [u8]) {
     for (hit, record) in hits.iter().zip(bytes.chunks_exact_mut(HIT_BYTES)) {
-        let fields = match hit {
-            Some(hit) => [hit.t, hit.normal[0], hit.normal[1], hit.normal[2]],
-            None => [f32::INFINITY, 0.0, 0.0, 0.0],
-        };
-        for (field, out) in fields.iter().zip(record.chunks_exact_mut(4)) {
-            out.copy_from_slice(&field.to_le_bytes());
+        encode_hit(hit.as_ref(), record);
+    }
+}
+
+/// Traces `rays` and encodes each closest hit into its record of `bytes` as it is found,
+/// without collecting the hits first; the hits among them.
+fn encode_hits_traced(tracer: &Tracer, rays: &[Ray], bytes: &mut [u8]) -> usize {
+    let mut hits = 0;
+    tracer.intersect_each(rays, |index, hit| {
+        hits += hit.is_some() as usize;
+        let start = index * HIT_BYTES;
+        if let Some(record) = bytes.get_mut(start..start + HIT_BYTES) {
+            encode_hit(hit.as_ref(), record);
         }
+    });
+    hits
+}
+
+/// One compact hit record (`HIT_BYTES`): `t` and the normal, or `t = inf` on a miss.
+fn encode_hit(hit: Option<&Hit>, record: &mut [u8]) {
+    let fields = match hit {
+        Some(hit) => [hit.t, hit.normal[0], hit.normal[1], hit.normal[2]],
+        None => [f32::INFINITY, 0.0, 0.0, 0.0],
+    };
+    for (field, out) in fields.iter().zip(record.chunks_exact_mut(4)) {
+        out.copy_from_slice(&field.to_le_bytes());
     }
 }
 
@@ -484,6 +503,9 @@ fn answer_chunk(
     answer: Answer,
     out: &mut [u8],
 ) -> usize {
+    if let (None, Answer::Hits(HitFormat::Compact)) = (valid, answer) {
+        return encode_hits_traced(tracer, rays, out);
+    }
     let answers = match valid {
         None => Answers::trace(tracer, rays, answer),
         Some(valid) => Answers::trace_valid(tracer, rays, valid, answer),
