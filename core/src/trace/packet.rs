@@ -657,16 +657,20 @@ fn trace_leaf_lanes<C: PacketKernel, P: LaneRays, const ANY_HIT: bool>(
     let t_far = leaf.t_far.to_array();
     let mut finished = 0;
     let mut active = leaf.mask;
-    for strip in leaf.child..leaf.child + leaf.kind {
-        // A closest-hit lane stops where a hit found since is nearer than its interval. (An
-        // occlusion lane's bound stays what its interval was clipped to until the lane
-        // finishes, so the interval needs no clipping again, nor can it be empty.)
-        if !ANY_HIT {
-            for_each_bit(active, |lane| {
-                if t_near[lane] > t_far[lane].min(closest[lane].reach) {
-                    active &= !(1 << lane);
-                }
-            });
+    let strips = leaf.child..leaf.child + leaf.kind;
+    for strip in strips.clone() {
+        // A closest-hit lane stops where a hit found since is nearer than its interval: after
+        // the leaf's first strip (a lane enters the leaf with `t_near <= t_far` and
+        // `t_near <= reach`), one compare on the eight lanes, as `t_near > min(t_far, reach)`
+        // lane by lane (`t_near` and `t_far` are not NaN where a lane entered, and the bound
+        // is `t_far` where `reach` is NaN, as `f32::min`). An occlusion lane's bound stays what
+        // its interval was clipped to until the lane finishes, so the interval needs no
+        // clipping again, nor can it be empty.
+        if !ANY_HIT && strip != strips.start {
+            let reach = f32x8::from(std::array::from_fn::<f32, PACKET_WIDTH, _>(|lane| {
+                closest[lane].reach
+            }));
+            active &= C::lanes_at_most(leaf.t_near, min_not_nan_x8(leaf.t_far, reach));
             if active == 0 {
                 break;
             }
