@@ -542,6 +542,7 @@ impl NodeRecord for TopNode {
         None
     }
 
+    #[inline]
     fn passes_alone(&self, index: usize, limits: NodeLimits) -> bool {
         let words: &[[u32; TOP_WIDTH]; 8] = bytemuck::cast_ref(self);
         let empty: &[[u32; TOP_WIDTH]; 8] = bytemuck::cast_ref(&TopNode::EMPTY);
@@ -655,6 +656,7 @@ impl NodeRecord for GridNode {
             .map(|axis| (axis, (axis * 8 + slot * 2) as u64))
     }
 
+    #[inline]
     fn passes_alone(&self, index: usize, limits: NodeLimits) -> bool {
         let mut differ = [0u16; TOP_WIDTH];
         let mut inverted = [false; TOP_WIDTH];
