@@ -16,10 +16,11 @@ use super::super::grid::{Grid, NodeGrid, MAX_GRID_BITS};
 use super::super::quantized::{vertex_part_bytes, AxisWord};
 use super::super::references::References;
 use super::super::{
-    axis_bytes, GridNode, Header, NodeRecord, PrecisionRecord, SectionKind, StripRecord, TopNode,
-    TopSlot, VertexEncoding, ENDIAN_MARKER, F32_VERTEX_BYTES, HEADER_CHECKSUMMED_BYTES,
-    HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH, OLDEST_READ_MAJOR,
-    PRECISION_CHECKSUMMED_BYTES, PRECISION_OFFSET, SECTION_ALIGN, TOP_WIDTH, VERSION_MAJOR,
+    axis_bytes, GridNode, Header, NodeLimits, NodeRecord, PrecisionRecord, SectionKind,
+    StripRecord, TopNode, TopSlot, VertexEncoding, ENDIAN_MARKER, F32_VERTEX_BYTES,
+    HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, MAX_STRIP_VERTICES, MAX_TOP_DEPTH,
+    OLDEST_READ_MAJOR, PRECISION_CHECKSUMMED_BYTES, PRECISION_OFFSET, SECTION_ALIGN, TOP_WIDTH,
+    VERSION_MAJOR,
 };
 use super::lazy::{LazyChecks, Passed};
 use super::{
@@ -113,8 +114,21 @@ pub(super) fn check_node(opened: &ReducemFile, index: usize) -> Result<(), Forma
     }
 }
 
+/// [`NodeRecord::passes_alone`] first; [`TreeCheck::check`], slot by slot, only to word the
+/// defect of a node that fails it.
 fn check_node_of<N: NodeRecord>(opened: &ReducemFile, index: usize) -> Result<(), FormatError> {
     let nodes: &[N] = bytemuck::cast_slice(opened.section_bytes(SectionKind::TopNodes));
+    let limits = NodeLimits {
+        nodes: nodes.len(),
+        strips: opened.header.strip_count,
+        empty_root: index == 0 && opened.header.strip_count == 0,
+    };
+    if nodes
+        .get(index)
+        .is_some_and(|node| node.passes_alone(index, limits))
+    {
+        return Ok(());
+    }
     let mut tree = TreeCheck::alone(opened, nodes.len(), size_of::<N>() as u64);
     match nodes.get(index) {
         Some(node) => tree.check(index, node),
