@@ -5,10 +5,8 @@
 mod common;
 
 use common::*;
-use reducem::conversion::write_file;
 use reducem::conversion::{encode_chunk, strip_bounds, BuildParams, EncodedChunk};
 use reducem::format::reader::ReducemFile;
-use reducem::format::writer::FileInfo;
 use reducem::format::{TopNode, INTERNAL_CHILD, MAX_TOP_DEPTH};
 use reducem::geometry::Aabb;
 use reducem::stripify::StripifyParams;
@@ -62,19 +60,8 @@ fn chain(levels: usize, bounds: &[Aabb]) -> TopLevel {
 fn write_chain(chunk: &EncodedChunk, levels: usize, name: &str) -> std::path::PathBuf {
     let bounds = strip_bounds(&chunk.strips);
     let top = chain(levels, &bounds);
-    let info = FileInfo {
-        stats: chunk.stats,
-        leaf_windows: 2,
-        max_strip_length: 1,
-        bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
-        grid: chunk.grid,
-        // The chain's internal boxes reach beyond the model bounds, which a node grid covers.
-        grid_nodes: false,
-        weld: Default::default(),
-        attributes: Default::default(),
-    };
     let path = temp_path(name);
-    write_file(&path, &info, &top, &chunk.strips).expect("write");
+    write_chunk_under(chunk, &top, (2, 1), &path);
     path
 }
 

@@ -7,10 +7,8 @@
 mod common;
 
 use common::*;
-use reducem::conversion::write_file;
 use reducem::conversion::{encode_chunk, strip_bounds, BuildParams};
 use reducem::format::reader::ReducemFile;
-use reducem::format::writer::FileInfo;
 use reducem::format::{TopNode, INTERNAL_CHILD, TOP_WIDTH};
 use reducem::geometry::Aabb;
 use reducem::toplevel::TopLevel;
@@ -92,19 +90,10 @@ fn distorted_file(name: &str, seed: u64) -> ReducemFile {
     let chunk = encode_chunk(&torus(24, 12), &params);
     let bounds = strip_bounds(&chunk.strips);
     assert!(bounds.len() >= GROUPS, "every leaf holds a strip");
-    let info = FileInfo {
-        stats: chunk.stats,
-        leaf_windows: params.leaf_windows,
-        max_strip_length: params.stripify.max_length,
-        bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
-        grid: chunk.grid,
-        // Infinite boxes: no node grid covers them.
-        grid_nodes: false,
-        weld: Default::default(),
-        attributes: Default::default(),
-    };
     let path = temp_path(name);
-    write_file(&path, &info, &distorted_tree(&bounds, seed), &chunk.strips).expect("write");
+    let top = distorted_tree(&bounds, seed);
+    let sizes = (params.leaf_windows, params.stripify.max_length);
+    write_chunk_under(&chunk, &top, sizes, &path);
     ReducemFile::open(&path).expect("a file with distorted boxes opens")
 }
 

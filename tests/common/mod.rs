@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use reducem::conversion::write_file;
 use reducem::conversion::ChunkStats;
+use reducem::conversion::{strip_bounds, EncodedChunk};
 use reducem::decode;
 use reducem::format::grid::Grid;
 use reducem::format::reader::ReducemFile;
@@ -16,7 +17,7 @@ use reducem::quantize::quantize_mesh;
 pub use reducem::splitmix::SplitMix64;
 use reducem::strip_encoding::{encode_strip, split_strip, EncodedStrip, Positions};
 use reducem::strip_windows;
-use reducem::toplevel::{self, TopLevelParams};
+use reducem::toplevel::{self, TopLevel, TopLevelParams};
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
 use reducem::trace::{Hit, Kernel, Ray, TraceOptions, Tracer};
 
@@ -306,6 +307,28 @@ pub fn write_encoded_strips(
         attributes: Default::default(),
     };
     write_file(path, &info, &top, encoded).expect("write file");
+}
+
+/// Writes an encoded chunk under a hand-built top level `top`, whose boxes may reach beyond the
+/// model bounds (so no node grid covers them).
+pub fn write_chunk_under(
+    chunk: &EncodedChunk,
+    top: &TopLevel,
+    (leaf_windows, max_strip_length): (usize, usize),
+    path: &Path,
+) {
+    let bounds = strip_bounds(&chunk.strips);
+    let info = FileInfo {
+        stats: chunk.stats,
+        leaf_windows,
+        max_strip_length,
+        bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
+        grid: chunk.grid,
+        grid_nodes: false,
+        weld: Default::default(),
+        attributes: Default::default(),
+    };
+    write_file(path, &info, top, &chunk.strips).expect("write file");
 }
 
 /// A mesh written with long strips and opened.

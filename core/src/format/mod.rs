@@ -754,6 +754,39 @@ mod tests {
     const NODES: usize = 9;
     const STRIPS: u64 = 20;
 
+    /// How many generated nodes passed and failed, after checking that the fast check agrees
+    /// with the per-slot checks on each.
+    #[derive(Default)]
+    struct Verdicts {
+        passed: usize,
+        failed: usize,
+    }
+
+    impl Verdicts {
+        fn compare<N: NodeRecord + std::fmt::Debug>(&mut self, node: &N, picker: &mut Picker) {
+            let (index, limits) = limits(picker);
+            let expected = passes_slot_by_slot(node, index, limits);
+            assert_eq!(
+                node.passes_alone(index, limits),
+                expected,
+                "{node:?} {limits:?}"
+            );
+            match expected {
+                true => self.passed += 1,
+                false => self.failed += 1,
+            }
+        }
+
+        /// Both verdicts came up often: the generated nodes exercised the check both ways.
+        fn assert_both_seen(&self) {
+            let Verdicts { passed, failed } = self;
+            assert!(
+                *passed > 10_000 && *failed > 10_000,
+                "{passed} passed, {failed} failed"
+            );
+        }
+    }
+
     fn limits(picker: &mut Picker) -> (usize, NodeLimits) {
         let index = picker.pick(&[0, INDEX]);
         let limits = NodeLimits {
@@ -781,7 +814,7 @@ mod tests {
             u32::MAX,
         ];
         let coordinates = [f32::INFINITY, f32::NEG_INFINITY, 0.0, -0.0, 1.0, f32::NAN];
-        let (mut passed, mut failed) = (0, 0);
+        let mut verdicts = Verdicts::default();
         for round in 0..200_000 {
             let mut node = TopNode::EMPTY;
             let occupied = picker.pick(&[0, 1, 2, 3, 4]);
@@ -806,22 +839,9 @@ mod tests {
                     _ => node.max[axis][slot] = picker.pick(&coordinates),
                 }
             }
-            let (index, limits) = limits(&mut picker);
-            let expected = passes_slot_by_slot(&node, index, limits);
-            assert_eq!(
-                node.passes_alone(index, limits),
-                expected,
-                "{node:?} {limits:?}"
-            );
-            match expected {
-                true => passed += 1,
-                false => failed += 1,
-            }
+            verdicts.compare(&node, &mut picker);
         }
-        assert!(
-            passed > 10_000 && failed > 10_000,
-            "{passed} passed, {failed} failed"
-        );
+        verdicts.assert_both_seen();
     }
 
     #[test]
@@ -829,7 +849,7 @@ mod tests {
         let mut picker = Picker(0x2545_f491_4f6c_dd1d);
         let tags = [0, 1, 3, 14, GRID_LINK_INTERNAL];
         let bounds = [0, 1, 2, u16::MAX];
-        let (mut passed, mut failed) = (0, 0);
+        let mut verdicts = Verdicts::default();
         for _ in 0..200_000 {
             let mut node = GridNode::zeroed();
             let occupied = picker.pick(&[0, 1, 2, 3, 4]);
@@ -854,21 +874,8 @@ mod tests {
                     _ => node.max[axis][slot] = picker.pick(&bounds),
                 }
             }
-            let (index, limits) = limits(&mut picker);
-            let expected = passes_slot_by_slot(&node, index, limits);
-            assert_eq!(
-                node.passes_alone(index, limits),
-                expected,
-                "{node:?} {limits:?}"
-            );
-            match expected {
-                true => passed += 1,
-                false => failed += 1,
-            }
+            verdicts.compare(&node, &mut picker);
         }
-        assert!(
-            passed > 10_000 && failed > 10_000,
-            "{passed} passed, {failed} failed"
-        );
+        verdicts.assert_both_seen();
     }
 }
