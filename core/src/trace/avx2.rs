@@ -753,10 +753,10 @@ fn load(values: &[f32; BLOCK + 2], shift: usize) -> __m256 {
     unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
 }
 
-/// The eight lanes of `value`.
+/// The eight lanes of `value` (a block's windows, or a packet's rays).
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn lanes(value: __m256) -> [f32; BLOCK] {
+pub(super) fn lanes(value: __m256) -> [f32; BLOCK] {
     let mut lanes = [0.0; BLOCK];
     // SAFETY: `lanes` is eight f32 (32 bytes), what the unaligned store writes; AVX is enabled.
     unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), value) };

@@ -36,7 +36,7 @@ use std::arch::x86_64::*;
 
 use wide::{f32x8, i32x8};
 
-use super::avx2::load_vertex;
+use super::avx2::{lanes as lanes_of, load_vertex};
 use super::packet::{Lanes, LeafLanes, PACKET_WIDTH};
 use super::prepared::FAR_INFLATION;
 use super::strip::{Closest, BLOCK};
@@ -431,16 +431,6 @@ fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], tmin: __m256, tmax: __m256) 
 fn load(values: &[f32; PACKET_WIDTH]) -> __m256 {
     // SAFETY: `values` is eight f32 (32 bytes), what the unaligned load reads.
     unsafe { _mm256_loadu_ps(values.as_ptr()) }
-}
-
-/// The eight lanes of `value`.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-fn lanes_of(value: __m256) -> [f32; PACKET_WIDTH] {
-    let mut lanes = [0.0; PACKET_WIDTH];
-    // SAFETY: `lanes` is eight f32 (32 bytes), what the unaligned store writes.
-    unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), value) };
-    lanes
 }
 
 #[cfg(test)]

@@ -76,10 +76,10 @@ pub(super) fn lanes(rays: &[Ray]) -> Lanes {
         flip: _mm256_cmp_ps::<_CMP_LT_OQ>(d_z, zero),
         ..axes
     };
-    let d_x = axes.first(dx, dy, dz);
-    let d_y = axes.second(dx, dy, dz);
+    let (d_x, d_y) = axes.sides(dx, dy, dz);
     let index = |axis: i32| _mm256_castsi256_ps(_mm256_set1_epi32(axis));
     let (i0, i1, i2) = (index(0), index(1), index(2));
+    let (axis_x, axis_y) = axes.sides(i0, i1, i2);
     let signs = [
         _mm256_movemask_ps(dx) as u32,
         _mm256_movemask_ps(dy) as u32,
@@ -95,11 +95,7 @@ pub(super) fn lanes(rays: &[Ray]) -> Lanes {
         tmax: wide(tmax),
         negative_masks: Lanes::negative_masks(&signs),
         signs,
-        space_axes: [
-            int(axes.first(i0, i1, i2)),
-            int(axes.second(i0, i1, i2)),
-            int(axes.pick(i0, i1, i2)),
-        ],
+        space_axes: [int(axis_x), int(axis_y), int(axes.pick(i0, i1, i2))],
         shear: [wide(_mm256_div_ps(d_x, d_z)), wide(_mm256_div_ps(d_y, d_z))],
         scale_z: wide(_mm256_div_ps(one, d_z)),
     }
@@ -125,22 +121,17 @@ impl Axes {
         )
     }
 
-    /// The value on kx: axis `(kz + 1) % 3`, or `(kz + 2) % 3` where the axes swap.
+    /// The values on kx and ky: axes `(kz + 1) % 3` and `(kz + 2) % 3`, the other way round
+    /// where the axes swap.
     #[target_feature(enable = "avx2,bmi2")]
     #[inline]
-    fn first(&self, on_x: __m256, on_y: __m256, on_z: __m256) -> __m256 {
+    fn sides(&self, on_x: __m256, on_y: __m256, on_z: __m256) -> (__m256, __m256) {
         let next = self.pick(on_y, on_z, on_x);
         let after = self.pick(on_z, on_x, on_y);
-        _mm256_blendv_ps(next, after, self.flip)
-    }
-
-    /// The value on ky: axis `(kz + 2) % 3`, or `(kz + 1) % 3` where the axes swap.
-    #[target_feature(enable = "avx2,bmi2")]
-    #[inline]
-    fn second(&self, on_x: __m256, on_y: __m256, on_z: __m256) -> __m256 {
-        let next = self.pick(on_y, on_z, on_x);
-        let after = self.pick(on_z, on_x, on_y);
-        _mm256_blendv_ps(after, next, self.flip)
+        (
+            _mm256_blendv_ps(next, after, self.flip),
+            _mm256_blendv_ps(after, next, self.flip),
+        )
     }
 }
 
