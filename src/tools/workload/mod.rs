@@ -2,9 +2,9 @@
 //! alike: generated meshes cached on disk, timed conversions, medians, and one set of rays.
 //!
 //! The rays are the renderer's own for [`ao_scene`] (`configs/scenes/ao16.toml` at `size`²
-//! pixels): primary rays in the renderer's 8×8 tile order and, per primary hit, its AO samples
-//! from the same secondary-ray frame ([`Surface::at_hit`]) and the same stateless per-pixel
-//! seeds. Every engine traces this one set, so the engines differ only in how they trace it.
+//! pixels): primary rays in the renderer's order (8×8 tiles of 4×2 packet blocks) and, per
+//! primary hit, its AO samples from the same secondary-ray frame ([`Surface::at_hit`]) and the
+//! same stateless per-pixel seeds. Every engine traces this one set, so the engines differ only in how they trace it.
 
 #[cfg(feature = "embree")]
 mod embree_engine;
@@ -120,7 +120,7 @@ pub fn ao_scene(size: u32, samples: u32) -> Scene {
 
 /// The rays of one mesh.
 pub struct RaySet {
-    /// In 8×8 tile order, as the renderer traces them.
+    /// In the renderer's order (8×8 tiles of 4×2 packet blocks), as it traces them.
     pub primary: Vec<Ray>,
     /// `ao_per_hit` per primary hit, in the order of `primary`.
     pub ambient_occlusion: Vec<Ray>,
