@@ -372,7 +372,6 @@ fn query(
         // Answers of rays that met a corrupt part of the file are incomplete: nothing is
         // renamed into place.
         complete(&file)?;
-        drop(tracer);
         anyhow::Ok((hits, seconds, unmap_behind(file, rays)))
     })
     .map_err(|error| match error.is::<FormatError>() {
