@@ -17,8 +17,8 @@ pub fn map_file(file: &File) -> io::Result<Mmap> {
 /// than the file size.
 ///
 /// # Safety
-/// The project's one `unsafe` call outside the SIMD kernel module (`trace/avx2.rs`) and the
-/// report's Embree adapter (`embree_peer.rs`, behind the `embree` feature, whose C callback
+/// The project's one `unsafe` call outside the tracer's SIMD kernel modules (`trace/avx2*.rs`,
+/// `trace/prefetch.rs`) and the report's Embree adapter (`embree_peer.rs`, behind the `embree` feature, whose C callback
 /// counts Embree's allocations): `reducem-core` and `reducem` deny `unsafe_code` everywhere
 /// else. A mapping is undefined behaviour if another
 /// process truncates or rewrites the file while it is mapped. ReduceM files and pipeline outputs

@@ -19,7 +19,8 @@
 //! them ([`spread_references`]) instead of a shift and a mask each: 3,408 -> 3,228 instructions
 //! per AO ray and 2,695 -> 2,596 per primary ray (callgrind, 100k rays of the 1M scan).
 //!
-//! This is the tracer's one kernel module with `unsafe`: [`trace`] and [`trace_packet`]
+//! With its siblings `avx2_lanes` and `avx2_setup`, and `prefetch` (SSE prefetches, which need
+//! no detection), this is where the tracer uses `unsafe`: [`trace`] and [`trace_packet`]
 //! check that the CPU has AVX2 and BMI2 before they enter the functions compiled for them
 //! (`#[target_feature]`), and the loads and stores below read and write inside their slices
 //! (each says why).
@@ -43,7 +44,6 @@ use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_BYTES, CODE_BIAS, MAX
 use crate::format::reader::StripView;
 use crate::format::references::References;
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{StripRecord, F32_VERTEX_BYTES};
 
 /// [`StripQuery::trace`]'s strip traversal compiled for AVX2 with AVX2 blocks; the arguments
 /// back when this CPU lacks AVX2.
@@ -115,32 +115,6 @@ fn trace_packet_detected(
     super::packet::trace_lanes::<Avx2Packets, _>(tracer, packet, rays.len(), any_hit, closest)
 }
 
-/// Most cache lines of a strip's block prefetched from its start ([`prefetch_lines`]): 512
-/// bytes hold a lossless block of the pipeline's strips (at most 22 vertices, 264 bytes, and
-/// its [`BLOCK_TAIL_BYTES`]).
-const MAX_PREFETCH_LINES: usize = 8;
-
-/// More than the references, split axes and block boxes of a strip of the pipeline's length
-/// take (22 packed references of 5 bits, one byte of axes, 12 bytes of boxes).
-const BLOCK_TAIL_BYTES: usize = 48;
-
-/// Asks for the cache lines from `first` on, at most [`MAX_PREFETCH_LINES`] of them until the
-/// one holding `last`, and that one, to be brought into the cache.
-#[inline(always)]
-fn prefetch_lines(first: *const u8, last: *const u8) {
-    let mut line = first;
-    for _ in 0..MAX_PREFETCH_LINES {
-        // SAFETY: a prefetch reads nothing and faults on no address; SSE is enabled.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(line.cast::<i8>()) };
-        line = line.wrapping_add(64);
-        if line >= last {
-            break;
-        }
-    }
-    // SAFETY: as above.
-    unsafe { _mm_prefetch::<_MM_HINT_T0>(last.cast::<i8>()) };
-}
-
 /// The packet's box test in 256-bit lanes. `wide`'s `f32x8` is two SSE registers in a crate
 /// compiled for SSE2, even inside a function compiled for AVX2, so `Lanes::clip_slot` there
 /// still ran two 128-bit operations per step; here each step is one `vsubps`, `vmulps`,
@@ -166,47 +140,6 @@ impl PacketKernel for Avx2Packets {
         // SAFETY: `Avx2Packets` is private to this module and used only by
         // `trace_packet_detected`, which runs only once AVX2 was detected (`trace_packet`).
         unsafe { clip_slot(lanes, planes, slot, t_far) }
-    }
-
-    #[inline(always)]
-    fn prefetch<T>(records: &[T], index: usize) {
-        let start = records.as_ptr().wrapping_add(index).cast::<i8>();
-        for offset in (0..std::mem::size_of::<T>()).step_by(64) {
-            // SAFETY: a prefetch reads nothing and faults on no address; SSE is enabled.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
-        }
-    }
-
-    /// The lines of strip `strip`'s block from its start, its length estimated from its
-    /// record as a lossless block's: its vertices and [`BLOCK_TAIL_BYTES`].
-    #[inline(always)]
-    fn prefetch_block(records: &[StripRecord], data: &[u8], strip: usize) {
-        let Some(record) = records.get(strip) else {
-            return;
-        };
-        let first = data.as_ptr().wrapping_add(record.data_word as usize * 4);
-        let length = record.vertex_count as usize * F32_VERTEX_BYTES + BLOCK_TAIL_BYTES;
-        prefetch_lines(first, first.wrapping_add(length));
-    }
-
-    /// The lines of a lossless block, from its first vertex to its last box byte. A strip's
-    /// block is rarely in the cache when a packet reaches it on a large model, and the
-    /// traversal's first loads, the box exponents at the block's end and then the vertices at
-    /// its start, each waited for memory in turn. With these prefetches, and the leaf's strip
-    /// record prefetched when the leaf is clipped (`Lanes::enter_children`), 1,048,576 camera
-    /// rays four times over on the 10M scan took 690 instead of 765 ms of CPU (the record
-    /// alone: 721 against 751), 3.8M AO rays 1,187 instead of 1,202 ms; on the 1M scan camera
-    /// rays 408 against 414 ms, AO rays 768 against 763 (`reducem query`, 1 thread, `perf
-    /// stat` task-clock, medians of 3 to 7 alternating runs).
-    #[inline(always)]
-    fn prefetch_strip(view: &StripView) {
-        let StripVertices::F32(points) = view.vertices else {
-            return;
-        };
-        // A valid block runs from its vertices to its boxes, the last part.
-        let first = points.as_ptr().cast::<u8>();
-        let end = view.boxes.bytes().as_ptr_range().end;
-        prefetch_lines(first, end.wrapping_sub(1));
     }
 
     #[inline(always)]

@@ -28,6 +28,7 @@ mod avx2_lanes;
 mod avx2_setup;
 pub mod kernel;
 pub mod packet;
+mod prefetch;
 pub mod prepared;
 pub mod ray;
 pub mod ray_file;

@@ -30,6 +30,7 @@
 use arrayvec::ArrayVec;
 use wide::{f32x8, i32x8, u32x4};
 
+use super::prefetch::Targets;
 use super::prepared::{max_not_nan_x8, min_not_nan_x8, PreparedRay, FAR_INFLATION};
 use super::ray::Ray;
 use super::strip::{Closest, StripQuery};
@@ -39,7 +40,6 @@ use super::top::{
 use super::watertight::RaySpace;
 use super::Tracer;
 use crate::format::reader::{StripView, TopNodes};
-use crate::format::StripRecord;
 use crate::format::{INTERNAL_CHILD, TOP_WIDTH};
 
 /// Rays per packet at the top level.
@@ -106,23 +106,6 @@ pub(super) trait PacketKernel {
 
     /// The lanes where `a <= b` (false where either is NaN), as a bit mask.
     fn lanes_at_most(a: f32x8, b: f32x8) -> u32;
-
-    /// Asks for record `index` of `records` to be brought into the cache (no-op by default);
-    /// `index` may be out of bounds, nothing is read.
-    #[inline(always)]
-    fn prefetch<T>(_records: &[T], _index: usize) {}
-
-    /// Asks for the cache lines of a strip's block to be brought into the cache (no-op by
-    /// default): its vertices at the start and its boxes at the end are then loaded together,
-    /// not one miss after the other.
-    #[inline(always)]
-    fn prefetch_strip(_view: &StripView) {}
-
-    /// Asks for the cache lines of strip `strip`'s block (`records` and `data` the file's strip
-    /// records and strip data) to be brought into the cache, its extent estimated from its
-    /// record (no-op by default).
-    #[inline(always)]
-    fn prefetch_block(_records: &[StripRecord], _data: &[u8], _strip: usize) {}
 
     /// What the kernel makes of the packet's lanes once for
     /// [`PacketKernel::trace_strip_together`].
@@ -438,6 +421,52 @@ impl Lanes {
         (near, far, near.simd_le(far).to_bitmask())
     }
 
+    /// Child `slot` of `node` (whose box planes are `planes`) if some `active` lane enters it
+    /// within `limit`. A method always inlined, not a closure of `enter_children`: the
+    /// compiler once kept such a closure out of line (and the AVX2 slot test with it), which
+    /// took 3.8M AO rays on the 10M scan from 1,207 to 1,942 ms of CPU.
+    #[inline(always)]
+    fn clip_child<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
+        &self,
+        (node, planes, targets): (&N, &C::Planes, &Targets<N>),
+        slot: usize,
+        (active, limit): (u32, f32x8),
+    ) -> Option<PacketDeferred> {
+        let (t_near, t_far, mask) = C::clip_slot(self, planes, slot, limit);
+        let mask = mask & active;
+        if mask == 0 {
+            return None;
+        }
+        let (child, kind) = node.link(slot);
+        // What visiting it loads first is on its way when it comes off the stack.
+        targets.child::<ANY_HIT>((child, kind));
+        Some(PacketDeferred {
+            child,
+            kind,
+            mask,
+            t_near,
+            t_far,
+        })
+    }
+
+    /// For occlusion: pushes child `slot` onto `stack` if it is one of the `occupied` first
+    /// slots and some lane enters it ([`Lanes::clip_child`]).
+    #[inline(always)]
+    fn defer_child<N: TraceNode, C: PacketKernel>(
+        &self,
+        clipped: (&N, &C::Planes, &Targets<N>),
+        slot: usize,
+        occupied: usize,
+        bounds: (u32, f32x8),
+        stack: &mut DeferStack<PacketDeferred>,
+    ) {
+        if slot < occupied {
+            if let Some(child) = self.clip_child::<N, C, true>(clipped, slot, bounds) {
+                stack.push(child);
+            }
+        }
+    }
+
     /// Clips the `active` lanes against `node`'s occupied slots; returns the child to visit
     /// first (for closest hits) and defers the others, so that they come off the stack in
     /// visiting order: [`order_keys`] order for closest hits, slot order for occlusion
@@ -446,7 +475,7 @@ impl Lanes {
     #[inline(always)]
     fn enter_children<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
         &self,
-        (nodes, records, data): (&[N], &[StripRecord], &[u8]),
+        targets: &Targets<N>,
         node: &N,
         decoder: &N::Decoder,
         active: u32,
@@ -456,57 +485,19 @@ impl Lanes {
         let boxes = node.boxes(decoder);
         let planes = C::planes(self, &boxes);
         let occupied = node.occupied_mask().trailing_ones() as usize;
-        // The child in `slot` if some active lane enters it.
-        let clip = |slot: usize| {
-            let (t_near, t_far, mask) = C::clip_slot(self, &planes, slot, limit);
-            let mask = mask & active;
-            (mask != 0).then(|| {
-                let (child, kind) = node.link(slot);
-                // Its node is read when the child comes off the stack, by then from the cache:
-                // the walk waits on node loads more than it computes (3.8M AO rays on one
-                // thread, CPU time 1,292 -> 1,264 ms for 3 more instructions a ray).
-                // A closest-hit packet asks for the block of a leaf's first strip too, reading
-                // its record: 1,048,576 camera rays four times over on the 10M scan took 665
-                // instead of 709 ms of CPU (1 thread, `perf stat` task-clock, medians of 5
-                // alternating runs), with 2 threads the whole `reducem query` of them 103.9
-                // instead of 108.8 ms; 1M scan and AO rays unchanged. An occlusion packet,
-                // which defers every leaf it enters and ends at its first occluder, asks for
-                // the record alone: with the blocks its AO rays took 1,862 instead of 1,198 ms.
-                // Viewing a strip then waits less on its block (`Avx2Packets::prefetch_strip`).
-                if kind == INTERNAL_CHILD {
-                    C::prefetch(nodes, child as usize);
-                } else if ANY_HIT {
-                    C::prefetch(records, child as usize);
-                } else {
-                    C::prefetch_block(records, data, child as usize);
-                }
-                PacketDeferred {
-                    child,
-                    kind,
-                    mask,
-                    t_near,
-                    t_far,
-                }
-            })
-        };
+        let clipped = (node, &planes, targets);
         if ANY_HIT {
             // Slot order is known before clipping: the slots are clipped last to first and
             // each child entered goes straight onto the stack, the first one too (clipping
             // first to first and keeping the first child entered off the stack cost 3,139
             // instead of 3,134 instructions per AO ray, callgrind, 100k rays of the 1M scan).
-            let mut defer = |slot: usize| {
-                if slot < occupied {
-                    if let Some(child) = clip(slot) {
-                        stack.push(child);
-                    }
-                }
-            };
             // Unrolled by hand: as a loop over the slots it stayed one, with the slot in a
             // register (3,146 instead of 3,134 instructions per AO ray).
-            defer(3);
-            defer(2);
-            defer(1);
-            defer(0);
+            let bounds = (active, limit);
+            self.defer_child::<N, C>(clipped, 3, occupied, bounds, stack);
+            self.defer_child::<N, C>(clipped, 2, occupied, bounds, stack);
+            self.defer_child::<N, C>(clipped, 1, occupied, bounds, stack);
+            self.defer_child::<N, C>(clipped, 0, occupied, bounds, stack);
             return None;
         }
         // Not an array of defaults: zeroing four 96-byte entries and filling one per slot cost
@@ -517,7 +508,7 @@ impl Lanes {
             if slot >= occupied {
                 break;
             }
-            if let Some(child) = clip(slot) {
+            if let Some(child) = self.clip_child::<N, C, ANY_HIT>(clipped, slot, (active, limit)) {
                 slots[entered.len()] = slot;
                 entered.push(child);
             }
@@ -605,10 +596,7 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel, P: LaneRays, const ANY_HIT: boo
     let mut finished = 0u32;
     let mut stack = DeferStack::default();
     let together = C::together(lanes);
-    let records = tracer.file().strip_records();
-    let data = tracer
-        .file()
-        .section_bytes(crate::format::SectionKind::StripData);
+    let targets = Targets::new(tracer.file(), nodes);
     // The lanes' culling bounds change only at leaves: gathered once per leaf, not per node.
     let mut limit = bounds(closest, finished);
     // The root has no box: every lane starts with its own interval.
@@ -625,7 +613,7 @@ fn traverse_nodes<N: TraceNode, C: PacketKernel, P: LaneRays, const ANY_HIT: boo
                 let node = tracer.file().top_node(nodes, current.child as usize);
                 let entered = node.and_then(|n| {
                     lanes.enter_children::<N, C, ANY_HIT>(
-                        (nodes, records, data),
+                        &targets,
                         n,
                         decoder,
                         current.mask,
@@ -705,7 +693,7 @@ fn trace_leaf_lanes<C: PacketKernel, P: LaneRays, const ANY_HIT: bool>(
             }
         }
         let view = tracer.file().strip(strip as usize);
-        C::prefetch_strip(&view);
+        super::prefetch::strip_block(&view);
         let reaching = LeafLanes {
             active,
             t_near: &t_near,

@@ -18,6 +18,7 @@
 use arrayvec::ArrayVec;
 use wide::{f32x4, u32x4};
 
+use super::prefetch::Targets;
 use super::prepared::{PreparedRay, WideRay};
 use super::strip::{Closest, StripQuery};
 use crate::format::grid::NodeGrid;
@@ -201,11 +202,13 @@ fn trace_nodes<N: TraceNode>(
     let ray = WideRay::new(query.ray);
     let mut stack = DeferStack::default();
     let mut current = Deferred::root(query.ray);
+    let targets = Targets::new(file, nodes);
     loop {
         if current.kind == INTERNAL_CHILD {
             let node = file.top_node(nodes, current.child as usize);
-            let entered =
-                node.and_then(|n| enter_children(&ray, n, decoder, query, closest, &mut stack));
+            let entered = node.and_then(|n| {
+                enter_children(&targets, &ray, n, decoder, query, closest, &mut stack)
+            });
             if let Some(nearest) = entered {
                 current = nearest;
                 continue;
@@ -234,6 +237,7 @@ fn trace_nodes<N: TraceNode>(
 /// the traversal.
 #[inline(always)]
 fn enter_children<N: TraceNode>(
+    targets: &Targets<N>,
     ray: &WideRay,
     node: &N,
     decoder: &N::Decoder,
@@ -249,6 +253,10 @@ fn enter_children<N: TraceNode>(
     let (near, far) = (near.to_array(), far.to_array());
     let entry = |slot: usize| {
         let (child, kind) = node.link(slot);
+        match query.any_hit {
+            true => targets.child::<true>((child, kind)),
+            false => targets.child::<false>((child, kind)),
+        }
         Deferred {
             child,
             kind,
