@@ -426,7 +426,7 @@ impl Lanes {
     /// compiler once kept such a closure out of line (and the AVX2 slot test with it), which
     /// took 3.8M AO rays on the 10M scan from 1,207 to 1,942 ms of CPU.
     #[inline(always)]
-    fn clip_child<N: TraceNode, C: PacketKernel, const ANY_HIT: bool>(
+    fn clip_child<N: TraceNode, C: PacketKernel>(
         &self,
         (node, planes, targets): (&N, &C::Planes, &Targets<N>),
         slot: usize,
@@ -439,7 +439,7 @@ impl Lanes {
         }
         let (child, kind) = node.link(slot);
         // What visiting it loads first is on its way when it comes off the stack.
-        targets.child::<ANY_HIT>((child, kind));
+        targets.child((child, kind));
         Some(PacketDeferred {
             child,
             kind,
@@ -461,7 +461,7 @@ impl Lanes {
         stack: &mut DeferStack<PacketDeferred>,
     ) {
         if slot < occupied {
-            if let Some(child) = self.clip_child::<N, C, true>(clipped, slot, bounds) {
+            if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
                 stack.push(child);
             }
         }
@@ -508,7 +508,7 @@ impl Lanes {
             if slot >= occupied {
                 break;
             }
-            if let Some(child) = self.clip_child::<N, C, ANY_HIT>(clipped, slot, (active, limit)) {
+            if let Some(child) = self.clip_child::<N, C>(clipped, slot, (active, limit)) {
                 slots[entered.len()] = slot;
                 entered.push(child);
             }

@@ -49,26 +49,20 @@ impl<'a, N> Targets<'a, N> {
     }
 
     /// Asks for what visiting the child `(child, kind)` (as a node's slot links it) loads
-    /// first: an internal child's node; a leaf's first strip record and, for closest hits
-    /// (`ANY_HIT` false), that strip's block, which the record locates. The query's kind is a
-    /// constant, so that the caller's code holds one of the two leaf cases alone: the packet
-    /// walk's clipping stays small enough to be inlined whole (3.8M AO rays on the 10M scan
-    /// took 1,951 instead of 1,207 ms of CPU when both cases were there).
+    /// first: an internal child's node; a leaf's first strip record and that strip's block,
+    /// which the record locates.
     ///
     /// Child nodes: 3.8M AO rays on the 1M scan, one thread, 1,292 -> 1,264 ms of CPU for 3
     /// more instructions a ray. Records and blocks (`reducem query`, 1 thread, `perf stat`
     /// task-clock, medians of 5 alternating runs): 1,048,576 camera rays four times over on the
     /// 10M scan, the record alone 751 -> 721 ms, the block too 709 -> 665 ms (with
     /// [`strip_block`]); with 2 threads the whole `reducem query` of them 108.8 -> 103.9 ms of
-    /// wall time; the 1M scan unchanged. Occlusion asks for the record alone: it defers every
-    /// leaf it enters and ends at its first occluder, and with the blocks its AO rays on the
-    /// 10M scan took 1,862 instead of 1,198 ms.
+    /// wall time; AO rays and the 1M scan unchanged (10M AO 1,200 ms with the record alone,
+    /// 1,196 with the block).
     #[inline(always)]
-    pub(super) fn child<const ANY_HIT: bool>(&self, (child, kind): (u32, u32)) {
+    pub(super) fn child(&self, (child, kind): (u32, u32)) {
         if kind == INTERNAL_CHILD {
             record(self.nodes, child as usize);
-        } else if ANY_HIT {
-            record(self.records, child as usize);
         } else {
             self.block(child as usize);
         }

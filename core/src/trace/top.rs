@@ -253,10 +253,7 @@ fn enter_children<N: TraceNode>(
     let (near, far) = (near.to_array(), far.to_array());
     let entry = |slot: usize| {
         let (child, kind) = node.link(slot);
-        match query.any_hit {
-            true => targets.child::<true>((child, kind)),
-            false => targets.child::<false>((child, kind)),
-        }
+        targets.child((child, kind));
         Deferred {
             child,
             kind,
