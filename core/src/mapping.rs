@@ -18,11 +18,11 @@ pub fn map_file(file: &File) -> io::Result<Mmap> {
 ///
 /// # Safety
 /// The project's one `unsafe` call outside the tracer's SIMD kernel modules (`trace/avx2*.rs`,
-/// `trace/prefetch.rs`) and the report's Embree adapter (`embree_peer.rs`, behind the `embree` feature, whose C callback
-/// counts Embree's allocations): `reducem-core` and `reducem` deny `unsafe_code` everywhere
-/// else. A mapping is undefined behaviour if another
-/// process truncates or rewrites the file while it is mapped. ReduceM files and pipeline outputs
-/// are only ever replaced by atomic rename, never modified in place, so a live mapping keeps
+/// `trace/prefetch.rs`) and the report's Embree adapter (`embree_peer.rs`, behind the `embree`
+/// feature, whose C callback counts Embree's allocations): `reducem-core` and `reducem` deny
+/// `unsafe_code` everywhere else. A mapping is undefined behaviour if another process truncates
+/// or rewrites the file while it is mapped. ReduceM files and pipeline outputs are only ever
+/// replaced by atomic rename, never modified in place, so a live mapping keeps
 /// seeing the old inode; inputs belong to the user, who must not edit them during a run. Every
 /// reader bounds-checks against the mapped length and never trusts the content, so a file that
 /// is corrupt (rather than concurrently modified) cannot cause out-of-bounds reads.

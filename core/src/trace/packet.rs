@@ -693,7 +693,6 @@ fn trace_leaf_lanes<C: PacketKernel, P: LaneRays, const ANY_HIT: bool>(
             }
         }
         let view = tracer.file().strip(strip as usize);
-        super::prefetch::strip_block(&view);
         let reaching = LeafLanes {
             active,
             t_near: &t_near,

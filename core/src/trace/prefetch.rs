@@ -4,12 +4,12 @@
 //! has arrived. Asking for them when a child is clipped, before the walk reaches it, overlaps
 //! those waits with the rest of the walk.
 //!
-//! Both walks and every kernel prefetch the same way: the packets' (see [`Targets::child`] and
-//! [`strip_block`] for the AVX2 kernel's figures), with the baseline SSE2 kernel 1,048,576
-//! camera rays four times over on the 10M scan 1,093 -> 936 ms of CPU and 3.8M AO rays 2,417
-//! -> 1,967 ms (`reducem query`, 1 thread, `perf stat` task-clock, medians of 3 alternating
-//! runs), and single rays (`examples/bench_trace.rs`, AVX2, 1 thread, 10M scan) 4.18 -> 4.46
-//! Mrays/s on camera rays, 1.96 on AO rays either way.
+//! Both walks and every kernel prefetch the same way ([`Targets::child`] has the AVX2 packets'
+//! figures). With the baseline SSE2 kernel, 1,048,576 camera rays four times over on the 10M
+//! scan took 1,093 -> 936 ms of CPU and 3.8M AO rays 2,417 -> 1,967 ms (`reducem query`, 1
+//! thread, `perf stat` task-clock, medians of 3 alternating runs); single rays
+//! (`examples/bench_trace.rs`, AVX2, 1 thread, 10M scan) 4.18 -> 4.46 Mrays/s on camera rays,
+//! 1.96 on AO rays either way.
 //!
 //! `_mm_prefetch` is an SSE instruction, which every x86-64 CPU has (the target's baseline), so
 //! no detection precedes it; a prefetch reads nothing into the program and faults on no address,
@@ -19,8 +19,7 @@
 
 use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
 
-use crate::format::reader::{ReducemFile, StripView};
-use crate::format::vertices::StripVertices;
+use crate::format::reader::ReducemFile;
 use crate::format::{SectionKind, StripRecord, F32_VERTEX_BYTES, INTERNAL_CHILD};
 
 /// Most cache lines of a strip's block prefetched from its start ([`lines`]): 512 bytes hold a
@@ -55,10 +54,13 @@ impl<'a, N> Targets<'a, N> {
     /// Child nodes: 3.8M AO rays on the 1M scan, one thread, 1,292 -> 1,264 ms of CPU for 3
     /// more instructions a ray. Records and blocks (`reducem query`, 1 thread, `perf stat`
     /// task-clock, medians of 5 alternating runs): 1,048,576 camera rays four times over on the
-    /// 10M scan, the record alone 751 -> 721 ms, the block too 709 -> 665 ms (with
-    /// [`strip_block`]); with 2 threads the whole `reducem query` of them 108.8 -> 103.9 ms of
-    /// wall time; AO rays and the 1M scan unchanged (10M AO 1,200 ms with the record alone,
-    /// 1,196 with the block).
+    /// 10M scan, the record alone 751 -> 721 ms, the block too 709 -> 665 ms; with 2 threads
+    /// the whole `reducem query` of them 108.8 -> 103.9 ms of wall time; AO rays and the 1M
+    /// scan unchanged (10M AO 1,200 ms with the record alone, 1,196 with the block).
+    ///
+    /// Asking again for the block's lines when the strip is viewed, which paid before the
+    /// block was asked for at clip time (765 -> 690 ms), gained nothing since: 670 against 665
+    /// ms without it, AO 1,196 against 1,185.
     #[inline(always)]
     pub(super) fn child(&self, (child, kind): (u32, u32)) {
         if kind == INTERNAL_CHILD {
@@ -92,24 +94,6 @@ fn record<T>(records: &[T], index: usize) {
         // SAFETY: a prefetch reads nothing and faults on no address; SSE is in the baseline.
         unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
     }
-}
-
-/// Asks for the lines of a viewed lossless block, from its first vertex to its last box byte:
-/// its first loads, the box exponents at its end and then the vertices at its start, would
-/// otherwise wait for memory one after the other. 1,048,576 camera rays four times over on
-/// the 10M scan: 765 -> 690 ms of CPU with the leaves' records prefetched as well (see
-/// [`Targets::child`]); AO rays 1,202 -> 1,187 ms; on the 1M scan camera rays 414 -> 408 ms,
-/// AO rays 763 -> 768 (`reducem query`, 1 thread, `perf stat` task-clock, medians of 3 to 7
-/// alternating runs).
-#[inline(always)]
-pub(super) fn strip_block(view: &StripView) {
-    let StripVertices::F32(points) = view.vertices else {
-        return;
-    };
-    // A valid block runs from its vertices to its boxes, the last part.
-    let first = points.as_ptr().cast::<u8>();
-    let end = view.boxes.bytes().as_ptr_range().end;
-    lines(first, end.wrapping_sub(1));
 }
 
 /// Asks for the cache lines from `first` on, at most [`MAX_LINES`] of them until the one

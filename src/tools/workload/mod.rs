@@ -4,7 +4,8 @@
 //! The rays are the renderer's own for [`ao_scene`] (`configs/scenes/ao16.toml` at `size`²
 //! pixels): primary rays in the renderer's order (8×8 tiles of 4×2 packet blocks) and, per
 //! primary hit, its AO samples from the same secondary-ray frame ([`Surface::at_hit`]) and the
-//! same stateless per-pixel seeds. Every engine traces this one set, so the engines differ only in how they trace it.
+//! same stateless per-pixel seeds. Every engine traces this one set, so the engines differ only
+//! in how they trace it.
 
 #[cfg(feature = "embree")]
 mod embree_engine;
