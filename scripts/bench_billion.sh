@@ -22,7 +22,7 @@
 #
 # The run is niced: the machine is shared. Disk at the peak (the end of the write stage): about
 # 26 bytes per triangle with grid vertices (work directory 19, output 7.4), about 48 with f32
-# vertices (work directory 28, output 19.6); see README, "A billion triangles".
+# vertices (work directory 28, output 19.6); see docs/BENCHMARKS.md, "A billion triangles".
 set -euo pipefail
 cd "$(dirname "$0")/.."
 triangles=${TRIANGLES:-1000000000}
