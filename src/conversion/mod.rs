@@ -36,24 +36,17 @@ pub use layout::ChunkLayout;
 /// [`crate::trace::TraceOptions::subtree_windows`] (8) windows at once, one SIMD block, so the
 /// nodes below 8 windows are never visited, yet each costs two stored bound vertices: with
 /// two-window leaves a third of the stored vertices are such copies. Eight-window leaves store
-/// almost none and trace the same subtrees: on a 1M-triangle scan 17.24 instead of 19.24 bytes
-/// per triangle lossless (163,637 bound copies down to 5,523), with 4-6% fewer instructions per
-/// ray (callgrind; `bench_trace --model FILE --kind scan --triangles 1000000 --size 128 --runs 1
-/// --threads 1 --reducem-only`). Grid files gain as much, since every stored vertex a ray
-/// reaches is decoded.
+/// almost none and trace the same subtrees, in fewer bytes and instructions (docs/BENCHMARKS.md,
+/// "Strip leaf size").
 pub const PIPELINE_LEAF_WINDOWS: usize = 8;
 
 /// Most triangles per strip in the pipeline's default configuration.
 ///
 /// Deviation from the paper (60): a strip's box in the top-level hierarchy grows with its
 /// length, and a ray that enters it tests nearly every window: the strip kd-tree's single
-/// split planes cull almost nothing for short AO rays (10.6 eight-window blocks tested per AO
-/// ray at length 20, nearly all blocks of every strip entered). Shorter strips have tighter
-/// boxes. On a 10M-triangle scan, 1 thread, same rays (`reducem query`, user time): length 20
-/// takes 26% less time than 60 for AO rays and 21% less for primary rays, for 19.65 instead of
-/// 17.36 bytes per triangle; length 16 would pass 20 bytes per triangle (20.45). On a 1M scan,
-/// instructions per AO ray (callgrind): 7,609 at 60, 6,546 at 32, 5,841 at 24, 5,439 at 20,
-/// 5,214 at 16.
+/// split planes cull almost nothing for short AO rays. Shorter strips have tighter boxes; 20
+/// keeps files under 20 bytes per triangle, where 16 would not (docs/BENCHMARKS.md, "Strip
+/// length").
 pub const PIPELINE_MAX_STRIP_LENGTH: usize = 20;
 
 /// Build parameters, with the paper's values as defaults.
@@ -67,8 +60,8 @@ pub struct BuildParams {
     /// (lossless, the default).
     pub grid_bits: Option<u32>,
     /// Store a lossless file's top-level nodes as 64-byte grid nodes instead of 128-byte f32
-    /// records (see [`crate::format::VertexEncoding::F32GridNodes`]): 1 to 2 bytes less per
-    /// triangle, about 12% slower AO rays. Grid files always have grid nodes.
+    /// records (see [`crate::format::VertexEncoding::F32GridNodes`]): fewer bytes, slower AO
+    /// rays (docs/BENCHMARKS.md, "Grid top-level nodes"). Grid files always have grid nodes.
     pub grid_nodes: bool,
     /// Which attributes the file stores besides positions (none by default).
     pub attributes: AttributeSet,

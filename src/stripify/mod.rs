@@ -11,11 +11,9 @@
 //! (so the output is deterministic for any thread count) that serves the most constrained
 //! sequences first (fewer stranded short sequences, at some cost in score).
 //!
-//! Cost: O(n log n) time, about 1 M triangles/s on one core. Memory beyond the mesh peaks in
-//! the first ordering round at about 80 bytes per triangle (measured on a 4M-triangle torus
-//! with `examples/strip_stats`): adjacency 16, hierarchy 20, sequence state 28, active ends 4,
-//! and the round's candidate list 12 (1.5 candidates of 8 bytes per triangle, sorted in place).
-//! Later rounds need far less.
+//! Cost: O(n log n) time. Memory beyond the mesh peaks in the first ordering round, where the
+//! adjacency, the hierarchy, the sequence state and the round's candidates are alive together
+//! (docs/BENCHMARKS.md, "Stripifier memory"); later rounds need far less.
 //!
 //! Deviation from the paper in the ordering and output steps: both also minimise swaps
 //! (degenerate "ABA" windows), which cost a bound slot of the strip's implicit kd-tree and a

@@ -28,32 +28,25 @@
 //!   constrained of the two sequences, in levels 1, 2, 3 and more. A merge turns both touching
 //!   ends into interior triangles, so a sequence whose only option is taken by someone else is
 //!   stuck at its length forever; serving the most constrained sequences first is the classic
-//!   min-degree heuristic for greedy matchings. Measured with max length 60: it nearly removes
-//!   single-triangle strips on a torus (1579 of 51k strips → 8) and raises its average strip
-//!   length by about 8% (18.8 → 20.3 on 1M triangles); grids change by about 2% either way. The
-//!   price is that a sequence may take a worse-scored partner that would otherwise be stranded.
+//!   min-degree heuristic for greedy matchings; it nearly removes single-triangle strips on
+//!   curved meshes (docs/BENCHMARKS.md, "Strip ordering"). The price is that a sequence may
+//!   take a worse-scored partner that would otherwise be stranded.
 //! - The score has a third criterion, swaps: `(paper score + w * new swaps / 3) / (1 + w)`
 //!   with `w` = [`SWAP_WEIGHT`]. Every swap costs a window in the strip, so a bound slot in its
 //!   implicit kd-tree (often a duplicated vertex) and a wasted window test in the tracer. A
 //!   link makes `t` and `u` interior triangles (those whose sequence is longer than one) and so
 //!   fixes their turns, and the output needs a swap between two consecutive interior triangles
 //!   with equal turns (see `output`); a link therefore adds 0 to 3 swaps, known from `t`, `u`
-//!   and their path neighbours alone. Measured (2 threads, max length 60; swaps per triangle,
-//!   average strip length), after the output step's end choice, for `w` = 0 / 0.25 / 1 / 4:
-//!   200k `scan` 0.226 / 0.177 / 0.164 / 0.164 (19.4 / 20.1 / 20.2 / 20.2), 1M torus 0.197 /
-//!   0.147 / 0.137 / 0.137 (19.8 / 20.8 / 20.8 / 20.8), 200k grid 0.126 / 0.125 / 0.125 /
-//!   0.125 (19.9 / 19.7 / 19.6 / 19.5). The gain saturates at `w` = 1, which weighs swaps like
-//!   the paper's two criteria together; on grids the SAH blocks and urgency decide the shape
-//!   and swaps barely move. Shorter swap-free links also lengthen strips slightly on curved
-//!   meshes.
+//!   and their path neighbours alone. `w` = 1 weighs swaps like the paper's two criteria
+//!   together, where the gain in fewer swaps stops growing (docs/BENCHMARKS.md, "Strip
+//!   ordering").
 //!
 //! Memory: candidates are packed into 8 bytes (see [`Candidate`]), written in place into a
 //! list counted beforehand, and sorted in place by an unstable sort (keys are unique, so the
 //! order is deterministic); the lowest common ancestor is recomputed when a merge is accepted
-//! instead of being stored. The first round's list takes about 12 bytes per triangle instead of
-//! the 48 of 16-byte records, a parallel collect and a radix-sort buffer (4M-triangle torus:
-//! peak 126 → 80 bytes per triangle beyond the mesh). A stable radix sort on the packed keys
-//! measured no faster than the in-place sort, so its buffer was not kept.
+//! instead of being stored, so the first round's list is the smallest part of the peak
+//! (docs/BENCHMARKS.md, "Stripifier memory"). A radix sort of the packed keys would need a
+//! buffer as large as the list and was no faster.
 //!
 //! Candidates only ever disappear (merging shortens nothing and only removes ends), so an end
 //! without candidates is final and leaves the active set for good; rounds shrink quickly.

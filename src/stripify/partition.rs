@@ -20,9 +20,8 @@
 //! - Deviation from the paper ("the best split ... using the SAH"): only the longest axis of
 //!   the centroid bounds is binned, a common trade-off in fast SAH builders. It costs a third
 //!   of all-axes binning, and this step dominates the stripification time because the
-//!   hierarchy goes down to single triangles (about 2n nodes). Measured average strip lengths
-//!   (before the ordering's urgency rule) moved both ways: 64×64 grid 19.5 → 32, 48×24 torus
-//!   17.3 → 19.9, 1M grid 15.5 → 18.5, 1M torus 19.6 → 18.8.
+//!   hierarchy goes down to single triangles (about 2n nodes). Strip lengths do not suffer
+//!   (docs/BENCHMARKS.md, "SAH binning axis").
 //! - When SAH cannot separate the triangles (all centroids equal, or non-finite coordinates),
 //!   the node is split at the median along the longest centroid axis.
 //! - Deviation from the paper: from depth [`MAX_SAH_DEPTH`] on, every split is a median split.

@@ -6,16 +6,16 @@
 //! children as slots and may open internal slots (replace one by its two children) up to four;
 //! which ones each wide node opens is chosen bottom-up by dynamic programming so that the wide
 //! nodes' total surface area, the SAH's expected number of node visits, is least (as in Ylitie
-//! et al. 2017, with the binary tree's leaves kept). Compared with the greedy top-down collapse
-//! (open the largest child until four), this fills the nodes near the leaves, where most of
-//! them are: 12% fewer nodes on a 1M-triangle scan, at the same tracing speed. Opening a slot
+//! et al. 2017, with the binary tree's leaves kept). Unlike a greedy top-down collapse (open the
+//! largest child until four), this fills the nodes near the leaves, where most of them are
+//! (docs/BENCHMARKS.md, "Top-level nodes"). Opening a slot
 //! in place keeps the leaves in the binary tree's order, so the strip numbering is the binary
 //! tree's.
 //!
 //! Deviation from the paper: binary BVH → 4-wide for SIMD box tests and fewer bytes. A ray
 //! tests four boxes with one set of vector operations per node fetch, and the top level takes
-//! one 128-byte node per about 2.4 leaves instead of two 32-byte nodes per leaf (2.57 instead
-//! of 3.11 bytes per triangle on a 1M-triangle scan).
+//! one 128-byte node per about 2.4 leaves instead of two 32-byte nodes per leaf
+//! (docs/BENCHMARKS.md, "Top-level nodes").
 //!
 //! Nodes are emitted depth-first (a node's first internal child right after it) and the strips
 //! are renumbered in leaf order, so the strips of a subtree are contiguous in the strip-data
