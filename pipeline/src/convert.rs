@@ -8,6 +8,7 @@ use anyhow::Context;
 
 use crate::config::{Config, VertexEncodingName};
 use crate::preflight::{self, Naming};
+use crate::progress::Progress;
 use crate::run::{self, RunOptions, UsageError};
 use crate::workdir::WorkDir;
 
@@ -41,6 +42,15 @@ pub const SETTING_SECTIONS: [(&str, &str); 9] = [
 ];
 
 pub fn convert(args: &ConvertArgs, options: &RunOptions) -> anyhow::Result<()> {
+    convert_reporting(args, options, Progress::new(options.log_format))
+}
+
+/// [`convert`] reporting to `progress` instead of as `options.log_format` says.
+pub fn convert_reporting(
+    args: &ConvertArgs,
+    options: &RunOptions,
+    progress: Progress,
+) -> anyhow::Result<()> {
     if args.grid_bits.is_some() && args.encoding != Some(VertexEncodingName::Grid) {
         anyhow::bail!(UsageError(
             "--grid-bits applies to --encoding grid only".into()
@@ -61,7 +71,7 @@ pub fn convert(args: &ConvertArgs, options: &RunOptions) -> anyhow::Result<()> {
         std::io::Write::write_all(out, text.as_bytes())
     })
     .with_context(|| format!("writing {}", config_path.display()))?;
-    run::run(&config_path, options)
+    run::run_reporting(&config_path, options, progress)
 }
 
 /// The configuration equivalent to `args`, with absolute paths (it lives in the work directory).

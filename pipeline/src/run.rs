@@ -50,6 +50,16 @@ pub struct RunOptions {
 pub struct UsageError(pub String);
 
 pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
+    run_reporting(config_path, options, Progress::new(options.log_format))
+}
+
+/// [`run`] reporting to `progress` instead of as `options.log_format` says (the Python
+/// package's reports to `logging`).
+pub fn run_reporting(
+    config_path: &Path,
+    options: &RunOptions,
+    progress: Progress,
+) -> anyhow::Result<()> {
     let started = Instant::now();
     let config = Config::load(config_path)?;
     if options.shard != Shard::WHOLE && options.stage != Some(StageName::Strip) {
@@ -63,7 +73,6 @@ pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
     let work = WorkDir::new(config.work_dir());
     work.create()
         .with_context(|| format!("creating {}", work.root().display()))?;
-    let progress = Progress::new(options.log_format);
     let shared = options.stage == Some(StageName::Strip);
     let _lock = match WorkLock::acquire(work.root(), shared) {
         Ok(lock) => lock,
