@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 import reducem
+from conftest import convert
 from reducem import _native
 
 PACKAGE = Path(reducem.__file__).parent
@@ -105,8 +106,8 @@ def test_stub_lists_every_option_convert_accepts(scan_ply, tmp_path):
     assert keyword_options(stub()["convert"]) - {"progress"} == options_listed(refused.value)
 
 
-def test_stub_lists_every_override_render_accepts(model):
-    _, _, scene = model
+def test_stub_lists_every_override_render_accepts(scan_ply):
+    scene = reducem.open(convert(scan_ply))
     with pytest.raises(TypeError) as refused:
         scene.render({}, no_such_override=1)
     render = next(n for n in stub()["Scene"].body if getattr(n, "name", "") == "render")
