@@ -91,7 +91,7 @@ enum Command {
     Render {
         /// The ReduceM file.
         file: PathBuf,
-        /// The scene file (TOML; see docs/SCENES.md and configs/scenes/).
+        /// The scene file (TOML; see docs/SCENES.md and configs/scenes/); `-` for standard input.
         #[arg(long)]
         scene: PathBuf,
         /// The image to write, its format by extension: .png (8-bit sRGB) or .pfm (linear
@@ -119,6 +119,20 @@ enum Command {
         #[arg(long, default_value = "target/report-work")]
         work: PathBuf,
     },
+}
+
+impl Command {
+    /// The ReduceM file the command reads.
+    fn model(&self) -> Option<&Path> {
+        match self {
+            Command::Inspect { file, .. }
+            | Command::Decode { file, .. }
+            | Command::Query { file, .. }
+            | Command::Render { file, .. } => Some(file),
+            #[cfg(feature = "report")]
+            Command::Report { .. } => None,
+        }
+    }
 }
 
 /// Command-line replacements for scene keys (docs/SCENES.md), applied after `--up`.
@@ -271,6 +285,9 @@ fn exit_code_of(error: &anyhow::Error) -> u8 {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
+    if let Some(model) = cli.command.model() {
+        reducem::cli::check_mappable(model)?;
+    }
     match cli.command {
         Command::Inspect { file, json, verify } => inspect(&file, json, verify),
         Command::Decode { file, output } => {

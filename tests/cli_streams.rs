@@ -310,3 +310,67 @@ fn render_writes_images_to_standard_output_fifos_and_dev_null() {
         .file_type()
         .is_char_device());
 }
+
+#[test]
+fn render_reads_its_scene_from_standard_input() {
+    let model = model("streams-scene.rdm");
+    let scene = temp_path("streams-scene.toml");
+    std::fs::write(
+        &scene,
+        "[image]\nwidth = 24\nheight = 16\n[camera]\nauto = true\n",
+    )
+    .unwrap();
+    let (png, piped_png) = (
+        temp_path("streams-scene.png"),
+        temp_path("streams-scene-piped.png"),
+    );
+    let model_arg = model.to_str().unwrap();
+    let args = [
+        "render",
+        model_arg,
+        "--scene",
+        scene.to_str().unwrap(),
+        "-o",
+    ];
+    succeeded(reducem(&[&args[..], &[png.to_str().unwrap()]].concat()));
+    succeeded(shell(&format!(
+        "cat '{}' | \"$REDUCEM\" render '{model_arg}' --scene - -o '{}'",
+        scene.display(),
+        piped_png.display()
+    )));
+    assert!(std::fs::read(&png).unwrap() == std::fs::read(&piped_png).unwrap());
+
+    let invalid = shell(&format!(
+        "echo 'fov = 3' | \"$REDUCEM\" render '{model_arg}' --scene - -o '{}'",
+        piped_png.display()
+    ));
+    let stderr = String::from_utf8_lossy(&invalid.stderr);
+    assert_eq!(invalid.status.code(), Some(78), "{stderr}");
+    assert!(
+        stderr.contains("standard input: ") && stderr.contains("unknown field `fov`"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_model_from_a_stream_is_refused_as_a_usage_error_not_read_as_empty() {
+    let model = model("streams-model.rdm");
+    for (script, name) in [
+        ("cat '{}' | \"$REDUCEM\" inspect -", "-"),
+        (
+            "cat '{}' | \"$REDUCEM\" decode /dev/stdin -o /dev/null",
+            "/dev/stdin",
+        ),
+    ] {
+        let result = shell(&script.replace("{}", model.to_str().unwrap()));
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(64), "{stderr}");
+        assert!(
+            stderr.contains(&format!(
+                "{name}: a ReduceM file is mapped, so it must be a regular file, not standard \
+                 input, a pipe or a device"
+            )),
+            "{stderr}"
+        );
+    }
+}

@@ -254,8 +254,18 @@ pub enum SceneError {
 }
 
 impl Scene {
+    /// Reads, parses and checks the scene file at `path`; `-` reads standard input (named so in
+    /// errors).
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        let (path, text) = match path.as_os_str() == "-" {
+            true => {
+                let mut text = String::new();
+                let read = std::io::Read::read_to_string(&mut std::io::stdin(), &mut text);
+                (Path::new("standard input"), read.map(|_| text))
+            }
+            false => (path, std::fs::read_to_string(path)),
+        };
+        let text = text.map_err(|source| SceneError::Io {
             path: path.to_path_buf(),
             source,
         })?;
