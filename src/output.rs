@@ -122,12 +122,18 @@ pub fn is_stream(path: &Path) -> bool {
 
 /// Whether `a` and `b` are one open file, device or pipe. Unlike [`atomic::same_file`], no
 /// path comparison: two pipes (`/dev/stdin`, `/dev/stdout`) have no path, yet differ.
+#[cfg(unix)]
 fn same_inode(a: &Path, b: &Path) -> bool {
     use std::os::unix::fs::MetadataExt;
     match (std::fs::metadata(a), std::fs::metadata(b)) {
         (Ok(a), Ok(b)) => (a.dev(), a.ino()) == (b.dev(), b.ino()),
         _ => false,
     }
+}
+
+#[cfg(not(unix))]
+fn same_inode(a: &Path, b: &Path) -> bool {
+    atomic::same_file(a, b)
 }
 
 #[cfg(test)]
