@@ -1,6 +1,25 @@
 //! What the command-line programs (`reducem`, `pipeline`) share besides their exit codes
 //! ([`crate::exit_code`]).
 
+use std::path::Path;
+
+use crate::exit_code::UsageError;
+
+/// Refuses an input that must be mapped (a ReduceM file) when it is standard input (`-`) or not
+/// a regular file: a pipe maps as empty, and would be reported as a truncated file.
+pub fn check_mappable(path: &Path) -> Result<(), UsageError> {
+    let stream = path.as_os_str() == "-"
+        || std::fs::metadata(path).is_ok_and(|metadata| !metadata.is_file() && !metadata.is_dir());
+    match stream {
+        true => Err(UsageError(format!(
+            "{}: a ReduceM file is mapped, so it must be a regular file, not standard input, a \
+             pipe or a device (save the stream to a file first)",
+            path.display()
+        ))),
+        false => Ok(()),
+    }
+}
+
 /// Every argument of `command`'s subcommands, and every value of an enumerated one, that
 /// `--help` would list without a description, as `"program subcommand argument [value]"`.
 /// Both programs' tests require it to be empty.

@@ -23,10 +23,11 @@ pub fn triangles(file: &ReducemFile) -> impl Iterator<Item = [Point; 3]> + '_ {
 /// attributes adds them: `float nx,ny,nz` (the decoded normal) and `uchar red,green,blue,alpha`
 /// on vertices, `uint face_id` on faces after `vertex_indices`.
 pub fn write_ply(file: &ReducemFile, out: &Path) -> io::Result<()> {
-    write_atomically(out, |out| write_ply_body(file, out))
+    write_atomically(out, |out| write_ply_to(file, out))
 }
 
-fn write_ply_body(file: &ReducemFile, out: &mut impl Write) -> io::Result<()> {
+/// [`write_ply`] into `out`, a stream or a file.
+pub fn write_ply_to<W: Write + ?Sized>(file: &ReducemFile, out: &mut W) -> io::Result<()> {
     write_ply_header(file, out)?;
     let attributes = file.attributes();
     let mut record = Vec::with_capacity(28);
@@ -75,7 +76,7 @@ fn write_ply_body(file: &ReducemFile, out: &mut impl Write) -> io::Result<()> {
     }
 }
 
-fn write_ply_header(file: &ReducemFile, out: &mut impl Write) -> io::Result<()> {
+fn write_ply_header<W: Write + ?Sized>(file: &ReducemFile, out: &mut W) -> io::Result<()> {
     let header = file.header();
     let attributes = file.attributes();
     let mut text = format!(

@@ -22,6 +22,7 @@ pub mod format;
 pub mod input;
 pub mod inspect;
 pub mod mesh;
+pub mod output;
 pub mod quantize;
 pub mod render;
 pub mod splitmix;

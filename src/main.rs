@@ -1,5 +1,6 @@
 //! The `reducem` command: inspect, decode, query and render ReduceM files.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -10,7 +11,8 @@ use reducem::atomic;
 use reducem::exit_code::{self, UsageError};
 use reducem::format::reader::{FormatError, ReducemFile, Validation};
 use reducem::geometry::Point;
-use reducem::render::image::ImageFormat;
+use reducem::output::Destination;
+use reducem::render::image::{ImageError, ImageFormat};
 use reducem::render::scene::Scene;
 use reducem::trace::ray_file::{self, Answer, HitFormat, InvalidRays, RayFile, RayFileError};
 use reducem::trace::{Kernel, TraceOptions, Tracer};
@@ -47,7 +49,8 @@ enum Command {
     Decode {
         /// The ReduceM file.
         file: PathBuf,
-        /// The PLY file to write (replaced atomically; never the input itself).
+        /// The PLY file to write (replaced atomically; never the input itself); `-` for standard
+        /// output, and a device or FIFO is written directly.
         #[arg(short, long)]
         output: PathBuf,
     },
@@ -59,10 +62,12 @@ enum Command {
     Query {
         /// The ReduceM file.
         file: PathBuf,
-        /// The ray file to trace.
+        /// The ray file to trace; `-` for standard input, and a pipe, FIFO or device is read to
+        /// its end.
         #[arg(long)]
         rays: PathBuf,
-        /// The hit or occlusion file to write (replaced atomically; never an input).
+        /// The hit or occlusion file to write (replaced atomically; never an input); `-` for
+        /// standard output, and a device or FIFO is written directly, in ray order.
         #[arg(short, long)]
         output: PathBuf,
         /// Answer occlusion (any hit within [tmin, tmax]) instead of the closest hit.
@@ -82,15 +87,16 @@ enum Command {
     },
     /// Render an image of the model as a scene file describes it, tracing only the effects the
     /// scene asks for. Every scene key, its default and unit: docs/SCENES.md.
-    #[command(after_help = exit_code::HELP)]
+    #[command(after_help = exit_code::HELP, allow_negative_numbers = true)]
     Render {
         /// The ReduceM file.
         file: PathBuf,
-        /// The scene file (TOML; see docs/SCENES.md and configs/scenes/).
+        /// The scene file (TOML; see docs/SCENES.md and configs/scenes/); `-` for standard input.
         #[arg(long)]
         scene: PathBuf,
         /// The image to write, its format by extension: .png (8-bit sRGB) or .pfm (linear
-        /// floats); replaced atomically, never an input.
+        /// floats); replaced atomically, never an input. `-` writes a PNG to standard output
+        /// (the report then goes to standard error); a device or FIFO is written directly.
         #[arg(short, long)]
         output: PathBuf,
         /// Print the report as one JSON object.
@@ -115,6 +121,20 @@ enum Command {
     },
 }
 
+impl Command {
+    /// The ReduceM file the command reads.
+    fn model(&self) -> Option<&Path> {
+        match self {
+            Command::Inspect { file, .. }
+            | Command::Decode { file, .. }
+            | Command::Query { file, .. }
+            | Command::Render { file, .. } => Some(file),
+            #[cfg(feature = "report")]
+            Command::Report { .. } => None,
+        }
+    }
+}
+
 /// Command-line replacements for scene keys (docs/SCENES.md), applied after `--up`.
 #[derive(Clone, Debug, clap::Args)]
 struct SceneOverrides {
@@ -132,13 +152,15 @@ struct SceneOverrides {
     #[arg(long)]
     antialiasing: Option<u32>,
     /// Camera position X,Y,Z in model units ([camera] position); needs --look-at.
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, requires = "look_at")]
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true,
+          requires = "look_at")]
     camera_position: Option<Point>,
     /// The point X,Y,Z seen at the image centre ([camera] look_at); needs --camera-position.
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, requires = "camera_position")]
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true,
+          requires = "camera_position")]
     look_at: Option<Point>,
     /// The direction X,Y,Z that is up in the image ([camera] up).
-    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point)]
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true)]
     camera_up: Option<Point>,
     /// Vertical field of view in degrees ([camera] fov_degrees).
     #[arg(long)]
@@ -263,13 +285,17 @@ fn exit_code_of(error: &anyhow::Error) -> u8 {
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
+    if let Some(model) = cli.command.model() {
+        reducem::cli::check_mappable(model)?;
+    }
     match cli.command {
         Command::Inspect { file, json, verify } => inspect(&file, json, verify),
         Command::Decode { file, output } => {
-            check_output(&output, &[&file])?;
+            let output = Destination::prepare(&output, &[&file])?;
             let opened = ReducemFile::open_with(&file, Validation::Full)?;
-            reducem::decode::write_ply(&opened, &output)
-                .with_context(|| format!("writing {}", output.display()))
+            output
+                .write(|out| reducem::decode::write_ply_to(&opened, out))
+                .with_context(|| format!("writing {}", output.name()))
         }
         Command::Query {
             file,
@@ -279,7 +305,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             invalid_rays,
             format,
         } => {
-            check_output(&output, &[&file, &rays])?;
+            let output = Destination::prepare(&output, &[&file, &rays])?;
             let answer = match occluded {
                 true => Answer::Occlusion,
                 false => Answer::Hits(format.format()),
@@ -293,33 +319,27 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             json,
             overrides,
         } => {
-            check_output(&output, &[&file, &scene])?;
-            let format = ImageFormat::of(&output).ok_or_else(|| {
-                UsageError(format!(
-                    "output {}: unknown image format (the extension must be .png or .pfm)",
-                    output.display()
-                ))
-            })?;
+            let destination = Destination::prepare(&output, &[&file, &scene])?;
+            let format = image_format(&output)?;
             let scene = load_scene(&scene, &overrides)?;
-            render(&file, &scene, &output, format, json)
+            render(&file, &scene, &destination, format, json)
         }
         #[cfg(feature = "report")]
         Command::Report { scale, out, work } => report(scale, out, work),
     }
 }
 
-/// Refuses, before any work, an output that is one of the command's inputs (by path, symlink or
-/// hard link) or that cannot be written (a directory; a missing or read-only directory).
-fn check_output(output: &Path, inputs: &[&Path]) -> anyhow::Result<()> {
-    if let Some(input) = inputs.iter().find(|input| atomic::same_file(output, input)) {
-        anyhow::bail!(UsageError(format!(
-            "output {} is the input {} (the same file); writing it would destroy the input, \
-             so choose another output path",
-            output.display(),
-            input.display()
-        )));
+/// The image format of the output argument: by its extension, else PNG for a stream (`-`,
+/// `/dev/null`, a FIFO).
+fn image_format(output: &Path) -> Result<ImageFormat, UsageError> {
+    match ImageFormat::of(output) {
+        Some(format) => Ok(format),
+        None if reducem::output::is_stream(output) => Ok(ImageFormat::Png),
+        None => Err(UsageError(format!(
+            "output {}: unknown image format (the extension must be .png or .pfm)",
+            output.display()
+        ))),
     }
-    atomic::check_writable(output).with_context(|| format!("output {}", output.display()))
 }
 
 #[cfg(feature = "report")]
@@ -341,7 +361,7 @@ fn report(
 fn query(
     path: &Path,
     rays_path: &Path,
-    output: &Path,
+    output: &Destination,
     answer: Answer,
     invalid_rays: InvalidRays,
 ) -> anyhow::Result<()> {
@@ -364,19 +384,30 @@ fn query(
         ..TraceOptions::default()
     };
     let (ray_count, invalid) = (rays.len(), rays.invalid());
-    let (hits, seconds, unmapping) = atomic::write_atomically_with(output, move |out| {
+    let answer_into = move |out: AnswerSink| {
         let tracer = Tracer::new(&file, options);
         let started = Instant::now();
-        let hits = ray_file::write_answers(&tracer, &rays, answer, out.get_ref())?;
+        let hits = match out {
+            AnswerSink::File(out) => ray_file::write_answers(&tracer, &rays, answer, out)?,
+            AnswerSink::Stream(out) => {
+                ray_file::write_answers_streamed(&tracer, &rays, answer, out)?
+            }
+        };
         let seconds = started.elapsed().as_secs_f64();
         // Answers of rays that met a corrupt part of the file are incomplete: nothing is
-        // renamed into place.
+        // renamed into place (a stream has them, and the exit code says they are not all).
         complete(&file)?;
         anyhow::Ok((hits, seconds, unmap_behind(file, rays)))
-    })
-    .map_err(|error| match error.is::<FormatError>() {
+    };
+    let written = match output {
+        Destination::Replace(path) => {
+            atomic::write_atomically_with(path, |out| answer_into(AnswerSink::File(out.get_ref())))
+        }
+        stream => stream.write(|out| answer_into(AnswerSink::Stream(out))),
+    };
+    let (hits, seconds, unmapping) = written.map_err(|error| match error.is::<FormatError>() {
         true => error,
-        false => error.context(format!("writing {}", output.display())),
+        false => error.context(format!("writing {}", output.name())),
     })?;
     let summary = QuerySummary {
         rays: ray_count,
@@ -387,9 +418,16 @@ fn query(
     };
     // One write: runs sharing a log (cron jobs) never interleave their summaries.
     let line = format!("{summary}\n");
-    let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
+    let _ = std::io::stderr().write_all(line.as_bytes());
     let _ = unmapping.join();
     Ok(())
+}
+
+/// Where `query` writes its answers: a regular file at each chunk's place, on every core, or a
+/// stream in order.
+enum AnswerSink<'a> {
+    File(&'a std::fs::File),
+    Stream(&'a mut dyn std::io::Write),
 }
 
 /// Unmaps the model and the rays on another thread, while the answers are synced and renamed
@@ -467,25 +505,44 @@ fn apply_overrides(scene: &mut Scene, overrides: &SceneOverrides) {
 fn render(
     path: &Path,
     scene: &Scene,
-    output: &Path,
+    output: &Destination,
     format: ImageFormat,
     json: bool,
 ) -> anyhow::Result<()> {
+    reducem::render::memory::check(scene, format).map_err(UsageError)?;
     let file = ReducemFile::open(path)?;
     let options = TraceOptions {
         kernel: Kernel::from_env()?,
         ..TraceOptions::default()
     };
     let tracer = Tracer::new(&file, options);
-    let (frame, report) = reducem::render::render(&tracer, scene);
-    complete(&file)?;
-    reducem::render::image::write_image(&frame, output, format)?;
-    if json {
-        println!("{}", serde_json::to_string(&report)?);
-    } else {
-        print!("{report}");
-    }
-    Ok(())
+    let report = output
+        .write(|out| {
+            let report = reducem::render::image::render_into(&tracer, scene, format, out).map_err(
+                |source| ImageError {
+                    path: output.name().into(),
+                    source,
+                },
+            )?;
+            // A render that met a corrupt part of the file is incomplete: nothing is renamed
+            // into place.
+            complete(&file)?;
+            anyhow::Ok(report)
+        })
+        .map_err(|error| match error.is::<std::io::Error>() {
+            true => error.context(format!("writing {}", output.name())),
+            false => error,
+        })?;
+    let text = match json {
+        true => format!("{}\n", serde_json::to_string(&report)?),
+        false => report.to_string(),
+    };
+    // Standard output carries the image, if that is where it goes.
+    let written = match output.is_stdout() {
+        true => std::io::stderr().write_all(text.as_bytes()),
+        false => std::io::stdout().write_all(text.as_bytes()),
+    };
+    written.context("writing the report")
 }
 
 /// Fails when the traced rays met a corrupt strip or node of a lazily opened file: their

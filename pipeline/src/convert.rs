@@ -1,6 +1,8 @@
 //! `pipeline convert`: a conversion without a configuration file. It writes the equivalent
 //! configuration into the work directory and runs it like `pipeline run`, so the job resumes,
-//! reports its status and is cleaned like any other (`pipeline run WORK/convert.toml`).
+//! reports its status and is cleaned like any other (`pipeline run WORK/convert.toml`). The
+//! command removes the work directory once the output is written, unless told to keep it
+//! ([`RunOptions::clean_after`]); an unfinished job keeps it, to resume.
 
 use std::path::{Path, PathBuf};
 
@@ -56,6 +58,7 @@ pub fn convert_reporting(
             "--grid-bits applies to --encoding grid only".into()
         ));
     }
+    check_readable(&args.input)?;
     let text = config_text(args)?;
     let config = Config::parse(Path::new(CONFIG_NAME), &text)
         .map_err(|error| UsageError(format!("invalid options: {}", error.message)))?;
@@ -72,6 +75,20 @@ pub fn convert_reporting(
     })
     .with_context(|| format!("writing {}", config_path.display()))?;
     run::run_reporting(&config_path, options, progress)
+}
+
+/// Fails unless `input` can be opened and read, before anything is created: a mistyped input
+/// leaves no work directory and no output directory behind.
+fn check_readable(input: &Path) -> anyhow::Result<()> {
+    let opened = std::fs::File::open(input).and_then(|file| file.metadata());
+    match opened.with_context(|| format!("input {}", input.display()))? {
+        metadata if metadata.is_dir() => Err(std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            format!("input {} is a directory, not a mesh", input.display()),
+        )
+        .into()),
+        _ => Ok(()),
+    }
 }
 
 /// The configuration equivalent to `args`, with absolute paths (it lives in the work directory).

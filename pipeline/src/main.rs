@@ -94,6 +94,10 @@ enum Command {
         work: Option<PathBuf>,
         #[command(flatten)]
         attributes: AttributeFlags,
+        /// Keep the work directory after a successful conversion (it is removed by default; an
+        /// unfinished conversion always keeps it, to resume).
+        #[arg(long, conflicts_with = "clean_after")]
+        keep_work: bool,
         #[command(flatten)]
         job: JobFlags,
     },
@@ -240,9 +244,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             grid_bits,
             work,
             attributes,
+            keep_work,
             job,
         } => {
             interrupt::install()?;
+            let mut options = job.options(None, run::Shard::WHOLE);
+            options.clean_after = !keep_work;
             let args = convert::ConvertArgs {
                 input,
                 output,
@@ -252,7 +259,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 work,
                 settings: attributes.settings(),
             };
-            convert::convert(&args, &job.options(None, run::Shard::WHOLE))
+            convert::convert(&args, &options)
         }
         Command::Status { config } => status::status(&config),
         Command::Clean { config } => run::clean(&config),

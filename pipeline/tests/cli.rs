@@ -385,6 +385,7 @@ fn convert_writes_the_equivalent_config_and_resumes_like_run() {
         "16",
         "--log-format",
         "plain",
+        "--keep-work",
     ];
     let first = pipeline(&args);
     assert_eq!(

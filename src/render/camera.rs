@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 
-use super::scene::CameraSettings;
+use super::scene::{CameraSettings, MIN_ROLL_SINE_SQUARED};
 use crate::geometry::Aabb;
 use crate::trace::Ray;
 
@@ -34,8 +34,9 @@ impl Camera {
         };
         let forward = (look_at - position).normalize_or(Vec3::NEG_Z);
         let side = forward.cross(up_hint);
-        // A view along the up hint has no defined roll: pick any perpendicular.
-        let side = if side.length_squared() > 1e-12 {
+        // A view along the up hint has no defined roll (scenes refuse it; a camera built
+        // otherwise picks any perpendicular).
+        let side = if side.length_squared() > MIN_ROLL_SINE_SQUARED {
             side.normalize()
         } else {
             forward.any_orthonormal_vector()

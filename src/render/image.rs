@@ -1,12 +1,17 @@
 //! Image output of a linear-RGB frame, written atomically (temporary file + rename) so a failed
 //! render never leaves a truncated image behind: 8-bit sRGB PNG, or the linear values themselves
-//! as a portable float map (PFM), the format chosen by the file's extension.
+//! as a portable float map (PFM), the format chosen by the file's extension. An image rendered
+//! straight into its output ([`render_into`]) is written as PFM band by band as it is rendered,
+//! and as PNG from its 8-bit pixels once they are all there (the encoder compresses the whole
+//! image at once).
 
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
-use super::Frame;
+use super::scene::Scene;
+use super::{render_rows, Frame, RenderReport, RowOrder};
 use crate::atomic;
+use crate::trace::Tracer;
 
 #[derive(Debug, thiserror::Error)]
 #[error("writing {}: {source}", path.display())]
@@ -18,11 +23,14 @@ pub struct ImageError {
 
 /// The frame as 8-bit sRGB bytes, three per pixel.
 pub fn srgb_bytes(frame: &Frame) -> Vec<u8> {
-    frame
-        .pixels
-        .iter()
-        .flat_map(|pixel| pixel.map(encode_srgb))
-        .collect()
+    let mut bytes = Vec::with_capacity(frame.pixels.len() * 3);
+    extend_srgb(&mut bytes, &frame.pixels);
+    bytes
+}
+
+/// Appends the 8-bit sRGB bytes of `pixels` to `bytes`.
+fn extend_srgb(bytes: &mut Vec<u8>, pixels: &[[f32; 3]]) {
+    bytes.extend(pixels.iter().flat_map(|pixel| pixel.map(encode_srgb)));
 }
 
 /// Linear value in `[0, 1]` (clamped) to an 8-bit sRGB code.
@@ -42,18 +50,22 @@ fn encode_srgb(linear: f32) -> u8 {
 
 pub fn write_png(frame: &Frame, out: &Path) -> Result<(), ImageError> {
     atomic::write_atomically(out, |writer| {
-        let mut encoder = png::Encoder::new(writer, frame.width, frame.height);
-        encoder.set_color(png::ColorType::Rgb);
-        encoder.set_depth(png::BitDepth::Eight);
-        let mut png = encoder.write_header().map_err(io::Error::other)?;
-        png.write_image_data(&srgb_bytes(frame))
-            .map_err(io::Error::other)?;
-        png.finish().map_err(io::Error::other)
+        encode_png(frame.width, frame.height, &srgb_bytes(frame), writer)
     })
     .map_err(|source| ImageError {
         path: out.to_path_buf(),
         source,
     })
+}
+
+/// The PNG of a `width` × `height` image of 8-bit sRGB bytes.
+fn encode_png(width: u32, height: u32, srgb: &[u8], out: &mut dyn Write) -> io::Result<()> {
+    let mut encoder = png::Encoder::new(out, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut png = encoder.write_header().map_err(io::Error::other)?;
+    png.write_image_data(srgb).map_err(io::Error::other)?;
+    png.finish().map_err(io::Error::other)
 }
 
 /// The image formats, by file extension.
@@ -89,16 +101,54 @@ pub fn write_image(frame: &Frame, out: &Path, format: ImageFormat) -> Result<(),
 /// little-endian), rows from the bottom up as the format orders them.
 pub fn write_pfm(frame: &Frame, out: &Path) -> Result<(), ImageError> {
     atomic::write_atomically(out, |writer| {
-        write!(writer, "PF\n{} {}\n-1.0\n", frame.width, frame.height)?;
-        for row in frame.pixels.chunks_exact(frame.width as usize).rev() {
-            for channel in row.iter().flatten() {
-                writer.write_all(&channel.to_le_bytes())?;
-            }
-        }
-        Ok(())
+        write_pfm_header(frame.width, frame.height, writer)?;
+        write_pfm_rows(&frame.pixels, frame.width, writer)
     })
     .map_err(|source| ImageError {
         path: out.to_path_buf(),
         source,
     })
+}
+
+fn write_pfm_header(width: u32, height: u32, out: &mut dyn Write) -> io::Result<()> {
+    write!(out, "PF\n{width} {height}\n-1.0\n")
+}
+
+/// The rows of `pixels` (`width` across, from the top), bottom up as PFM orders them.
+fn write_pfm_rows(pixels: &[[f32; 3]], width: u32, out: &mut dyn Write) -> io::Result<()> {
+    for row in pixels.chunks_exact(width as usize).rev() {
+        for channel in row.iter().flatten() {
+            out.write_all(&channel.to_le_bytes())?;
+        }
+    }
+    Ok(())
+}
+
+/// Renders `scene` with `tracer` into `out` in `format`, the same bytes as [`write_image`]
+/// writes of the rendered frame: PFM band by band as the bands are rendered (from the bottom,
+/// as PFM orders its rows), PNG once its 8-bit pixels are complete.
+pub fn render_into(
+    tracer: &Tracer,
+    scene: &Scene,
+    format: ImageFormat,
+    out: &mut dyn Write,
+) -> io::Result<RenderReport> {
+    let (width, height) = (scene.image.width, scene.image.height);
+    match format {
+        ImageFormat::Png => {
+            let mut srgb = Vec::with_capacity(width as usize * height as usize * 3);
+            let report = render_rows(tracer, scene, RowOrder::TopDown, |rows| {
+                extend_srgb(&mut srgb, rows);
+                Ok::<(), io::Error>(())
+            })?;
+            encode_png(width, height, &srgb, out)?;
+            Ok(report)
+        }
+        ImageFormat::Pfm => {
+            write_pfm_header(width, height, out)?;
+            render_rows(tracer, scene, RowOrder::BandsBottomUp, |rows| {
+                write_pfm_rows(rows, width, &mut *out)
+            })
+        }
+    }
 }

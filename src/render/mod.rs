@@ -7,6 +7,11 @@
 //! effects). Passes run over 8×8-pixel tiles with rayon; every pixel's value depends only on its
 //! own rays and stateless samples, so the image is identical for any thread count.
 //!
+//! The image is rendered in bands of whole tile rows, each band through every pass and handed
+//! on as finished rows ([`render_rows`]) before the next begins: the passes' per-pixel state
+//! (about 110 bytes a pixel) is held for one band, never for the whole image, and the image is
+//! the same as rendered whole.
+//!
 //! Shading is Lambertian with a two-sided normal: `albedo × colour × (ambient × AO + Σ lights
 //! intensity × cos θ × visibility / falloff)`, point lights falling off with squared distance,
 //! then sRGB-encoded to 8-bit PNG ([`image`]). The normal is the geometric one, or the stored
@@ -16,6 +21,7 @@
 pub mod attributes;
 pub mod camera;
 pub mod image;
+pub mod memory;
 pub mod plan;
 pub mod residency;
 pub mod sampling;
@@ -99,126 +105,289 @@ impl RenderReport {
 /// them (an ordered grid: every sample is an ordinary pixel of the finer image, so the result is
 /// as reproducible as one sample).
 pub fn render(tracer: &Tracer, scene: &Scene) -> (Frame, RenderReport) {
-    let factor = scene.image.antialiasing;
-    if factor <= 1 {
-        return render_samples(tracer, scene);
-    }
+    let (width, height) = (scene.image.width, scene.image.height);
+    let mut pixels = Vec::with_capacity(width as usize * height as usize);
+    let report = render_rows(tracer, scene, RowOrder::TopDown, |rows| {
+        pixels.extend_from_slice(rows);
+        Ok::<(), std::convert::Infallible>(())
+    });
+    let frame = Frame {
+        width,
+        height,
+        pixels,
+    };
+    (frame, report.unwrap_or_else(|never| match never {}))
+}
+
+/// The order [`render_rows`] hands on the image's rows in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RowOrder {
+    /// Bands from the top, each band's rows from the top.
+    TopDown,
+    /// Bands from the bottom, each band's rows still from the top (as PFM writes them, bottom
+    /// up, a band's rows are then reversed by the writer).
+    BandsBottomUp,
+}
+
+/// Renders `scene` with `tracer` band by band, handing each band's finished pixels (whole rows,
+/// row-major from the band's top) to `rows` before the next band is rendered, bands in `order`;
+/// the report, with residency measured afterwards. With `[image] antialiasing = n`, renders n ×
+/// n samples per pixel on a finer image and averages them (an ordered grid: every sample is an
+/// ordinary pixel of the finer image, so the result is as reproducible as one sample).
+pub fn render_rows<E>(
+    tracer: &Tracer,
+    scene: &Scene,
+    order: RowOrder,
+    rows: impl FnMut(&[[f32; 3]]) -> Result<(), E>,
+) -> Result<RenderReport, E> {
+    render_in_bands(tracer, scene, order, BAND_PIXELS, rows)
+}
+
+/// [`render_rows`] in bands of about `band_pixels` fine pixels.
+fn render_in_bands<E>(
+    tracer: &Tracer,
+    scene: &Scene,
+    order: RowOrder,
+    band_pixels: u32,
+    mut rows: impl FnMut(&[[f32; 3]]) -> Result<(), E>,
+) -> Result<RenderReport, E> {
+    let factor = scene.image.antialiasing.max(1);
     let mut fine = scene.clone();
     fine.image.width *= factor;
     fine.image.height *= factor;
-    let (frame, mut report) = render_samples(tracer, &fine);
-    (report.width, report.height) = (scene.image.width, scene.image.height);
-    (frame.averaged(factor), report)
+    let renderer = BandRenderer::new(tracer, &fine);
+    let mut effects = renderer.effects();
+    let mut bands = bands(fine.image.width, fine.image.height, factor, band_pixels);
+    if order == RowOrder::BandsBottomUp {
+        bands.reverse();
+    }
+    for band in bands {
+        let samples = renderer.render_band(band.clone(), &mut effects);
+        match factor {
+            1 => rows(&samples)?,
+            _ => rows(&averaged(&samples, fine.image.width, factor))?,
+        }
+    }
+    Ok(renderer.report(scene, effects))
 }
 
-impl Frame {
-    /// Each `factor` × `factor` block of pixels averaged into one.
-    fn averaged(&self, factor: u32) -> Frame {
-        let (width, height) = (self.width / factor, self.height / factor);
-        let weight = 1.0 / (factor * factor) as f32;
-        let pixels = (0..width * height)
-            .map(|index| {
-                let (x, y) = (index % width * factor, index / width * factor);
-                let mut sum = [0.0f32; 3];
-                for sample_y in y..y + factor {
-                    for sample_x in x..x + factor {
-                        let sample = self.pixels[(sample_y * self.width + sample_x) as usize];
-                        sum = std::array::from_fn(|c| sum[c] + sample[c]);
-                    }
+/// Fine pixels a band holds, unless its fewest rows are more: about 40 MB of per-pixel state,
+/// and thousands of tiles to share among the cores.
+const BAND_PIXELS: u32 = 1 << 18;
+
+/// Bytes of the passes' buffers per pixel of a band, at most: surfaces and their tile copies,
+/// visibility and occlusion with their ray counts, the shaded pixels.
+pub(crate) const PIXEL_STATE_BYTES: u64 = 160;
+
+/// The bands of a `width` × `height` (fine) image, about `pixels` each: whole tile rows, each a
+/// whole number of `factor` rows so that antialiasing averages within a band, and tiles the
+/// same as in one band.
+fn bands(width: u32, height: u32, factor: u32, pixels: u32) -> Vec<Range<u32>> {
+    let rows = band_rows(width, factor, pixels);
+    (0..height)
+        .step_by(rows as usize)
+        .map(|top| top..(top + rows).min(height))
+        .collect()
+}
+
+/// Rows of a band of a `width` (fine) image: about `pixels`, a multiple of the tile and of the
+/// antialiasing factor.
+fn band_rows(width: u32, factor: u32, pixels: u32) -> u32 {
+    let step = lcm(TILE, factor);
+    (pixels / width.max(1)).max(1).div_ceil(step) * step
+}
+
+/// Pixels of the largest band [`render_rows`] renders of a `width` × `height` (fine) image.
+pub(crate) fn band_pixels(width: u32, height: u32, factor: u32) -> u64 {
+    u64::from(band_rows(width, factor, BAND_PIXELS).min(height)) * u64::from(width)
+}
+
+fn lcm(a: u32, b: u32) -> u32 {
+    let gcd = |mut a: u32, mut b: u32| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    a / gcd(a, b) * b
+}
+
+/// Each `factor` × `factor` block of the rows `samples` (`fine_width` across) averaged into one
+/// pixel.
+fn averaged(samples: &[[f32; 3]], fine_width: u32, factor: u32) -> Vec<[f32; 3]> {
+    let fine_height = samples.len() as u32 / fine_width;
+    let (width, height) = (fine_width / factor, fine_height / factor);
+    let weight = 1.0 / (factor * factor) as f32;
+    (0..width * height)
+        .map(|index| {
+            let (x, y) = (index % width * factor, index / width * factor);
+            let mut sum = [0.0f32; 3];
+            for sample_y in y..y + factor {
+                for sample_x in x..x + factor {
+                    let sample = samples[(sample_y * fine_width + sample_x) as usize];
+                    sum = std::array::from_fn(|c| sum[c] + sample[c]);
                 }
-                sum.map(|channel| channel * weight)
-            })
-            .collect();
-        Frame {
-            width,
-            height,
-            pixels,
+            }
+            sum.map(|channel| channel * weight)
+        })
+        .collect()
+}
+
+/// What every band of one image shares: the plan, the camera, the attributes the shading uses.
+struct BandRenderer<'a, 'f> {
+    tracer: &'a Tracer<'f>,
+    scene: &'a Scene,
+    plan: Plan,
+    camera: Camera,
+    used: AttributeUse,
+}
+
+impl<'a, 'f> BandRenderer<'a, 'f> {
+    /// The renderer of one sample per pixel of `scene`'s image.
+    fn new(tracer: &'a Tracer<'f>, scene: &'a Scene) -> BandRenderer<'a, 'f> {
+        let file = tracer.file();
+        let header = file.header();
+        let bounds = Aabb {
+            min: header.bounds_min,
+            max: header.bounds_max,
+        };
+        let plan = Plan::new(scene, &bounds);
+        let camera = Camera::new(&scene.camera, &bounds, plan.width, plan.height);
+        let used = AttributeUse::new(file.attributes(), &scene.shading);
+        BandRenderer {
+            tracer,
+            scene,
+            plan,
+            camera,
+            used,
+        }
+    }
+
+    /// The passes the plan asks for, in order, with nothing traced yet.
+    fn effects(&self) -> Vec<EffectReport> {
+        let effect = |effect: &'static str| EffectReport {
+            effect,
+            rays: 0,
+            seconds: 0.0,
+        };
+        let shadows = self.plan.shadow_lights.iter().map(|_| effect("shadows"));
+        std::iter::once(effect("primary"))
+            .chain(shadows)
+            .chain(
+                self.plan
+                    .ambient_occlusion
+                    .map(|_| effect("ambient_occlusion")),
+            )
+            .collect()
+    }
+
+    /// The pixels of the image's `rows`, each pass's rays and time added to `effects` (in the
+    /// order of [`BandRenderer::effects`]).
+    fn render_band(&self, rows: Range<u32>, effects: &mut [EffectReport]) -> Vec<[f32; 3]> {
+        let (tracer, plan) = (self.tracer, &self.plan);
+        let band = Band::new(plan.width, rows);
+        let mut passes = effects.iter_mut();
+        let mut account = |rays: u64, started: Instant| {
+            let effect = passes.next().expect("an effect per pass");
+            effect.rays += rays;
+            effect.seconds += started.elapsed().as_secs_f64();
+        };
+
+        let started = Instant::now();
+        let surfaces = primary_pass(tracer, &self.camera, &band, self.used);
+        account(band.pixel_count() as u64, started);
+
+        let mut visibility = vec![Vec::new(); plan.lights.len()];
+        for &light in &plan.shadow_lights {
+            let started = Instant::now();
+            let (visible, rays) = shadow_pass(tracer, &plan.lights[light], &surfaces, &band);
+            visibility[light] = visible;
+            account(rays, started);
+        }
+
+        let ambient = plan.ambient_occlusion.map(|ao| {
+            let started = Instant::now();
+            let seed = self.scene.shading.seed;
+            let (unoccluded, rays) = ao_pass(tracer, &ao, seed, &surfaces, &band);
+            account(rays, started);
+            unoccluded
+        });
+
+        let exposure = self.scene.shading.exposure;
+        shade(self.scene, plan, &surfaces, &visibility, ambient.as_deref())
+            .into_iter()
+            .map(|pixel| pixel.map(|channel| channel * exposure))
+            .collect()
+    }
+
+    /// The report of the whole image of `scene` (the scene as asked for, before antialiasing's
+    /// finer image), its passes' `effects` summed over the bands.
+    fn report(&self, scene: &Scene, effects: Vec<EffectReport>) -> RenderReport {
+        let file = self.tracer.file();
+        let mut shadow_rays_per_light = vec![0; self.plan.lights.len()];
+        for (&light, effect) in self.plan.shadow_lights.iter().zip(&effects[1..]) {
+            shadow_rays_per_light[light] = effect.rays;
+        }
+        let total_rays = effects.iter().map(|e| e.rays).sum();
+        let trace_seconds = effects.iter().map(|e| e.seconds).sum::<f64>();
+        RenderReport {
+            width: scene.image.width,
+            height: scene.image.height,
+            effects,
+            shadow_rays_per_light,
+            total_rays,
+            trace_seconds,
+            mrays_per_second: total_rays as f64 / trace_seconds.max(1e-9) / 1e6,
+            kernel: self.tracer.options().kernel.to_string(),
+            memory: residency::measure(file.path(), file.file_bytes()),
         }
     }
 }
 
-/// One sample per pixel of `scene`'s image.
-fn render_samples(tracer: &Tracer, scene: &Scene) -> (Frame, RenderReport) {
-    let file = tracer.file();
-    let header = file.header();
-    let bounds = Aabb {
-        min: header.bounds_min,
-        max: header.bounds_max,
-    };
-    let plan = Plan::new(scene, &bounds);
-    let camera = Camera::new(&scene.camera, &bounds, plan.width, plan.height);
-    let tiles = tiles(plan.width, plan.height);
-    let mut effects = Vec::new();
+/// A band of whole image rows: its tiles, by the image's pixel indices, and where its pixels
+/// start in the image.
+struct Band {
+    width: u32,
+    tiles: Vec<Vec<u32>>,
+    first_pixel: u32,
+    pixel_count: usize,
+}
 
-    let started = Instant::now();
-    let used = AttributeUse::new(file.attributes(), &scene.shading);
-    let surfaces = primary_pass(tracer, &camera, &tiles, plan.width, used);
-    effects.push(EffectReport {
-        effect: "primary",
-        rays: tiles.iter().map(|t| t.len() as u64).sum(),
-        seconds: started.elapsed().as_secs_f64(),
-    });
-
-    let mut visibility = vec![Vec::new(); plan.lights.len()];
-    let mut shadow_rays_per_light = vec![0; plan.lights.len()];
-    for &light in &plan.shadow_lights {
-        let started = Instant::now();
-        let (visible, rays) = shadow_pass(tracer, &plan.lights[light], &surfaces, &tiles);
-        visibility[light] = visible;
-        shadow_rays_per_light[light] = rays;
-        effects.push(EffectReport {
-            effect: "shadows",
-            rays,
-            seconds: started.elapsed().as_secs_f64(),
-        });
+impl Band {
+    fn new(width: u32, rows: Range<u32>) -> Band {
+        Band {
+            width,
+            tiles: tiles_of_rows(width, rows.clone()),
+            first_pixel: rows.start * width,
+            pixel_count: rows.len() * width as usize,
+        }
     }
 
-    let ambient = plan.ambient_occlusion.map(|ao| {
-        let started = Instant::now();
-        let (unoccluded, rays) = ao_pass(tracer, &ao, scene.shading.seed, &surfaces, &tiles);
-        effects.push(EffectReport {
-            effect: "ambient_occlusion",
-            rays,
-            seconds: started.elapsed().as_secs_f64(),
-        });
-        unoccluded
-    });
+    fn pixel_count(&self) -> usize {
+        self.pixel_count
+    }
 
-    let exposure = scene.shading.exposure;
-    let pixels = shade(scene, &plan, &surfaces, &visibility, ambient.as_deref())
-        .into_iter()
-        .map(|pixel| pixel.map(|channel| channel * exposure))
-        .collect();
-    let total_rays = effects.iter().map(|e| e.rays).sum();
-    let trace_seconds = effects.iter().map(|e| e.seconds).sum::<f64>();
-    let report = RenderReport {
-        width: plan.width,
-        height: plan.height,
-        effects,
-        shadow_rays_per_light,
-        total_rays,
-        trace_seconds,
-        mrays_per_second: total_rays as f64 / trace_seconds.max(1e-9) / 1e6,
-        kernel: tracer.options().kernel.to_string(),
-        memory: residency::measure(file.path(), file.file_bytes()),
-    };
-    let frame = Frame {
-        width: plan.width,
-        height: plan.height,
-        pixels,
-    };
-    (frame, report)
+    /// The index in the band's buffers of the image's pixel `pixel`.
+    fn local(&self, pixel: u32) -> usize {
+        (pixel - self.first_pixel) as usize
+    }
 }
 
 /// Pixel indices of each 8×8 tile, tiles in row-major order, each tile's pixels in packet
 /// blocks ([`PACKET_COLUMNS`]): the order passes trace pixels in.
 pub fn tiles(width: u32, height: u32) -> Vec<Vec<u32>> {
+    tiles_of_rows(width, 0..height)
+}
+
+/// [`tiles`] of the image's `rows` (the first a multiple of [`TILE`]), by the image's pixel
+/// indices.
+fn tiles_of_rows(width: u32, rows: Range<u32>) -> Vec<Vec<u32>> {
     let mut tiles = Vec::new();
-    for tile_y in (0..height).step_by(TILE as usize) {
+    for tile_y in rows.clone().step_by(TILE as usize) {
         for tile_x in (0..width).step_by(TILE as usize) {
-            let rows = tile_y..(tile_y + TILE).min(height);
+            let tile_rows = tile_y..(tile_y + TILE).min(rows.end);
             let columns = tile_x..(tile_x + TILE).min(width);
-            tiles.push(tile_pixels(width, rows, columns));
+            tiles.push(tile_pixels(width, tile_rows, columns));
         }
     }
     tiles
@@ -240,36 +409,31 @@ fn tile_pixels(width: u32, rows: Range<u32>, columns: Range<u32>) -> Vec<u32> {
     pixels
 }
 
-/// Runs `per_tile` over every tile in parallel and scatters its per-pixel results into an image
-/// buffer; the placement depends only on pixel indices, never on scheduling.
-fn over_tiles<T, F>(tiles: &[Vec<u32>], pixel_count: usize, per_tile: F) -> Vec<T>
+/// Runs `per_tile` over every tile of `band` in parallel and scatters its per-pixel results into
+/// the band's buffer; the placement depends only on pixel indices, never on scheduling.
+fn over_tiles<T, F>(band: &Band, per_tile: F) -> Vec<T>
 where
     T: Clone + Default + Send,
     F: Fn(&[u32]) -> Vec<T> + Sync,
 {
-    let results: Vec<Vec<T>> = tiles.par_iter().map(|tile| per_tile(tile)).collect();
-    let mut image = vec![T::default(); pixel_count];
-    for (tile, values) in tiles.iter().zip(results) {
+    let results: Vec<Vec<T>> = band.tiles.par_iter().map(|tile| per_tile(tile)).collect();
+    let mut pixels = vec![T::default(); band.pixel_count()];
+    for (tile, values) in band.tiles.iter().zip(results) {
         for (&pixel, value) in tile.iter().zip(values) {
-            image[pixel as usize] = value;
+            pixels[band.local(pixel)] = value;
         }
     }
-    image
-}
-
-fn pixel_count(tiles: &[Vec<u32>]) -> usize {
-    tiles.iter().map(Vec::len).sum()
+    pixels
 }
 
 fn primary_pass(
     tracer: &Tracer,
     camera: &Camera,
-    tiles: &[Vec<u32>],
-    width: u32,
+    band: &Band,
     used: AttributeUse,
 ) -> Vec<Option<Surface>> {
-    let file = tracer.file();
-    over_tiles(tiles, pixel_count(tiles), |tile| {
+    let (file, width) = (tracer.file(), band.width);
+    over_tiles(band, |tile| {
         let rays: Vec<Ray> = tile
             .iter()
             .map(|&p| camera.primary_ray(p % width, p / width))
@@ -306,12 +470,12 @@ fn shadow_pass(
     tracer: &Tracer,
     light: &Light,
     surfaces: &[Option<Surface>],
-    tiles: &[Vec<u32>],
+    band: &Band,
 ) -> (Vec<f32>, u64) {
-    let per_pixel: Vec<(f32, u64)> = over_tiles(tiles, surfaces.len(), |tile| {
+    let per_pixel: Vec<(f32, u64)> = over_tiles(band, |tile| {
         let rays: Vec<Option<Ray>> = tile
             .iter()
-            .map(|&p| surfaces[p as usize].and_then(|s| shadow_ray(light, &s)))
+            .map(|&p| surfaces[band.local(p)].and_then(|s| shadow_ray(light, &s)))
             .collect();
         let traced: Vec<Ray> = rays.iter().flatten().copied().collect();
         let mut occluded = tracer.occluded_chunk(&traced).into_iter();
@@ -341,19 +505,19 @@ fn ao_pass(
     ao: &AoPlan,
     seed: u32,
     surfaces: &[Option<Surface>],
-    tiles: &[Vec<u32>],
+    band: &Band,
 ) -> (Vec<f32>, u64) {
-    let per_pixel: Vec<(f32, u64)> = over_tiles(tiles, surfaces.len(), |tile| {
+    let per_pixel: Vec<(f32, u64)> = over_tiles(band, |tile| {
         let rays: Vec<Ray> = tile
             .iter()
-            .filter_map(|&pixel| surfaces[pixel as usize].map(|surface| (pixel, surface)))
+            .filter_map(|&pixel| surfaces[band.local(pixel)].map(|surface| (pixel, surface)))
             .flat_map(|(pixel, surface)| {
                 (0..ao.samples).map(move |s| surface.ao_ray(seed, pixel, s, ao.max_distance))
             })
             .collect();
         let mut occluded = tracer.occluded_chunk(&rays).into_iter();
         tile.iter()
-            .map(|&pixel| match surfaces[pixel as usize] {
+            .map(|&pixel| match surfaces[band.local(pixel)] {
                 Some(_) => {
                     let open = occluded
                         .by_ref()
@@ -448,6 +612,96 @@ impl fmt::Display for RenderReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::conversion::{convert_mesh, BuildParams};
+    use crate::format::reader::ReducemFile;
+    use crate::mesh::Mesh;
+    use crate::trace::TraceOptions;
+
+    /// A bumpy 24 × 24 quad grid, two triangles per quad.
+    fn bumpy_grid() -> Mesh {
+        let mut mesh = Mesh::default();
+        for y in 0..=24u32 {
+            for x in 0..=24u32 {
+                let height = ((x * 7 + y * 3) % 5) as f32 * 0.1;
+                mesh.positions
+                    .push([x as f32 * 0.1, y as f32 * 0.1, height]);
+            }
+        }
+        for y in 0..24 {
+            for x in 0..24 {
+                let corner = y * 25 + x;
+                mesh.triangles.push([corner, corner + 1, corner + 26]);
+                mesh.triangles.push([corner, corner + 26, corner + 25]);
+            }
+        }
+        mesh
+    }
+
+    /// Bands of a few tile rows give the very pixels and ray counts of one band for the whole
+    /// image, in either order, with antialiasing, shadows and ambient occlusion.
+    #[test]
+    fn an_image_rendered_in_bands_is_the_image_rendered_whole() {
+        let path = std::env::temp_dir().join(format!("render-bands-{}.rdm", std::process::id()));
+        convert_mesh(&bumpy_grid(), &BuildParams::default(), &path).expect("convert");
+        let file = ReducemFile::open(&path).expect("open");
+        let tracer = Tracer::new(&file, TraceOptions::default());
+        for antialiasing in [1u32, 3] {
+            let text = format!(
+                "[image]\nwidth = 37\nheight = 29\nantialiasing = {antialiasing}\n\
+                 [camera]\nauto = true\n[[directional_light]]\ndirection = [-1.0, -0.5, -1.0]\ncast_shadows = true\n\
+                 [ambient_occlusion]\nsamples = 3\n"
+            );
+            let scene = Scene::parse(std::path::Path::new("s.toml"), &text).expect("scene");
+            let render = |order, band_pixels| {
+                let mut bands = Vec::new();
+                let report = render_in_bands(&tracer, &scene, order, band_pixels, |rows| {
+                    bands.push(rows.to_vec());
+                    Ok::<(), ()>(())
+                })
+                .expect("rendered");
+                (bands, report)
+            };
+            let (whole, whole_report) = render(RowOrder::TopDown, u32::MAX);
+            let (top_down, report) = render(RowOrder::TopDown, 1);
+            let (mut bottom_up, _) = render(RowOrder::BandsBottomUp, 1);
+            assert_eq!(whole.len(), 1);
+            assert_eq!(
+                top_down.len(),
+                (29 * antialiasing).div_ceil(lcm(8, antialiasing)) as usize
+            );
+            bottom_up.reverse();
+            let bits = |bands: &[Vec<[f32; 3]>]| -> Vec<u32> {
+                bands
+                    .iter()
+                    .flatten()
+                    .flatten()
+                    .map(|c| c.to_bits())
+                    .collect()
+            };
+            assert_eq!(bits(&top_down), bits(&whole), "antialiasing {antialiasing}");
+            assert_eq!(
+                bits(&bottom_up),
+                bits(&whole),
+                "antialiasing {antialiasing}"
+            );
+            let rays = |report: &RenderReport| {
+                let effects = report
+                    .effects
+                    .iter()
+                    .map(|e| (e.effect, e.rays))
+                    .collect::<Vec<_>>();
+                (
+                    effects,
+                    report.shadow_rays_per_light.clone(),
+                    report.total_rays,
+                )
+            };
+            assert_eq!(rays(&report), rays(&whole_report));
+            assert!(whole_report.rays_of("ambient_occlusion") > 0);
+            assert!(whole_report.rays_of("shadows") > 0);
+        }
+        std::fs::remove_file(&path).expect("remove");
+    }
 
     /// Every pixel comes once, and a full tile's first eight pixels are its top-left 4 × 2 block.
     #[test]

@@ -36,6 +36,7 @@
 
 use std::path::{Path, PathBuf};
 
+use glam::Vec3;
 use serde::Deserialize;
 
 use crate::geometry::Point;
@@ -110,7 +111,47 @@ impl CameraSettings {
     pub fn is_automatic(&self) -> bool {
         self.auto || (self.position.is_none() && self.look_at.is_none())
     }
+
+    /// Refuses a camera with no view direction (position at look_at) or no roll (up along the
+    /// view direction): either would render an image no one asked for. The tests are the ones
+    /// the camera itself makes, so every camera accepted here renders as before.
+    fn check_view(&self) -> Result<(), (&'static str, String)> {
+        let view = match (self.position, self.look_at, self.direction) {
+            (Some(position), Some(look_at), _) => {
+                let view = Vec3::from(look_at) - Vec3::from(position);
+                if view.normalize_or_zero() == Vec3::ZERO {
+                    return Err((
+                        "camera.look_at",
+                        format!(
+                            "{look_at:?} is the camera position {position:?}: the camera looks \
+                             nowhere"
+                        ),
+                    ));
+                }
+                view
+            }
+            (_, _, Some(direction)) => -Vec3::from(direction),
+            _ => return Ok(()),
+        };
+        let up = Vec3::from(self.up).normalize();
+        if view.normalize().cross(up).length_squared() <= MIN_ROLL_SINE_SQUARED {
+            return Err((
+                "camera.up",
+                format!(
+                    "{:?} is parallel to the view direction {:?}: which way is up in the image \
+                     is undefined",
+                    self.up,
+                    <[f32; 3]>::from(view)
+                ),
+            ));
+        }
+        Ok(())
+    }
 }
+
+/// The squared sine below which the camera's up hint counts as parallel to its view direction
+/// (the camera then has no defined roll).
+pub const MIN_ROLL_SINE_SQUARED: f32 = 1e-12;
 
 /// Surface and environment terms of the shading; a key the table omits takes its default.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -213,8 +254,18 @@ pub enum SceneError {
 }
 
 impl Scene {
+    /// Reads, parses and checks the scene file at `path`; `-` reads standard input (named so in
+    /// errors).
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        let (path, text) = match path.as_os_str() == "-" {
+            true => {
+                let mut text = String::new();
+                let read = std::io::Read::read_to_string(&mut std::io::stdin(), &mut text);
+                (Path::new("standard input"), read.map(|_| text))
+            }
+            false => (path, std::fs::read_to_string(path)),
+        };
+        let text = text.map_err(|source| SceneError::Io {
             path: path.to_path_buf(),
             source,
         })?;
@@ -303,6 +354,7 @@ impl Scene {
         if let Some(direction) = &camera.direction {
             check_vector("camera.direction", direction)?;
         }
+        camera.check_view()?;
         for light in &self.directional_light {
             check_vector("directional_light.direction", &light.direction)?;
         }

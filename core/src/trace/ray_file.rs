@@ -6,6 +6,10 @@
 //! every defect names the file, the ray and the byte offset of the offending field. Output is
 //! written to a temporary file and renamed, so a failed run leaves no partial output.
 //!
+//! Rays may also come from a stream (`-` for standard input, a pipe, a FIFO, a device): a stream
+//! cannot be mapped (a pipe maps as empty), so it is read to its end and decoded. Answers may go
+//! to a stream too ([`write_answers_streamed`]), in input order.
+//!
 //! A batch job spends much of its time outside the tracer unless the files are handled without
 //! copies and in parallel: the ray file is mapped and, on a little-endian machine, its records
 //! are the rays themselves ([`RayFile`]: validated in place on every core, never copied), and
@@ -16,7 +20,7 @@
 //! 110 ms before tracing began), so the rays and answers of a batch are never held in it.
 
 use std::fs::File;
-use std::io;
+use std::io::{self, Read, Write};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -33,6 +37,16 @@ use crate::{atomic, mapping};
 
 /// Bytes per ray record.
 pub const RAY_BYTES: usize = 32;
+
+/// The ray file argument that names standard input.
+pub const STDIN_ARGUMENT: &str = "-";
+
+/// How messages name standard input.
+const STDIN_NAME: &str = "standard input";
+
+/// Bytes read from a ray stream at a time (a whole number of records), decoded before the next
+/// read: the stream is held once, as rays.
+const STREAM_BLOCK_BYTES: usize = RAY_BYTES << 15;
 
 const FIELD_NAMES: [&str; 8] = ["ox", "oy", "oz", "dx", "dy", "dz", "tmin", "tmax"];
 
@@ -135,8 +149,17 @@ impl RayFile {
     /// Maps and validates the ray file at `path` (on every core); a truncated file is always
     /// an error, an invalid ray only with [`InvalidRays::Reject`]. The error names the first
     /// invalid ray, whatever the thread count.
+    ///
+    /// `-` reads standard input; a path that is not a regular file (a pipe, a FIFO, a device) is
+    /// read as a stream to its end; the error of a stream names it and its byte count.
     pub fn open(path: &Path, invalid_rays: InvalidRays) -> Result<RayFile, RayFileError> {
-        let records = map_records(path)?;
+        let (records, path) = match path.as_os_str() == STDIN_ARGUMENT {
+            true => {
+                let name = Path::new(STDIN_NAME);
+                (read_stream(name, io::stdin().lock())?, name)
+            }
+            false => (open_records(path)?, path),
+        };
         let mut file = RayFile {
             records,
             valid: None,
@@ -193,14 +216,18 @@ impl RayFile {
 }
 
 /// The records of the ray file at `path`, checked for length: the mapping itself when it can
-/// be read as rays, else decoded (an empty file is not mapped).
-fn map_records(path: &Path) -> Result<Records, RayFileError> {
+/// be read as rays, else decoded (an empty file is not mapped); a stream read to its end.
+fn open_records(path: &Path) -> Result<Records, RayFileError> {
     let io_error = |source| RayFileError::Io {
         path: path.to_path_buf(),
         source,
     };
     let file = File::open(path).map_err(io_error)?;
-    if file.metadata().map_err(io_error)?.len() == 0 {
+    let metadata = file.metadata().map_err(io_error)?;
+    if !metadata.is_file() {
+        return read_stream(path, file);
+    }
+    if metadata.len() == 0 {
         return Ok(Records::Decoded(Vec::new()));
     }
     let map = mapping::map_file(&file).map_err(io_error)?;
@@ -215,17 +242,50 @@ fn map_records(path: &Path) -> Result<Records, RayFileError> {
     })
 }
 
-fn check_length(path: &Path, bytes: &[u8]) -> Result<(), RayFileError> {
-    if bytes.len().is_multiple_of(RAY_BYTES) {
-        return Ok(());
+/// The records of the stream `reader` (named `path` in messages), read to its end and decoded
+/// block by block; a length that is not a whole number of records is an error.
+fn read_stream(path: &Path, mut reader: impl Read) -> Result<Records, RayFileError> {
+    let mut rays = Vec::new();
+    let mut block = vec![0; STREAM_BLOCK_BYTES];
+    let (mut filled, mut size) = (0, 0);
+    loop {
+        let read = match reader.read(&mut block[filled..]) {
+            Ok(0) => break,
+            Ok(read) => read,
+            Err(error) if error.kind() == io::ErrorKind::Interrupted => continue,
+            Err(source) => {
+                let path = path.to_path_buf();
+                return Err(RayFileError::Io { path, source });
+            }
+        };
+        (filled, size) = (filled + read, size + read);
+        let whole = filled - filled % RAY_BYTES;
+        rays.extend(block[..whole].chunks_exact(RAY_BYTES).map(decode_record));
+        block.copy_within(whole..filled, 0);
+        filled -= whole;
     }
-    let ray = bytes.len() / RAY_BYTES;
-    Err(RayFileError::Truncated {
+    match filled {
+        0 => Ok(Records::Decoded(rays)),
+        _ => Err(truncated(path, size)),
+    }
+}
+
+fn check_length(path: &Path, bytes: &[u8]) -> Result<(), RayFileError> {
+    match bytes.len().is_multiple_of(RAY_BYTES) {
+        true => Ok(()),
+        false => Err(truncated(path, bytes.len())),
+    }
+}
+
+/// The error of a ray file of `size` bytes, not a whole number of records.
+fn truncated(path: &Path, size: usize) -> RayFileError {
+    let ray = size / RAY_BYTES;
+    RayFileError::Truncated {
         path: path.to_path_buf(),
-        size: bytes.len(),
+        size,
         ray,
         offset: ray * RAY_BYTES,
-    })
+    }
 }
 
 /// One record's fields as a ray, unchecked.
@@ -587,6 +647,30 @@ fn write_answers_in_order(
     out: &File,
 ) -> io::Result<usize> {
     let size = answer.record_bytes();
+    let (answers, hits) = answer_in_order(tracer, rays, order, answer);
+    let places = input_places(order);
+    atomic::write_syncing_behind(out, |written| {
+        places
+            .par_chunks(QUERY_CHUNK)
+            .enumerate()
+            .try_for_each_init(Vec::new, |buffer, (chunk, places)| {
+                gather(&answers, places, size, buffer);
+                write_at(out, buffer, (chunk * QUERY_CHUNK * size) as u64)?;
+                written(buffer.len());
+                Ok(())
+            })
+    })?;
+    Ok(hits)
+}
+
+/// The answers of the records in `order`, encoded in that order, and the hits among them.
+fn answer_in_order(
+    tracer: &Tracer,
+    rays: &RayFile,
+    order: &[u32],
+    answer: Answer,
+) -> (Vec<u8>, usize) {
+    let size = answer.record_bytes();
     let records = rays.records();
     let mut answers = vec![0; order.len() * size];
     let hits = answers
@@ -606,25 +690,67 @@ fn write_answers_in_order(
             },
         )
         .sum();
-    let mut place = vec![0u32; order.len()];
+    (answers, hits)
+}
+
+/// For each record, its position in `order`.
+fn input_places(order: &[u32]) -> Vec<u32> {
+    let mut places = vec![0u32; order.len()];
     for (position, &index) in order.iter().enumerate() {
-        place[index as usize] = position as u32;
+        places[index as usize] = position as u32;
     }
-    atomic::write_syncing_behind(out, |written| {
-        place.par_chunks(QUERY_CHUNK).enumerate().try_for_each_init(
-            Vec::new,
-            |buffer, (chunk, places)| {
-                buffer.clear();
-                for &position in places {
-                    let start = position as usize * size;
-                    buffer.extend_from_slice(&answers[start..start + size]);
-                }
-                write_at(out, buffer, (chunk * QUERY_CHUNK * size) as u64)?;
-                written(buffer.len());
-                Ok(())
-            },
-        )
-    })?;
+    places
+}
+
+/// Replaces `buffer` with the records of `answers` (`size` bytes each) at `places`, in turn.
+fn gather(answers: &[u8], places: &[u32], size: usize, buffer: &mut Vec<u8>) {
+    buffer.clear();
+    for &position in places {
+        let start = position as usize * size;
+        buffer.extend_from_slice(&answers[start..start + size]);
+    }
+}
+
+/// Rays traced at once between two writes of [`write_answers_streamed`]: enough chunks to keep
+/// every core busy, few enough that a reader gets answers while the rest are traced.
+const STREAM_BATCH: usize = 64 * QUERY_CHUNK;
+
+/// [`write_answers`] for an output that is a stream (standard output, a pipe, a device): the
+/// answers are written in input order, one batch of chunks after another; the same bytes.
+pub fn write_answers_streamed(
+    tracer: &Tracer,
+    rays: &RayFile,
+    answer: Answer,
+    out: &mut dyn Write,
+) -> io::Result<usize> {
+    let size = answer.record_bytes();
+    if let Some(order) = ray_order::coherent_order(rays.records()) {
+        let (answers, hits) = answer_in_order(tracer, rays, &order, answer);
+        let mut buffer = Vec::new();
+        for places in input_places(&order).chunks(QUERY_CHUNK) {
+            gather(&answers, places, size, &mut buffer);
+            out.write_all(&buffer)?;
+        }
+        return Ok(hits);
+    }
+    let records = rays.records();
+    let mut buffer = Vec::new();
+    let mut hits = 0;
+    for batch_start in (0..records.len()).step_by(STREAM_BATCH) {
+        let batch = batch_start..records.len().min(batch_start + STREAM_BATCH);
+        buffer.resize(batch.len() * size, 0);
+        hits += buffer
+            .par_chunks_mut(QUERY_CHUNK * size)
+            .enumerate()
+            .map(|(chunk, out)| {
+                let start = batch.start + chunk * QUERY_CHUNK;
+                let range = start..batch.end.min(start + QUERY_CHUNK);
+                let valid = rays.valid_in(range.clone());
+                answer_chunk(tracer, &records[range], valid, answer, out)
+            })
+            .sum::<usize>();
+        out.write_all(&buffer)?;
+    }
     Ok(hits)
 }
 
