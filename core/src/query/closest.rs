@@ -1,7 +1,8 @@
 //! The closest point of the surface to a query point: a best-first walk over the top-level
 //! hierarchy (nodes and leaves in a heap ordered by the squared distance from the point to
-//! their boxes), then, in a leaf's strips, block by block where a strip stores block boxes, and
-//! the windows of a block entered tested exactly ([`closest_on_triangle`]).
+//! their boxes), then the blocks of a leaf's strips nearest first (by their block boxes, or the
+//! leaf's box for a strip without them), and in a block entered each window whose own box may
+//! beat the best tested exactly ([`closest_on_triangle`]).
 //!
 //! Exactness: a box's bound is computed in f64 and then lowered by a relative margin larger
 //! than its rounding error ([`BOUND_SHRINK`]), so it is never above the true distance from the
@@ -21,8 +22,10 @@ use super::triangle_distance::{closest_on_triangle, TrianglePoint};
 use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
+use crate::format::vertices::{StripVertices, VertexAccess};
 use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, INTERNAL_CHILD, TOP_WIDTH};
 use crate::geometry::Point;
+use crate::strip_windows::window_corners;
 
 /// The factor that lowers a box's squared distance below its f64 rounding: a subtraction, three
 /// squares and two sums, each rounded by at most 2^-53 relative, stay within 2^-50.
@@ -47,6 +50,13 @@ pub struct ClosestPoint {
 pub struct ClosestPointSearch<'f> {
     file: &'f ReducemFile,
     pending: BinaryHeap<Reverse<Pending>>,
+    spans: Vec<Span<'f>>,
+}
+
+/// A query point, and in f64 for the bounds.
+struct Query {
+    point: Point,
+    wide: [f64; 3],
 }
 
 /// A node or leaf waiting in the heap: the bits of its box's squared-distance bound (ordered
@@ -76,6 +86,7 @@ impl<'f> ClosestPointSearch<'f> {
         ClosestPointSearch {
             file,
             pending: BinaryHeap::new(),
+            spans: Vec::new(),
         }
     }
 
@@ -105,17 +116,19 @@ impl<'f> ClosestPointSearch<'f> {
     }
 
     fn walk<N: ChildBox>(&mut self, nodes: &[N], grid: &N::Grid, point: &Point, best: &mut Best) {
-        let query = point.map(f64::from);
+        let query = Query {
+            point: *point,
+            wide: point.map(f64::from),
+        };
         self.pending.clear();
         self.pending.push(Reverse((0, 0, INTERNAL_CHILD)));
         while let Some(Reverse((bound, child, kind))) = self.pending.pop() {
-            if f64::from_bits(bound) > best.limit {
+            let bound = f64::from_bits(bound);
+            if bound > best.limit {
                 break;
             }
             if kind != INTERNAL_CHILD {
-                for strip in child..child.saturating_add(kind) {
-                    search_strip(self.file, strip, point, &query, best);
-                }
+                self.search_leaf((child, kind), bound, &query, best);
                 continue;
             }
             let Some(node) = self.file.top_node(nodes, child as usize) else {
@@ -128,7 +141,7 @@ impl<'f> ClosestPointSearch<'f> {
                     TopSlot::Empty | TopSlot::Invalid(_) => continue,
                 };
                 let (min, max) = node.child_box(slot, grid);
-                let bound = box_bound(&query, &min, &max);
+                let bound = box_bound(&query.wide, &min, &max);
                 if bound <= best.limit {
                     self.pending
                         .push(Reverse((bound.to_bits(), link.0, link.1)));
@@ -138,42 +151,106 @@ impl<'f> ClosestPointSearch<'f> {
     }
 }
 
-/// Tests the windows of strip `strip` that may beat `best`: block by block when the strip
-/// stores block boxes, else all of them (the leaf's box bounded them).
-fn search_strip(file: &ReducemFile, strip: u32, point: &Point, query: &[f64; 3], best: &mut Best) {
-    let view = file.strip(strip as usize);
+/// Windows of one strip that a leaf's search tests together: a block with its box's bound, or
+/// a whole strip without block boxes with its leaf's.
+#[derive(Clone, Copy)]
+struct Span<'f> {
+    bound: f64,
+    view: StripView<'f>,
+    strip: u32,
+    windows: (usize, usize),
+}
+
+impl<'f> ClosestPointSearch<'f> {
+    /// Tests the windows of the leaf's strips (`first .. first + count`, the leaf's box at
+    /// `leaf_bound`) that may beat `best`: the blocks of every strip nearest first, so that the
+    /// limit shrinks early and farther blocks are skipped.
+    fn search_leaf(
+        &mut self,
+        (first, count): (u32, u32),
+        leaf_bound: f64,
+        query: &Query,
+        best: &mut Best,
+    ) {
+        self.spans.clear();
+        for strip in first..first.saturating_add(count) {
+            let view = self.file.strip(strip as usize);
+            push_spans(&mut self.spans, view, strip, leaf_bound, query);
+        }
+        self.spans
+            .sort_unstable_by(|a, b| a.bound.total_cmp(&b.bound));
+        for span in &self.spans {
+            if span.bound > best.limit {
+                break;
+            }
+            // The one branch on the vertex encoding, per span.
+            match span.view.vertices {
+                StripVertices::F32(vertices) => search_windows(vertices, span, query, best),
+                StripVertices::Grid(vertices) => search_windows(vertices, span, query, best),
+            }
+        }
+    }
+}
+
+/// The spans of strip `strip`: one per block box when it stores them, else the whole strip at
+/// its leaf's bound.
+fn push_spans<'f>(
+    spans: &mut Vec<Span<'f>>,
+    view: StripView<'f>,
+    strip: u32,
+    leaf_bound: f64,
+    query: &Query,
+) {
     let windows = view.window_count();
     let frame = match view.boxes.is_empty() {
         true => None,
         false => view.boxes.frame(view.vertices.point(0)),
     };
     let Some(frame) = frame else {
-        return search_windows(&view, strip, 0..windows, point, best);
+        spans.push(Span {
+            bound: leaf_bound,
+            view,
+            strip,
+            windows: (0, windows),
+        });
+        return;
     };
     for block in 0..view.boxes.count() {
         let Some((min, max)) = view.boxes.decode(&frame, block) else {
             break;
         };
-        if box_bound(query, &min, &max) <= best.limit {
-            let first = block * BOX_WINDOWS;
-            let end = (first + BOX_WINDOWS).min(windows);
-            search_windows(&view, strip, first..end, point, best);
+        let first = block * BOX_WINDOWS;
+        spans.push(Span {
+            bound: box_bound(&query.wide, &min, &max),
+            view,
+            strip,
+            windows: (first, (first + BOX_WINDOWS).min(windows)),
+        });
+    }
+}
+
+/// Tests the span's windows whose own box may beat `best` exactly.
+fn search_windows<V: VertexAccess>(vertices: V, span: &Span, query: &Query, best: &mut Best) {
+    let mut references = [0u8; 3];
+    for window in span.windows.0..span.windows.1 {
+        span.view.references.read_into(window, &mut references);
+        let Some(corners) = window_corners(references, window) else {
+            continue;
+        };
+        let corners = corners.map(|r| vertices.point(r as usize));
+        if triangle_bound(&query.wide, &corners) <= best.limit {
+            let found = closest_on_triangle(&query.point, &corners);
+            best.offer(span.strip, window as u16, found);
         }
     }
 }
 
-fn search_windows(
-    view: &StripView,
-    strip: u32,
-    windows: std::ops::Range<usize>,
-    point: &Point,
-    best: &mut Best,
-) {
-    for window in windows {
-        if let Some(corners) = view.window_points(window) {
-            best.offer(strip, window as u16, closest_on_triangle(point, &corners));
-        }
-    }
+/// [`box_bound`] of the triangle's own box: a few comparisons that spare the exact test of
+/// most triangles of a block the search enters.
+fn triangle_bound(query: &[f64; 3], [a, b, c]: &[Point; 3]) -> f64 {
+    let min = std::array::from_fn(|axis| a[axis].min(b[axis]).min(c[axis]));
+    let max = std::array::from_fn(|axis| a[axis].max(b[axis]).max(c[axis]));
+    box_bound(query, &min, &max)
 }
 
 /// A lower bound of the squared distance from `query` to the box `min..max`, never above the
