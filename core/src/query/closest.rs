@@ -34,7 +34,7 @@ const BOUND_SHRINK: f64 = 1.0 - 1.0 / (1u64 << 48) as f64;
 /// The closest point of the surface to a query point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ClosestPoint {
-    /// The distance from the query point, computed in f64 and rounded once.
+    /// The distance from the query point, computed in f64 and rounded to f32.
     pub distance: f32,
     /// The closest point, on the triangle of `(strip, window)` (rounded to f32).
     pub point: Point,
@@ -60,7 +60,8 @@ struct Query {
 }
 
 /// A node or leaf waiting in the heap: the bits of its box's squared-distance bound (ordered
-/// as the non-negative f64 they are), then its link as a node slot holds it.
+/// as the f64 they are: a sum of squares is never negative, nor -0.0), then its link as a node
+/// slot holds it.
 type Pending = (u64, u32, u32);
 
 /// The best triangle so far and the squared distance a triangle must not exceed to beat it.
