@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
+use rayon::prelude::*;
 
 use reducem::exit_code::UsageError;
 use reducem::format::reader::ReducemFile;
@@ -148,7 +149,6 @@ fn f32_at(bytes: &[u8], at: usize) -> f32 {
 
 /// The answer records of `answers`, in order.
 fn encode(file: &ReducemFile, face_ids: &FaceIds, answers: &[Option<ClosestPoint>]) -> Vec<u8> {
-    use rayon::prelude::*;
     let mut records = vec![0u8; answers.len() * ANSWER_BYTES];
     records
         .par_chunks_mut(ANSWER_BYTES)

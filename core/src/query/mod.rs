@@ -18,7 +18,9 @@ pub use closest::{ClosestPoint, ClosestPointSearch};
 /// How a query names the triangle it answers with: the input face id when the file stores face
 /// ids, else the triangle's row in `decode` order (as `cast_rays` does).
 pub enum FaceIds {
+    /// The file's input face ids.
     Stored,
+    /// Rows in `decode` order, by each strip's first row.
     Positions(TriangleIndex),
 }
 
