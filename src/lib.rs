@@ -31,4 +31,4 @@ pub mod stripify;
 pub mod tools;
 pub mod toplevel;
 
-pub use reducem_core::{atomic, geometry, mapping, strip_windows, trace};
+pub use reducem_core::{atomic, geometry, mapping, query, strip_windows, trace};

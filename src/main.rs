@@ -1,5 +1,7 @@
 //! The `reducem` command: inspect, decode, query and render ReduceM files.
 
+mod closest;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -85,6 +87,11 @@ enum Command {
         #[arg(long, value_enum, default_value_t = HitRecord::Compact, conflicts_with = "occluded")]
         format: HitRecord,
     },
+    /// Find the closest surface point to each point of a binary point file (f32 x 3 per point)
+    /// and write 32 bytes per point: distance, point, face id, barycentrics, flags. Prints a
+    /// summary line on stderr.
+    #[command(after_help = exit_code::HELP)]
+    Closest(closest::ClosestArgs),
     /// Render an image of the model as a scene file describes it, tracing only the effects the
     /// scene asks for. Every scene key, its default and unit: docs/SCENES.md.
     #[command(after_help = exit_code::HELP, allow_negative_numbers = true)]
@@ -129,6 +136,7 @@ impl Command {
             | Command::Decode { file, .. }
             | Command::Query { file, .. }
             | Command::Render { file, .. } => Some(file),
+            Command::Closest(args) => Some(&args.file),
             #[cfg(feature = "report")]
             Command::Report { .. } => None,
         }
@@ -274,6 +282,11 @@ fn exit_code_of(error: &anyhow::Error) -> u8 {
             Some(_) => return exit_code::BAD_INPUT,
             None => {}
         }
+        match cause.downcast_ref::<closest::PointFileError>() {
+            Some(closest::PointFileError::Io { .. }) => return exit_code::IO,
+            Some(_) => return exit_code::BAD_INPUT,
+            None => {}
+        }
         if cause.is::<reducem::input::InputError>() {
             return exit_code::BAD_INPUT;
         }
@@ -312,6 +325,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             query(&file, &rays, &output, answer, invalid_rays.into())
         }
+        Command::Closest(args) => closest::run(args),
         Command::Render {
             file,
             scene,

@@ -3,7 +3,8 @@
 //!
 //! [`format`](mod@format) holds the on-disk records, the counts a header holds, and the reader with its
 //! validation; [`mapping`] the one memory mapping; [`geometry`] and [`strip_windows`] the shared
-//! conventions (boxes, strip windows); [`trace`] the tracer and its ray files; [`triangle_index`]
+//! conventions (boxes, strip windows); [`trace`] the tracer and its ray files; [`query`] the
+//! queries beyond a ray's closest hit (closest points); [`triangle_index`]
 //! the file-order position of a stored triangle; [`atomic`] the temporary-and-rename write the
 //! ray files use. Nothing here knows how a file is built: the `reducem` crate holds the build
 //! side and re-exports this crate under its own paths.
@@ -14,6 +15,7 @@ pub mod atomic;
 pub mod format;
 pub mod geometry;
 pub mod mapping;
+pub mod query;
 pub mod strip_windows;
 pub mod trace;
 pub mod triangle_index;
