@@ -17,8 +17,6 @@
 
 #![allow(unsafe_code)]
 
-use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-
 use crate::format::reader::ReducemFile;
 use crate::format::{SectionKind, StripRecord, F32_VERTEX_BYTES, INTERNAL_CHILD};
 
@@ -89,10 +87,9 @@ impl<'a, N> Targets<'a, N> {
 /// Asks for record `index` of `records`; `index` may be out of bounds.
 #[inline(always)]
 fn record<T>(records: &[T], index: usize) {
-    let start = records.as_ptr().wrapping_add(index).cast::<i8>();
+    let start = records.as_ptr().wrapping_add(index).cast::<u8>();
     for offset in (0..std::mem::size_of::<T>()).step_by(64) {
-        // SAFETY: a prefetch reads nothing and faults on no address; SSE is in the baseline.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
+        line(start.wrapping_add(offset));
     }
 }
 
@@ -100,15 +97,27 @@ fn record<T>(records: &[T], index: usize) {
 /// holding `last`, and that one.
 #[inline(always)]
 fn lines(first: *const u8, last: *const u8) {
-    let mut line = first;
+    let mut next = first;
     for _ in 0..MAX_LINES {
-        // SAFETY: a prefetch reads nothing and faults on no address; SSE is in the baseline.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(line.cast::<i8>()) };
-        line = line.wrapping_add(64);
-        if line >= last {
+        line(next);
+        next = next.wrapping_add(64);
+        if next >= last {
             break;
         }
     }
-    // SAFETY: as above.
-    unsafe { _mm_prefetch::<_MM_HINT_T0>(last.cast::<i8>()) };
+    line(last);
 }
+
+/// Asks for the cache line holding `address` (SSE's `prefetcht0`).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn line(address: *const u8) {
+    use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+    // SAFETY: a prefetch reads nothing and faults on no address; SSE is in the baseline.
+    unsafe { _mm_prefetch::<_MM_HINT_T0>(address.cast::<i8>()) };
+}
+
+/// No prefetch off x86-64: the walks give the same answers without it.
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn line(_address: *const u8) {}

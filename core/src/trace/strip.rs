@@ -81,6 +81,7 @@ macro_rules! by_axes {
         }
     };
 }
+#[cfg(target_arch = "x86_64")]
 pub(super) use by_axes;
 
 /// Most deferred subtrees: one per level of the deepest strip kd-tree (intervals halve, and a
