@@ -1,19 +1,13 @@
-//! Software prefetches for the traversal's dependent loads (`_mm_prefetch`). On a model much
-//! larger than the caches the walks wait on memory more than they compute: a child's node, a
-//! leaf's strip record and then the strip's block are each loaded only once the load before it
-//! has arrived. Asking for them when a child is clipped, before the walk reaches it, overlaps
-//! those waits with the rest of the walk.
+//! Software prefetches for the traversal's dependent loads. On a model much larger than the
+//! caches the walks wait on memory more than they compute: a child's node, a leaf's strip record
+//! and then the strip's block are each loaded only once the load before it has arrived. Asking
+//! for them when a child is clipped, before the walk reaches it, overlaps those waits with the
+//! rest of the walk. Both walks and every kernel prefetch the same way (the figures are in the
+//! commits that added each prefetch).
 //!
-//! Both walks and every kernel prefetch the same way ([`Targets::child`] has the AVX2 packets'
-//! figures). With the baseline SSE2 kernel, 1,048,576 camera rays four times over on the 10M
-//! scan took 1,093 -> 936 ms of CPU and 3.8M AO rays 2,417 -> 1,967 ms (`reducem query`, 1
-//! thread, `perf stat` task-clock, medians of 3 alternating runs); single rays
-//! (`examples/bench_trace.rs`, AVX2, 1 thread, 10M scan) 4.18 -> 4.46 Mrays/s on camera rays,
-//! 1.96 on AO rays either way.
-//!
-//! `_mm_prefetch` is an SSE instruction, which every x86-64 CPU has (the target's baseline), so
-//! no detection precedes it; a prefetch reads nothing into the program and faults on no address,
-//! whatever the address, so the pointers here may point anywhere.
+//! A prefetch reads nothing into the program and faults on no address, whatever the address, so
+//! the pointers here may point anywhere; it needs no detection (SSE is in x86-64's baseline,
+//! `prfm` in every aarch64 CPU).
 
 #![allow(unsafe_code)]
 
@@ -30,14 +24,14 @@ const MAX_LINES: usize = 8;
 const BLOCK_TAIL_BYTES: usize = 48;
 
 /// What a walk over `nodes` (one file's top-level nodes) prefetches from.
-pub(super) struct Targets<'a, N> {
+pub(in crate::trace) struct Targets<'a, N> {
     nodes: &'a [N],
     records: &'a [StripRecord],
     data: &'a [u8],
 }
 
 impl<'a, N> Targets<'a, N> {
-    pub(super) fn new(file: &'a ReducemFile, nodes: &'a [N]) -> Targets<'a, N> {
+    pub(in crate::trace) fn new(file: &'a ReducemFile, nodes: &'a [N]) -> Targets<'a, N> {
         Targets {
             nodes,
             records: file.strip_records(),
@@ -47,20 +41,9 @@ impl<'a, N> Targets<'a, N> {
 
     /// Asks for what visiting the child `(child, kind)` (as a node's slot links it) loads
     /// first: an internal child's node; a leaf's first strip record and that strip's block,
-    /// which the record locates.
-    ///
-    /// Child nodes: 3.8M AO rays on the 1M scan, one thread, 1,292 -> 1,264 ms of CPU for 3
-    /// more instructions a ray. Records and blocks (`reducem query`, 1 thread, `perf stat`
-    /// task-clock, medians of 5 alternating runs): 1,048,576 camera rays four times over on the
-    /// 10M scan, the record alone 751 -> 721 ms, the block too 709 -> 665 ms; with 2 threads
-    /// the whole `reducem query` of them 108.8 -> 103.9 ms of wall time; AO rays and the 1M
-    /// scan unchanged (10M AO 1,200 ms with the record alone, 1,196 with the block).
-    ///
-    /// Asking again for the block's lines when the strip is viewed, which paid before the
-    /// block was asked for at clip time (765 -> 690 ms), gained nothing since: 670 against 665
-    /// ms without it, AO 1,196 against 1,185.
+    /// which the record locates. (Asking again when the strip is viewed gained nothing.)
     #[inline(always)]
-    pub(super) fn child(&self, (child, kind): (u32, u32)) {
+    pub(in crate::trace) fn child(&self, (child, kind): (u32, u32)) {
         if kind == INTERNAL_CHILD {
             record(self.nodes, child as usize);
         } else {
@@ -108,7 +91,7 @@ fn lines(first: *const u8, last: *const u8) {
     line(last);
 }
 
-/// Asks for the cache line holding `address` (SSE's `prefetcht0`).
+/// Asks for the cache line holding `address` into every cache level (`prefetcht0`).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn line(address: *const u8) {
@@ -117,7 +100,22 @@ fn line(address: *const u8) {
     unsafe { _mm_prefetch::<_MM_HINT_T0>(address.cast::<i8>()) };
 }
 
-/// No prefetch off x86-64: the walks give the same answers without it.
-#[cfg(not(target_arch = "x86_64"))]
+/// Asks for the cache line holding `address` into the first-level data cache (`prfm pldl1keep`;
+/// the intrinsic is not stable yet).
+#[cfg(target_arch = "aarch64")]
+#[inline(always)]
+fn line(address: *const u8) {
+    // SAFETY: `prfm` reads nothing into a register, writes nothing and faults on no address.
+    unsafe {
+        std::arch::asm!(
+            "prfm pldl1keep, [{address}]",
+            address = in(reg) address,
+            options(nostack, preserves_flags, readonly)
+        )
+    };
+}
+
+/// No prefetch elsewhere: the walks give the same answers without it.
+#[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
 #[inline(always)]
 fn line(_address: *const u8) {}

@@ -1,329 +1,32 @@
-//! The AVX2 kernel of the strip block (see [`super::strip`]): eight windows in one 256-bit
-//! register per quantity, lossless vertices moved into lanes without going through memory. Also
-//! the packets' walk of the global hierarchy compiled for AVX2 ([`trace_packet`]).
+//! The AVX2 strip block: eight windows in one 256-bit register per quantity, lossless vertices
+//! moved into lanes without going through memory, and up to four block boxes tested in one
+//! pass.
 //!
-//! The baseline kernel assembles the block's corners in a stack array (scalar stores) and then
-//! loads them as lanes, and those wide loads of freshly stored scalars stall on store
-//! forwarding (the two hottest instructions in a profile of AO rays). Here each vertex of a
-//! lossless block is one 16-byte load and the positions' lanes come from an in-register
-//! transpose; each position is moved to ray space once, and the windows' second and third
-//! corners are the first corners moved across lanes (unlike the baseline, which transforms a
-//! position once per corner: in 256-bit registers `vpermps` is cheaper than that arithmetic,
-//! where the baseline's shift went through memory). (Gathering the nine corner-coordinate vectors with `vgatherdps` was measured
-//! first: 9.5% slower than the baseline kernel on an AMD EPYC, whose gathers are slow.) Grid
-//! vertices are decoded as in the baseline and loaded. The arithmetic is the
-//! baseline's, operation for operation (`vsubps`, `vmulps`, `vminps`, `vmaxps`, compares), never
-//! fused, so every lane has the same bits as the baseline kernel and the scalar test.
-//!
-//! A block's packed references (format 3) are spread into bytes by one BMI2 `pdep` for eight of
-//! them ([`spread_references`]) instead of a shift and a mask each: 3,408 -> 3,228 instructions
-//! per AO ray and 2,695 -> 2,596 per primary ray (callgrind, 100k rays of the 1M scan).
-//!
-//! With its siblings `avx2_lanes` and `avx2_setup`, and `prefetch` (SSE prefetches, which need
-//! no detection), this is where the tracer uses `unsafe`: [`trace`] and [`trace_packet`]
-//! check that the CPU has AVX2 and BMI2 before they enter the functions compiled for them
-//! (`#[target_feature]`), and the loads and stores below read and write inside their slices
-//! (each says why).
+//! Each vertex of a lossless block is one 16-byte load and the positions' lanes come from an
+//! in-register transpose, because wide loads of freshly stored scalars (the portable kernel's
+//! gathered array) stall on store forwarding. Each position is moved to ray space once, and the
+//! windows' second and third corners are the first corners moved across lanes (`vpermps`, in
+//! 256-bit registers cheaper than transforming again); `vgatherdps` was slower still on AMD.
+//! Grid vertices are decoded as in the portable kernel and loaded. The arithmetic is the
+//! portable kernel's, operation for operation (`vsubps`, `vmulps`, `vminps`, `vmaxps`,
+//! compares), never fused, so every lane has the same bits as it and the scalar test. A
+//! block's packed references are spread into bytes by one BMI2 `pdep` for eight of them.
 
 #![allow(unsafe_code)]
 
 use std::arch::x86_64::*;
 
-use wide::f32x8;
+use super::simd::{candidate_lanes, edge, in_range_lanes_between, lanes, load_vertex};
+use crate::format::block_boxes::{BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
+use crate::format::vertices::VertexAccess;
+use crate::trace::kernel::{BlockEdges, EnteredBoxes, BLOCK, BOX_GROUP};
+use crate::trace::prepared::{PreparedRay, FAR_INFLATION};
+use crate::trace::watertight::RaySpace;
 
-use super::packet::{Lanes, LeafLanes, PacketKernel};
-use super::prepared::PreparedRay;
-use super::prepared::FAR_INFLATION;
-use super::strip::{
-    by_axes, BlockEdges, BlockKernel, Closest, EnteredBoxes, StripQuery, TraceArgs, BLOCK,
-    BOX_GROUP,
-};
-use super::top::ChildBoxes;
-use super::watertight::RaySpace;
-use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
-use crate::format::reader::StripView;
-use crate::format::references::References;
-use crate::format::vertices::{StripVertices, VertexAccess};
-
-/// [`StripQuery::trace`]'s strip traversal compiled for AVX2 with AVX2 blocks; the arguments
-/// back when this CPU lacks AVX2.
-#[inline(always)]
-pub(super) fn trace<'a, 'v, V: VertexAccess>(
-    query: &StripQuery,
-    vertices: V,
-    args: TraceArgs<'a, 'v>,
-) -> Result<bool, TraceArgs<'a, 'v>> {
-    if !super::kernel::avx2_detected() {
-        return Err(args);
-    }
-    // SAFETY: the CPU supports AVX2, checked just above.
-    Ok(unsafe { trace_detected(query, vertices, args) })
-}
-
-/// [`trace`] once AVX2 is known to be there: down to the blocks, everything is compiled for it.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-pub(super) fn trace_detected<V: VertexAccess>(
-    query: &StripQuery,
-    vertices: V,
-    args: TraceArgs,
-) -> bool {
-    by_axes!(trace_as, query, vertices, args)
-}
-
-/// The strip traversal for a ray whose ray-space axes are `[KX, KY, KZ]`; never inlined, as
-/// the baseline kernel's (`StripQuery::trace_as_sse2`).
-#[target_feature(enable = "avx2,bmi2")]
-#[inline(never)]
-fn trace_as<V: VertexAccess, const KX: usize, const KY: usize, const KZ: usize>(
-    query: &StripQuery,
-    vertices: V,
-    args: TraceArgs,
-) -> bool {
-    query.traverse::<Avx2Blocks, V, KX, KY, KZ>(vertices, args)
-}
-
-/// `packet::trace_packet` compiled for AVX2, the rays prepared in AVX2 registers
-/// ([`super::avx2_setup`]); false, with nothing traced, when this CPU lacks AVX2.
-pub(super) fn trace_packet(
-    tracer: &super::Tracer,
-    rays: &[super::Ray],
-    any_hit: bool,
-    closest: &mut [Closest; super::packet::PACKET_WIDTH],
-) -> bool {
-    if !super::kernel::avx2_detected() {
-        return false;
-    }
-    // SAFETY: the CPU supports AVX2, checked just above.
-    unsafe { trace_packet_detected(tracer, rays, any_hit, closest) };
-    true
-}
-
-/// [`trace_packet`] once AVX2 is known to be there; `rays` holds one to eight rays.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline(never)]
-fn trace_packet_detected(
-    tracer: &super::Tracer,
-    rays: &[super::Ray],
-    any_hit: bool,
-    closest: &mut [Closest; super::packet::PACKET_WIDTH],
-) {
-    let lanes = super::avx2_setup::lanes(rays);
-    // Each lane's `PreparedRay`, for the lane-by-lane strip walk and rays traced alone, made
-    // from the lanes when first needed: for a quarter of the lanes of primary rays.
-    let packet = (&lanes, &mut [None; super::packet::PACKET_WIDTH]);
-    super::packet::trace_lanes::<Avx2Packets, _>(tracer, packet, rays.len(), any_hit, closest)
-}
-
-/// The packet's box test in 256-bit lanes. `wide`'s `f32x8` is two SSE registers in a crate
-/// compiled for SSE2, even inside a function compiled for AVX2, so `Lanes::clip_slot` there
-/// still ran two 128-bit operations per step; here each step is one `vsubps`, `vmulps`,
-/// `vmaxps` or `vminps` on eight lanes, in `Lanes::clip_slot`'s order.
-struct Avx2Packets;
-
-impl PacketKernel for Avx2Packets {
-    type Planes = Avx2Planes;
-
-    #[inline(always)]
-    fn planes(lanes: &Lanes, boxes: &ChildBoxes) -> Avx2Planes {
-        // SAFETY: as for `clip_slot` below: AVX2 was detected before this runs.
-        unsafe { planes(lanes, boxes) }
-    }
-
-    #[inline(always)]
-    fn clip_slot(
-        lanes: &Lanes,
-        planes: &Avx2Planes,
-        slot: usize,
-        t_far: f32x8,
-    ) -> (f32x8, f32x8, u32) {
-        // SAFETY: `Avx2Packets` is private to this module and used only by
-        // `trace_packet_detected`, which runs only once AVX2 was detected (`trace_packet`).
-        unsafe { clip_slot(lanes, planes, slot, t_far) }
-    }
-
-    #[inline(always)]
-    fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
-        // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
-        unsafe { lanes_at_most(a, b) }
-    }
-
-    type Together = super::avx2_lanes::LaneSpaces;
-
-    #[inline(always)]
-    fn together(lanes: &Lanes) -> Self::Together {
-        // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
-        unsafe { super::avx2_lanes::LaneSpaces::new(lanes) }
-    }
-
-    #[inline(always)]
-    fn trace_strip_together(
-        together: &Self::Together,
-        packet: (&super::Tracer, &Lanes),
-        strip: (&StripView, u32),
-        leaf: &LeafLanes,
-        any_hit: bool,
-        closest: &mut [Closest; super::packet::PACKET_WIDTH],
-    ) -> Option<u32> {
-        // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
-        unsafe {
-            super::avx2_lanes::trace_strip_together(together, packet, strip, leaf, any_hit, closest)
-        }
-    }
-
-    #[inline(always)]
-    fn trace_strip(
-        query: &StripQuery,
-        view: &StripView,
-        strip: u32,
-        t_near: f32,
-        t_far: f32,
-        closest: &mut Closest,
-    ) -> bool {
-        let args = (view, strip, t_near, t_far, closest);
-        // SAFETY: as for `clip_slot` above: AVX2 was detected before this runs.
-        unsafe {
-            match view.vertices {
-                StripVertices::F32(vertices) => trace_detected(query, vertices, args),
-                StripVertices::Grid(vertices) => trace_detected(query, vertices, args),
-            }
-        }
-    }
-}
-
-/// [`Avx2Packets::clip_slot`]: per axis the entry distance `(entry - origin) * entry_reciprocal`
-/// and the inflated exit distance `(exit - origin) * exit_reciprocal * FAR_INFLATION`, folded
-/// into the interval by `max_not_nan_x8` and `min_not_nan_x8` (`vmaxps(entry, near)` and
-/// `vminps(exit, far)` keep the interval's value where the distance is NaN, as `maxps` and
-/// `minps` do there).
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-fn clip_slot(lanes: &Lanes, planes: &Avx2Planes, slot: usize, t_far: f32x8) -> (f32x8, f32x8, u32) {
-    let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
-    let inflation = _mm256_set1_ps(FAR_INFLATION);
-    let pick = _mm256_set1_epi32(slot as i32);
-    let mut near = wide(lanes.tmin);
-    let mut far = wide(t_far);
-    for axis in 0..3 {
-        let entry = _mm256_permutevar_ps(planes.entry[axis], pick);
-        let exit = _mm256_permutevar_ps(planes.exit[axis], pick);
-        let origin = wide(lanes.origin[axis]);
-        let entry = _mm256_mul_ps(
-            _mm256_sub_ps(entry, origin),
-            wide(lanes.entry_reciprocal[axis]),
-        );
-        let exit = _mm256_mul_ps(
-            _mm256_mul_ps(
-                _mm256_sub_ps(exit, origin),
-                wide(lanes.exit_reciprocal[axis]),
-            ),
-            inflation,
-        );
-        near = _mm256_max_ps(entry, near);
-        far = _mm256_min_ps(exit, far);
-    }
-    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
-    (bytemuck::cast(near), bytemuck::cast(far), mask)
-}
-
-/// [`Avx2Packets::lanes_at_most`]: one `vcmpps` (`LE_OQ`, as `cmpleps`) on eight lanes, where
-/// `wide` compares two halves.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
-    let (a, b): (__m256, __m256) = (bytemuck::cast(a), bytemuck::cast(b));
-    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(a, b)) as u32
-}
-
-/// A node's child box planes for [`clip_slot`]: per axis the four slots' entry and exit
-/// planes, each in both 128-bit halves, so that one in-lane permute (`vpermilps`) spreads a
-/// slot's plane over all eight lanes.
-pub(super) struct Avx2Planes {
-    entry: [__m256; 3],
-    exit: [__m256; 3],
-}
-
-/// [`Avx2Packets::planes`]: the minima or maxima of each axis picked by the direction's sign
-/// with one `vblendvps` each (by `Lanes::negative_masks`), instead of a branch per slot.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-fn planes(lanes: &Lanes, (min, max): &ChildBoxes) -> Avx2Planes {
-    // Axis by axis, not through `array::map`, whose closure stayed a call.
-    let axis = |axis: usize| {
-        axis_planes(
-            bytemuck::cast(min[axis]),
-            bytemuck::cast(max[axis]),
-            bytemuck::cast(lanes.negative_masks[axis]),
-        )
-    };
-    let ((entry_x, exit_x), (entry_y, exit_y), (entry_z, exit_z)) = (axis(0), axis(1), axis(2));
-    Avx2Planes {
-        entry: [entry_x, entry_y, entry_z],
-        exit: [exit_x, exit_y, exit_z],
-    }
-}
-
-/// The entry and exit planes of one axis, each in both halves: `min` and `max` swapped where
-/// `negative` is set.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-fn axis_planes(min: __m128, max: __m128, negative: __m128) -> (__m256, __m256) {
-    let entry = _mm_blendv_ps(min, max, negative);
-    let exit = _mm_blendv_ps(max, min, negative);
-    (_mm256_set_m128(entry, entry), _mm256_set_m128(exit, exit))
-}
-
-/// The AVX2 blocks, as a [`BlockKernel`] for the shared traversal.
-struct Avx2Blocks;
-
-impl BlockKernel for Avx2Blocks {
-    #[inline(always)]
-    fn references(references: &References, first: usize) -> [u8; BLOCK + 2] {
-        match references.block_stream::<{ BLOCK + 2 }>(first) {
-            // SAFETY: as for `edges` below: AVX2 and BMI2 were detected before this runs.
-            Some(stream) => unsafe { spread_references(stream, references.width()) },
-            None => references.read_block(first),
-        }
-    }
-
-    #[inline(always)]
-    fn edges<
-        V: VertexAccess,
-        const KX: usize,
-        const KY: usize,
-        const KZ: usize,
-        const SITE: usize,
-    >(
-        space: &RaySpace,
-        vertices: V,
-        references: &[u8; BLOCK + 2],
-        count: usize,
-        range: (f32, f32),
-    ) -> Option<BlockEdges> {
-        let block = (references, count, range);
-        // SAFETY: `Avx2Blocks` is private to this module and used only by `trace_as`, which
-        // runs only once AVX2 was detected (`trace`).
-        unsafe { block_edges::<V, KX, KY, KZ, SITE>(space, vertices, block) }
-    }
-
-    #[inline(always)]
-    fn entered_boxes(
-        ray: &PreparedRay,
-        boxes: &BlockBoxes,
-        frame: &BoxFrame,
-        group: usize,
-        t_near: f32,
-        t_far: f32,
-    ) -> EnteredBoxes {
-        // SAFETY: as for `edges` above: AVX2 was detected before this runs.
-        unsafe { entered_boxes(ray, boxes.bytes(), frame, group, (t_near, t_far)) }
-    }
-}
-
-/// [`BlockKernel::entered_boxes`] for up to four boxes in one pass: lanes 0-3 hold the boxes'
+/// `TraceKernel::entered_boxes` for up to four boxes in one pass: lanes 0-3 hold the boxes'
 /// entry planes on an axis and lanes 4-7 their exit planes (which nibble is which follows the
 /// ray's direction), so one decode and one distance computation per axis serve every box.
-/// Per lane the operations of `BoxTest::interval`: the code less the bias (an exact integer,
+/// Per lane the operations of the portable `BoxTest::interval`: the code less the bias (an exact integer,
 /// so converting it after the subtraction gives the same f32), times the scale, plus the
 /// anchor; minus the origin, times the reciprocal, times the inflation (times 1.0 for the
 /// entry lanes, which is exact); the entry distances folded into `t_near` by `vmaxps` and the
@@ -332,7 +35,7 @@ impl BlockKernel for Avx2Blocks {
 /// (zeros aside, which `<=` does not tell apart), so the same boxes are entered.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn entered_boxes(
+pub(super) fn entered_boxes(
     ray: &PreparedRay,
     area: &[u8],
     frame: &BoxFrame,
@@ -437,11 +140,11 @@ fn load_window(window: &[u8]) -> __m128i {
 /// [`BlockEdges`] of the block whose `BLOCK + 2` strip references are `references`, or `None`
 /// when no lane is a candidate; lanes past `count` are not candidates, nor lanes whose `t` falls
 /// outside `range` ([`in_range_lanes`]).
-/// `SITE` is the calling walk's (see `StripQuery::intersect_block`): one caller per
+/// `SITE` is the calling walk's (see the strip walk's `intersect_block`): one caller per
 /// instantiation, so that it is inlined.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn block_edges<
+pub(super) fn block_edges<
     V: VertexAccess,
     const KX: usize,
     const KY: usize,
@@ -476,10 +179,6 @@ fn block_edges<
             )
         }
     };
-    // `watertight::edge_lanes`: q.x * p.y - q.y * p.x.
-    let edge = |p: &[__m256; 2], q: &[__m256; 2]| {
-        _mm256_sub_ps(_mm256_mul_ps(q[0], p[1]), _mm256_mul_ps(q[1], p[0]))
-    };
     let weights = [
         edge(&corners[1], &corners[2]),
         edge(&corners[2], &corners[0]),
@@ -509,7 +208,7 @@ fn block_edges<
     })
 }
 
-/// The lanes that [`resolve`](super::watertight::resolve) could accept within `range`: those
+/// The lanes that `resolve` could accept within `range`: those
 /// with a zero weight (resolved exactly, in f64), and those whose `t` is in range, computed as
 /// `resolve` computes it, operation for operation (`(w0 z0 + w1 z1 + w2 z2) / (w0 + w1 + w2)`,
 /// never fused; its `+ 0.0` changes no comparison). Dropping the others before `resolve` sees
@@ -521,42 +220,12 @@ fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], (tmin, tmax): (f32, f32)) ->
     in_range_lanes_between(w, z, _mm256_set1_ps(tmin), _mm256_set1_ps(tmax))
 }
 
-/// [`in_range_lanes`] with a range per lane.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-pub(super) fn in_range_lanes_between(
-    w: &[__m256; 3],
-    z: &[__m256; 3],
-    tmin: __m256,
-    tmax: __m256,
-) -> u32 {
-    let zero = _mm256_setzero_ps();
-    let det = _mm256_add_ps(_mm256_add_ps(w[0], w[1]), w[2]);
-    let scaled = _mm256_add_ps(
-        _mm256_add_ps(_mm256_mul_ps(w[0], z[0]), _mm256_mul_ps(w[1], z[1])),
-        _mm256_mul_ps(w[2], z[2]),
-    );
-    let t = _mm256_div_ps(scaled, det);
-    let in_range = _mm256_and_ps(
-        _mm256_cmp_ps::<_CMP_LE_OQ>(tmin, t),
-        _mm256_cmp_ps::<_CMP_LE_OQ>(t, tmax),
-    );
-    let on_edge = _mm256_or_ps(
-        _mm256_or_ps(
-            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[0], zero),
-            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[1], zero),
-        ),
-        _mm256_cmp_ps::<_CMP_EQ_OQ>(w[2], zero),
-    );
-    _mm256_movemask_ps(_mm256_or_ps(in_range, on_edge)) as u32
-}
-
 /// The block's references from their packed bit stream (`width` bits each): the first eight
 /// spread into bytes by one `pdep`, the last two shifted out; what `References::read_block`
 /// gives, in about a third of its instructions.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn spread_references(stream: u64, width: u32) -> [u8; BLOCK + 2] {
+pub(super) fn spread_references(stream: u64, width: u32) -> [u8; BLOCK + 2] {
     let mask = (1u64 << width) - 1;
     let low = _pdep_u64(stream, 0x0101_0101_0101_0101 * mask).to_le_bytes();
     let mut references = [0u8; BLOCK + 2];
@@ -642,27 +311,6 @@ fn shift_lanes(head: __m256, tail: __m256) -> (__m256, __m256) {
     (by_one, by_two)
 }
 
-/// `watertight::candidate_lanes` lanewise: `vminps`/`vmaxps` are the baseline's `minps`/`maxps`
-/// on eight lanes (the second operand where either is NaN).
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-pub(super) fn candidate_lanes(w: &[__m256; 3]) -> u32 {
-    let zero = _mm256_setzero_ps();
-    let min = _mm256_min_ps(_mm256_min_ps(w[0], w[1]), w[2]);
-    let max = _mm256_max_ps(_mm256_max_ps(w[0], w[1]), w[2]);
-    let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(min, zero);
-    let negative = _mm256_cmp_ps::<_CMP_LT_OQ>(max, zero);
-    let on_edge = _mm256_or_ps(
-        _mm256_or_ps(
-            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[0], zero),
-            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[1], zero),
-        ),
-        _mm256_cmp_ps::<_CMP_EQ_OQ>(w[2], zero),
-    );
-    let any = _mm256_or_ps(_mm256_or_ps(positive, negative), on_edge);
-    _mm256_movemask_ps(any) as u32
-}
-
 /// The positions of the block's references, axes in ray-space order `KX, KY, KZ`: lane `k` of
 /// the first array is vertex `references[k]`, lanes 0 and 1 of the second are vertices
 /// `references[8]` and `references[9]` (the other lanes are copies of no meaning). Each vertex
@@ -704,30 +352,7 @@ fn transpose_positions<const KX: usize, const KY: usize, const KZ: usize>(
     )
 }
 
-/// Vertex `index` of the flattened f32 vertices as `[x, y, z, any]`. A strip has at least
-/// three vertices, so four floats can always be read: the last vertex is read one float early
-/// and moved down. An index past the vertices (only in a corrupt file, which opening rejects)
-/// reads the last four floats rather than out of bounds.
-///
-/// The load is unchecked: with the start clamped to `flat.len() - 4` the four floats are in
-/// bounds whatever the index, and a checked slice cost about six more instructions per vertex,
-/// ten vertices per block.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-pub(super) fn load_vertex(flat: &[f32], index: usize) -> __m128 {
-    assert!(flat.len() >= 4, "a strip has at least three vertices");
-    let start = (3 * index).min(flat.len() - 4);
-    // SAFETY: `start + 4 <= flat.len()` (clamped just above), so the unaligned load reads four
-    // f32 (16 bytes) inside `flat`; SSE is enabled.
-    let four = unsafe { _mm_loadu_ps(flat.as_ptr().add(start)) };
-    if start == 3 * index {
-        four
-    } else {
-        _mm_permute_ps::<0b00_11_10_01>(four)
-    }
-}
-
-/// The baseline's decoded block (`[axis][position]`) as `[shift][axis]` lanes.
+/// The portable kernel's decoded block (`[axis][position]`) as `[shift][axis]` lanes.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
 fn load_corners(model: &[[f32; BLOCK + 2]; 3]) -> [[__m256; 3]; 3] {
@@ -745,16 +370,6 @@ fn load(values: &[f32; BLOCK + 2], shift: usize) -> __m256 {
     unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
 }
 
-/// The eight lanes of `value` (a block's windows, or a packet's rays).
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-pub(super) fn lanes(value: __m256) -> [f32; BLOCK] {
-    let mut lanes = [0.0; BLOCK];
-    // SAFETY: `lanes` is eight f32 (32 bytes), what the unaligned store writes; AVX is enabled.
-    unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), value) };
-    lanes
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -762,7 +377,7 @@ mod tests {
     /// `load_window` of every length up to past sixteen gives the bytes and zeros after them.
     #[test]
     fn windows_load_their_bytes_and_zeros() {
-        if !super::super::kernel::avx2_detected() {
+        if !crate::trace::kernel::detect::avx2() {
             return;
         }
         let source: Vec<u8> = (1..=20).collect();
