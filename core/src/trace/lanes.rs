@@ -32,6 +32,7 @@ pub(super) struct Lanes {
 
 impl Lanes {
     /// The lanes of the `prepared` rays, stored lane by lane.
+    #[inline]
     pub fn of(prepared: &[PreparedRay; PACKET_WIDTH]) -> Lanes {
         // Plain stores lane by lane: gathering each field through a closure per field stayed
         // a call per field.
@@ -73,6 +74,7 @@ impl Lanes {
     }
 
     /// The field `negative_masks` from the lanes' `signs`.
+    #[inline]
     pub fn negative_masks(signs: &[u32; 3]) -> [u32x4; 3] {
         signs.map(|signs| u32x4::splat(0u32.wrapping_sub(signs & 1)))
     }
@@ -150,6 +152,7 @@ impl LaneRays for [Option<PreparedRay>; PACKET_WIDTH] {
 
 /// [`PreparedRay::new`] of each of `rays` (at least one, at most [`PACKET_WIDTH`]); lanes past
 /// them repeat the last ray.
+#[inline]
 pub(super) fn prepare(rays: &[Ray]) -> [PreparedRay; PACKET_WIDTH] {
     std::array::from_fn(|lane| PreparedRay::new(&rays[lane.min(rays.len() - 1)]))
 }

@@ -96,7 +96,8 @@ impl Walk for PacketWalk<'_, '_> {
 
     #[inline(always)]
     fn run<K: TraceKernel>(self) {
-        let (lanes, mut prepared) = K::prepare_packet(self.rays);
+        let mut prepared = K::prepared_rays(self.rays);
+        let lanes = K::lanes(self.rays, &prepared);
         let packet = (&lanes, &mut prepared);
         let count = self.rays.len();
         trace_lanes::<K, _>(self.tracer, packet, count, self.any_hit, self.closest);

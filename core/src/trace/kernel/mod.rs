@@ -235,9 +235,13 @@ pub(super) trait TraceKernel {
     /// The packet's rays as they are made for the lane-by-lane strip walk and rays traced alone.
     type PreparedRays: LaneRays;
 
-    /// The lanes of `rays` (one to [`PACKET_WIDTH`]; lanes past them repeat the last ray), each
-    /// as `PreparedRay::new` makes its ray, bit for bit.
-    fn prepare_packet(rays: &[Ray]) -> (Lanes, Self::PreparedRays);
+    /// [`TraceKernel::PreparedRays`] of `rays` (one to [`PACKET_WIDTH`]), before their lanes.
+    fn prepared_rays(rays: &[Ray]) -> Self::PreparedRays;
+
+    /// The lanes of `rays` (lanes past them repeat the last ray), each as `PreparedRay::new`
+    /// makes its ray, bit for bit; `prepared` are the rays as `prepared_rays` made them. Two
+    /// steps rather than one returning both, which copied them on every packet.
+    fn lanes(rays: &[Ray], prepared: &Self::PreparedRays) -> Lanes;
 
     /// A node's child box planes as [`TraceKernel::clip_slot`] reads them.
     type Planes;

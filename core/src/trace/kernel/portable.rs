@@ -107,9 +107,13 @@ impl TraceKernel for Portable {
     type PreparedRays = [PreparedRay; PACKET_WIDTH];
 
     #[inline(always)]
-    fn prepare_packet(rays: &[Ray]) -> (Lanes, [PreparedRay; PACKET_WIDTH]) {
-        let prepared = prepare(rays);
-        (Lanes::of(&prepared), prepared)
+    fn prepared_rays(rays: &[Ray]) -> [PreparedRay; PACKET_WIDTH] {
+        prepare(rays)
+    }
+
+    #[inline(always)]
+    fn lanes(_rays: &[Ray], prepared: &[PreparedRay; PACKET_WIDTH]) -> Lanes {
+        Lanes::of(prepared)
     }
 
     type Planes = SlotPlanes;

@@ -94,10 +94,14 @@ impl TraceKernel for Avx2 {
     type PreparedRays = [Option<PreparedRay>; PACKET_WIDTH];
 
     #[inline(always)]
-    fn prepare_packet(rays: &[Ray]) -> (Lanes, Self::PreparedRays) {
+    fn prepared_rays(_rays: &[Ray]) -> Self::PreparedRays {
+        [None; PACKET_WIDTH]
+    }
+
+    #[inline(always)]
+    fn lanes(rays: &[Ray], _prepared: &Self::PreparedRays) -> Lanes {
         // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
-        let lanes = unsafe { setup::lanes(rays) };
-        (lanes, [None; PACKET_WIDTH])
+        unsafe { setup::lanes(rays) }
     }
 
     type Planes = packets::Avx2Planes;
