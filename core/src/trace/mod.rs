@@ -71,7 +71,7 @@ impl Default for TraceOptions {
 }
 
 /// Rays handed to one rayon task: enough to amortize scheduling and for the octant grouping
-/// of [`Tracer::trace_by_octant`] to fill packets whose lanes meet in the same strips (ambient
+/// of `Tracer::trace_by_octant` to fill packets whose lanes meet in the same strips (ambient
 /// occlusion rays come 16 per hit point over a hemisphere); few enough to balance.
 pub const BATCH_RAYS: usize = 4096;
 

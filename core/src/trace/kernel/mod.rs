@@ -1,15 +1,15 @@
 //! Everything instruction-set specific beneath the walks: which kernel runs ([`Kernel`], chosen
-//! at run time), the operations a kernel provides ([`TraceKernel`]), the kernels themselves
+//! at run time), the operations a kernel provides (`TraceKernel`), the kernels themselves
 //! (the portable one everywhere, AVX2 on x86-64), the CPU detection and the prefetches.
 //!
-//! The walks (`top`, `packet`, `strip`) are generic over [`TraceKernel`] and never name a
-//! kernel; [`dispatch`] is the one place that maps a [`Kernel`] to its implementation, once per
+//! The walks (`top`, `packet`, `strip`) are generic over `TraceKernel` and never name a
+//! kernel; `dispatch` is the one place that maps a [`Kernel`] to its implementation, once per
 //! ray or packet. Every kernel runs the same IEEE operations in the same order per lane (no
 //! fused multiply-add), so hits and occlusion answers are bit-identical whichever runs, on any
 //! architecture.
 //!
-//! Adding a kernel: a variant of [`Kernel`] (with its name and detection in [`detect`]), a
-//! module implementing [`TraceKernel`], and its arm in [`dispatch`].
+//! Adding a kernel: a variant of [`Kernel`] (with its name and detection in `detect`), a
+//! module implementing `TraceKernel`, and its arm in `dispatch`.
 //!
 //! `REDUCEM_KERNEL=sse2|avx2` forces a kernel (tests and benchmarks); asking for one this CPU
 //! lacks is an error rather than a silent fallback, so a benchmark never reports a kernel it did
