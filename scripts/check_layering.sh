@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The dependency rule of docs/ARCHITECTURE.md, checked: the read side (crate reducem-core) pulls
 # in no build-side or tool dependency and never names a build-side module, and the streaming
-# writer never names the build side either. The crate boundary already makes most violations
+# writer never names the build side either; instruction-set-specific code stays in the tracer's
+# kernels. The crate boundary already makes most violations
 # compile errors; this catches the rest (a new dependency, a path in a doc comment or a macro).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,6 +21,13 @@ if grep -rnE "(crate|reducem|super)::$build_side\b" core/src; then
 fi
 if grep -nE "crate::$build_side\b" src/format/writer.rs; then
   echo "check_layering: the format writer names a build-side module (above)" >&2
+  failed=1
+fi
+
+# Intrinsics and functions compiled for a CPU feature belong to the kernels, beneath the walks.
+if git ls-files '*.rs' | grep -v '^core/src/trace/kernel/' |
+    xargs grep -nE '(std|core)::arch|#\[target_feature'; then
+  echo "check_layering: instruction-set-specific code outside core/src/trace/kernel/ (above)" >&2
   failed=1
 fi
 

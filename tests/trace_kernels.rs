@@ -94,7 +94,7 @@ fn every_kernel_agrees_on_grid_files() {
 }
 
 /// The pipeline's strips (at most 20 triangles): AVX2 packets test such strips for several rays
-/// at once (`avx2_lanes`), and must still give each ray's own answers.
+/// at once (the AVX2 kernel's packet strips), and must still give each ray's own answers.
 #[test]
 fn every_kernel_agrees_on_pipeline_length_strips() {
     for kind in Kind::ALL {

@@ -27,7 +27,7 @@
 
 use crate::geometry::Point;
 
-/// Windows per box: the tracer's block ([`crate::trace::strip::BLOCK`]).
+/// Windows per box: the tracer's block of eight windows, one SIMD lane each.
 pub const BOX_WINDOWS: usize = 8;
 /// Bytes of the per-strip exponents, one per axis.
 pub const EXPONENT_BYTES: usize = 3;

@@ -1,8 +1,9 @@
 //! Ray tracing straight from a mapped ReduceM file (paper 3.2, "Traversal and intersection").
 //!
-//! Two-level traversal: the global hierarchy over strips ([`top`], or [`packet`] for coherent
+//! Two-level traversal: the global hierarchy over strips (`top`, or `packet` for coherent
 //! rays), then each strip's implicit kd-tree with watertight intersection of its windows
-//! ([`strip`], [`watertight`]). Nothing is copied out of the mapping: nodes, strip records,
+//! (`strip`, [`watertight`]). The walks are generic over a [`kernel`], which holds everything
+//! specific to an instruction set and is chosen once per ray or packet. Nothing is copied out of the mapping: nodes, strip records,
 //! vertices and references are read in place, so resident memory is whatever the rays touch.
 //!
 //! Guarantees:
@@ -11,7 +12,7 @@
 //!   for subnormal direction components.
 //! * Closed interval: a hit is reported when its `t` lies in `[tmin, tmax]`, ends included, e.g.
 //!   with `tmin = tmax` at the hit (traversal culls a little beyond `tmax`, see
-//!   [`strip::Closest::reach`]). A zero `t` is `+0.0`.
+//!   `Closest::reach`). A zero `t` is `+0.0`.
 //! * Deterministic: the closest hit is the smallest `(t, strip, window)` among the hits, so the
 //!   result does not depend on visiting order, packet width or thread count. Packets run the
 //!   same per-ray arithmetic as single rays and give bit-identical hits.
@@ -19,22 +20,17 @@
 //! This module is read side only: it uses `format`, `geometry` and `strip_windows`, nothing
 //! from the build side or the pipeline.
 
-pub mod attributes;
-#[cfg(target_arch = "x86_64")]
-mod avx2;
-#[cfg(target_arch = "x86_64")]
-mod avx2_lanes;
-#[cfg(target_arch = "x86_64")]
-mod avx2_setup;
+mod attributes;
+mod closest;
 pub mod kernel;
-pub mod packet;
-mod prefetch;
+mod lanes;
+mod packet;
 pub mod prepared;
-pub mod ray;
+mod ray;
 pub mod ray_file;
 mod ray_order;
-pub mod strip;
-pub mod top;
+mod strip;
+mod top;
 pub mod watertight;
 
 use arrayvec::ArrayVec;
@@ -43,9 +39,12 @@ use rayon::prelude::*;
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
 pub use attributes::{hit_attributes, surface_attributes, HitAttributes};
-pub use kernel::Kernel;
+use closest::Closest;
+pub use kernel::{Kernel, KernelError, KERNEL_VARIABLE};
+use lanes::PACKET_WIDTH;
 use prepared::PreparedRay;
-use strip::{Closest, StripQuery};
+use strip::StripQuery;
+use top::RayWalk;
 
 pub use ray::{Hit, Ray};
 
@@ -55,7 +54,7 @@ pub struct TraceOptions {
     /// Intervals of at most this many windows are intersected at once instead of descending
     /// further (the paper's "external parameter"); the file's leaf size applies when larger.
     pub subtree_windows: usize,
-    /// Trace batches as packets of [`packet::PACKET_WIDTH`] rays at the top level.
+    /// Trace batches as packets of eight rays at the top level.
     pub packets: bool,
     /// The SIMD kernel (by default the fastest this CPU runs; see [`Kernel::from_env`]).
     pub kernel: Kernel,
@@ -72,10 +71,8 @@ impl Default for TraceOptions {
 }
 
 /// Rays handed to one rayon task: enough to amortize scheduling and for the octant grouping
-/// of [`Tracer::trace_by_octant`] to fill packets whose lanes meet in the same strips (ambient
-/// occlusion rays come 16 per hit point over a hemisphere); few enough to balance. On the 1M
-/// scan's 3.8M AO rays, 1 thread: 3.84 Mrays/s with 256, 4.19 with 1,024, 4.25 with 4,096
-/// (`bench_trace` with the chunk varied; primary rays unchanged, 9.2 Mrays/s).
+/// of `Tracer::trace_by_octant` to fill packets whose lanes meet in the same strips (ambient
+/// occlusion rays come 16 per hit point over a hemisphere); few enough to balance.
 pub const BATCH_RAYS: usize = 4096;
 
 /// Traces rays against one mapped file.
@@ -101,7 +98,7 @@ impl<'f> Tracer<'f> {
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let prepared = PreparedRay::new(ray);
         let mut closest = Closest::none(ray.tmax);
-        top::trace_ray(self.file, &self.query(&prepared, false), &mut closest);
+        self.trace_ray(&prepared, false, &mut closest);
         self.finish(&closest)
     }
 
@@ -109,7 +106,17 @@ impl<'f> Tracer<'f> {
     pub fn occluded(&self, ray: &Ray) -> bool {
         let prepared = PreparedRay::new(ray);
         let mut closest = Closest::none(ray.tmax);
-        top::trace_ray(self.file, &self.query(&prepared, true), &mut closest)
+        self.trace_ray(&prepared, true, &mut closest)
+    }
+
+    /// The single-ray walk on the options' kernel; true when `any_hit` found a hit.
+    fn trace_ray(&self, ray: &PreparedRay, any_hit: bool, closest: &mut Closest) -> bool {
+        let walk = RayWalk {
+            file: self.file,
+            query: &self.query(ray, any_hit),
+            closest,
+        };
+        kernel::dispatch(self.options.kernel, walk)
     }
 
     /// [`Tracer::intersect`] for every ray, in parallel; packets when the options say so.
@@ -172,10 +179,10 @@ impl<'f> Tracer<'f> {
     ) {
         let order = octant_order(rays);
         let ray_at = |k: usize| order.as_ref().map_or(k, |order| order[k] as usize);
-        let mut gathered = ArrayVec::<Ray, { packet::PACKET_WIDTH }>::new();
-        let mut found = [Closest::none(f32::NEG_INFINITY); packet::PACKET_WIDTH];
-        for start in (0..rays.len()).step_by(packet::PACKET_WIDTH) {
-            let end = (start + packet::PACKET_WIDTH).min(rays.len());
+        let mut gathered = ArrayVec::<Ray, { PACKET_WIDTH }>::new();
+        let mut found = [Closest::none(f32::NEG_INFINITY); PACKET_WIDTH];
+        for start in (0..rays.len()).step_by(PACKET_WIDTH) {
+            let end = (start + PACKET_WIDTH).min(rays.len());
             let group = if order.is_some() {
                 gathered.clear();
                 // Pushed one by one: `extend` stayed an out-of-line call per packet.
@@ -199,7 +206,6 @@ impl<'f> Tracer<'f> {
             leaf_windows: self.file.leaf_windows(),
             subtree_windows: self.options.subtree_windows,
             any_hit,
-            kernel: self.options.kernel,
         }
     }
 
@@ -235,9 +241,8 @@ impl<'f> Tracer<'f> {
 fn octant_order(rays: &[Ray]) -> Option<Vec<u32>> {
     // The runs are counted without storing the octants, which camera rays do not need, and
     // only until they are too many (checked every 64 rays, not in the loop); grouped rays then
-    // find their octants again. Callgrind, 100k rays of the 1M scan: 21 -> 14 instructions per
-    // primary ray, 46 -> 36 per AO ray.
-    let most_runs = rays.len() / packet::PACKET_WIDTH;
+    // find their octants again.
+    let most_runs = rays.len() / PACKET_WIDTH;
     let mut previous = rays.first().map_or(0, octant);
     let mut runs = 1;
     for chunk in rays.chunks(64) {

@@ -18,18 +18,17 @@
 use arrayvec::ArrayVec;
 use wide::{f32x4, u32x4};
 
-use super::prefetch::Targets;
+use super::closest::Closest;
+use super::kernel::prefetch::Targets;
+use super::kernel::{ChildBoxes, TraceKernel, Walk};
 use super::prepared::{PreparedRay, WideRay};
-use super::strip::{Closest, StripQuery};
+use super::strip::StripQuery;
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, TopNodes};
 use crate::format::{
     GridNode, NodeRecord, TopNode, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS, GRID_LINK_INTERNAL,
     INTERNAL_CHILD, TOP_WIDTH,
 };
-
-/// Child boxes of a node, axis by axis (`[axis][slot]`): minima, maxima.
-pub type ChildBoxes = ([[f32; TOP_WIDTH]; 3], [[f32; TOP_WIDTH]; 3]);
 
 /// A top-level node record as traversal sees it: four f32 child boxes and `(child, kind)`
 /// links as [`TopNode`] stores them.
@@ -113,7 +112,7 @@ impl TraceNode for GridNode {
         (link & GRID_LINK_INDEX, kind)
     }
 
-    /// One SIMD compare of the four links (the scalar fold cost 2% of a grid file's AO rays).
+    /// One SIMD compare of the four links, cheaper than a scalar fold.
     #[inline(always)]
     fn occupied_mask(&self) -> u32 {
         u32x4::from(self.link).simd_ne(u32x4::ZERO).to_bitmask()
@@ -182,17 +181,38 @@ impl<T> DeferStack<T> {
     }
 }
 
+/// The walk of the whole file for one ray, as a [`Walk`] for the kernels to run; true when
+/// `query.any_hit` found a hit.
+pub(super) struct RayWalk<'a, 'q> {
+    pub file: &'a ReducemFile,
+    pub query: &'a StripQuery<'q>,
+    pub closest: &'a mut Closest,
+}
+
+impl Walk for RayWalk<'_, '_> {
+    type Output = bool;
+
+    #[inline(always)]
+    fn run<K: TraceKernel>(self) -> bool {
+        trace_ray::<K>(self.file, self.query, self.closest)
+    }
+}
+
 /// Traverses the whole file for one ray; returns true when `query.any_hit` found a hit.
-pub fn trace_ray(file: &ReducemFile, query: &StripQuery, closest: &mut Closest) -> bool {
+fn trace_ray<K: TraceKernel>(
+    file: &ReducemFile,
+    query: &StripQuery,
+    closest: &mut Closest,
+) -> bool {
     match file.top_nodes() {
-        TopNodes::F32(nodes) => trace_nodes(file, nodes, &(), query, closest),
+        TopNodes::F32(nodes) => trace_nodes::<_, K>(file, nodes, &(), query, closest),
         TopNodes::Grid(nodes, grid) => {
-            trace_nodes(file, nodes, &NodeGridLanes::new(&grid), query, closest)
+            trace_nodes::<_, K>(file, nodes, &NodeGridLanes::new(&grid), query, closest)
         }
     }
 }
 
-fn trace_nodes<N: TraceNode>(
+fn trace_nodes<N: TraceNode, K: TraceKernel>(
     file: &ReducemFile,
     nodes: &[N],
     decoder: &N::Decoder,
@@ -213,7 +233,7 @@ fn trace_nodes<N: TraceNode>(
                 current = nearest;
                 continue;
             }
-        } else if trace_leaf(file, query, &current, closest) {
+        } else if trace_leaf::<K>(file, query, &current, closest) {
             return true;
         }
         loop {
@@ -333,7 +353,7 @@ pub fn sort_by_key<T: Copy>(entries: &mut [(f32, T)]) {
 /// Traverses every strip of a leaf (`leaf.child` its first strip, `leaf.kind` its count) within
 /// the leaf box's interval.
 #[inline]
-pub fn trace_leaf(
+fn trace_leaf<K: TraceKernel>(
     file: &ReducemFile,
     query: &StripQuery,
     leaf: &Deferred,
@@ -346,7 +366,7 @@ pub fn trace_leaf(
             break;
         }
         let view = file.strip(strip as usize);
-        if query.trace(&view, strip, leaf.t_near, t_far, closest) {
+        if query.trace::<K>(&view, strip, leaf.t_near, t_far, closest) {
             return true;
         }
     }

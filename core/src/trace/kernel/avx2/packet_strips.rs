@@ -1,24 +1,15 @@
-//! A strip tested against all the rays of a packet at once (AVX2): lanes are rays, and the
+//! A short strip tested against all the rays of a packet at once: lanes are rays, and the
 //! strip's windows are walked one after the other, each tested against every lane in one pass.
-//! The AVX2 packet walk ([`super::avx2`]) offers each strip of a leaf here
-//! (`PacketKernel::trace_strip_together`); a lossless strip of at most [`MAX_WINDOWS`] windows
-//! that at least [`MIN_LANES`] lanes reach is tested this way, any other strip lane by lane as
-//! before.
+//! The packet walk offers each strip of a leaf here (`TraceKernel::trace_strip_together`); a
+//! lossless strip of at most [`MAX_WINDOWS`] windows that at least [`MIN_LANES`] lanes reach is
+//! tested this way, any other strip lane by lane.
 //!
-//! Deviation from the paper, which keeps packets small at the low level, and from this tracer's
-//! lane-by-lane strip walk (one ray, a box test per block, then eight windows in SIMD): on the
-//! 1M scan about five lanes of an ambient-occlusion packet reach each short strip the packet
-//! visits, and each lane tested about one block after its box tests. Here each position of the
-//! strip is moved to every lane's ray space once (a `vpermps` per ray-space axis picks each
+//! Deviation from the paper, which keeps packets small at the low level: several lanes of a
+//! packet (about five for ambient-occlusion rays) reach each short strip, so each position of
+//! the strip is moved to every lane's ray space once (a `vpermps` per ray-space axis picks each
 //! lane's coordinates), each window costs two edge functions for all lanes (its third is the
-//! previous window's first), and the block boxes are clipped for all lanes at once. Measured
-//! with callgrind on 100k rays of the 1M scan (1 thread, `Tracer::occluded_chunk` /
-//! `intersect_chunk` per ray): AO 2,840 -> 2,379 instructions per ray, primary 2,248 -> 2,257
-//! (offered per leaf then; offered per strip, so that the lane-by-lane walk keeps its queries
-//! made once per packet, 2,317 -> 2,164 and 2,038 -> 1,973 with the later walk changes);
-//! with two lanes as the threshold 2,387 / 2,285, with four 2,400 / 2,273, with one
-//! 2,490 / 2,340. A box's six planes are decoded in one pass ([`BoxDecoder`]), not plane by
-//! plane: 1,631 -> 1,620 instructions per primary ray, 1,834 -> 1,813 per AO ray.
+//! previous window's first), and the block boxes are clipped for all lanes at once, a box's six
+//! planes decoded in one pass ([`BoxDecoder`]).
 //!
 //! Bit-identical to the lane-by-lane walk, also on a corrupt file: a lane tests exactly the
 //! blocks its walk alone would (the same box decisions: planes decoded with
@@ -36,22 +27,20 @@ use std::arch::x86_64::*;
 
 use wide::{f32x8, i32x8};
 
-use super::avx2::{lanes as lanes_of, load_vertex};
-use super::packet::{Lanes, LeafLanes, PACKET_WIDTH};
-use super::prepared::FAR_INFLATION;
-use super::strip::{Closest, BLOCK};
-use super::watertight::{resolve, RayPoint};
-use super::Tracer;
+use super::simd::{
+    candidate_lanes, edge, in_range_lanes_between, lanes as lanes_of, load, load_vertex,
+};
 use crate::format::block_boxes::{BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
 use crate::format::reader::StripView;
 use crate::format::vertices::StripVertices;
+use crate::trace::closest::Closest;
+use crate::trace::kernel::{LeafLanes, LeafStrip, BLOCK};
+use crate::trace::lanes::{Lanes, PACKET_WIDTH};
+use crate::trace::prepared::FAR_INFLATION;
+use crate::trace::watertight::{resolve, RayPoint};
 
-/// Fewest lanes for which a strip is tested for all lanes at once.
-///
-/// Two since the packet's ray spaces are made once per packet (`avx2_setup`), not per leaf:
-/// `perf stat` task-clock of `reducem query`, 1 thread, medians of alternating runs, three
-/// against two lanes: 1M scan primary 117.3 / 112.5 ms, AO 799.4 / 777.7 ms; 10M scan primary
-/// 237.7 / 233.1 ms, AO 1,264 / 1,225 ms (one lane: 10M primary 247.6 ms).
+/// Fewest lanes for which a strip is tested for all lanes at once (two pays since the packet's
+/// ray spaces are made once per packet, not per leaf).
 pub(super) const MIN_LANES: u32 = 2;
 /// Most windows of a strip tested for all lanes at once: longer strips keep their block boxes.
 pub(super) const MAX_WINDOWS: usize = 24;
@@ -59,7 +48,7 @@ pub(super) const MAX_WINDOWS: usize = 24;
 /// The packet's rays as lanes for the strip test: per lane its ray-space axes (as indices into
 /// a position's coordinates), the origin's coordinate on each ray-space axis, the shears, the
 /// depth scale and `tmin`.
-pub(super) struct LaneSpaces {
+pub(in crate::trace) struct LaneSpaces {
     /// `[role]`: the model axis of the lane's ray-space axis `role` (x, y, z).
     axis: [__m256i; 3],
     /// `[role]`: the origin's coordinate on the lane's ray-space axis `role`.
@@ -145,20 +134,20 @@ pub(super) struct StripLanes<'a> {
 /// `None` for the lane-by-lane walk. `spaces` are the lanes' ray spaces, made once per packet.
 #[target_feature(enable = "avx2,bmi2")]
 pub(super) fn trace_strip_together(
-    spaces: &LaneSpaces,
-    (tracer, lanes): (&Tracer, &Lanes),
-    (view, strip): (&StripView, u32),
+    (spaces, lanes): (&LaneSpaces, &Lanes),
+    offered: &LeafStrip,
     leaf: &LeafLanes,
     any_hit: bool,
     closest: &mut [Closest; PACKET_WIDTH],
 ) -> Option<u32> {
+    let (view, strip) = (offered.view, offered.index);
     let StripVertices::F32(points) = view.vertices else {
         return None;
     };
     let windows = view.window_count();
     // The lane-by-lane walk culls blocks by their boxes, or descends a kd-tree when the strip
     // has more than one leaf and no boxes (format 2): the latter stays lane by lane.
-    let culled_alike = !view.boxes.is_empty() || windows <= tracer.file().leaf_windows();
+    let culled_alike = !view.boxes.is_empty() || windows <= offered.leaf_windows;
     if leaf.active.count_ones() < MIN_LANES || windows > MAX_WINDOWS || !culled_alike {
         return None;
     }
@@ -372,7 +361,7 @@ fn resolve_lanes(
     ];
     let depths = corners.map(|[_, _, offset]| _mm256_mul_ps(spaces.scale_z, offset));
     let tmax = load(&std::array::from_fn(|lane| lanes.closest[lane].t));
-    let mut candidates = candidates & in_range_lanes(weights, &depths, spaces.tmin, tmax);
+    let mut candidates = candidates & in_range_lanes_between(weights, &depths, spaces.tmin, tmax);
     let x = corners.map(|[x, _, _]| lanes_of(x));
     let y = corners.map(|[_, y, _]| lanes_of(y));
     let z = depths.map(|depth| lanes_of(depth));
@@ -400,37 +389,10 @@ fn resolve_lanes(
     done
 }
 
-/// `watertight::edge` lanewise: `q.x * p.y - q.y * p.x`.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-fn edge(p: &[__m256; 2], q: &[__m256; 2]) -> __m256 {
-    _mm256_sub_ps(_mm256_mul_ps(q[0], p[1]), _mm256_mul_ps(q[1], p[0]))
-}
-
 /// Whether a window's three references name three vertices (not a swap).
 #[inline(always)]
 fn is_real(corners: &[u8]) -> bool {
     corners[0] != corners[1] && corners[1] != corners[2] && corners[0] != corners[2]
-}
-
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-fn candidate_lanes(w: &[__m256; 3]) -> u32 {
-    super::avx2::candidate_lanes(w)
-}
-
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], tmin: __m256, tmax: __m256) -> u32 {
-    super::avx2::in_range_lanes_between(w, z, tmin, tmax)
-}
-
-/// `values` as eight lanes.
-#[target_feature(enable = "avx2,bmi2")]
-#[inline]
-fn load(values: &[f32; PACKET_WIDTH]) -> __m256 {
-    // SAFETY: `values` is eight f32 (32 bytes), what the unaligned load reads.
-    unsafe { _mm256_loadu_ps(values.as_ptr()) }
 }
 
 #[cfg(test)]
@@ -443,7 +405,7 @@ mod tests {
     /// every code, both direction signs per axis, and scales from subnormal-adjacent to huge.
     #[test]
     fn box_planes_decode_as_decode_plane() {
-        if !super::super::kernel::avx2_detected() {
+        if !crate::trace::kernel::detect::avx2() {
             return;
         }
         use crate::format::block_boxes::{decode_plane, scale};
@@ -488,7 +450,7 @@ mod tests {
     /// permutation of the axes, both signs, and magnitude ties.
     #[test]
     fn lane_spaces_transform_as_each_ray() {
-        if !super::super::kernel::avx2_detected() {
+        if !crate::trace::kernel::detect::avx2() {
             return;
         }
         let magnitudes = [
@@ -521,7 +483,7 @@ mod tests {
         let positions = [[0.0, 0.0, 0.0], [1.5, -3.25, 0.125], [-1e-3, 7.0, 1e5]];
         for packet in rays.chunks(PACKET_WIDTH) {
             // SAFETY: AVX2 and BMI2 were detected above.
-            let lanes = unsafe { super::super::avx2_setup::lanes(packet) };
+            let lanes = unsafe { super::super::setup::lanes(packet) };
             // SAFETY: as above.
             let spaces = unsafe { LaneSpaces::new(&lanes) };
             for p in positions {

@@ -1,6 +1,5 @@
-//! A packet's rays prepared in AVX2 registers: [`PreparedRay::new`] and the ray space of
-//! `watertight::RaySpace::new` for eight rays at once, lanes being rays, for the AVX2 packet
-//! walk ([`super::avx2`]).
+//! A packet's rays prepared in AVX2 registers: `PreparedRay::new` and the ray space of
+//! `watertight::RaySpace::new` for eight rays at once, lanes being rays.
 //!
 //! The eight 32-byte ray records are loaded as eight rows and transposed in registers (an 8×8
 //! transpose: origin, direction, `tmin`, `tmax` each in one register), then every quantity is
@@ -12,21 +11,18 @@
 //! IEEE operations, so every lane holds the bits the scalar code computes for its ray (tested
 //! below on signed zeros, subnormals and ties).
 //!
-//! Replaces, per packet, eight scalar `PreparedRay::new` (each with its branchy choice of the
-//! dominant axis and six divisions, about 105 instructions a ray) and their lane-by-lane
-//! transposes (`Lanes::of`): about 175 instructions for the whole packet. The walk then needs
-//! a lane's `PreparedRay` only for the lane-by-lane strip walk and for rays traced alone; it is
-//! read back from the lanes when first needed (`Lanes::prepared`, for about a quarter of the
-//! lanes of primary rays), and the strip test's ray spaces (`avx2_lanes::LaneSpaces`) are made
-//! once per packet instead of once per leaf, from these registers' values. Measured with
-//! callgrind on 100k rays of the 1M scan (1 thread, `Tracer::intersect_chunk` /
-//! `occluded_chunk` per ray): primary 1,973 -> 1,803 instructions per ray, AO 2,164 -> 1,936
-//! (with `Lanes::prepared` first gathering each field through `array::map`: 1,830 and 1,975).
+//! One setup per packet replaces eight scalar `PreparedRay::new` (each with its branchy choice
+//! of the dominant axis and six divisions) and their lane-by-lane transposes (`Lanes::of`). A
+//! lane's `PreparedRay` is read back from the lanes only when the lane-by-lane strip walk or a
+//! ray traced alone needs it (`Lanes::prepared`), and the packet strips' ray spaces
+//! (`packet_strips::LaneSpaces`) are made once per packet from these registers' values.
+
+#![allow(unsafe_code)]
 
 use std::arch::x86_64::*;
 
-use super::packet::Lanes;
-use super::ray::Ray;
+use crate::trace::lanes::Lanes;
+use crate::trace::ray::Ray;
 
 /// The lanes of `rays` (at least one, at most eight; lanes past them repeat the last ray).
 #[target_feature(enable = "avx2,bmi2")]
@@ -181,8 +177,6 @@ fn transpose(rows: [__m256; 8]) -> [__m256; 8] {
 
 #[cfg(test)]
 mod tests {
-    #![allow(unsafe_code)]
-
     use super::*;
     use crate::trace::prepared::PreparedRay;
 
@@ -257,7 +251,7 @@ mod tests {
     /// and the scalar `Lanes::of`'s lanes bit for bit, for packets of one to eight rays.
     #[test]
     fn simd_setup_is_prepared_ray_per_lane() {
-        if !super::super::kernel::avx2_detected() {
+        if !crate::trace::kernel::detect::avx2() {
             return;
         }
         let rays = rays();
@@ -265,7 +259,7 @@ mod tests {
             for packet in rays.chunks(count) {
                 // SAFETY: AVX2 and BMI2 were detected above.
                 let simd = unsafe { lanes(packet) };
-                let scalar = Lanes::of(&crate::trace::packet::prepare(packet));
+                let scalar = Lanes::of(&crate::trace::lanes::prepare(packet));
                 assert_eq!(bits(&simd), bits(&scalar), "{packet:?}");
                 for (lane, ray) in packet.iter().enumerate() {
                     let expected = format!("{:?}", PreparedRay::new(ray));

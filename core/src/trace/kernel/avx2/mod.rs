@@ -1,0 +1,153 @@
+//! The AVX2 kernel (x86-64 with AVX2 and BMI2): strip blocks ([`blocks`]), the packets' box
+//! tests ([`packets`]), short strips tested for all of a packet's rays at once
+//! ([`packet_strips`]), the packet's rays prepared in registers ([`setup`]), and what they
+//! share ([`simd`]).
+//!
+//! `wide` picks its instructions when the crate is compiled, so it stays SSE2 inside a function
+//! compiled for AVX2; this kernel therefore uses `std::arch` itself. Its functions are
+//! `#[target_feature(enable = "avx2,bmi2")]`, and calling them is sound only on a CPU that has
+//! both: [`Avx2`] is named only by `kernel::dispatch`, which checks the CPU first, so every
+//! `unsafe` call below runs after that check (each says so).
+
+#![allow(unsafe_code)]
+
+mod blocks;
+mod packet_strips;
+mod packets;
+mod setup;
+mod simd;
+
+use wide::f32x8;
+
+use super::{BlockEdges, ChildBoxes, EnteredBoxes, LeafLanes, LeafStrip, TraceKernel, Walk, BLOCK};
+use crate::format::block_boxes::{BlockBoxes, BoxFrame};
+use crate::format::references::References;
+use crate::format::vertices::VertexAccess;
+use crate::trace::closest::Closest;
+use crate::trace::lanes::{Lanes, PACKET_WIDTH};
+use crate::trace::prepared::PreparedRay;
+use crate::trace::ray::Ray;
+use crate::trace::watertight::RaySpace;
+
+/// The AVX2 kernel. Only `kernel::dispatch` names it, after checking that the CPU has AVX2 and
+/// BMI2; the walks reach it as their kernel parameter.
+pub(in crate::trace) struct Avx2;
+
+/// `walk` on the AVX2 kernel, compiled for AVX2 down to the kernel's operations.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline(never)]
+fn compiled_for_avx2<W: Walk>(walk: W) -> W::Output {
+    walk.run::<Avx2>()
+}
+
+impl TraceKernel for Avx2 {
+    #[inline(always)]
+    fn compiled<W: Walk>(walk: W) -> W::Output {
+        // SAFETY: `Avx2` runs only once the CPU was found to have AVX2 and BMI2 (module doc).
+        unsafe { compiled_for_avx2(walk) }
+    }
+
+    #[inline(always)]
+    fn references(references: &References, first: usize) -> [u8; BLOCK + 2] {
+        match references.block_stream::<{ BLOCK + 2 }>(first) {
+            // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+            Some(stream) => unsafe { blocks::spread_references(stream, references.width()) },
+            None => references.read_block(first),
+        }
+    }
+
+    #[inline(always)]
+    fn edges<
+        V: VertexAccess,
+        const KX: usize,
+        const KY: usize,
+        const KZ: usize,
+        const SITE: usize,
+    >(
+        space: &RaySpace,
+        vertices: V,
+        references: &[u8; BLOCK + 2],
+        count: usize,
+        range: (f32, f32),
+    ) -> Option<BlockEdges> {
+        let block = (references, count, range);
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { blocks::block_edges::<V, KX, KY, KZ, SITE>(space, vertices, block) }
+    }
+
+    #[inline(always)]
+    fn entered_boxes(
+        ray: &PreparedRay,
+        boxes: &BlockBoxes,
+        frame: &BoxFrame,
+        group: usize,
+        t_near: f32,
+        t_far: f32,
+    ) -> EnteredBoxes {
+        let (bytes, interval) = (boxes.bytes(), (t_near, t_far));
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { blocks::entered_boxes(ray, bytes, frame, group, interval) }
+    }
+
+    /// Each lane's `PreparedRay`, for the lane-by-lane strip walk and rays traced alone, is
+    /// made from the lanes when first needed: for about a quarter of the lanes of primary rays.
+    type PreparedRays = [Option<PreparedRay>; PACKET_WIDTH];
+
+    #[inline(always)]
+    fn prepared_rays(_rays: &[Ray]) -> Self::PreparedRays {
+        [None; PACKET_WIDTH]
+    }
+
+    #[inline(always)]
+    fn lanes(rays: &[Ray], _prepared: &Self::PreparedRays) -> Lanes {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { setup::lanes(rays) }
+    }
+
+    type Planes = packets::Avx2Planes;
+
+    #[inline(always)]
+    fn planes(lanes: &Lanes, boxes: &ChildBoxes) -> packets::Avx2Planes {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { packets::planes(lanes, boxes) }
+    }
+
+    #[inline(always)]
+    fn clip_slot(
+        lanes: &Lanes,
+        planes: &packets::Avx2Planes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32) {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { packets::clip_slot(lanes, planes, slot, t_far) }
+    }
+
+    #[inline(always)]
+    fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { packets::lanes_at_most(a, b) }
+    }
+
+    type Together = packet_strips::LaneSpaces;
+
+    #[inline(always)]
+    fn together(lanes: &Lanes) -> packet_strips::LaneSpaces {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { packet_strips::LaneSpaces::new(lanes) }
+    }
+
+    #[inline(always)]
+    fn trace_strip_together(
+        together: &packet_strips::LaneSpaces,
+        lanes: &Lanes,
+        strip: &LeafStrip,
+        leaf: &LeafLanes,
+        any_hit: bool,
+        closest: &mut [Closest; PACKET_WIDTH],
+    ) -> Option<u32> {
+        let packet = (together, lanes);
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { packet_strips::trace_strip_together(packet, strip, leaf, any_hit, closest) }
+    }
+}

@@ -1,0 +1,257 @@
+//! The portable kernel, which every CPU runs: `wide`'s lanes (eight-lane operations are two
+//! SSE2 or NEON operations each), picked when the crate is compiled.
+
+use wide::{f32x4, f32x8};
+
+use super::{
+    BlockEdges, ChildBoxes, EnteredBoxes, LeafLanes, LeafStrip, TraceKernel, Walk, BLOCK, BOX_GROUP,
+};
+use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
+use crate::format::references::References;
+use crate::format::vertices::VertexAccess;
+use crate::format::TOP_WIDTH;
+use crate::trace::closest::Closest;
+use crate::trace::lanes::{prepare, Lanes, PACKET_WIDTH};
+use crate::trace::prepared::{
+    max_not_nan, max_not_nan_x4, max_not_nan_x8, min_not_nan, min_not_nan_x4, min_not_nan_x8,
+    PreparedRay, FAR_INFLATION,
+};
+use crate::trace::ray::Ray;
+use crate::trace::watertight::{candidate_lanes, edge_lanes, RaySpace};
+
+/// The portable kernel.
+pub(super) struct Portable;
+
+impl TraceKernel for Portable {
+    /// Never inlined: each instantiation (an axis order and an encoding of the strip walk, the
+    /// single-ray walk) is compiled on its own rather than some into their callers, whose size
+    /// then swayed how well the others were optimized.
+    #[inline(never)]
+    fn compiled<W: Walk>(walk: W) -> W::Output {
+        walk.run::<Portable>()
+    }
+
+    #[inline(always)]
+    fn references(references: &References, first: usize) -> [u8; BLOCK + 2] {
+        references.read_block(first)
+    }
+
+    /// The block's `BLOCK + 2` positions are gathered once into an array and read as lanes
+    /// shifted by 0, 1 and 2 positions as the windows' three corners; each corner is moved to
+    /// ray space (x and y) and each edge evaluated in lanes.
+    #[inline(always)]
+    fn edges<
+        V: VertexAccess,
+        const KX: usize,
+        const KY: usize,
+        const KZ: usize,
+        const SITE: usize,
+    >(
+        space: &RaySpace,
+        vertices: V,
+        references: &[u8; BLOCK + 2],
+        count: usize,
+        _range: (f32, f32),
+    ) -> Option<BlockEdges> {
+        let model = vertices.gather::<KX, KY, KZ, { BLOCK + 2 }>(references, count + 2);
+        // A position is transformed once per corner it is in (up to three times) rather than
+        // once and then shifted through memory: the arithmetic is cheaper than storing lanes and
+        // reloading them misaligned, and every copy of a vertex has the same bits.
+        let corner = |shift: usize| {
+            space.transform_lanes::<KX, KY, KZ>(
+                lanes_from(&model[0], shift),
+                lanes_from(&model[1], shift),
+                lanes_from(&model[2], shift),
+            )
+        };
+        let corners = [corner(0), corner(1), corner(2)];
+        // Window `k`'s short edges are also windows `k - 1`'s and `k + 1`'s, but evaluating them
+        // again in the lanes where they are needed is cheaper than shifting them across lanes.
+        let weights = [
+            edge_lanes(&corners[1], &corners[2]),
+            edge_lanes(&corners[2], &corners[0]),
+            edge_lanes(&corners[0], &corners[1]),
+        ];
+        let candidates = candidate_lanes(weights) & ((1 << count) - 1);
+        (candidates != 0).then(|| BlockEdges {
+            candidates,
+            x: corners.map(|c| c.x.to_array()),
+            y: corners.map(|c| c.y.to_array()),
+            weights: weights.map(f32x8::to_array),
+        })
+    }
+
+    /// One box after the other.
+    #[inline(always)]
+    fn entered_boxes(
+        ray: &PreparedRay,
+        boxes: &BlockBoxes,
+        frame: &BoxFrame,
+        group: usize,
+        t_near: f32,
+        t_far: f32,
+    ) -> EnteredBoxes {
+        let test = BoxTest::new(ray, frame);
+        let mut entered = EnteredBoxes::default();
+        for lane in 0..BOX_GROUP {
+            let Some(codes) = boxes.codes(group * BOX_GROUP + lane) else {
+                break;
+            };
+            let (near, far) = test.interval(codes, t_near, t_far);
+            entered.near[lane] = near;
+            entered.mask |= u32::from(near <= far) << lane;
+        }
+        entered
+    }
+
+    type PreparedRays = [PreparedRay; PACKET_WIDTH];
+
+    #[inline(always)]
+    fn prepared_rays(rays: &[Ray]) -> [PreparedRay; PACKET_WIDTH] {
+        prepare(rays)
+    }
+
+    #[inline(always)]
+    fn lanes(_rays: &[Ray], prepared: &[PreparedRay; PACKET_WIDTH]) -> Lanes {
+        Lanes::of(prepared)
+    }
+
+    type Planes = SlotPlanes;
+
+    #[inline(always)]
+    fn planes(lanes: &Lanes, (min, max): &ChildBoxes) -> SlotPlanes {
+        let negative = lanes.negative();
+        let pick = |axis: usize, entry: bool| {
+            if negative[axis] == entry {
+                max[axis]
+            } else {
+                min[axis]
+            }
+        };
+        SlotPlanes {
+            entry: [0, 1, 2].map(|axis| pick(axis, true)),
+            exit: [0, 1, 2].map(|axis| pick(axis, false)),
+        }
+    }
+
+    #[inline(always)]
+    fn clip_slot(
+        lanes: &Lanes,
+        planes: &SlotPlanes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32) {
+        let mut near = lanes.tmin;
+        let mut far = t_far;
+        for axis in 0..3 {
+            let entry = (f32x8::splat(planes.entry[axis][slot]) - lanes.origin[axis])
+                * lanes.entry_reciprocal[axis];
+            let exit = (f32x8::splat(planes.exit[axis][slot]) - lanes.origin[axis])
+                * lanes.exit_reciprocal[axis]
+                * f32x8::splat(FAR_INFLATION);
+            near = max_not_nan_x8(near, entry);
+            far = min_not_nan_x8(far, exit);
+        }
+        (near, far, near.simd_le(far).to_bitmask())
+    }
+
+    #[inline(always)]
+    fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
+        a.simd_le(b).to_bitmask()
+    }
+
+    type Together = ();
+
+    #[inline(always)]
+    fn together(_lanes: &Lanes) {}
+
+    /// Strips are always walked lane by lane.
+    #[inline(always)]
+    fn trace_strip_together(
+        _together: &(),
+        _lanes: &Lanes,
+        _strip: &LeafStrip,
+        _leaf: &LeafLanes,
+        _any_hit: bool,
+        _closest: &mut [Closest; PACKET_WIDTH],
+    ) -> Option<u32> {
+        None
+    }
+}
+
+/// A node's child box planes as a packet sees them (see [`TraceKernel::planes`]),
+/// `[axis][slot]`.
+pub(super) struct SlotPlanes {
+    entry: [[f32; TOP_WIDTH]; 3],
+    exit: [[f32; TOP_WIDTH]; 3],
+}
+
+/// Lanes `shift..shift + BLOCK` of `values`.
+#[inline(always)]
+fn lanes_from(values: &[f32], shift: usize) -> f32x8 {
+    let lanes: [f32; BLOCK] = values[shift..shift + BLOCK]
+        .try_into()
+        .expect("BLOCK lanes");
+    f32x8::from(lanes)
+}
+
+/// A ray and a strip's box frame in lanes `x, y, z` (lane 3 unused), to test one block box in
+/// a few SIMD operations: per lane the arithmetic of [`PreparedRay::clip_box`] on the planes
+/// [`crate::format::block_boxes::decode_plane`] gives (the box's lanes `(code - 8) * scale`
+/// are exact, as there). Since the boxes hold their windows and the test is conservative as
+/// `clip_box` is, no hit is ever culled.
+struct BoxTest {
+    anchor: f32x4,
+    scale: f32x4,
+    origin: f32x4,
+    entry_reciprocal: f32x4,
+    exit_reciprocal: f32x4,
+    /// All ones in the lanes of the axes the ray goes down.
+    negative: f32x4,
+}
+
+impl BoxTest {
+    #[inline(always)]
+    fn new(ray: &PreparedRay, frame: &BoxFrame) -> BoxTest {
+        let lanes = |v: &[f32; 3]| f32x4::from([v[0], v[1], v[2], 0.0]);
+        let negative = ray
+            .negative
+            .map(|n| f32::from_bits(if n { u32::MAX } else { 0 }));
+        BoxTest {
+            anchor: lanes(&frame.anchor),
+            scale: lanes(&frame.scale),
+            origin: lanes(&ray.origin),
+            entry_reciprocal: lanes(&ray.entry_reciprocal),
+            exit_reciprocal: lanes(&ray.exit_reciprocal),
+            negative: lanes(&negative),
+        }
+    }
+
+    /// The ray's interval `(near, far)` in the box of `codes` within `[t_near, t_far]`: it
+    /// enters the box when `near <= far`.
+    #[inline(always)]
+    fn interval(&self, codes: [u8; BOX_BYTES], t_near: f32, t_far: f32) -> (f32, f32) {
+        let bias = CODE_BIAS as f32;
+        let code = |shift: u8, mask: u8| {
+            f32x4::from([
+                f32::from(codes[0] >> shift & mask),
+                f32::from(codes[1] >> shift & mask),
+                f32::from(codes[2] >> shift & mask),
+                bias,
+            ])
+        };
+        let bias = f32x4::splat(bias);
+        let min = self.anchor + (code(0, MAX_CODE) - bias) * self.scale;
+        let max = self.anchor + (code(4, MAX_CODE) - bias) * self.scale;
+        let entry_plane = self.negative.select(max, min);
+        let exit_plane = self.negative.select(min, max);
+        let entry = (entry_plane - self.origin) * self.entry_reciprocal;
+        let exit = (exit_plane - self.origin) * self.exit_reciprocal * f32x4::splat(FAR_INFLATION);
+        let near = max_not_nan_x4(f32x4::splat(t_near), entry).to_array();
+        let far = min_not_nan_x4(f32x4::splat(t_far), exit).to_array();
+        (
+            max_not_nan(max_not_nan(near[0], near[1]), near[2]),
+            min_not_nan(min_not_nan(far[0], far[1]), far[2]),
+        )
+    }
+}
