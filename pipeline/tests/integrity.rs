@@ -175,3 +175,120 @@ fn a_file_failing_its_final_verification_leaves_the_earlier_output_and_the_stage
     run_ok(&config, &[]);
     assert!(fs::read(&output).unwrap() == reference);
 }
+
+/// Binary PLY of a 70 × 50 height field with a normal and a colour per vertex.
+fn attributed_surface(path: &Path) {
+    let (columns, rows) = (70u32, 50u32);
+    let vertices = (columns + 1) * (rows + 1);
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {vertices}\nproperty float x\n\
+         property float y\nproperty float z\nproperty float nx\nproperty float ny\n\
+         property float nz\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n\
+         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        2 * columns * rows
+    )
+    .into_bytes();
+    for y in 0..=rows {
+        for x in 0..=columns {
+            let (u, v) = (x as f32 * 0.137, y as f32 * 0.091);
+            let (dx, dy) = (0.3 * u.cos(), -0.3 * v.sin());
+            let length = (dx * dx + dy * dy + 1.0).sqrt();
+            let values = [
+                u,
+                v,
+                0.3 * u.sin() + 0.3 * v.cos(),
+                -dx / length,
+                -dy / length,
+            ];
+            for value in values.into_iter().chain([1.0 / length]) {
+                bytes.extend_from_slice(&value.to_le_bytes());
+            }
+            bytes.extend_from_slice(&[(x * 3) as u8, (y * 5) as u8, 200]);
+        }
+    }
+    let id = |x: u32, y: u32| (y * (columns + 1) + x) as i32;
+    for y in 0..rows {
+        for x in 0..columns {
+            for triangle in [
+                [id(x, y), id(x + 1, y), id(x + 1, y + 1)],
+                [id(x, y), id(x + 1, y + 1), id(x, y + 1)],
+            ] {
+                bytes.push(3);
+                triangle
+                    .iter()
+                    .for_each(|v| bytes.extend_from_slice(&v.to_le_bytes()));
+            }
+        }
+    }
+    fs::write(path, bytes).expect("write PLY");
+}
+
+/// Runs `config` through once, then again from nothing with every stage in a process of its
+/// own (so each reads the files the one before it left), then writes the output again from
+/// the recorded stages alone: every way ends in the same bytes.
+fn assert_each_stage_boundary_resumes_to_the_same_bytes(config: &Path) {
+    let dir = config.parent().unwrap();
+    let output = dir.join("out.rdm");
+    run_ok(config, &[]);
+    let reference = fs::read(&output).expect("output");
+    fs::remove_dir_all(dir.join("job.work")).unwrap();
+    fs::remove_file(&output).unwrap();
+    for stage in ["chunk", "strip", "merge", "hierarchy", "write"] {
+        run_ok(config, &["--stage", stage]);
+    }
+    assert!(
+        fs::read(&output).unwrap() == reference,
+        "staged output differs"
+    );
+    fs::remove_file(&output).unwrap();
+    let log = run_ok(config, &[]);
+    assert!(log.contains("hierarchy: fresh"), "{log}");
+    assert!(
+        fs::read(&output).unwrap() == reference,
+        "rewritten output differs"
+    );
+}
+
+#[test]
+fn grid_attribute_and_generated_jobs_resume_from_every_stage_boundary_to_the_same_bytes() {
+    let grid = temp_dir("boundaries-grid");
+    assert_each_stage_boundary_resumes_to_the_same_bytes(&job(
+        &grid,
+        "\n[vertices]\nencoding = \"grid\"\ngrid_bits = 16\n",
+    ));
+    let generated = temp_dir("boundaries-generated");
+    assert_each_stage_boundary_resumes_to_the_same_bytes(&job(&generated, ""));
+    let attributes = temp_dir("boundaries-attributes");
+    attributed_surface(&attributes.join("surface.ply"));
+    let config = attributes.join("job.toml");
+    fs::write(
+        &config,
+        "[input]\npath = \"surface.ply\"\n\n[output]\npath = \"out.rdm\"\n\n[chunk]\n\
+         max_triangles = 1500\n\n[vertices]\nencoding = \"grid\"\ngrid_bits = 14\n\n\
+         [attributes]\nface_ids = true\nnormals = \"oct8\"\ncolors = true\n",
+    )
+    .unwrap();
+    assert_each_stage_boundary_resumes_to_the_same_bytes(&config);
+}
+
+/// Work files carry f32 bounds and f64 error measures as JSON numbers: every finite value
+/// must read back with the bits it was written with.
+#[test]
+fn floats_round_trip_through_work_file_json_bit_for_bit() {
+    let mut random = reducem::splitmix::SplitMix64::new(27);
+    for _ in 0..500_000 {
+        let bits = random.next_u64();
+        let double = f64::from_bits(bits);
+        let single = f32::from_bits(bits as u32);
+        if double.is_finite() {
+            let json = serde_json::to_string(&double).unwrap();
+            let back: f64 = serde_json::from_str(&json).unwrap();
+            assert_eq!(back.to_bits(), double.to_bits(), "{json}");
+        }
+        if single.is_finite() {
+            let json = serde_json::to_string(&single).unwrap();
+            let back: f32 = serde_json::from_str(&json).unwrap();
+            assert_eq!(back.to_bits(), single.to_bits(), "{json}");
+        }
+    }
+}
