@@ -114,6 +114,9 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     let bounds = partition.bounds;
     drop(partition);
     let triangles: u64 = triangles_per_chunk.iter().sum();
+    if triangles == 0 {
+        return Err(NoTriangles(input.name().to_path_buf()).into());
+    }
     job.progress.event(
         UNIT,
         "partition",
@@ -149,6 +152,11 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     progress.finish(&format!(", {} chunks", chunked.chunk_count()));
     Ok(chunked)
 }
+
+/// The input holds no triangle: there is nothing to convert (bad input, not an empty file).
+#[derive(Debug, thiserror::Error)]
+#[error("{}: the mesh has no triangles, so there is nothing to convert", .0.display())]
+pub struct NoTriangles(pub std::path::PathBuf);
 
 /// Bytes of input mapped at a time by the streaming passes.
 const WINDOW_BYTES: usize = 64 << 20;
@@ -201,7 +209,8 @@ fn spill(
                 face_beyond_u32.get_or_insert(face);
                 None
             }
-        };
+        }
+        .map(|error| (chunk as usize, error));
     })?;
     if let Some(face) = face_beyond_u32 {
         let kind = InputErrorKind::TooManyFaces {
@@ -209,11 +218,15 @@ fn spill(
         };
         return Err(InputError::new(input, Location::File, kind).into());
     }
-    if let Some(error) = first_error {
-        return Err(error).context("writing spill files");
+    if let Some((chunk, error)) = first_error {
+        let path = spill_path(job, chunk);
+        return Err(error).with_context(|| format!("writing {}", path.display()));
     }
-    for writer in &mut writers {
-        writer.flush().context("writing spill files")?;
+    for (chunk, writer) in writers.iter_mut().enumerate() {
+        let path = spill_path(job, chunk);
+        writer
+            .flush()
+            .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(counts)
 }
@@ -227,7 +240,9 @@ fn write_chunk(
 ) -> anyhow::Result<(String, Checksum)> {
     let spill = spill_path(job, chunk);
     let mut bytes = Vec::new();
-    BufReader::new(File::open(&spill)?).read_to_end(&mut bytes)?;
+    File::open(&spill)
+        .and_then(|file| BufReader::new(file).read_to_end(&mut bytes))
+        .with_context(|| format!("reading {}", spill.display()))?;
     let (triangles, face_ids) = if face_ids {
         let records: Vec<[u32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
         let triangles: Vec<[u32; 3]> = records.iter().map(|r| [r[0], r[1], r[2]]).collect();

@@ -94,6 +94,7 @@ pub fn run(job: &Job, chunked: &Chunked, strip_digest: &str) -> anyhow::Result<M
     let progress = job.progress.stage(UNIT, chunk_count as u64, "chunks");
     let mut chunks = Vec::with_capacity(chunk_count);
     for chunk in 0..chunk_count {
+        crate::interrupt::check()?;
         let path = job.work.file(&strip_chunk(chunk));
         let header = StripChunk::open(&path)
             .with_context(|| format!("reading {}", path.display()))?

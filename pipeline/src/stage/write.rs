@@ -112,6 +112,9 @@ fn verify(path: &Path) -> anyhow::Result<Checksum> {
     checksum_file(path).with_context(|| format!("reading {}", path.display()))
 }
 
+/// What a write stopped between two chunks says; the stage reports the stop itself.
+const INTERRUPTED: &str = "stopped on request";
+
 /// The final file's sections, read chunk by chunk from the strip stage's outputs.
 struct Spliced<'a> {
     job: &'a Job<'a>,
@@ -152,13 +155,15 @@ impl<'a> Spliced<'a> {
             .map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", path.display())))
     }
 
-    fn chunks(&self) -> impl Iterator<Item = (usize, u32, u32)> + '_ {
+    /// The chunks in file order; a stop request ends the walk between two chunks.
+    fn chunks(&self) -> impl Iterator<Item = io::Result<(usize, u32, u32)>> + '_ {
         self.steps.iter().filter_map(|step| match *step {
+            _ if crate::interrupt::check().is_err() => Some(Err(io::Error::other(INTERRUPTED))),
             Step::Chunk {
                 index,
                 node_base,
                 strip_base,
-            } => Some((index, node_base, strip_base)),
+            } => Some(Ok((index, node_base, strip_base))),
             Step::Node { .. } => None,
         })
     }
@@ -172,6 +177,7 @@ impl SectionSource for Spliced<'_> {
     fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()> {
         match kind {
             SectionKind::TopNodes => self.steps.iter().try_for_each(|step| match *step {
+                _ if crate::interrupt::check().is_err() => Err(io::Error::other(INTERRUPTED)),
                 Step::Node { ref slots } => {
                     write_nodes(out, &[node(slots)], self.node_grid.as_ref())
                 }
@@ -188,19 +194,20 @@ impl SectionSource for Spliced<'_> {
                     write_nodes(out, &moved, self.node_grid.as_ref())
                 }
             }),
-            SectionKind::StripRecords => self.chunks().try_for_each(|(index, _, _)| {
+            SectionKind::StripRecords => self.chunks().try_for_each(|chunk| {
+                let (index, _, _) = chunk?;
                 let mut records = self.chunk(index)?.records()?;
                 rebase_records(&mut records, self.data_word_base[index])?;
                 out.write_all(bytemuck::cast_slice(&records))
             }),
             SectionKind::StripData => self
                 .chunks()
-                .try_for_each(|(index, _, _)| self.chunk(index)?.copy_data(out)),
+                .try_for_each(|chunk| self.chunk(chunk?.0)?.copy_data(out)),
         }
     }
 
     fn visit_attributes(&mut self, visit: &mut AttributeVisit) -> io::Result<()> {
         self.chunks()
-            .try_for_each(|(index, _, _)| self.chunk(index)?.visit_attributes(visit))
+            .try_for_each(|chunk| self.chunk(chunk?.0)?.visit_attributes(visit))
     }
 }
