@@ -66,7 +66,9 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
     let temporary = reducem::atomic::temporary_path(&output);
     if let Err(error) = write_streaming(&temporary, &info, &mut source) {
         crate::interrupt::check()?;
-        return Err(error.into());
+        // The error's message ends with its source: as one I/O error (exit code 74) the OS
+        // error is said once, not again as its cause.
+        return Err(io::Error::new(error.source.kind(), error.to_string()).into());
     }
     progress.advance(3);
     let checksum = match verify(&temporary) {
