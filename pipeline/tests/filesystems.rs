@@ -90,7 +90,10 @@ fn a_read_only_filesystem_fails_with_74_naming_the_path_for_run_and_clean() {
     let dir = temp_dir("read-only");
     let mount = dir.join("mnt");
     // run fails at its first check, the output's directory; clean at the work directory's lock.
-    for (command, path) in [("run", mount.clone()), ("clean", mount.join("job.work/lock"))] {
+    for (command, path) in [
+        ("run", mount.clone()),
+        ("clean", mount.join("job.work/lock")),
+    ] {
         let script = format!(
             "printf '{}' > \"$0/job.toml\" && mkdir -p \"$0/job.work\" && \
              touch \"$0/job.work/pipeline-work-dir\" && mount -o remount,ro \"$0\" && \
