@@ -593,7 +593,7 @@ pub(super) fn view_block<'a>(
     parts: (usize, usize),
     layout: &VertexLayout,
 ) -> StripView<'a> {
-    try_view_block(data, record, parts, layout).unwrap_or_else(|| lazy::no_triangles())
+    try_view_block(data, record, parts, layout).unwrap_or_else(lazy::no_triangles)
 }
 
 /// [`view_block`], or `None` when the block does not fit `data` or has fewer than three
