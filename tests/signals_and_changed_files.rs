@@ -79,6 +79,7 @@ fn sigint_during_a_query_removes_its_temporary_hit_file() {
     assert_eq!(output.status.signal(), Some(2), "{output:?}");
     assert_eq!(temporaries(dir), Vec::<PathBuf>::new());
     assert!(!dir.join("hits.bin").exists());
+    let _ = std::fs::remove_dir_all(dir);
 }
 
 #[test]
@@ -102,6 +103,7 @@ fn a_model_truncated_during_a_query_ends_it_with_74_naming_the_file() {
         canonical.display()
     );
     assert!(stderr.contains(&expected), "{stderr}");
+    let _ = std::fs::remove_dir_all(dir);
 }
 
 /// Overwrites 64 KiB at pseudo-random places of `path`, in place, until `stop`.
@@ -158,4 +160,5 @@ fn a_model_overwritten_during_queries_never_panics_or_hangs() {
         assert_ne!(status.code(), Some(101), "trial {trial}: {stderr}");
         assert!(!stderr.contains("panicked"), "trial {trial}: {stderr}");
     }
+    let _ = std::fs::remove_dir_all(dir);
 }

@@ -26,6 +26,7 @@ fn can_mount() -> bool {
         ])
         .output()
         .is_ok_and(|output| output.status.success());
+    let _ = fs::remove_dir_all(&probe);
     if !mounted {
         eprintln!(
             "skipped: mounting a tmpfs in a mount namespace (unshare -rm) is not permitted here"
@@ -80,6 +81,7 @@ fn a_full_filesystem_fails_with_74_naming_the_file_and_leaves_no_temporary() {
         !listing.contains(".tmp-"),
         "a temporary was left: {listing}"
     );
+    let _ = fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -107,4 +109,5 @@ fn a_read_only_filesystem_fails_with_74_naming_the_path_for_run_and_clean() {
             "Read-only file system",
         );
     }
+    let _ = fs::remove_dir_all(&dir);
 }

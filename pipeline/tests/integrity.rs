@@ -113,6 +113,7 @@ fn a_changed_work_file_of_each_kind_is_named_stale_and_rebuilt_to_the_same_bytes
         assert!(text.lines().skip(2).all(|l| l.ends_with("done")), "{text}");
     }
     assert_eq!(temporaries(&dir), Vec::<PathBuf>::new());
+    let _ = fs::remove_dir_all(&dir);
 }
 
 /// Sets the checksum the manifest records for `file` to its current content's, as if the
@@ -174,6 +175,7 @@ fn a_file_failing_its_final_verification_leaves_the_earlier_output_and_the_stage
     damage_beyond_the_checksums(&dir.join("job.work"), "strips/chunk-000001.strips");
     run_ok(&config, &[]);
     assert!(fs::read(&output).unwrap() == reference);
+    let _ = fs::remove_dir_all(&dir);
 }
 
 /// Binary PLY of a 70 × 50 height field with a normal and a colour per vertex.
@@ -269,6 +271,9 @@ fn grid_attribute_and_generated_jobs_resume_from_every_stage_boundary_to_the_sam
     )
     .unwrap();
     assert_each_stage_boundary_resumes_to_the_same_bytes(&config);
+    for dir in [grid, generated, attributes] {
+        let _ = fs::remove_dir_all(dir);
+    }
 }
 
 /// Work files carry f32 bounds and f64 error measures as JSON numbers: every finite value

@@ -132,6 +132,7 @@ fn sigint_and_sigterm_end_each_stage_with_their_code_and_the_job_resumes_to_the_
             );
         }
     }
+    let _ = fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -162,6 +163,7 @@ fn a_run_removes_the_temporaries_of_dead_runs_and_only_those() {
     assert!(left.iter().all(|path| !path.exists()));
     assert!(kept.iter().all(|path| path.exists()));
     assert!(fs::read(dir.join("out.rdm")).unwrap() == reference);
+    let _ = fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -194,6 +196,7 @@ fn runs_killed_at_any_moment_leave_no_temporary_after_a_successful_rerun() {
             "trial {trial}"
         );
     }
+    let _ = fs::remove_dir_all(&dir);
 }
 
 fn hold_lock(dir: &Path) -> fs::File {
@@ -244,6 +247,7 @@ fn if_locked_wait_queues_behind_the_holder_or_gives_up_after_its_seconds() {
         .output()
         .expect("run");
     assert_eq!(refused.status.code(), Some(64));
+    let _ = fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -267,4 +271,5 @@ fn a_mesh_without_triangles_is_bad_input_naming_the_file() {
         "{log}"
     );
     assert!(!dir.join("out.rdm").exists());
+    let _ = fs::remove_dir_all(&dir);
 }
