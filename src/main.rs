@@ -239,6 +239,8 @@ impl From<InvalidRayAnswer> for InvalidRays {
 }
 
 fn main() -> ExitCode {
+    // Signals remove this process's temporaries; a truncated mapped file ends it with 74.
+    let _ = reducem_core::signals::install_for_tool();
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(error) => {

@@ -9,13 +9,59 @@ use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
-/// `dir/.name.tmp-PID`: same directory, so the rename is atomic; hidden, so globs skip it.
+/// `dir/.name.tmp-PID`: same directory, so the rename is atomic; hidden, so globs skip it; the
+/// owner's pid, so a later run can tell a dead process's temporary from a live one's. The path
+/// is noted as this process's, so that SIGINT or SIGTERM removes it (`signals`).
 pub fn temporary_path(path: &Path) -> PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+    let temporary = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    crate::signals::note_temporary(&temporary);
+    temporary
+}
+
+/// A file name's owner pid and the name it is a temporary of (`.out.rdm.tmp-PID` gives `PID`
+/// and `out.rdm`; a temporary of a temporary gives the innermost name), or `None` when the name
+/// is not a temporary's.
+fn temporary_owner(file_name: &str) -> Option<(u32, &str)> {
+    let hidden = file_name.strip_prefix('.')?;
+    let (_, pid) = hidden.rsplit_once(".tmp-")?;
+    let pid = pid
+        .parse()
+        .ok()
+        .filter(|_| pid.bytes().all(|b| b.is_ascii_digit()))?;
+    let (name, _) = hidden.trim_start_matches('.').split_once(".tmp-")?;
+    Some((pid, name))
+}
+
+/// Removes the temporaries in `dir` whose owner process is gone (killed before it could remove
+/// them): all of them, or with `of` only those of that file name. Returns the removed paths
+/// with their sizes.
+pub fn remove_dead_temporaries(dir: &Path, of: Option<&str>) -> io::Result<Vec<(PathBuf, u64)>> {
+    let mut removed = Vec::new();
+    let entries = match fs::read_dir(dir) {
+        Err(error) if error.kind() == io::ErrorKind::NotFound => return Ok(removed),
+        entries => entries?,
+    };
+    for entry in entries {
+        let entry = entry?;
+        let file_name = entry.file_name().to_string_lossy().into_owned();
+        let Some((owner, name)) = temporary_owner(&file_name) else {
+            continue;
+        };
+        let ours = owner == std::process::id();
+        if ours || of.is_some_and(|of| of != name) || crate::signals::process_alive(owner) {
+            continue;
+        }
+        let bytes = entry.metadata().map_or(0, |meta| meta.len());
+        match fs::remove_file(entry.path()) {
+            Err(error) if error.kind() != io::ErrorKind::NotFound => return Err(error),
+            _ => removed.push((entry.path(), bytes)),
+        }
+    }
+    Ok(removed)
 }
 
 /// Writes `path` through a temporary file in the same directory, fsyncs it, renames it into place
@@ -197,6 +243,38 @@ pub fn check_writable(path: &Path) -> io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn temporaries_are_told_by_name_and_only_dead_owners_are_removed() {
+        assert_eq!(temporary_owner(".out.rdm.tmp-42"), Some((42, "out.rdm")));
+        assert_eq!(
+            temporary_owner("..out.rdm.tmp-42.tmp-42"),
+            Some((42, "out.rdm"))
+        );
+        assert_eq!(temporary_owner("out.rdm.tmp-42"), None);
+        assert_eq!(temporary_owner(".out.rdm.tmp-4x"), None);
+        assert_eq!(temporary_owner(".out.rdm"), None);
+        let dir = std::env::temp_dir().join(format!("dead-temporaries-{}", std::process::id()));
+        fs::create_dir_all(&dir).expect("dir");
+        // A pid above the kernel's largest (2^22) names no process.
+        let dead = u32::pow(2, 22) + 7;
+        let own = std::process::id();
+        let names = [
+            format!(".out.rdm.tmp-{dead}"),
+            format!(".other.rdm.tmp-{dead}"),
+            format!(".out.rdm.tmp-{own}"),
+            "out.rdm".to_string(),
+        ];
+        for name in &names {
+            fs::write(dir.join(name), b"12345").expect("write");
+        }
+        let removed = remove_dead_temporaries(&dir, Some("out.rdm")).expect("sweep");
+        assert_eq!(removed, vec![(dir.join(&names[0]), 5)]);
+        let removed = remove_dead_temporaries(&dir, None).expect("sweep");
+        assert_eq!(removed, vec![(dir.join(&names[1]), 5)]);
+        assert!(dir.join(&names[2]).exists() && dir.join(&names[3]).exists());
+        fs::remove_dir_all(&dir).expect("remove");
+    }
 
     /// A file written across several background syncs holds exactly what was written, and the
     /// writer's value or error comes back.

@@ -17,21 +17,26 @@ pub fn map_file(file: &File) -> io::Result<Mmap> {
 /// than the file size.
 ///
 /// # Safety
-/// The project's one `unsafe` call outside the tracer's SIMD kernel modules (`trace/avx2*.rs`,
-/// `trace/prefetch.rs`) and the report's Embree adapter (`embree_peer.rs`, behind the `embree`
-/// feature, whose C callback counts Embree's allocations): `reducem-core` and `reducem` deny
-/// `unsafe_code` everywhere else. A mapping is undefined behaviour if another process truncates
+/// One of the project's few `unsafe` calls outside the tracer's SIMD kernel modules
+/// (`trace/avx2*.rs`, `trace/prefetch.rs`), besides the signal handling of `signals` and the
+/// report's Embree adapter (`embree_peer.rs`, behind the `embree` feature, whose C callback
+/// counts Embree's allocations): `reducem-core` and `reducem` deny `unsafe_code` everywhere
+/// else. A mapping is undefined behaviour if another process truncates
 /// or rewrites the file while it is mapped. ReduceM files and pipeline outputs are only ever
 /// replaced by atomic rename, never modified in place, so a live mapping keeps
 /// seeing the old inode; inputs belong to the user, who must not edit them during a run. Every
 /// reader bounds-checks against the mapped length and never trusts the content, so a file that
-/// is corrupt (rather than concurrently modified) cannot cause out-of-bounds reads.
+/// is corrupt (rather than concurrently modified) cannot cause out-of-bounds reads. A file
+/// truncated under the mapping anyway faults with SIGBUS; the mapping is noted so that the
+/// handler of `signals` names the file.
 #[allow(unsafe_code)]
 pub fn map_range(file: &File, offset: u64, length: usize) -> io::Result<Mmap> {
     let mut options = MmapOptions::new();
     options.offset(offset).len(length);
     // SAFETY: see the function documentation; files are replaced by rename, never in place.
-    unsafe { options.map(file) }
+    let map = unsafe { options.map(file) }?;
+    crate::signals::note_mapping(map.as_ptr(), map.len(), file);
+    Ok(map)
 }
 
 /// Advises the kernel that `map` will be read at scattered pages (madvise random): a page fault

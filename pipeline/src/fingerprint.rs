@@ -4,8 +4,7 @@
 //! last completed. The named parts are recorded too, so `status` can say which one changed.
 
 use std::collections::BTreeMap;
-use std::fs::File;
-use std::io::{self, Read};
+use std::io;
 use std::path::Path;
 
 use xxhash_rust::xxh3::Xxh3;
@@ -59,16 +58,7 @@ impl Fingerprint {
     }
 }
 
-/// XXH3-64 of a file's bytes, read in 1 MiB blocks (constant memory).
+/// XXH3-64 of a file's bytes as 16 hex digits, read in 1 MiB blocks (constant memory).
 pub fn hash_file(path: &Path) -> io::Result<String> {
-    let mut file = File::open(path)?;
-    let mut hasher = Xxh3::new();
-    let mut buffer = vec![0u8; 1 << 20];
-    loop {
-        let n = file.read(&mut buffer)?;
-        if n == 0 {
-            return Ok(format!("{:016x}", hasher.digest()));
-        }
-        hasher.update(&buffer[..n]);
-    }
+    crate::checksum::checksum_file(path).map(|checksum| format!("{:016x}", checksum.xxh3))
 }

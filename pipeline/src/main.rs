@@ -34,8 +34,9 @@ struct JobFlags {
     /// Progress bars on a terminal, plain log lines otherwise; or force one.
     #[arg(long, value_enum, default_value_t = progress::LogFormat::Auto)]
     log_format: progress::LogFormat,
-    /// When another run holds the work directory: fail with exit code 75, or skip with 0.
-    #[arg(long, value_enum, default_value_t = run::IfLocked::Fail)]
+    /// When another run holds the work directory: fail with exit code 75, skip with 0, or
+    /// wait for it to finish (with =SECONDS at most that long, then fail with 75).
+    #[arg(long, default_value = "fail", value_name = "fail|skip|wait[=SECONDS]")]
     if_locked: run::IfLocked,
     /// Remove the work directory after a successful run (as `[work] keep = false`).
     #[arg(long)]
@@ -161,6 +162,11 @@ fn main() -> ExitCode {
             if json {
                 let seconds = started.elapsed().as_secs_f64();
                 eprintln!("{}", outcome::error_json(&error, seconds));
+            } else if error
+                .chain()
+                .any(|cause| cause.is::<interrupt::Interrupted>())
+            {
+                eprintln!("pipeline: {error:#}");
             } else {
                 eprintln!("pipeline: error: {error:#}");
             }
@@ -269,6 +275,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             output,
             seed,
         } => {
+            reducem_core::signals::install_for_tool()?;
             if let Some(message) = config::too_few_triangles(kind, triangles) {
                 anyhow::bail!(run::UsageError(format!("--triangles {message}")));
             }

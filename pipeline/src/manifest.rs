@@ -3,18 +3,21 @@
 //! It lives at `<work>/manifest.json` and is rewritten atomically (temp file, fsync, rename)
 //! after a unit's outputs have been renamed into place, never before: a run killed at any moment
 //! leaves either the old record (the unit is redone, rewriting identical bytes) or the new one
-//! (the outputs it names are complete).
+//! (the outputs it names are complete). Each output's size and content hash are recorded, and
+//! a unit whose outputs no longer match is stale.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::checksum::Checksum;
 use crate::fingerprint::Fingerprint;
 use reducem::atomic::write_atomically;
 
-/// Bumped when the manifest layout changes; an unknown version means "nothing is fresh".
-const MANIFEST_VERSION: u32 = 1;
+/// Bumped when the manifest layout changes; an unknown version means "nothing is fresh". 2:
+/// outputs carry their content hash.
+const MANIFEST_VERSION: u32 = 2;
 
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
@@ -29,8 +32,9 @@ pub struct Manifest {
 pub struct UnitRecord {
     pub fingerprint: String,
     pub parts: BTreeMap<String, String>,
-    /// Outputs relative to the work directory, with their sizes.
-    pub outputs: BTreeMap<String, u64>,
+    /// Outputs relative to the work directory (the final output absolute), with their sizes
+    /// and content hashes.
+    pub outputs: BTreeMap<String, Checksum>,
 }
 
 /// An input file's identity (path, size, modification time) and its content hash.
@@ -48,6 +52,8 @@ pub enum Freshness {
     Fresh,
     Pending,
     Stale(String),
+    /// The named output's content is not what was written: the unit is rebuilt.
+    Changed(String),
 }
 
 impl Manifest {
@@ -67,7 +73,8 @@ impl Manifest {
         write_atomically(path, |file| std::io::Write::write_all(file, &json))
     }
 
-    /// Compares the recorded unit with what it would depend on now, and checks its outputs.
+    /// Compares the recorded unit with what it would depend on now, and checks its outputs'
+    /// sizes (their contents are checked by `Job::freshness`, once per run).
     pub fn freshness(&self, work_dir: &Path, key: &str, fingerprint: &Fingerprint) -> Freshness {
         let Some(record) = self.units.get(key) else {
             return Freshness::Pending;
@@ -75,7 +82,7 @@ impl Manifest {
         if record.fingerprint != fingerprint.digest() {
             return Freshness::Stale(changed_parts(&record.parts, fingerprint.parts()));
         }
-        for (output, bytes) in &record.outputs {
+        for (output, Checksum { bytes, .. }) in &record.outputs {
             match std::fs::metadata(work_dir.join(output)) {
                 Ok(meta) if meta.len() == *bytes => {}
                 Ok(meta) => {
@@ -90,7 +97,12 @@ impl Manifest {
         Freshness::Fresh
     }
 
-    pub fn record(&mut self, key: &str, fingerprint: &Fingerprint, outputs: BTreeMap<String, u64>) {
+    pub fn record(
+        &mut self,
+        key: &str,
+        fingerprint: &Fingerprint,
+        outputs: BTreeMap<String, Checksum>,
+    ) {
         self.units.insert(
             key.to_string(),
             UnitRecord {

@@ -13,6 +13,7 @@ use crate::config::ConfigError;
 use crate::interrupt::Interrupted;
 use crate::lock::LockedError;
 use crate::run::{UpstreamPending, UsageError};
+use crate::stage::chunk::NoTriangles;
 
 /// The stage a failed run stopped in (context on its error).
 #[derive(Debug, thiserror::Error)]
@@ -33,8 +34,8 @@ pub fn classify(error: &anyhow::Error) -> (u8, &'static str) {
         if cause.is::<LockedError>() {
             return (exit::TEMPORARY, "locked");
         }
-        if cause.is::<Interrupted>() {
-            return (exit::TEMPORARY, "interrupted");
+        if let Some(interrupted) = cause.downcast_ref::<Interrupted>() {
+            return (interrupted.exit_code(), "interrupted");
         }
         if cause.is::<UpstreamPending>() {
             return (exit::TEMPORARY, "stage_pending");
@@ -42,7 +43,7 @@ pub fn classify(error: &anyhow::Error) -> (u8, &'static str) {
         if cause.is::<ConfigError>() {
             return (exit::CONFIG, "config");
         }
-        if cause.is::<InputError>() {
+        if cause.is::<InputError>() || cause.is::<NoTriangles>() {
             return (exit::BAD_INPUT, "bad_input");
         }
         if cause.is::<std::io::Error>() || cause.is::<reducem::format::writer::WriteError>() {
@@ -69,6 +70,8 @@ pub fn error_json(error: &anyhow::Error, seconds: f64) -> Value {
     for cause in error.chain() {
         if let Some(input) = cause.downcast_ref::<InputError>() {
             locate_input(&mut object, input);
+        } else if let Some(NoTriangles(path)) = cause.downcast_ref() {
+            object["file"] = path_value(path);
         } else if let Some(config) = cause.downcast_ref::<ConfigError>() {
             object["file"] = path_value(&config.path);
         } else if let Some(locked) = cause.downcast_ref::<LockedError>() {

@@ -8,7 +8,7 @@
 //! it exclusively.
 
 use std::path::Path;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 
@@ -27,13 +27,37 @@ use crate::status;
 use crate::workdir::WorkDir;
 
 /// What to do when another run holds the work directory.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IfLocked {
     /// Exit at once with code 75, naming the holder.
     Fail,
     /// Exit at once with code 0 (for cron jobs that overlap by design).
     Skip,
+    /// Wait for the holder to finish, for at most the duration if one is given (then fail as
+    /// `Fail` does): for cron jobs that would rather queue than skip.
+    Wait(Option<Duration>),
 }
+
+impl std::str::FromStr for IfLocked {
+    type Err = String;
+
+    /// `fail`, `skip`, `wait` or `wait=SECONDS`.
+    fn from_str(text: &str) -> Result<IfLocked, String> {
+        match text.split_once('=') {
+            None if text == "fail" => Ok(IfLocked::Fail),
+            None if text == "skip" => Ok(IfLocked::Skip),
+            None if text == "wait" => Ok(IfLocked::Wait(None)),
+            Some(("wait", seconds)) => match seconds.parse::<u64>() {
+                Ok(seconds) => Ok(IfLocked::Wait(Some(Duration::from_secs(seconds)))),
+                Err(_) => Err(format!("{seconds:?} is not a whole number of seconds")),
+            },
+            _ => Err(format!("{text:?} is not fail, skip, wait or wait=SECONDS")),
+        }
+    }
+}
+
+/// How often a waiting run tries the lock again.
+const LOCK_RETRY: Duration = Duration::from_millis(500);
 
 pub struct RunOptions {
     pub log_format: LogFormat,
@@ -74,18 +98,12 @@ pub fn run_reporting(
     work.create()
         .with_context(|| format!("creating {}", work.root().display()))?;
     let shared = options.stage == Some(StageName::Strip);
-    let _lock = match WorkLock::acquire(work.root(), shared) {
-        Ok(lock) => lock,
-        Err(error) if options.if_locked == IfLocked::Skip && error.is::<LockedError>() => {
-            progress.event(
-                "run",
-                "skip",
-                &format!("{error:#}; skipping (--if-locked skip)"),
-            );
-            return Ok(());
-        }
-        Err(error) => return Err(error),
+    let Some(_lock) = lock_work_dir(&work, shared, options.if_locked, &progress)? else {
+        return Ok(());
     };
+    if !shared {
+        remove_dead_temporaries(&config, &work, &progress)?;
+    }
     let job = Job::new(&config, work, &progress);
     let result = match options.stage {
         None => run_all(&job),
@@ -106,6 +124,79 @@ pub fn run_reporting(
     let seconds = started.elapsed().as_secs_f64();
     let counts = finished.then(|| output_counts(&config));
     progress.summary(seconds, counts.flatten());
+    Ok(())
+}
+
+/// Takes the work directory's lock as `if_locked` says; `None` when the run is to be skipped.
+fn lock_work_dir(
+    work: &WorkDir,
+    shared: bool,
+    if_locked: IfLocked,
+    progress: &Progress,
+) -> anyhow::Result<Option<WorkLock>> {
+    let started = Instant::now();
+    let mut waiting = false;
+    loop {
+        let error = match WorkLock::acquire(work.root(), shared) {
+            Ok(lock) => return Ok(Some(lock)),
+            Err(error) if error.is::<LockedError>() => error,
+            Err(error) => return Err(error),
+        };
+        match if_locked {
+            IfLocked::Fail => return Err(error),
+            IfLocked::Skip => {
+                let message = format!("{error:#}; skipping (--if-locked skip)");
+                progress.event("run", "skip", &message);
+                return Ok(None);
+            }
+            IfLocked::Wait(Some(limit)) if started.elapsed() >= limit => {
+                let seconds = limit.as_secs();
+                return Err(error.context(format!("gave up after waiting {seconds} s")));
+            }
+            IfLocked::Wait(_) => {
+                if !waiting {
+                    let message = format!("{error:#}; waiting for it (--if-locked wait)");
+                    progress.event("run", "wait", &message);
+                    waiting = true;
+                }
+                crate::interrupt::check()?;
+                std::thread::sleep(LOCK_RETRY);
+            }
+        }
+    }
+}
+
+/// Removes the temporaries that killed runs left in the work directory and beside the output.
+/// Only under the exclusive lock: then no other run of this job can be writing one.
+fn remove_dead_temporaries(
+    config: &Config,
+    work: &WorkDir,
+    progress: &Progress,
+) -> anyhow::Result<()> {
+    let output = &config.output.path;
+    let output_dir = output
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let output_name = output.file_name().map(|n| n.to_string_lossy().into_owned());
+    let work_dirs = ["", "chunks", "strips", "locks"].map(|dir| (work.file(dir), None));
+    let mut removed = Vec::new();
+    for (dir, of) in work_dirs
+        .into_iter()
+        .chain([(output_dir.into(), output_name)])
+    {
+        let found = reducem::atomic::remove_dead_temporaries(&dir, of.as_deref())
+            .with_context(|| format!("removing temporaries of killed runs in {}", dir.display()))?;
+        removed.extend(found);
+    }
+    if !removed.is_empty() {
+        let bytes: u64 = removed.iter().map(|(_, bytes)| bytes).sum();
+        let message = format!(
+            "removed {} temporaries of killed runs ({bytes} bytes)",
+            removed.len()
+        );
+        progress.event("run", "clean", &message);
+    }
     Ok(())
 }
 

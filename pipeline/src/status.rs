@@ -100,6 +100,9 @@ fn unit_state(unit: &str, freshness: Freshness) -> UnitState {
         Freshness::Fresh => State::Done,
         Freshness::Pending => State::Pending("never run".into()),
         Freshness::Stale(reason) => State::Stale(reason),
+        Freshness::Changed(output) => {
+            State::Stale(format!("{output} changed since it was written"))
+        }
     };
     UnitState {
         unit: unit.to_string(),

@@ -552,10 +552,18 @@ fn a_failing_chunk_is_named_in_the_json_error() {
     let config_arg = config.to_str().unwrap();
     let chunked = pipeline(&["run", config_arg, "--stage", "chunk"]);
     assert_eq!(chunked.status.code(), Some(0));
-    // Same size, other bytes: the manifest still takes the chunk for done.
+    // Other bytes, with the manifest's checksum made to match them (as if the damage had
+    // happened before the chunk was hashed): the chunk stage counts as done.
     let chunk = dir.join("job.work/chunks/chunk-000002.mesh.zst");
     let size = std::fs::metadata(&chunk).unwrap().len() as usize;
     std::fs::write(&chunk, vec![0x5a; size]).unwrap();
+    let manifest_path = dir.join("job.work/manifest.json");
+    let mut manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&manifest_path).unwrap()).unwrap();
+    let hash = xxhash_rust::xxh3::xxh3_64(&vec![0x5a; size]);
+    manifest["units"]["chunk"]["outputs"]["chunks/chunk-000002.mesh.zst"]["xxh3"] =
+        format!("{hash:016x}").into();
+    std::fs::write(&manifest_path, serde_json::to_vec(&manifest).unwrap()).unwrap();
     let output = pipeline(&["run", config_arg, "--log-format", "json"]);
     assert_ne!(output.status.code(), Some(0));
     let error = last_json(&output);

@@ -269,9 +269,11 @@ impl<'a> GridVertices<'a> {
         let bit =
             self.base_bit as usize + index * self.stride as usize + self.first_bit[axis] as usize;
         let at = bit >> 3;
-        let bytes = &self.bytes[at..at + 4];
-        let word = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]);
-        self.anchor[axis] + ((word >> (bit & 7)) & self.mask[axis])
+        // Beyond the block only for a file changed after its validation: zeros, not a panic.
+        let word = self.bytes.get(at..at + 4).map_or(0, |bytes| {
+            u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]])
+        });
+        self.anchor[axis].wrapping_add((word >> (bit & 7)) & self.mask[axis])
     }
 
     /// Grid point of vertex `index`. A vertex of at most [`ONE_WORD_BITS`] bits (the common
@@ -335,14 +337,14 @@ impl<'a> GridVertices<'a> {
     /// Grid coordinate on `axis` of the vertex whose bits are `word`.
     #[inline(always)]
     fn axis_of_word(&self, word: u64, axis: usize) -> u32 {
-        self.anchor[axis] + ((word >> self.first_bit[axis]) as u32 & self.mask[axis])
+        self.anchor[axis].wrapping_add((word >> self.first_bit[axis]) as u32 & self.mask[axis])
     }
 
     /// The bytes from `at` to the end of the block, zero-extended to eight.
     #[cold]
     fn last_word(&self, at: usize) -> u64 {
         let mut bytes = [0u8; 8];
-        let tail = &self.bytes[at..];
+        let tail = self.bytes.get(at..).unwrap_or_default();
         bytes[..tail.len()].copy_from_slice(tail);
         u64::from_le_bytes(bytes)
     }

@@ -372,6 +372,26 @@ impl ReducemFile {
         self.strip_records().len()
     }
 
+    /// The strips of a leaf whose slot holds `first` and `count`, within the file's strips: a
+    /// slot changed in place after its validation cannot send a walk through billions of
+    /// strips.
+    #[inline(always)]
+    pub fn leaf_strips(&self, first: u32, count: u32) -> std::ops::Range<u32> {
+        let end = first.saturating_add(count).min(self.strip_count() as u32);
+        first.min(end)..end
+    }
+
+    /// How many nodes a walk of one ray (or packet) may visit: each node at most once in a
+    /// valid file; a walk that reaches this was sent round in circles by a file changed in
+    /// place after its validation, and stops.
+    #[inline(always)]
+    pub fn node_visits(&self) -> usize {
+        match self.top_nodes() {
+            TopNodes::F32(nodes) => nodes.len(),
+            TopNodes::Grid(nodes, _) => nodes.len(),
+        }
+    }
+
     /// The strip at file position `index` (`index < strip_count()`).
     ///
     /// On a lazily opened file, the strip's first view validates it; a corrupt strip reads as
@@ -410,10 +430,13 @@ impl ReducemFile {
     #[inline]
     fn strip_in_place(&self, index: usize) -> StripView<'_> {
         let records = &self.sections[section_slot(SectionKind::StripRecords)];
-        let count = records.len() / size_of::<StripRecord>();
-        assert!(index < count, "strip {index} outside 0..{count}");
         let at = records.start + index * size_of::<StripRecord>();
-        let record: StripRecord = bytemuck::pod_read_unaligned(&self.map[at..at + 8]);
+        // The record is read once and checked again before use: a file changed in place after
+        // its validation reads as strips without triangles, never as a panic.
+        let record: StripRecord = match self.map.get(at..at + 8) {
+            Some(bytes) if at + 8 <= records.end => bytemuck::pod_read_unaligned(bytes),
+            _ => return lazy::no_triangles(),
+        };
         let data = &self.map[self.sections[section_slot(SectionKind::StripData)].start..];
         let parts = self.parts.lengths(record.reference_count as usize);
         view_block(data, &record, parts, &self.layout)
@@ -570,12 +593,27 @@ pub(super) fn view_block<'a>(
     parts: (usize, usize),
     layout: &VertexLayout,
 ) -> StripView<'a> {
-    let block = &data[record.data_word as usize * 4..];
+    try_view_block(data, record, parts, layout).unwrap_or_else(lazy::no_triangles)
+}
+
+/// [`view_block`], or `None` when the block does not fit `data` or has fewer than three
+/// references: only a record changed after its validation (or never validated) gets there.
+#[inline(always)]
+fn try_view_block<'a>(
+    data: &'a [u8],
+    record: &StripRecord,
+    parts: (usize, usize),
+    layout: &VertexLayout,
+) -> Option<StripView<'a>> {
+    if record.reference_count < 3 {
+        return None;
+    }
+    let block = data.get(record.data_word as usize * 4..)?;
     let count = record.vertex_count as usize;
     match *layout {
         VertexLayout::F32 { boxes } => {
             let parts = BlockParts::new(record, parts, &VertexLayout::F32 { boxes });
-            let (vertices, after) = block.split_at(count * F32_VERTEX_BYTES);
+            let (vertices, after) = block.split_at_checked(count * F32_VERTEX_BYTES)?;
             parts.view(after, StripVertices::F32(bytemuck::cast_slice(vertices)))
         }
         VertexLayout::Grid {
@@ -592,9 +630,9 @@ pub(super) fn view_block<'a>(
                 boxes,
             };
             let parts = BlockParts::new(record, parts, &layout);
-            let block = &block[..vertex_bytes + parts.bytes()];
+            let block = block.get(..vertex_bytes + parts.bytes())?;
             let vertices = GridVertices::new(block, (&words, words_layout), count, &grid);
-            parts.view(&block[vertex_bytes..], StripVertices::Grid(vertices))
+            parts.view(block.get(vertex_bytes..)?, StripVertices::Grid(vertices))
         }
     }
 }
@@ -649,20 +687,24 @@ impl BlockParts {
     /// The view of the parts at the start of `after_vertices`, the block's bytes after its
     /// vertices (and possibly more).
     #[inline(always)]
-    fn view<'a>(&self, after_vertices: &'a [u8], vertices: StripVertices<'a>) -> StripView<'a> {
-        let (axes, after_axes) = after_vertices.split_at(self.axes);
-        let after_axes = &after_axes[..self.references + self.boxes];
-        let (stored, boxes) = after_axes.split_at(self.references);
+    fn view<'a>(
+        &self,
+        after_vertices: &'a [u8],
+        vertices: StripVertices<'a>,
+    ) -> Option<StripView<'a>> {
+        let (axes, after_axes) = after_vertices.split_at_checked(self.axes)?;
+        let after_axes = after_axes.get(..self.references + self.boxes)?;
+        let (stored, boxes) = after_axes.split_at_checked(self.references)?;
         let references = match self.packed {
             true => References::packed_at(after_axes, self.references, self.count, self.width),
             false => References::bytes(stored),
         };
-        StripView {
+        Some(StripView {
             vertices,
             axes,
             references,
             boxes: BlockBoxes::new(boxes),
-        }
+        })
     }
 }
 

@@ -30,15 +30,20 @@ pub trait VertexAccess: Copy {
     fn lossless(&self) -> Option<&[Point]>;
 }
 
+/// What a reference beyond a strip's vertices reads: it can only come from a file changed
+/// after it was validated (validation checks every reference), and a NaN vertex is missed by
+/// every ray, where an index out of bounds would panic.
+const BEYOND_THE_VERTICES: Point = [f32::NAN; 3];
+
 impl VertexAccess for &[Point] {
     #[inline(always)]
     fn point(&self, index: usize) -> Point {
-        self[index]
+        self.get(index).copied().unwrap_or(BEYOND_THE_VERTICES)
     }
 
     #[inline(always)]
     fn coordinate(&self, index: usize, axis: usize) -> f32 {
-        self[index][axis]
+        self.point(index)[axis]
     }
 
     /// Every lane: an f32 vertex is three loads, cheaper than a loop of unknown length.
@@ -52,7 +57,7 @@ impl VertexAccess for &[Point] {
         // it is never stored.
         let mut model = [[0.0f32; N]; 3];
         for (position, &reference) in references.iter().enumerate() {
-            let vertex = self[reference as usize];
+            let vertex = self.point(reference as usize);
             for (k, axis) in [KX, KY, KZ].into_iter().enumerate() {
                 model[k][position] = vertex[axis];
             }
@@ -135,14 +140,14 @@ impl StripVertices<'_> {
     /// Vertex `index` (below [`StripVertices::len`]) as the tracer sees it.
     pub fn point(&self, index: usize) -> Point {
         match self {
-            StripVertices::F32(points) => points[index],
+            StripVertices::F32(points) => points.point(index),
             StripVertices::Grid(grid) => grid.point(index),
         }
     }
 
     pub fn coordinate(&self, index: usize, axis: usize) -> f32 {
         match self {
-            StripVertices::F32(points) => points[index][axis],
+            StripVertices::F32(points) => points.coordinate(index, axis),
             StripVertices::Grid(grid) => grid.coordinate(index, axis),
         }
     }

@@ -315,9 +315,14 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
         t_near: lanes.tmin,
         t_far: limit,
     };
+    let mut visits = tracer.file().node_visits();
     loop {
         if current.mask != 0 {
             if current.kind == INTERNAL_CHILD {
+                let Some(left) = visits.checked_sub(1) else {
+                    return;
+                };
+                visits = left;
                 let node = tracer.file().top_node(nodes, current.child as usize);
                 let entered = node.and_then(|n| {
                     lanes.enter_children::<N, C, ANY_HIT>(
@@ -373,7 +378,7 @@ fn trace_leaf_lanes<C: TraceKernel, P: LaneRays, const ANY_HIT: bool>(
     let t_far = leaf.t_far.to_array();
     let mut finished = 0;
     let mut active = leaf.mask;
-    let strips = leaf.child..leaf.child + leaf.kind;
+    let strips = tracer.file().leaf_strips(leaf.child, leaf.kind);
     for strip in strips.clone() {
         // A closest-hit lane stops where a hit found since is nearer than its interval: after
         // the leaf's first strip (a lane enters the leaf with `t_near <= t_far` and

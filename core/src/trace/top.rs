@@ -223,8 +223,13 @@ fn trace_nodes<N: TraceNode, K: TraceKernel>(
     let mut stack = DeferStack::default();
     let mut current = Deferred::root(query.ray);
     let targets = Targets::new(file, nodes);
+    let mut visits = file.node_visits();
     loop {
         if current.kind == INTERNAL_CHILD {
+            let Some(left) = visits.checked_sub(1) else {
+                return false;
+            };
+            visits = left;
             let node = file.top_node(nodes, current.child as usize);
             let entered = node.and_then(|n| {
                 enter_children(&targets, &ray, n, decoder, query, closest, &mut stack)
@@ -359,8 +364,7 @@ fn trace_leaf<K: TraceKernel>(
     leaf: &Deferred,
     closest: &mut Closest,
 ) -> bool {
-    let first = leaf.child;
-    for strip in first..first + leaf.kind {
+    for strip in file.leaf_strips(leaf.child, leaf.kind) {
         let t_far = leaf.t_far.min(closest.reach);
         if leaf.t_near > t_far {
             break;

@@ -27,6 +27,7 @@ use reducem::geometry::Aabb;
 use reducem::input::{InputError, InputErrorKind, Location, WeldStats};
 use serde::{Deserialize, Serialize};
 
+use crate::checksum::Checksum;
 use crate::chunk_io;
 use crate::fingerprint::Fingerprint;
 use crate::input::ResolvedInput;
@@ -87,6 +88,7 @@ impl Stamped for Chunked {
 
 pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     let fingerprint = fingerprint(job, input);
+    job.note_rebuild(UNIT, &job.freshness(UNIT, &fingerprint), "every chunk");
     if let Some(chunked) = fresh_result(job, &fingerprint) {
         job.progress.event(
             UNIT,
@@ -112,6 +114,9 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     let bounds = partition.bounds;
     drop(partition);
     let triangles: u64 = triangles_per_chunk.iter().sum();
+    if triangles == 0 {
+        return Err(NoTriangles(input.name().to_path_buf()).into());
+    }
     job.progress.event(
         UNIT,
         "partition",
@@ -124,12 +129,17 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
         .progress
         .stage(UNIT, triangles_per_chunk.len() as u64, "chunks");
     let chunks: Vec<usize> = (0..triangles_per_chunk.len()).collect();
+    let written = std::sync::Mutex::new(Vec::with_capacity(chunks.len()));
     for_each_unit(&chunks, |chunk| {
-        write_chunk(job, &*source, chunk, face_ids)?;
+        let output = write_chunk(job, &*source, chunk, face_ids)?;
+        written
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push(output);
         progress.advance(1);
         Ok(())
     })?;
-    let mut outputs: Vec<String> = chunks.iter().map(|&chunk| mesh_chunk(chunk)).collect();
+    let mut outputs = written.into_inner().unwrap_or_else(|p| p.into_inner());
     let chunked = Chunked {
         digest: fingerprint.digest(),
         triangles_per_chunk,
@@ -137,12 +147,16 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
         bounds_max: bounds.max,
         weld,
     };
-    write_json(&job.work.file(PLAN), &chunked)?;
-    outputs.push(PLAN.to_string());
+    outputs.push(write_json(job, PLAN, &chunked)?);
     job.complete(UNIT, &fingerprint, &outputs)?;
     progress.finish(&format!(", {} chunks", chunked.chunk_count()));
     Ok(chunked)
 }
+
+/// The input holds no triangle: there is nothing to convert (bad input, not an empty file).
+#[derive(Debug, thiserror::Error)]
+#[error("{}: the mesh has no triangles, so there is nothing to convert", .0.display())]
+pub struct NoTriangles(pub std::path::PathBuf);
 
 /// Bytes of input mapped at a time by the streaming passes.
 const WINDOW_BYTES: usize = 64 << 20;
@@ -195,7 +209,8 @@ fn spill(
                 face_beyond_u32.get_or_insert(face);
                 None
             }
-        };
+        }
+        .map(|error| (chunk as usize, error));
     })?;
     if let Some(face) = face_beyond_u32 {
         let kind = InputErrorKind::TooManyFaces {
@@ -203,25 +218,31 @@ fn spill(
         };
         return Err(InputError::new(input, Location::File, kind).into());
     }
-    if let Some(error) = first_error {
-        return Err(error).context("writing spill files");
+    if let Some((chunk, error)) = first_error {
+        let path = spill_path(job, chunk);
+        return Err(error).with_context(|| format!("writing {}", path.display()));
     }
-    for writer in &mut writers {
-        writer.flush().context("writing spill files")?;
+    for (chunk, writer) in writers.iter_mut().enumerate() {
+        let path = spill_path(job, chunk);
+        writer
+            .flush()
+            .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(counts)
 }
 
-/// Turns one spill file into a mesh chunk and removes the spill.
+/// Turns one spill file into a mesh chunk and removes the spill; the chunk's name and checksum.
 fn write_chunk(
     job: &Job,
     source: &dyn MeshSource,
     chunk: usize,
     face_ids: bool,
-) -> anyhow::Result<()> {
+) -> anyhow::Result<(String, Checksum)> {
     let spill = spill_path(job, chunk);
     let mut bytes = Vec::new();
-    BufReader::new(File::open(&spill)?).read_to_end(&mut bytes)?;
+    File::open(&spill)
+        .and_then(|file| BufReader::new(file).read_to_end(&mut bytes))
+        .with_context(|| format!("reading {}", spill.display()))?;
     let (triangles, face_ids) = if face_ids {
         let records: Vec<[u32; 4]> = bytemuck::pod_collect_to_vec(&bytes);
         let triangles: Vec<[u32; 3]> = records.iter().map(|r| [r[0], r[1], r[2]]).collect();
@@ -234,9 +255,9 @@ fn write_chunk(
         chunking::vertices_of(source, distinct)
     })?;
     let mesh = reducem::input::weld_identical_positions(mesh);
-    let relative = mesh_chunk(chunk);
-    let path = job.work.file(&relative);
-    reducem::atomic::write_atomically(&path, |out| chunk_io::write_mesh(out, &mesh))
-        .with_context(|| format!("writing {}", path.display()))?;
-    fs::remove_file(&spill).with_context(|| format!("removing {}", spill.display()))
+    let written = job.write_output(&mesh_chunk(chunk), |mut out| {
+        chunk_io::write_mesh(&mut out, &mesh)
+    })?;
+    fs::remove_file(&spill).with_context(|| format!("removing {}", spill.display()))?;
+    Ok(written)
 }

@@ -59,6 +59,7 @@ impl Stamped for Hierarchy {
 
 pub fn run(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
     let fingerprint = fingerprint(merged);
+    job.note_rebuild(UNIT, &job.freshness(UNIT, &fingerprint), "it");
     if let Some(hierarchy) = fresh_result(job, &fingerprint) {
         job.progress.event(UNIT, "skip", "fresh");
         return Ok(hierarchy);
@@ -86,8 +87,8 @@ pub fn run(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
         digest: fingerprint.digest(),
         steps,
     };
-    write_json(&job.work.file(PLAN), &hierarchy)?;
-    job.complete(UNIT, &fingerprint, &[PLAN.to_string()])?;
+    let written = write_json(job, PLAN, &hierarchy)?;
+    job.complete(UNIT, &fingerprint, &[written])?;
     progress.advance(merged.chunks.len() as u64);
     progress.finish("");
     Ok(hierarchy)

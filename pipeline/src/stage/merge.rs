@@ -86,6 +86,7 @@ impl Stamped for Merged {
 pub fn run(job: &Job, chunked: &Chunked, strip_digest: &str) -> anyhow::Result<Merged> {
     let chunk_count = chunked.chunk_count();
     let fingerprint = fingerprint(strip_digest);
+    job.note_rebuild(UNIT, &job.freshness(UNIT, &fingerprint), "it");
     if let Some(merged) = fresh_result(job, &fingerprint) {
         job.progress.event(UNIT, "skip", "fresh");
         return Ok(merged);
@@ -93,6 +94,7 @@ pub fn run(job: &Job, chunked: &Chunked, strip_digest: &str) -> anyhow::Result<M
     let progress = job.progress.stage(UNIT, chunk_count as u64, "chunks");
     let mut chunks = Vec::with_capacity(chunk_count);
     for chunk in 0..chunk_count {
+        crate::interrupt::check()?;
         let path = job.work.file(&strip_chunk(chunk));
         let header = StripChunk::open(&path)
             .with_context(|| format!("reading {}", path.display()))?
@@ -113,8 +115,8 @@ pub fn run(job: &Job, chunked: &Chunked, strip_digest: &str) -> anyhow::Result<M
         grid: job.config.build_params().grid(&chunked.bounds()),
         weld: chunked.weld,
     };
-    write_json(&job.work.file(TABLE), &merged)?;
-    job.complete(UNIT, &fingerprint, &[TABLE.to_string()])?;
+    let written = write_json(job, TABLE, &merged)?;
+    job.complete(UNIT, &fingerprint, &[written])?;
     progress.finish(&format!(
         ", {} strips",
         merged.chunks.iter().map(|c| c.strips as u64).sum::<u64>()

@@ -8,13 +8,14 @@ pub mod merge;
 pub mod strip;
 pub mod write;
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 use std::str::FromStr;
 use std::sync::Mutex;
 
 use anyhow::Context;
 
+use crate::checksum::{self, Checksum};
 use crate::config::Config;
 use crate::fingerprint::Fingerprint;
 use crate::manifest::{Freshness, Manifest};
@@ -92,6 +93,9 @@ pub struct Job<'a> {
     pub work: WorkDir,
     pub progress: &'a Progress,
     manifest: Mutex<Manifest>,
+    /// Outputs whose content this run wrote or checked against the manifest: each file is
+    /// hashed at most once per run.
+    checked: Mutex<HashMap<String, Checksum>>,
 }
 
 impl<'a> Job<'a> {
@@ -102,12 +106,75 @@ impl<'a> Job<'a> {
             work,
             progress,
             manifest: Mutex::new(manifest),
+            checked: Mutex::new(HashMap::new()),
         }
     }
 
+    /// Whether unit `key` is done for `fingerprint`, its outputs in place with the sizes and
+    /// contents recorded when they were written.
     pub fn freshness(&self, key: &str, fingerprint: &Fingerprint) -> Freshness {
-        self.lock_manifest()
-            .freshness(self.work.root(), key, fingerprint)
+        let (freshness, outputs) = {
+            let manifest = self.lock_manifest();
+            let outputs = manifest.units.get(key).map(|unit| unit.outputs.clone());
+            (
+                manifest.freshness(self.work.root(), key, fingerprint),
+                outputs,
+            )
+        };
+        if freshness != Freshness::Fresh {
+            return freshness;
+        }
+        let changed = outputs
+            .unwrap_or_default()
+            .into_iter()
+            .find(|(output, recorded)| !self.content_matches(output, recorded));
+        match changed {
+            Some((output, _)) => Freshness::Changed(output),
+            None => Freshness::Fresh,
+        }
+    }
+
+    /// Whether `output` holds what was recorded, hashing it only the first time in this run.
+    fn content_matches(&self, output: &str, recorded: &Checksum) -> bool {
+        if self.checked_lock().get(output) == Some(recorded) {
+            return true;
+        }
+        let matches = checksum::checksum_file(&self.work.file(output)).ok() == Some(*recorded);
+        if matches {
+            self.checked_lock().insert(output.to_string(), *recorded);
+        }
+        matches
+    }
+
+    /// Logs, when a unit is redone because one of its outputs changed, which file and what is
+    /// rebuilt.
+    pub fn note_rebuild(&self, stage: &str, freshness: &Freshness, rebuilt: &str) {
+        if let Freshness::Changed(output) = freshness {
+            self.progress.event(
+                stage,
+                "rebuild",
+                &format!("{output} changed since it was written; rebuilding {rebuilt}"),
+            );
+        }
+    }
+
+    /// Writes `relative` atomically through `body` and returns its checksum, known to be this
+    /// run's.
+    pub fn write_output(
+        &self,
+        relative: &str,
+        body: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+    ) -> anyhow::Result<(String, Checksum)> {
+        let path = self.work.file(relative);
+        let written = checksum::write_atomically_checked(&path, |out| body(out))
+            .with_context(|| format!("writing {}", path.display()))?;
+        Ok(self.written(relative, written))
+    }
+
+    /// Notes that this run wrote `output` with `checksum`, for [`Job::complete`].
+    pub fn written(&self, output: &str, checksum: Checksum) -> (String, Checksum) {
+        self.checked_lock().insert(output.to_string(), checksum);
+        (output.to_string(), checksum)
     }
 
     /// Records a unit as complete, after its outputs (paths relative to the work directory, or
@@ -116,16 +183,10 @@ impl<'a> Job<'a> {
         &self,
         key: &str,
         fingerprint: &Fingerprint,
-        outputs: &[String],
+        outputs: &[(String, Checksum)],
     ) -> anyhow::Result<()> {
-        let mut sizes = BTreeMap::new();
-        for output in outputs {
-            let path = self.work.file(output);
-            let meta =
-                std::fs::metadata(&path).with_context(|| format!("checking {}", path.display()))?;
-            sizes.insert(output.clone(), meta.len());
-        }
-        self.update_manifest(|manifest| manifest.record(key, fingerprint, sizes))
+        let outputs: BTreeMap<String, Checksum> = outputs.iter().cloned().collect();
+        self.update_manifest(|manifest| manifest.record(key, fingerprint, outputs))
     }
 
     /// Applies `change` to the manifest on disk and saves it, under an exclusive lock on
@@ -162,6 +223,12 @@ impl<'a> Job<'a> {
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner())
     }
+
+    fn checked_lock(&self) -> std::sync::MutexGuard<'_, HashMap<String, Checksum>> {
+        self.checked
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
 }
 
 /// A stage result that carries the digest of the fingerprint that made it.
@@ -189,11 +256,14 @@ pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<
     serde_json::from_slice(&bytes).with_context(|| format!("parsing {}", path.display()))
 }
 
-/// Writes a small JSON output atomically.
-pub fn write_json(path: &Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
+/// Writes a small JSON output (`relative` to the work directory) atomically; its checksum.
+pub fn write_json(
+    job: &Job,
+    relative: &str,
+    value: &impl serde::Serialize,
+) -> anyhow::Result<(String, Checksum)> {
     let json = serde_json::to_vec_pretty(value)?;
-    reducem::atomic::write_atomically(path, |out| std::io::Write::write_all(out, &json))
-        .with_context(|| format!("writing {}", path.display()))
+    job.write_output(relative, |out| out.write_all(&json))
 }
 
 /// Runs `work` for every unit, at most one unit per rayon thread at a time, and returns the

@@ -8,6 +8,7 @@ use reducem::conversion::{encode_chunk_on, ChunkLayout};
 use reducem::strip_encoding::EncodedStrip;
 use reducem::toplevel::TopLevelParams;
 
+use crate::checksum::Checksum;
 use crate::chunk_io::{self, StripChunkHeader};
 use crate::fingerprint::Fingerprint;
 use crate::lock::ChunkLock;
@@ -79,9 +80,11 @@ pub fn run(job: &Job, chunked: &Chunked, shard: Shard) -> anyhow::Result<String>
         };
         job.reload_manifest();
         let fingerprint = fingerprint(job, chunked, chunk);
-        if job.freshness(&unit(chunk), &fingerprint) != Freshness::Fresh {
-            strip_one(job, chunked, chunk).context(crate::outcome::InChunk(chunk))?;
-            job.complete(&unit(chunk), &fingerprint, &[strip_chunk(chunk)])?;
+        let freshness = job.freshness(&unit(chunk), &fingerprint);
+        if freshness != Freshness::Fresh {
+            job.note_rebuild("strip", &freshness, &format!("chunk {chunk}"));
+            let written = strip_one(job, chunked, chunk).context(crate::outcome::InChunk(chunk))?;
+            job.complete(&unit(chunk), &fingerprint, &[written])?;
             converted.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
         progress.advance(1);
@@ -107,7 +110,8 @@ pub fn run(job: &Job, chunked: &Chunked, shard: Shard) -> anyhow::Result<String>
     Ok(digest(job, chunked))
 }
 
-fn strip_one(job: &Job, chunked: &Chunked, chunk: usize) -> anyhow::Result<()> {
+/// Converts one mesh chunk to its strip chunk; the strip chunk's name and checksum.
+fn strip_one(job: &Job, chunked: &Chunked, chunk: usize) -> anyhow::Result<(String, Checksum)> {
     let mesh_path = job.work.file(&mesh_chunk(chunk));
     let mesh = chunk_io::read_mesh(&mesh_path)
         .with_context(|| format!("reading {}", mesh_path.display()))?;
@@ -124,9 +128,13 @@ fn strip_one(job: &Job, chunked: &Chunked, chunk: usize) -> anyhow::Result<()> {
         layout.top.nodes.len(),
         &strips,
     );
-    let path = job.work.file(&strip_chunk(chunk));
-    reducem::atomic::write_atomically(&path, |out| {
-        chunk_io::write_strips(out, &header, &layout.top.nodes, &layout.records, &strips)
+    job.write_output(&strip_chunk(chunk), |mut out| {
+        chunk_io::write_strips(
+            &mut out,
+            &header,
+            &layout.top.nodes,
+            &layout.records,
+            &strips,
+        )
     })
-    .with_context(|| format!("writing {}", path.display()))
 }

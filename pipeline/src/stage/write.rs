@@ -1,9 +1,10 @@
 //! Stage *write*: streams the final ReduceM file from the strip chunks in hierarchy order (nodes,
-//! then records, then strip data, each chunk's part in turn), writes it atomically (temporary
-//! file, fsync, rename; an earlier output survives any failure) and verifies it by opening it.
+//! then records, then strip data, each chunk's part in turn) to a temporary file, verifies that
+//! in full (as `reducem inspect --verify`), and only then renames it over the output and records
+//! the stage: an earlier output survives any failure, a failed check included.
 
 use std::io::{self, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use reducem::conversion::layout::{rebase_records, DataWords};
@@ -14,6 +15,7 @@ use reducem::format::writer::{write_nodes, write_streaming, FileInfo, SectionSou
 use reducem::format::SectionKind;
 use reducem::toplevel::relocate;
 
+use crate::checksum::{checksum_file, Checksum};
 use crate::chunk_io::StripChunk;
 use crate::fingerprint::Fingerprint;
 use crate::manifest::Freshness;
@@ -38,11 +40,13 @@ pub fn fingerprint(job: &Job, hierarchy: &Hierarchy) -> Fingerprint {
 pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<()> {
     let fingerprint = fingerprint(job, hierarchy);
     let output = output_path(job);
-    if job.freshness(UNIT, &fingerprint) == Freshness::Fresh {
+    let freshness = job.freshness(UNIT, &fingerprint);
+    if freshness == Freshness::Fresh {
         job.progress
             .event(UNIT, "skip", &format!("fresh: {}", output.display()));
         return Ok(());
     }
+    job.note_rebuild(UNIT, &freshness, "it");
     let progress = job.progress.stage(UNIT, 3, "sections");
     if let Some(parent) = output.parent() {
         std::fs::create_dir_all(parent)
@@ -59,19 +63,59 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         attributes: job.config.build_params().attributes,
     };
     let mut source = Spliced::new(job, merged, hierarchy, info.node_grid()?)?;
-    write_streaming(&output, &info, &mut source)?;
+    let temporary = reducem::atomic::temporary_path(&output);
+    if let Err(error) = write_streaming(&temporary, &info, &mut source) {
+        crate::interrupt::check()?;
+        // The error's message ends with its source: as one I/O error (exit code 74) the OS
+        // error is said once, not again as its cause.
+        return Err(io::Error::new(error.source.kind(), error.to_string()).into());
+    }
     progress.advance(3);
-    ReducemFile::open_with(&output, Validation::Full).context("verifying the written file")?;
-    job.complete(UNIT, &fingerprint, &[output.display().to_string()])?;
-    let bytes = std::fs::metadata(&output)?.len();
+    let checksum = match verify(&temporary) {
+        Ok(checksum) => checksum,
+        Err(error) => {
+            let _ = std::fs::remove_file(&temporary);
+            return Err(VerificationFailed { output, error }.into());
+        }
+    };
+    reducem::atomic::replace(&temporary, &output)
+        .with_context(|| format!("renaming {} to {}", temporary.display(), output.display()))?;
+    let written = job.written(&output.display().to_string(), checksum);
+    job.complete(UNIT, &fingerprint, &[written])?;
     progress.finish(&format!(
         ": {} ({} triangles, {:.2} bytes/triangle)",
         output.display(),
         info.stats.triangles,
-        bytes as f64 / info.stats.triangles.max(1) as f64
+        checksum.bytes as f64 / info.stats.triangles.max(1) as f64
     ));
     Ok(())
 }
+
+/// The new file failed its final check: it was removed, and the earlier output is unchanged.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{}: the new file failed verification and was removed; the earlier file is unchanged and \
+     the write stage is not recorded as done ({error:#}); the work directory may be damaged: \
+     run `pipeline clean` on the configuration, then run the job again",
+    output.display()
+)]
+pub struct VerificationFailed {
+    pub output: PathBuf,
+    /// Shown in the message with its causes, so not also a source.
+    pub error: anyhow::Error,
+}
+
+/// Checks `path` as `reducem inspect --verify` does (every record, every section checksum);
+/// the file's checksum for the manifest.
+fn verify(path: &Path) -> anyhow::Result<Checksum> {
+    let file = ReducemFile::open_with(path, Validation::Full)?;
+    file.verify_checksums()?;
+    drop(file);
+    checksum_file(path).with_context(|| format!("reading {}", path.display()))
+}
+
+/// What a write stopped between two chunks says; the stage reports the stop itself.
+const INTERRUPTED: &str = "stopped on request";
 
 /// The final file's sections, read chunk by chunk from the strip stage's outputs.
 struct Spliced<'a> {
@@ -113,13 +157,15 @@ impl<'a> Spliced<'a> {
             .map_err(|e| io::Error::new(e.kind(), format!("{}: {e}", path.display())))
     }
 
-    fn chunks(&self) -> impl Iterator<Item = (usize, u32, u32)> + '_ {
+    /// The chunks in file order; a stop request ends the walk between two chunks.
+    fn chunks(&self) -> impl Iterator<Item = io::Result<(usize, u32, u32)>> + '_ {
         self.steps.iter().filter_map(|step| match *step {
+            _ if crate::interrupt::check().is_err() => Some(Err(io::Error::other(INTERRUPTED))),
             Step::Chunk {
                 index,
                 node_base,
                 strip_base,
-            } => Some((index, node_base, strip_base)),
+            } => Some(Ok((index, node_base, strip_base))),
             Step::Node { .. } => None,
         })
     }
@@ -133,6 +179,7 @@ impl SectionSource for Spliced<'_> {
     fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()> {
         match kind {
             SectionKind::TopNodes => self.steps.iter().try_for_each(|step| match *step {
+                _ if crate::interrupt::check().is_err() => Err(io::Error::other(INTERRUPTED)),
                 Step::Node { ref slots } => {
                     write_nodes(out, &[node(slots)], self.node_grid.as_ref())
                 }
@@ -149,19 +196,20 @@ impl SectionSource for Spliced<'_> {
                     write_nodes(out, &moved, self.node_grid.as_ref())
                 }
             }),
-            SectionKind::StripRecords => self.chunks().try_for_each(|(index, _, _)| {
+            SectionKind::StripRecords => self.chunks().try_for_each(|chunk| {
+                let (index, _, _) = chunk?;
                 let mut records = self.chunk(index)?.records()?;
                 rebase_records(&mut records, self.data_word_base[index])?;
                 out.write_all(bytemuck::cast_slice(&records))
             }),
             SectionKind::StripData => self
                 .chunks()
-                .try_for_each(|(index, _, _)| self.chunk(index)?.copy_data(out)),
+                .try_for_each(|chunk| self.chunk(chunk?.0)?.copy_data(out)),
         }
     }
 
     fn visit_attributes(&mut self, visit: &mut AttributeVisit) -> io::Result<()> {
         self.chunks()
-            .try_for_each(|(index, _, _)| self.chunk(index)?.visit_attributes(visit))
+            .try_for_each(|chunk| self.chunk(chunk?.0)?.visit_attributes(visit))
     }
 }

@@ -107,7 +107,7 @@ impl LazyChecks {
 
 /// What a corrupt strip reads as: three vertices at the origin and one swap window, which is
 /// no triangle, so no ray hits it and no decoder yields a triangle from it.
-pub(super) fn no_triangles() -> StripView<'static> {
+pub(super) fn no_triangles<'a>() -> StripView<'a> {
     static VERTICES: [Point; 3] = [[0.0; 3]; 3];
     static REFERENCES: [u8; 3] = [0; 3];
     StripView {
