@@ -203,7 +203,11 @@ impl<'a> StripLayout<'a> {
                 node_box,
             })
             .min_by(|a, b| {
-                let cost = |s: &NodeSplit| self.split_cost(s, (mid - lo, hi - mid));
+                let windows = SideWindows {
+                    left: mid - lo,
+                    right: hi - mid,
+                };
+                let cost = |s: &NodeSplit| self.split_cost(s, windows);
                 cost(a).total_cmp(&cost(b))
             })
             .unwrap_or_else(|| unreachable!("three axes"));
@@ -221,9 +225,9 @@ impl<'a> StripLayout<'a> {
         (left, right)
     }
 
-    fn split_cost(&self, split: &NodeSplit, (left_windows, right_windows): (usize, usize)) -> f64 {
+    fn split_cost(&self, split: &NodeSplit, windows: SideWindows) -> f64 {
         let (left, right) = self.child_boxes(split);
-        left.surface_area() * left_windows as f64 + right.surface_area() * right_windows as f64
+        left.surface_area() * windows.left as f64 + right.surface_area() * windows.right as f64
     }
 
     /// The exact extreme of `local[range]` on `axis` under `better` (lowest index among equals).
@@ -362,6 +366,13 @@ impl<'a> StripLayout<'a> {
             block,
         }
     }
+}
+
+/// How many windows a node's split puts in each child.
+#[derive(Clone, Copy)]
+struct SideWindows {
+    left: usize,
+    right: usize,
 }
 
 /// A node's split axis and the exact extremes of its children (left maximum, right minimum).
