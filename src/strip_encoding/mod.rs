@@ -28,12 +28,12 @@
 //! Format 3.0 packs the references of lossless strips too and appends the strip's block boxes
 //! ([`crate::format::block_boxes`]); see there for what they cost and gain.
 
-pub mod attributes;
+pub(crate) mod attributes;
 mod block_boxes;
 
 use std::fmt;
 
-pub use attributes::{AttributeSource, StripAttributes};
+pub(crate) use attributes::{AttributeSource, StripAttributes};
 
 use crate::format::implicit_tree::{internal_nodes, is_leaf, split_point};
 use crate::format::reader::VertexLayout;
@@ -68,7 +68,7 @@ impl<'a> Positions<'a> {
 
 /// How far beyond its exact extreme a split bound may lie, as a fraction of the node's extent on
 /// the split axis, to use a vertex not stored yet instead of a copy.
-pub const MAX_LOOSENESS: f32 = 0.25;
+const MAX_LOOSENESS: f32 = 0.25;
 
 /// One encoded strip: its block (padded to 4 bytes) and what the top level needs to know.
 #[derive(Clone, Debug, PartialEq)]
