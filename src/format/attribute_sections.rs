@@ -44,7 +44,7 @@ impl AttributeWriter {
         }
     }
 
-    pub fn write(
+    pub(crate) fn write(
         &mut self,
         kind: AttributeSection,
         strips: &mut dyn FnMut(&mut AttributeVisit) -> io::Result<()>,

@@ -20,7 +20,7 @@ const KNOWN: [&str; 12] = [
 
 /// What a pass over the file found.
 #[derive(Debug, Default)]
-pub struct Survey {
+pub(crate) struct Survey {
     /// `v` statements.
     pub vertices: u64,
     /// Statements of unknown keywords, by keyword.
@@ -40,7 +40,7 @@ pub struct Survey {
 }
 
 impl Survey {
-    pub fn totals(&self) -> Totals {
+    pub(crate) fn totals(&self) -> Totals {
         Totals {
             vertices: self.vertices,
             normals: self.normals,
@@ -50,7 +50,10 @@ impl Survey {
     /// The first defect, counting as defects what makes the attributes in `request` unusable:
     /// a file without any of them (reported at the file), or some faces or vertices without
     /// them while others have them (reported at the first such statement).
-    pub fn defect_with(mut self, request: AttributeRequest) -> Option<(Location, InputErrorKind)> {
+    pub(crate) fn defect_with(
+        mut self,
+        request: AttributeRequest,
+    ) -> Option<(Location, InputErrorKind)> {
         if let Some(defect) = self.defect.take() {
             return Some(defect);
         }
@@ -87,12 +90,12 @@ impl Survey {
         None
     }
 
-    pub fn unknown_count(&self) -> u64 {
+    pub(crate) fn unknown_count(&self) -> u64 {
         self.unknown.values().sum()
     }
 
     /// One line for the user: how many statements were ignored, the first one, by keyword.
-    pub fn unknown_summary(&self) -> Option<String> {
+    pub(crate) fn unknown_summary(&self) -> Option<String> {
         let (line, offset) = self.first_unknown?;
         let by_keyword: Vec<String> = self
             .unknown
@@ -109,7 +112,7 @@ impl Survey {
 
 /// The file's counts of the elements faces refer to, from a first survey.
 #[derive(Clone, Copy, Debug)]
-pub struct Totals {
+pub(crate) struct Totals {
     pub vertices: u64,
     pub normals: u64,
 }
@@ -117,7 +120,7 @@ pub struct Totals {
 /// Reads `path` line by line. With `totals` (from a first survey), face vertex and normal
 /// indices beyond them are defects too; without it only statements that are wrong on their
 /// own are. Attribute values are checked only when `request` asks for them.
-pub fn survey(
+pub(crate) fn survey(
     path: &Path,
     totals: Option<Totals>,
     request: AttributeRequest,

@@ -3,7 +3,7 @@
 //! vertices index their normals and colours too (the paper's section 7 asks for exactly this:
 //! attributes stored compactly, per strip, beside the vertices).
 
-pub use crate::format::attribute_sections::StripAttributes;
+pub(crate) use crate::format::attribute_sections::StripAttributes;
 use crate::format::attributes::{
     angle_degrees, decode_normal, encode_normal, AttributeSet, NormalEncoding,
 };
