@@ -19,7 +19,7 @@ use reducem::geometry::Point;
 use reducem::input::{read_mesh, read_obj_with, weld_identical_positions, AttributeRequest};
 use reducem::mesh::Mesh;
 use reducem::stripify::{stripify, StripifyParams};
-use reducem::tools::gen::Kind;
+use reducem_gen::Kind;
 
 const CREASE_DEGREES: f32 = 30.0;
 
@@ -33,7 +33,7 @@ fn main() {
         .map_or(Kind::Cad, |k| k.parse().expect("gen kind"));
     let dir = std::env::temp_dir();
     let ply = dir.join(format!("attribute_weld_{}_{triangles}.ply", kind.name()));
-    reducem::tools::gen::generate(kind, triangles, 1, &ply).expect("generate");
+    reducem_gen::generate(kind, triangles, 1, &ply).expect("generate");
     let mesh = read_mesh(&ply).expect("read generated mesh");
     println!(
         "{} mesh: {} triangles, {} welded vertices",

@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release --example strip_stats -- <scan|terrain|grid|torus> <triangles> [threads]`
 //!
-//! `scan` and `terrain` are written once by `reducem::tools::gen` to the temp dir and read back; `grid`
+//! `scan` and `terrain` are written once by `reducem_gen` to the temp dir and read back; `grid`
 //! and `torus` are built in memory by the integration tests' builders. Peak memory is the
 //! process's high-water mark (`VmHWM`), printed before and after stripification so the part
 //! that stripification adds beyond the mesh can be read off (run it under `/usr/bin/time -v`
@@ -16,13 +16,13 @@ use std::time::Instant;
 
 use reducem::mesh::Mesh;
 use reducem::stripify::{stripify, StripifyParams};
-use reducem::tools::gen::Kind;
+use reducem_gen::Kind;
 
 fn generated(kind: Kind, triangles: u64) -> Mesh {
     let name = format!("{kind:?}").to_lowercase();
     let path = std::env::temp_dir().join(format!("strip_stats_{name}_{triangles}.ply"));
     if !path.exists() {
-        reducem::tools::gen::generate(kind, triangles, 1, &path).expect("generate mesh");
+        reducem_gen::generate(kind, triangles, 1, &path).expect("generate mesh");
     }
     reducem::input::read_mesh(&path).expect("read generated mesh")
 }

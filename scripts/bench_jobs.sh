@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Batch-job benchmark (not a test): the whole wall time of answering a ray file from a cold
 # start, `reducem query` on a converted model (open + trace + write) against Embree 3 on the
-# mesh (read the PLY + build + trace + write, `examples/embree_job.rs`), for jobs of 1, 1k, 1M
-# and 10M rays, and the ray count where the two take the same time. Needs libembree-dev and
+# mesh (read the PLY + build + trace + write, `bench/examples/embree_job.rs`), for jobs of 1, 1k,
+# 1M and 10M rays, and the ray count where the two take the same time. Needs libembree-dev and
 # root (to drop the page cache before each cold run: `echo 3 > /proc/sys/vm/drop_caches`).
 #
 #   scripts/bench_jobs.sh MODEL.ply MODEL.rdm RAYS        # RAYS: a ray file of at least 1M rays
@@ -21,7 +21,7 @@ mesh=$1 model=$2 rays=$3
 runs=${RUNS:-3}
 export RAYON_NUM_THREADS=${THREADS:-2}
 cargo build --release --bin reducem
-cargo build --release --features embree --example embree_job
+cargo build --release -p reducem-bench --features embree --example embree_job
 reducem=target/release/reducem
 embree=target/release/examples/embree_job
 work=$(mktemp -d /tmp/reducem-jobs.XXXXXX)

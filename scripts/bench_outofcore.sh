@@ -28,7 +28,8 @@ RUNS=${RUNS:-3}
 RAYS_DIR=${RAYS_DIR:-$(dirname "$MODEL")/rays-$(basename "$MODEL" .rdm)-ao$AO_SAMPLES}
 MIN_UNLOCKED_GIB=3
 
-cargo build --release --quiet --bin reducem --example bench_trace
+cargo build --release --quiet --bin reducem
+cargo build --release --quiet -p reducem-bench --example bench_trace
 REDUCEM=${REDUCEM:-target/release/reducem}
 WORK=$(mktemp -d)
 BALLOON_PID=""

@@ -23,7 +23,7 @@ dir=${BENCH_DIR:-/tmp/reducem-bench}
 work="$dir/quantized"
 mkdir -p "$work"
 cargo build --release --workspace --bins -q
-cargo build --release --example bench_trace -q
+cargo build --release -p reducem-bench --example bench_trace -q
 ply="$dir/scan-$triangles.ply"
 [ -f "$ply" ] || ./target/release/pipeline gen scan --triangles "$triangles" -o "$ply" 2>/dev/null
 

@@ -29,7 +29,7 @@ if [ -f /usr/include/embree3/rtcore.h ]; then
 else
     echo "libembree-dev not found (apt-get install -y libembree-dev): benchmarking without Embree"
 fi
-cargo build --release --example bench_trace "${features[@]}"
+cargo build --release -p reducem-bench --example bench_trace "${features[@]}"
 cargo build --release --bin reducem
 bench=target/release/examples/bench_trace
 reducem=target/release/reducem

@@ -2,20 +2,29 @@
 # The dependency rule of docs/ARCHITECTURE.md, checked: the read side (crate reducem-core) pulls
 # in no build-side or tool dependency and never names a build-side module, and the streaming
 # writer never names the build side either; instruction-set-specific code stays in the tracer's
-# kernels. The crate boundary already makes most violations
-# compile errors; this catches the rest (a new dependency, a path in a doc comment or a macro).
+# kernels. The tool crates sit above the library: neither reducem nor pipeline depends on
+# reducem-bench, and reducem-core on neither tool crate. The crate boundary already makes most
+# violations compile errors; this catches the rest (a new dependency, a path in a doc comment or
+# a macro).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 failed=0
 
-heavy='ply-rs|tobj|clap|zstd|indicatif|plotters|serde_json|toml|glam|png|embree|meshopt|reducem '
+heavy='ply-rs|tobj|clap|zstd|indicatif|plotters|serde_json|toml|glam|png|embree|meshopt|reducem |reducem-gen |reducem-bench '
 if cargo tree -p reducem-core -e normal --prefix none | grep -E "^($heavy)"; then
   echo "check_layering: reducem-core depends on the build side or a tool (above)" >&2
   failed=1
 fi
+# Dev-dependencies count too: a test of the library that needs the benchmarks belongs to them.
+for crate in reducem pipeline; do
+  if cargo tree -p "$crate" -e normal,dev --prefix none | grep -E '^reducem-bench '; then
+    echo "check_layering: $crate depends on reducem-bench (above)" >&2
+    failed=1
+  fi
+done
 
 build_side='(tools|conversion|build|strip_encoding|toplevel|input|stripify|chunking|quantize|mesh|gen|render|report|workload|baseline|inspect|decode)'
-if grep -rnE "(crate|reducem|super)::$build_side\b" core/src; then
+if grep -rnE "((crate|reducem|super)::$build_side|reducem_(gen|bench))\b" core/src; then
   echo "check_layering: the read side (core/src) names a build-side module (above)" >&2
   failed=1
 fi

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The measured trade-offs report (issue 5) in one command: builds `reducem` with the `report`
+# The measured trade-offs report (issue 5) in one command: builds `reducem-bench` with the `report`
 # feature (and `embree` when libembree-dev is installed, so that Embree is measured), then writes
 # report/REPORT.md with its tables, plots (report/plots/*.svg) and AO images.
 #
@@ -14,6 +14,6 @@ if [ -f /usr/include/embree3/rtcore.h ]; then
 else
   echo "report: libembree-dev not installed; Embree rows will say 'not measured'" >&2
 fi
-cargo build --release --features "$features" -q
-nice -n "${REPORT_NICE:-0}" ./target/release/reducem report --scale "$scale" --out report \
+cargo build --release -p reducem-bench --features "$features" -q
+nice -n "${REPORT_NICE:-0}" ./target/release/reducem-bench report --scale "$scale" --out report \
   --work "${REPORT_WORK:-target/report-work}"

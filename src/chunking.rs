@@ -216,10 +216,11 @@ impl MeshSource for Snapped {
     }
 }
 
-/// Merges vertices of the whole model within `tolerance` ([`tolerance_representatives`]), so
-/// that every chunk sees the same merged vertices. With a positive tolerance this holds every
-/// position in memory while the merge is computed (12 bytes per vertex) and keeps the map
-/// (4 bytes per vertex); a zero tolerance returns the source as it is. With attributes
+/// Merges vertices of the whole model within `tolerance` (the clustering of
+/// [`weld_within_tolerance`](crate::input::weld_within_tolerance)), so that every chunk sees the
+/// same merged vertices. With a positive tolerance this holds every position in memory while the
+/// merge is computed (12 bytes per vertex) and keeps the map (4 bytes per vertex); a zero
+/// tolerance returns the source as it is. With attributes
 /// (`request`), vertices move to their representative's position and keep their attributes
 /// ([`Snapped`]); without, triangles are remapped to the representatives, as before
 /// attributes existed, so such files stay byte-identical.
@@ -297,17 +298,17 @@ pub fn distribute(
 /// Morton bits per axis; 3 × 5 = 15 bits, so a cell number fits a u16.
 const BITS_PER_AXIS: u32 = 5;
 /// Number of cells of the grid.
-pub const CELL_COUNT: usize = 1 << (3 * BITS_PER_AXIS);
+const CELL_COUNT: usize = 1 << (3 * BITS_PER_AXIS);
 
 /// The Morton-ordered cell grid over a model's bounds.
 #[derive(Clone, Copy, Debug)]
-pub struct CellGrid {
+struct CellGrid {
     min: Point,
     scale: [f32; 3],
 }
 
 impl CellGrid {
-    pub fn new(bounds: &Aabb) -> CellGrid {
+    fn new(bounds: &Aabb) -> CellGrid {
         let cells = (1u32 << BITS_PER_AXIS) as f32;
         let scale = [0, 1, 2].map(|axis| {
             let extent = bounds.extent(axis);
@@ -324,7 +325,7 @@ impl CellGrid {
     }
 
     /// The Morton number of the cell containing `point`.
-    pub fn cell(&self, point: &Point) -> u16 {
+    fn cell(&self, point: &Point) -> u16 {
         let last = (1u32 << BITS_PER_AXIS) - 1;
         let coordinate = |axis: usize| {
             let offset = (point[axis] - self.min[axis]) * self.scale[axis];

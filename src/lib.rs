@@ -10,6 +10,10 @@
 //! [`format`](mod@format) (with [`format::reader`], which maps and validates a file), [`trace`],
 //! [`geometry`], [`strip_windows`], [`mapping`] and [`atomic`]; it depends on nothing from the
 //! build side.
+//!
+//! The tools around the algorithms live in crates of their own: `reducem-gen` (the synthetic
+//! meshes of `pipeline gen` and of the tests) and `reducem-bench` (the baseline BVH, the
+//! benchmark workloads, Embree and the trade-offs report).
 
 #![deny(unsafe_code)]
 
@@ -28,7 +32,6 @@ pub mod render;
 pub mod splitmix;
 pub mod strip_encoding;
 pub mod stripify;
-pub mod tools;
 pub mod toplevel;
 
 pub use reducem_core::{atomic, geometry, mapping, query, strip_windows, trace};

@@ -112,20 +112,6 @@ enum Command {
         #[command(flatten)]
         overrides: SceneOverrides,
     },
-    /// Measure the trade-offs report: OUT/REPORT.md with its tables, plots and images.
-    #[cfg(feature = "report")]
-    #[command(after_help = exit_code::HELP)]
-    Report {
-        /// Mesh and image sizes: tiny (seconds), medium (minutes), full (about 30 minutes).
-        #[arg(long, value_enum, default_value = "full")]
-        scale: reducem::tools::report::Scale,
-        /// Directory of the report (REPORT.md, plots, images).
-        #[arg(long, default_value = "report")]
-        out: PathBuf,
-        /// Generated meshes (kept between runs) and converted files.
-        #[arg(long, default_value = "target/report-work")]
-        work: PathBuf,
-    },
 }
 
 impl Command {
@@ -340,8 +326,6 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let scene = load_scene(&scene, &overrides)?;
             render(&file, &scene, &destination, format, json)
         }
-        #[cfg(feature = "report")]
-        Command::Report { scale, out, work } => report(scale, out, work),
     }
 }
 
@@ -356,22 +340,6 @@ fn image_format(output: &Path) -> Result<ImageFormat, UsageError> {
             output.display()
         ))),
     }
-}
-
-#[cfg(feature = "report")]
-fn report(
-    scale: reducem::tools::report::Scale,
-    out_dir: PathBuf,
-    work_dir: PathBuf,
-) -> anyhow::Result<()> {
-    let config = reducem::tools::report::ReportConfig {
-        scale,
-        out_dir,
-        work_dir,
-    };
-    let (_, written) = reducem::tools::report::run(&config)?;
-    println!("wrote {}", written.report.display());
-    Ok(())
 }
 
 fn query(

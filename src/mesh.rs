@@ -29,7 +29,7 @@ impl Mesh {
     /// The first coordinate that is not finite or lies beyond
     /// [`crate::geometry::MAX_COORDINATE`], as `(vertex, axis, value)`. The readers reject such
     /// inputs; meshes built in code are checked by [`crate::conversion::convert_mesh`].
-    pub fn out_of_range_coordinate(&self) -> Option<(usize, usize, f32)> {
+    pub(crate) fn out_of_range_coordinate(&self) -> Option<(usize, usize, f32)> {
         self.positions.iter().enumerate().find_map(|(vertex, p)| {
             (0..3)
                 .find(|&axis| {

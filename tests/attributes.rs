@@ -12,9 +12,9 @@ use reducem::format::attributes::{
 use reducem::format::reader::{ReducemFile, Validation};
 use reducem::geometry::{is_degenerate, Point};
 use reducem::mesh::Mesh;
-use reducem::tools::gen::{generate, Kind};
 use reducem::trace::ray_file::{trace_hits_as, HitFormat, FULL_HIT_BYTES, NO_FACE_ID};
 use reducem::trace::{hit_attributes, Ray, TraceOptions, Tracer};
+use reducem_gen::{generate, Kind};
 
 fn every_attribute(normals: NormalEncoding) -> AttributeSet {
     AttributeSet {

@@ -306,7 +306,7 @@ fn check_agreement(path: &std::path::Path, random: &mut SplitMix64, context: &st
 fn generated_file_streams_like_the_whole_file_reader() {
     let directory = tempfile::tempdir().unwrap();
     let path = directory.path().join("scan.ply");
-    reducem::tools::gen::generate(reducem::tools::gen::Kind::Scan, 20_000, 1, &path).unwrap();
+    reducem_gen::generate(reducem_gen::Kind::Scan, 20_000, 1, &path).unwrap();
     check_agreement(&path, &mut SplitMix64::new(3), "generated scan");
 }
 
@@ -603,7 +603,7 @@ fn stream_all(path: &std::path::Path, window_bytes: usize) -> (u64, u64, u64) {
 fn streaming_10m_triangles_keeps_resident_memory_near_the_window_size() {
     let directory = tempfile::tempdir().unwrap();
     let path = directory.path().join("scan-10m.ply");
-    reducem::tools::gen::generate(reducem::tools::gen::Kind::Scan, 10_000_000, 1, &path).unwrap();
+    reducem_gen::generate(reducem_gen::Kind::Scan, 10_000_000, 1, &path).unwrap();
     let file_bytes = std::fs::metadata(&path).unwrap().len();
     println!("file {:.0} MiB", file_bytes as f64 / MIB);
 

@@ -64,11 +64,11 @@ fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usiz
 }
 
 /// A generated mesh, through a PLY file of its own (tests run in parallel).
-fn generated(kind: reducem::tools::gen::Kind, triangles: u64) -> Mesh {
+fn generated(kind: reducem_gen::Kind, triangles: u64) -> Mesh {
     static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let path = temp_path(&format!("quantized-{kind:?}-{n}.ply"));
-    reducem::tools::gen::generate(kind, triangles, 2, &path).expect("generate");
+    reducem_gen::generate(kind, triangles, 2, &path).expect("generate");
     reducem::input::read_mesh(&path).expect("read")
 }
 
@@ -93,7 +93,7 @@ fn grid_files_decode_to_the_quantized_input_exactly() {
 
 #[test]
 fn generated_scan_round_trips_on_the_grid() {
-    let mesh = generated(reducem::tools::gen::Kind::Scan, 20_000);
+    let mesh = generated(reducem_gen::Kind::Scan, 20_000);
     for bits in [12, 20] {
         assert_grid_round_trip("scan", &mesh, bits, 2);
     }
@@ -108,7 +108,7 @@ fn half_ulp(x: f32) -> f32 {
 #[test]
 fn every_vertex_lies_within_half_a_cell_of_its_input() {
     let meshes = [
-        ("scan", generated(reducem::tools::gen::Kind::Scan, 6_000)),
+        ("scan", generated(reducem_gen::Kind::Scan, 6_000)),
         ("soup", soup(500, 9)),
         (
             "offset-sphere",
@@ -216,7 +216,7 @@ fn coarse_grids_drop_collapsed_triangles_and_keep_the_rest() {
 #[test]
 fn a_tolerance_weld_reconnects_a_perturbed_mesh_into_long_strips() {
     let mesh = grid(50, 40);
-    let perturbed = reducem::tools::gen::perturbed_copies(&mesh, 1e-5, 4);
+    let perturbed = reducem_gen::perturbed_copies(&mesh, 1e-5, 4);
     let apart = convert_on_grid(&perturbed, &BuildParams::default(), "perturbed.rdm");
     assert_eq!(file_stats(&apart).avg_strip_length, 1.0);
 
@@ -253,7 +253,7 @@ fn a_tolerance_weld_reconnects_a_perturbed_mesh_into_long_strips() {
 fn grid_node_boxes_hold_their_strips() {
     use reducem::format::reader::TopNodes;
     use reducem::format::{GridNode, NodeRecord, TopSlot};
-    let mesh = generated(reducem::tools::gen::Kind::Scan, 20_000);
+    let mesh = generated(reducem_gen::Kind::Scan, 20_000);
     for bits in [8, 24] {
         let file = convert_on_grid(&mesh, &grid_params(bits, 4), &format!("nodes-{bits}.rdm"));
         let TopNodes::Grid(nodes, grid) = file.top_nodes() else {
@@ -363,7 +363,7 @@ fn with_byte_references(bytes: &[u8], file: &ReducemFile) -> Vec<u8> {
 /// which is smaller.
 #[test]
 fn format_2_2_grid_files_with_byte_references_read_the_same() {
-    let mesh = generated(reducem::tools::gen::Kind::Scan, 20_000);
+    let mesh = generated(reducem_gen::Kind::Scan, 20_000);
     let path = temp_path("packed-references.rdm");
     convert_mesh(&mesh, &grid_params(20, 4), &path).expect("convert");
     let packed = std::fs::read(&path).expect("read back");

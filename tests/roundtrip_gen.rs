@@ -7,8 +7,8 @@ use common::{canonical_sorted, expected_triangles, temp_path};
 use reducem::conversion::{convert_mesh, encode_chunk, strip_bounds, BuildParams};
 use reducem::format::reader::ReducemFile;
 use reducem::input::read_mesh;
-use reducem::tools::gen::{generate, Kind};
 use reducem::{decode, strip_encoding, toplevel};
+use reducem_gen::{generate, Kind};
 
 fn round_trip(kind: Kind, triangles: u64, params: &BuildParams) {
     let name = format!("{kind:?}-{triangles}-{}", params.leaf_windows);

@@ -275,15 +275,15 @@ fn tmin_and_tmax_bound_the_hits() {
 }
 
 /// A mesh of every generator kind, read back through the input module.
-fn generated(kind: reducem::tools::gen::Kind, triangles: u64) -> Mesh {
+fn generated(kind: reducem_gen::Kind, triangles: u64) -> Mesh {
     let path = temp_path(&format!("gen-{kind:?}.ply"));
-    reducem::tools::gen::generate(kind, triangles, 3, &path).expect("generate");
+    reducem_gen::generate(kind, triangles, 3, &path).expect("generate");
     reducem::input::read_mesh(&path).expect("read generated mesh")
 }
 
 #[test]
 fn every_generator_kind_agrees_with_brute_force() {
-    use reducem::tools::gen::Kind;
+    use reducem_gen::Kind;
     for kind in Kind::ALL {
         let mesh = generated(kind, 1500);
         let path = temp_path(&format!("gen-{kind:?}.rdm"));

@@ -148,8 +148,7 @@ fn packets_match_single_rays_bit_for_bit() {
 #[test]
 fn rays_from_inside_the_generated_sphere_never_escape() {
     let path = temp_path("gen-sphere.ply");
-    reducem::tools::gen::generate(reducem::tools::gen::Kind::Sphere, 2000, 1, &path)
-        .expect("generate");
+    reducem_gen::generate(reducem_gen::Kind::Sphere, 2000, 1, &path).expect("generate");
     let sphere = reducem::input::read_mesh(&path).expect("read");
     check_sphere(&sphere, [0.0; 3], 1.0, "gen-sphere");
     let offset = transformed(&sphere, |x| x + 1e5);

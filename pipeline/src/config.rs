@@ -7,7 +7,7 @@ use serde::Deserialize;
 
 use reducem::format::attributes::AttributeSet;
 use reducem::format::attributes::NormalEncoding;
-use reducem::tools::gen::Kind;
+use reducem_gen::Kind;
 
 use crate::workdir::WorkDir;
 

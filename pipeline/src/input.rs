@@ -9,7 +9,7 @@ use std::time::UNIX_EPOCH;
 use anyhow::Context;
 use reducem::chunking::MeshSource;
 use reducem::input::AttributeRequest;
-use reducem::tools::gen::{self, GeneratedSource};
+use reducem_gen::{self as gen, GeneratedSource};
 
 use crate::config::Input;
 use crate::fingerprint::hash_file;

@@ -8,7 +8,7 @@ use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Parser, Subcommand};
 use pipeline::{config, convert, interrupt, outcome, progress, run, status};
 use reducem::exit_code as exit;
-use reducem::tools::gen;
+use reducem_gen as gen;
 
 /// mimalloc returns freed chunk memory to the system promptly; with glibc's per-thread arenas
 /// the resident set of a long run crept up chunk after chunk (6.3 GB peak over 76 chunks

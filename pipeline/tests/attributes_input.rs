@@ -149,7 +149,7 @@ fn chunks_without_attributes_asked_for_have_none() {
 fn an_input_without_the_attributes_asked_for_is_refused_before_any_work() {
     let dir = temp_dir("missing");
     let mesh = dir.join("plain.ply");
-    reducem::tools::gen::generate(reducem::tools::gen::Kind::Sphere, 500, 1, &mesh).unwrap();
+    reducem_gen::generate(reducem_gen::Kind::Sphere, 500, 1, &mesh).unwrap();
     let config = write_config(
         &dir,
         "[input]\npath = \"plain.ply\"\n",

@@ -127,8 +127,7 @@ fn gen_writes_the_requested_kind() {
 /// A small mesh at `dir/name`.
 fn small_mesh(dir: &Path, name: &str) -> PathBuf {
     let path = dir.join(name);
-    reducem::tools::gen::generate(reducem::tools::gen::Kind::Sphere, 500, 1, &path)
-        .expect("generate");
+    reducem_gen::generate(reducem_gen::Kind::Sphere, 500, 1, &path).expect("generate");
     path
 }
 
@@ -337,8 +336,7 @@ fn status_explains_staleness_in_words() {
         Some(0)
     );
 
-    reducem::tools::gen::generate(reducem::tools::gen::Kind::Sphere, 2000, 1, &mesh)
-        .expect("generate");
+    reducem_gen::generate(reducem_gen::Kind::Sphere, 2000, 1, &mesh).expect("generate");
     let bytes = std::fs::metadata(&mesh).unwrap().len();
     let text = status_in_words(&config);
     assert!(

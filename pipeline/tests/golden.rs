@@ -14,7 +14,7 @@ use std::process::Command;
 
 use reducem::conversion::{convert_mesh, BuildParams, PIPELINE_LEAF_WINDOWS};
 use reducem::input::read_mesh;
-use reducem::tools::gen::{generate, Kind};
+use reducem_gen::{generate, Kind};
 
 const TRIANGLES: u64 = 6_000;
 const CHUNK_TRIANGLES: u64 = 2_000;

@@ -30,8 +30,7 @@ fn run(args: &[&str]) -> Output {
 fn job(dir: &Path, extra: &str) -> PathBuf {
     let input = dir.join("input.ply");
     if !input.exists() {
-        reducem::tools::gen::generate(reducem::tools::gen::Kind::Scan, 60_000, 5, &input)
-            .expect("generate");
+        reducem_gen::generate(reducem_gen::Kind::Scan, 60_000, 5, &input).expect("generate");
     }
     let config = dir.join("job.toml");
     let body = format!(
@@ -441,7 +440,7 @@ fn perturbed_grid() -> reducem::mesh::Mesh {
                 .push([id(x, y), id(x + 1, y + 1), id(x, y + 1)]);
         }
     }
-    reducem::tools::gen::perturbed_copies(&mesh, 1e-5, 3)
+    reducem_gen::perturbed_copies(&mesh, 1e-5, 3)
 }
 
 #[test]

@@ -16,8 +16,7 @@ fn temp_dir(name: &str) -> PathBuf {
 fn job(dir: &Path, output: &str, work: &str) -> PathBuf {
     let input = dir.join("input.ply");
     if !input.exists() {
-        reducem::tools::gen::generate(reducem::tools::gen::Kind::Terrain, 50_000, 3, &input)
-            .expect("generate");
+        reducem_gen::generate(reducem_gen::Kind::Terrain, 50_000, 3, &input).expect("generate");
     }
     let config = dir.join(format!("{work}.toml"));
     let body = format!(

@@ -25,7 +25,7 @@ pub fn write_file(
 }
 
 /// Writes a chunk laid out by [`ChunkLayout::new`] as a ReduceM file at `path`.
-pub fn write_layout(
+pub(super) fn write_layout(
     path: &Path,
     info: &FileInfo,
     layout: &ChunkLayout,

@@ -2,8 +2,8 @@
 //!
 //! "One mesh chunk in memory → encoded strips with bounds". Converting a mesh that fits in
 //! memory is the one-chunk case: [`encode_chunk`], then [`ChunkLayout::new`] (the chunk's top
-//! level over the strip bounds and the strip-record [`layout`]), then [`write_layout`]. The
-//! pipeline's stages call the same functions per chunk.
+//! level over the strip bounds and the strip-record [`layout`]), then the file is written
+//! ([`convert_mesh`] does the three). The pipeline's stages call the same functions per chunk.
 
 mod in_memory;
 pub mod layout;
@@ -26,7 +26,8 @@ use crate::stripify::{stripify, Stripification, StripifyParams};
 use crate::toplevel::TopLevelParams;
 
 pub use crate::format::counts::ChunkStats;
-pub use in_memory::{write_file, write_layout};
+pub use in_memory::write_file;
+use in_memory::write_layout;
 pub use layout::ChunkLayout;
 
 /// Strip kd-tree leaf size the pipeline uses unless the config sets one; [`BuildParams`] keeps

@@ -29,14 +29,14 @@ pub type AttributeVisit<'v> = dyn FnMut(&StripAttributes) -> io::Result<()> + 'v
 /// Writes the attribute section `kind` of a file storing `set`; `strips` visits the strips'
 /// payloads in file order. The group indexes are computed from the same visits, so the
 /// sections they index must be written first (which [`AttributeSection::ALL`] order does).
-pub struct AttributeWriter {
+pub(crate) struct AttributeWriter {
     set: AttributeSet,
     face_id_groups: Vec<FaceIdGroup>,
     vertex_groups: Vec<u64>,
 }
 
 impl AttributeWriter {
-    pub fn new(set: AttributeSet) -> AttributeWriter {
+    pub(crate) fn new(set: AttributeSet) -> AttributeWriter {
         AttributeWriter {
             set,
             face_id_groups: Vec::new(),
@@ -44,7 +44,7 @@ impl AttributeWriter {
         }
     }
 
-    pub fn write(
+    pub(crate) fn write(
         &mut self,
         kind: AttributeSection,
         strips: &mut dyn FnMut(&mut AttributeVisit) -> io::Result<()>,

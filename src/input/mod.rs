@@ -11,7 +11,7 @@ mod error;
 mod obj;
 mod obj_survey;
 mod ply;
-pub mod stream;
+mod stream;
 mod tolerance_weld;
 mod weld;
 
@@ -22,8 +22,10 @@ pub use error::{InputError, InputErrorKind, Location};
 pub use obj::{read_obj, read_obj_with};
 pub use ply::PlyFile;
 pub use stream::PlyStream;
-pub use tolerance_weld::{tolerance_representatives, weld_within_tolerance};
-pub use weld::{weld_identical_positions, weld_identical_positions_kept};
+pub(crate) use tolerance_weld::tolerance_representatives;
+pub use tolerance_weld::weld_within_tolerance;
+pub use weld::weld_identical_positions;
+pub(crate) use weld::weld_identical_positions_kept;
 
 use crate::format::attributes::{AttributeSet, NormalEncoding};
 use crate::geometry::Point;

@@ -38,7 +38,7 @@ pub fn read_obj(path: &Path) -> Result<Mesh, InputError> {
 }
 
 /// Fails, naming the file and where, when it cannot give the attributes `request` asks for.
-pub fn check_attributes(path: &Path, request: AttributeRequest) -> Result<(), InputError> {
+pub(crate) fn check_attributes(path: &Path, request: AttributeRequest) -> Result<(), InputError> {
     let surveyed = survey(path, None, request).map_err(|error| {
         InputError::new(path, Location::File, InputErrorKind::Io(error.to_string()))
     })?;

@@ -20,7 +20,7 @@ const KNOWN: [&str; 12] = [
 
 /// What a pass over the file found.
 #[derive(Debug, Default)]
-pub struct Survey {
+pub(crate) struct Survey {
     /// `v` statements.
     pub vertices: u64,
     /// Statements of unknown keywords, by keyword.
@@ -40,7 +40,7 @@ pub struct Survey {
 }
 
 impl Survey {
-    pub fn totals(&self) -> Totals {
+    pub(crate) fn totals(&self) -> Totals {
         Totals {
             vertices: self.vertices,
             normals: self.normals,
@@ -50,7 +50,10 @@ impl Survey {
     /// The first defect, counting as defects what makes the attributes in `request` unusable:
     /// a file without any of them (reported at the file), or some faces or vertices without
     /// them while others have them (reported at the first such statement).
-    pub fn defect_with(mut self, request: AttributeRequest) -> Option<(Location, InputErrorKind)> {
+    pub(crate) fn defect_with(
+        mut self,
+        request: AttributeRequest,
+    ) -> Option<(Location, InputErrorKind)> {
         if let Some(defect) = self.defect.take() {
             return Some(defect);
         }
@@ -87,12 +90,12 @@ impl Survey {
         None
     }
 
-    pub fn unknown_count(&self) -> u64 {
+    pub(crate) fn unknown_count(&self) -> u64 {
         self.unknown.values().sum()
     }
 
     /// One line for the user: how many statements were ignored, the first one, by keyword.
-    pub fn unknown_summary(&self) -> Option<String> {
+    pub(crate) fn unknown_summary(&self) -> Option<String> {
         let (line, offset) = self.first_unknown?;
         let by_keyword: Vec<String> = self
             .unknown
@@ -109,7 +112,7 @@ impl Survey {
 
 /// The file's counts of the elements faces refer to, from a first survey.
 #[derive(Clone, Copy, Debug)]
-pub struct Totals {
+pub(crate) struct Totals {
     pub vertices: u64,
     pub normals: u64,
 }
@@ -117,7 +120,7 @@ pub struct Totals {
 /// Reads `path` line by line. With `totals` (from a first survey), face vertex and normal
 /// indices beyond them are defects too; without it only statements that are wrong on their
 /// own are. Attribute values are checked only when `request` asks for them.
-pub fn survey(
+pub(crate) fn survey(
     path: &Path,
     totals: Option<Totals>,
     request: AttributeRequest,
@@ -176,7 +179,7 @@ impl Survey {
         &mut self,
         counts: &Counts,
         keyword: &str,
-        fields: &[(usize, &str)],
+        fields: &[Field],
         place: Place,
         request: AttributeRequest,
     ) {
@@ -186,11 +189,11 @@ impl Survey {
                 self.first_vertex_without_color = Some(place.at("vertex", counts.vertices, 0));
             }
             "f" if request.normals && self.first_corner_without_normal.is_none() => {
-                let without_normal = fields.iter().find(|(_, corner)| {
-                    corner_indices(corner).is_some_and(|(_, _, normal)| normal.is_none())
+                let without_normal = fields.iter().find(|corner| {
+                    corner_indices(corner.token).is_some_and(|(_, _, normal)| normal.is_none())
                 });
-                if let Some(&(column, _)) = without_normal {
-                    let location = place.at("face", counts.faces, column);
+                if let Some(corner) = without_normal {
+                    let location = place.at("face", counts.faces, corner.column);
                     self.first_corner_without_normal = Some(location);
                 }
             }
@@ -199,13 +202,21 @@ impl Survey {
     }
 }
 
+/// A token of a statement and where it starts in its line, for the byte offset of a defect.
+#[derive(Clone, Copy)]
+struct Field<'a> {
+    column: usize,
+    token: &'a str,
+}
+
 /// The keyword and the fields of a statement, `None` for a blank line or a comment.
-fn statement(text: &str) -> Option<(&str, Vec<(usize, &str)>)> {
-    let mut tokens = text
-        .split_ascii_whitespace()
-        .map(|token| (token.as_ptr() as usize - text.as_ptr() as usize, token));
-    let (_, keyword) = tokens.next()?;
-    (!keyword.starts_with('#')).then(|| (keyword, tokens.collect()))
+fn statement(text: &str) -> Option<(&str, Vec<Field<'_>>)> {
+    let mut fields = text.split_ascii_whitespace().map(|token| Field {
+        column: token.as_ptr() as usize - text.as_ptr() as usize,
+        token,
+    });
+    let keyword = fields.next()?.token;
+    (!keyword.starts_with('#')).then(|| (keyword, fields.collect()))
 }
 
 /// Where a line starts.
@@ -250,7 +261,7 @@ impl Counts {
     fn check(
         &self,
         keyword: &str,
-        fields: &[(usize, &str)],
+        fields: &[Field],
         place: Place,
         text: &str,
         limits: Limits,
@@ -278,12 +289,12 @@ impl Counts {
     /// The first corner that is malformed or names no element.
     fn check_face(
         &self,
-        fields: &[(usize, &str)],
+        fields: &[Field],
         limits: Limits,
     ) -> Option<(Option<usize>, InputErrorKind)> {
-        for &(column, corner) in fields {
-            let defect = match corner_indices(corner) {
-                None => format!("malformed face corner '{corner}'"),
+        for corner in fields {
+            let defect = match corner_indices(corner.token) {
+                None => format!("malformed face corner '{}'", corner.token),
                 Some((vertex, texture, normal)) => {
                     let references = [
                         (
@@ -328,7 +339,7 @@ impl Counts {
                     }
                 }
             };
-            return Some((Some(column), InputErrorKind::Obj(defect)));
+            return Some((Some(corner.column), InputErrorKind::Obj(defect)));
         }
         None
     }
@@ -389,7 +400,7 @@ fn corner_indices(corner: &str) -> Option<(i64, Option<i64>, Option<i64>)> {
 
 /// `vn x y z`: three numbers, finite when normals are asked for.
 fn check_normal(
-    fields: &[(usize, &str)],
+    fields: &[Field],
     request: AttributeRequest,
 ) -> Option<(Option<usize>, InputErrorKind)> {
     if let Some(defect) = check_floats(fields, 3, "normal") {
@@ -401,7 +412,7 @@ fn check_normal(
     ['x', 'y', 'z']
         .iter()
         .zip(fields)
-        .find_map(|(&axis, &(column, token))| {
+        .find_map(|(&axis, &Field { column, token })| {
             let value: f32 = token.parse().ok()?;
             let kind = InputErrorKind::NonFiniteNormal {
                 axis,
@@ -412,11 +423,9 @@ fn check_normal(
 }
 
 /// The colour of `v x y z r g b`, each in 0..1, when colours are asked for.
-fn check_color(fields: &[(usize, &str)]) -> Option<(Option<usize>, InputErrorKind)> {
-    ["red", "green", "blue"]
-        .iter()
-        .zip(&fields[3..])
-        .find_map(|(&channel, &(column, token))| {
+fn check_color(fields: &[Field]) -> Option<(Option<usize>, InputErrorKind)> {
+    ["red", "green", "blue"].iter().zip(&fields[3..]).find_map(
+        |(&channel, &Field { column, token })| {
             let kind = match token.parse::<f64>() {
                 Err(_) => InputErrorKind::MalformedToken {
                     token: token.to_string(),
@@ -428,19 +437,20 @@ fn check_color(fields: &[(usize, &str)]) -> Option<(Option<usize>, InputErrorKin
                 Ok(_) => return None,
             };
             Some((Some(column), kind))
-        })
+        },
+    )
 }
 
 /// `v x y z [w | r g b]`: three coordinates in range, then nothing, a non-zero w or a colour
 /// (checked when colours are asked for).
 fn check_vertex(
-    fields: &[(usize, &str)],
+    fields: &[Field],
     request: AttributeRequest,
 ) -> Option<(Option<usize>, InputErrorKind)> {
     if let Some(defect) = check_floats(fields, 3, "vertex position") {
         return Some(defect);
     }
-    for (axis, &(column, token)) in ['x', 'y', 'z'].iter().zip(fields) {
+    for (axis, &Field { column, token }) in ['x', 'y', 'z'].iter().zip(fields) {
         let value: f32 = token.parse().ok()?;
         let kind = if !value.is_finite() {
             InputErrorKind::NonFiniteCoordinate {
@@ -461,10 +471,10 @@ fn check_vertex(
         3 => None,
         6 if request.colors => check_color(fields),
         6 => None,
-        4 if fields[3].1.parse::<f32>().is_ok_and(|w| w != 0.0) => None,
+        4 if fields[3].token.parse::<f32>().is_ok_and(|w| w != 0.0) => None,
         4 => Some((
-            Some(fields[3].0),
-            InputErrorKind::Obj(format!("w '{}' is zero or not a number", fields[3].1)),
+            Some(fields[3].column),
+            InputErrorKind::Obj(format!("w '{}' is zero or not a number", fields[3].token)),
         )),
         _ => Some((
             None,
@@ -478,7 +488,7 @@ fn check_vertex(
 
 /// The first `count` fields must be numbers.
 fn check_floats(
-    fields: &[(usize, &str)],
+    fields: &[Field],
     count: usize,
     what: &str,
 ) -> Option<(Option<usize>, InputErrorKind)> {
@@ -489,12 +499,12 @@ fn check_floats(
         ));
         return Some((None, kind));
     }
-    let (column, token) = fields[..count]
+    let field = fields[..count]
         .iter()
-        .find(|(_, t)| t.parse::<f32>().is_err())?;
+        .find(|field| field.token.parse::<f32>().is_err())?;
     let kind = InputErrorKind::MalformedToken {
-        token: token.to_string(),
+        token: field.token.to_string(),
         expected: "number",
     };
-    Some((Some(*column), kind))
+    Some((Some(field.column), kind))
 }

@@ -28,7 +28,10 @@ use crate::geometry::{distance, Point};
 use crate::mesh::Mesh;
 
 /// For every vertex, the kept vertex it merges into (itself when kept).
-pub fn tolerance_representatives(positions: &[Point], tolerance: f32) -> (Vec<u32>, WeldStats) {
+pub(crate) fn tolerance_representatives(
+    positions: &[Point],
+    tolerance: f32,
+) -> (Vec<u32>, WeldStats) {
     let mut stats = WeldStats {
         tolerance,
         ..WeldStats::default()

@@ -45,7 +45,7 @@ pub fn weld_identical_positions(mesh: Mesh) -> Mesh {
 
 /// [`weld_identical_positions`], and for each vertex of the result its index in `mesh` (so that
 /// data kept beside the positions can follow).
-pub fn weld_identical_positions_kept(mesh: Mesh) -> (Mesh, Vec<u32>) {
+pub(crate) fn weld_identical_positions_kept(mesh: Mesh) -> (Mesh, Vec<u32>) {
     let representative = if mesh.normals.is_none() && mesh.colors.is_none() {
         first_occurrences(&mesh)
     } else {

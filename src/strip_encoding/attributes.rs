@@ -3,7 +3,7 @@
 //! vertices index their normals and colours too (the paper's section 7 asks for exactly this:
 //! attributes stored compactly, per strip, beside the vertices).
 
-pub use crate::format::attribute_sections::StripAttributes;
+pub(crate) use crate::format::attribute_sections::StripAttributes;
 use crate::format::attributes::{
     angle_degrees, decode_normal, encode_normal, AttributeSet, NormalEncoding,
 };
@@ -11,10 +11,10 @@ use crate::mesh::Mesh;
 
 /// What to store, and where it comes from.
 #[derive(Clone, Copy, Debug)]
-pub struct AttributeSource<'a> {
+pub(crate) struct AttributeSource<'a> {
     /// The mesh the strips index (the quantized one for grid vertices).
-    pub mesh: &'a Mesh,
-    pub set: AttributeSet,
+    pub(crate) mesh: &'a Mesh,
+    pub(crate) set: AttributeSet,
 }
 
 impl AttributeSource<'_> {
@@ -26,7 +26,7 @@ impl AttributeSource<'_> {
     /// A mesh without normals or colours where they are asked for stores `+z` and opaque white:
     /// the pipeline refuses such inputs before converting, so this only serves meshes made in
     /// code.
-    pub fn of_strip(
+    pub(crate) fn of_strip(
         &self,
         references: &[u32],
         vertex_sources: &[u32],
@@ -97,6 +97,9 @@ impl AttributeSource<'_> {
 
 /// Splits a strip's per-triangle face ids as [`super::split_strip`] splits its references:
 /// the first half keeps the real windows before the cut.
-pub fn split_triangles<'t>(first_half: &[u32], triangles: &'t [u32]) -> (&'t [u32], &'t [u32]) {
+pub(crate) fn split_triangles<'t>(
+    first_half: &[u32],
+    triangles: &'t [u32],
+) -> (&'t [u32], &'t [u32]) {
     triangles.split_at(crate::strip_windows::triangles(first_half).count())
 }

@@ -13,7 +13,7 @@ use crate::geometry::{Aabb, Point};
 
 /// The box area of a strip whose references name `positions` (decoded, strip order, swaps
 /// included) and whose stored vertex 0 decodes to `anchor`; empty for a strip of one block.
-pub fn encode(positions: &[Point], anchor: Point) -> Vec<u8> {
+pub(crate) fn encode(positions: &[Point], anchor: Point) -> Vec<u8> {
     let windows = positions.len().saturating_sub(2);
     if !has_boxes(windows) {
         return Vec::new();

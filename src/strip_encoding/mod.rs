@@ -28,12 +28,12 @@
 //! Format 3.0 packs the references of lossless strips too and appends the strip's block boxes
 //! ([`crate::format::block_boxes`]); see there for what they cost and gain.
 
-pub mod attributes;
+pub(crate) mod attributes;
 mod block_boxes;
 
 use std::fmt;
 
-pub use attributes::{AttributeSource, StripAttributes};
+pub(crate) use attributes::{AttributeSource, StripAttributes};
 
 use crate::format::implicit_tree::{internal_nodes, is_leaf, split_point};
 use crate::format::reader::VertexLayout;
@@ -68,7 +68,7 @@ impl<'a> Positions<'a> {
 
 /// How far beyond its exact extreme a split bound may lie, as a fraction of the node's extent on
 /// the split axis, to use a vertex not stored yet instead of a copy.
-pub const MAX_LOOSENESS: f32 = 0.25;
+const MAX_LOOSENESS: f32 = 0.25;
 
 /// One encoded strip: its block (padded to 4 bytes) and what the top level needs to know.
 #[derive(Clone, Debug, PartialEq)]
@@ -203,7 +203,11 @@ impl<'a> StripLayout<'a> {
                 node_box,
             })
             .min_by(|a, b| {
-                let cost = |s: &NodeSplit| self.split_cost(s, (mid - lo, hi - mid));
+                let windows = SideWindows {
+                    left: mid - lo,
+                    right: hi - mid,
+                };
+                let cost = |s: &NodeSplit| self.split_cost(s, windows);
                 cost(a).total_cmp(&cost(b))
             })
             .unwrap_or_else(|| unreachable!("three axes"));
@@ -221,9 +225,9 @@ impl<'a> StripLayout<'a> {
         (left, right)
     }
 
-    fn split_cost(&self, split: &NodeSplit, (left_windows, right_windows): (usize, usize)) -> f64 {
+    fn split_cost(&self, split: &NodeSplit, windows: SideWindows) -> f64 {
         let (left, right) = self.child_boxes(split);
-        left.surface_area() * left_windows as f64 + right.surface_area() * right_windows as f64
+        left.surface_area() * windows.left as f64 + right.surface_area() * windows.right as f64
     }
 
     /// The exact extreme of `local[range]` on `axis` under `better` (lowest index among equals).
@@ -362,6 +366,13 @@ impl<'a> StripLayout<'a> {
             block,
         }
     }
+}
+
+/// How many windows a node's split puts in each child.
+#[derive(Clone, Copy)]
+struct SideWindows {
+    left: usize,
+    right: usize,
 }
 
 /// A node's split axis and the exact extremes of its children (left maximum, right minimum).

@@ -27,7 +27,7 @@ use crate::mesh::Mesh;
 pub const NO_NEIGHBOUR: u32 = u32::MAX;
 
 /// Largest number of kept triangles per call: edge slots (`triangle * 3 + edge`) are `u32`.
-pub const MAX_TRIANGLES: usize = (u32::MAX / 3) as usize;
+pub(crate) const MAX_TRIANGLES: usize = (u32::MAX / 3) as usize;
 
 /// Kept triangles and their edge neighbours.
 #[derive(Clone, Debug, Default)]
@@ -64,7 +64,7 @@ impl Adjacency {
     /// Index `i` of the edge `(v_i, v_{i+1})` of `triangle` shared with its neighbour `other`.
     /// Only the two triangles of a two-sided sliver share more than one edge; they form a
     /// component of their own, so the first match is as good as any.
-    pub fn edge_towards(&self, triangle: u32, other: u32) -> usize {
+    pub(crate) fn edge_towards(&self, triangle: u32, other: u32) -> usize {
         self.neighbours[triangle as usize]
             .iter()
             .position(|&n| n == other)
@@ -73,8 +73,9 @@ impl Adjacency {
 
     /// The turn of a path that enters `triangle` from `from` and leaves toward `to`: the exit
     /// edge index minus the entry edge index, mod 3, in the triangle's input winding. It is
-    /// [`TURN_TO_NEXT_EDGE`] or [`TURN_TO_PREVIOUS_EDGE`]; reversing the path swaps the two.
-    pub fn turn(&self, from: u32, triangle: u32, to: u32) -> u8 {
+    /// [`TURN_TO_NEXT_EDGE`] or 2 (through the edge before the entry edge); reversing the path
+    /// swaps the two.
+    pub(crate) fn turn(&self, from: u32, triangle: u32, to: u32) -> u8 {
         let entry = self.edge_towards(triangle, from);
         let exit = self.edge_towards(triangle, to);
         ((exit + 3 - entry) % 3) as u8
@@ -82,9 +83,7 @@ impl Adjacency {
 }
 
 /// A turn that leaves through the edge after the entry edge in input winding.
-pub const TURN_TO_NEXT_EDGE: u8 = 1;
-/// A turn that leaves through the edge before the entry edge in input winding.
-pub const TURN_TO_PREVIOUS_EDGE: u8 = 2;
+pub(crate) const TURN_TO_NEXT_EDGE: u8 = 1;
 
 fn kept_triangles(mesh: &Mesh) -> Vec<u32> {
     mesh.triangles

@@ -57,11 +57,11 @@ use super::adjacency::{Adjacency, NO_NEIGHBOUR};
 use super::partition::TriangleTree;
 
 /// Marks an unused path link slot.
-pub const NO_LINK: u32 = u32::MAX;
+pub(crate) const NO_LINK: u32 = u32::MAX;
 
 /// The sequences found by the ordering step, as paths over local triangles.
 #[derive(Clone, Debug, Default)]
-pub struct Paths {
+pub(crate) struct Paths {
     /// Up to two path neighbours per triangle, [`NO_LINK`] for unused slots.
     pub links: Vec<[u32; 2]>,
     /// For a path end, the triangle at the path's other end (itself for a single triangle).
@@ -70,7 +70,7 @@ pub struct Paths {
 }
 
 impl Paths {
-    pub fn is_end(&self, triangle: u32) -> bool {
+    pub(crate) fn is_end(&self, triangle: u32) -> bool {
         self.links[triangle as usize][1] == NO_LINK
     }
 }
@@ -132,7 +132,7 @@ struct Sequences<'a> {
 }
 
 /// Greedily merges all triangles into sequences of at most `max_length` (at least 1) triangles.
-pub fn order(adjacency: &Adjacency, hierarchy: &TriangleTree, max_length: usize) -> Paths {
+pub(crate) fn order(adjacency: &Adjacency, hierarchy: &TriangleTree, max_length: usize) -> Paths {
     let mut sequences = Sequences::new(adjacency, hierarchy, max_length);
     // Ascending, which `retain` preserves; candidate collection relies on it.
     let mut active: Vec<u32> = (0..adjacency.kept.len() as u32).collect();

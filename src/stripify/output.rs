@@ -38,13 +38,13 @@ use super::ordering::{Paths, NO_LINK};
 use crate::mesh::Mesh;
 
 /// One strip as mesh vertex indices, with the mesh triangle of each real window.
-pub struct OutputStrip {
+pub(crate) struct OutputStrip {
     pub references: Vec<u32>,
     pub triangles: Vec<u32>,
 }
 
 /// Converts every path (of at most `max_length` triangles) into a strip of mesh vertex indices.
-pub fn strips(
+pub(crate) fn strips(
     mesh: &Mesh,
     adjacency: &Adjacency,
     paths: &Paths,

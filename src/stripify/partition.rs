@@ -36,7 +36,7 @@ use crate::geometry::Aabb;
 use crate::mesh::Mesh;
 
 /// Marks the root's missing parent.
-pub const NO_NODE: u32 = u32::MAX;
+pub(crate) const NO_NODE: u32 = u32::MAX;
 
 /// Depth from which SAH is no longer trusted to make progress; see the module docs.
 pub const MAX_SAH_DEPTH: u32 = 64;
@@ -47,7 +47,7 @@ const PARALLEL_MIN_TRIANGLES: usize = 16 * 1024;
 
 /// Parent and depth of one hierarchy node.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct NodeLinks {
+struct NodeLinks {
     pub parent: u32,
     pub depth: u32,
 }
@@ -153,21 +153,21 @@ impl TriangleTree {
         self.nodes.len()
     }
 
-    pub fn leaf_of(&self, triangle: u32) -> u32 {
+    pub(crate) fn leaf_of(&self, triangle: u32) -> u32 {
         self.leaf_of_triangle[triangle as usize]
     }
 
-    pub fn parent(&self, node: u32) -> u32 {
+    pub(crate) fn parent(&self, node: u32) -> u32 {
         self.nodes[node as usize].parent
     }
 
-    pub fn depth(&self, node: u32) -> u32 {
+    pub(crate) fn depth(&self, node: u32) -> u32 {
         self.nodes[node as usize].depth
     }
 
     /// Deepest node that is an ancestor of (or equal to) both `a` and `b`. Walks parent links,
     /// so it costs the depth of the two nodes below their common ancestor.
-    pub fn lowest_common_ancestor(&self, mut a: u32, mut b: u32) -> u32 {
+    pub(crate) fn lowest_common_ancestor(&self, mut a: u32, mut b: u32) -> u32 {
         while self.depth(a) > self.depth(b) {
             a = self.parent(a);
         }

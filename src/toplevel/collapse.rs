@@ -29,6 +29,13 @@ impl Frontier {
     }
 }
 
+/// The slots of a wide node with the least total surface area found for them.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct CostedFrontier {
+    pub(super) cost: f64,
+    pub(super) frontier: Frontier,
+}
+
 /// How the binary tree is cut into wide nodes: for each binary internal node, the least total
 /// surface area of the wide nodes under it when it roots one (the SAH's expected number of node
 /// visits, up to a constant), computed bottom-up.
@@ -47,7 +54,7 @@ impl Collapse<'_> {
         for index in (0..tree.len()).rev() {
             if let BinaryKind::Internal { .. } = tree[index].kind {
                 collapse.cost[index] =
-                    tree[index].bounds.surface_area() + collapse.frontier(index).0;
+                    tree[index].bounds.surface_area() + collapse.frontier(index).cost;
             }
         }
         collapse
@@ -56,7 +63,7 @@ impl Collapse<'_> {
     /// The slots of the wide node rooted at binary node `index` with their cost: its two
     /// children, with internal ones opened (up to [`TOP_WIDTH`] slots) wherever that lowers the
     /// total. A binary leaf (only ever the root) stands alone.
-    pub(super) fn frontier(&self, index: usize) -> (f64, Frontier) {
+    pub(super) fn frontier(&self, index: usize) -> CostedFrontier {
         let start = match self.tree[index].kind {
             BinaryKind::Internal { left, right } => Frontier {
                 nodes: [left, right, 0, 0],
@@ -67,17 +74,20 @@ impl Collapse<'_> {
                 len: 1,
             },
         };
-        let mut best = (f64::INFINITY, start);
+        let mut best = CostedFrontier {
+            cost: f64::INFINITY,
+            frontier: start,
+        };
         self.cheapest(start, &mut best);
         best
     }
 
     /// Tries `frontier` and every way of opening more of its internal slots.
-    fn cheapest(&self, frontier: Frontier, best: &mut (f64, Frontier)) {
+    fn cheapest(&self, frontier: Frontier, best: &mut CostedFrontier) {
         let cost: f64 = frontier.slots().iter().map(|&c| self.cost[c]).sum();
         // Strictly lower only: of equal totals the one found first, with fewer slots opened.
-        if cost < best.0 {
-            *best = (cost, frontier);
+        if cost < best.cost {
+            *best = CostedFrontier { cost, frontier };
         }
         if frontier.len == TOP_WIDTH {
             return;

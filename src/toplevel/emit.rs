@@ -20,7 +20,7 @@ pub(super) fn emit(collapse: &Collapse, index: usize, out: &mut impl WideOut) ->
     let tree = collapse.tree;
     let (file_index, handle) = out.open();
     let mut node = TopNode::EMPTY;
-    for (slot, &child) in collapse.frontier(index).1.slots().iter().enumerate() {
+    for (slot, &child) in collapse.frontier(index).frontier.slots().iter().enumerate() {
         let (link, kind) = match tree[child].kind {
             BinaryKind::Leaf { first, count } => out.leaf(first, count),
             BinaryKind::Internal { .. } => (emit(collapse, child, out), INTERNAL_CHILD),

@@ -12,7 +12,7 @@ use super::header::Scalar;
 use super::values::{Defect, ValueReader};
 use crate::input::error::InputErrorKind;
 
-pub struct AsciiReader<'a> {
+pub(crate) struct AsciiReader<'a> {
     bytes: &'a [u8],
     position: usize,
     line: u64,
@@ -20,7 +20,7 @@ pub struct AsciiReader<'a> {
 }
 
 impl<'a> AsciiReader<'a> {
-    pub fn new(bytes: &'a [u8], position: usize, line: u64) -> AsciiReader<'a> {
+    pub(crate) fn new(bytes: &'a [u8], position: usize, line: u64) -> AsciiReader<'a> {
         AsciiReader {
             bytes,
             position,
@@ -29,11 +29,11 @@ impl<'a> AsciiReader<'a> {
         }
     }
 
-    pub fn position(&self) -> usize {
+    pub(crate) fn position(&self) -> usize {
         self.position
     }
 
-    pub fn line(&self) -> u64 {
+    pub(crate) fn line(&self) -> u64 {
         self.line
     }
 

@@ -11,7 +11,7 @@ use super::header::{Endian, Scalar};
 use super::values::{Defect, ValueReader};
 use crate::input::error::InputErrorKind;
 
-pub struct BinaryReader<'a> {
+pub(crate) struct BinaryReader<'a> {
     bytes: &'a [u8],
     origin: u64,
     position: usize,
@@ -20,7 +20,7 @@ pub struct BinaryReader<'a> {
 }
 
 impl<'a> BinaryReader<'a> {
-    pub fn new(bytes: &'a [u8], position: usize, endian: Endian) -> BinaryReader<'a> {
+    pub(crate) fn new(bytes: &'a [u8], position: usize, endian: Endian) -> BinaryReader<'a> {
         BinaryReader {
             bytes,
             origin: 0,
@@ -31,17 +31,17 @@ impl<'a> BinaryReader<'a> {
     }
 
     /// Declares that `bytes[0]` is at file offset `origin`, for readers over a window.
-    pub fn with_origin(self, origin: u64) -> BinaryReader<'a> {
+    pub(crate) fn with_origin(self, origin: u64) -> BinaryReader<'a> {
         BinaryReader { origin, ..self }
     }
 
     /// Position in the slice (not in the file).
-    pub fn position(&self) -> usize {
+    pub(crate) fn position(&self) -> usize {
         self.position
     }
 
     /// Skips `length` bytes, failing if fewer remain.
-    pub fn skip_bytes(&mut self, length: u64) -> Result<(), Defect> {
+    pub(crate) fn skip_bytes(&mut self, length: u64) -> Result<(), Defect> {
         let remaining = self.bytes.len().saturating_sub(self.position) as u64;
         if length > remaining {
             return Err(self.truncated(length - remaining));

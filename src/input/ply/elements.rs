@@ -18,7 +18,7 @@ const AXIS_LETTERS: [char; 3] = ['x', 'y', 'z'];
 /// One vertex as read: its position and, when asked for, its normal and colour (opaque
 /// black and a zero normal when not).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VertexValues {
+pub(crate) struct VertexValues {
     pub position: Point,
     pub normal: [f32; 3],
     pub color: [u8; 4],
@@ -26,9 +26,9 @@ pub struct VertexValues {
 
 /// The colour of a vertex without one in the file, or before its channels are read: alpha is
 /// opaque when the file has no `alpha`.
-pub const DEFAULT_COLOR: [u8; 4] = [0, 0, 0, 255];
+pub(crate) const DEFAULT_COLOR: [u8; 4] = [0, 0, 0, 255];
 
-pub fn read_vertex<R: ValueReader>(
+pub(crate) fn read_vertex<R: ValueReader>(
     reader: &mut R,
     layout: &VertexLayout,
     request: AttributeRequest,
@@ -58,7 +58,7 @@ pub fn read_vertex<R: ValueReader>(
 
 /// Reads a normal component (float or double) and narrows it to f32, rejecting NaN and
 /// infinities (also doubles beyond the f32 range, which would become infinities).
-pub fn read_normal_component<R: ValueReader>(
+pub(crate) fn read_normal_component<R: ValueReader>(
     reader: &mut R,
     axis: usize,
     scalar: Scalar,
@@ -77,7 +77,7 @@ pub fn read_normal_component<R: ValueReader>(
 
 /// Reads a colour channel: uchar as it is, float or double in 0..1 scaled to 0..255 and
 /// rounded to the nearest.
-pub fn read_color_channel<R: ValueReader>(
+pub(crate) fn read_color_channel<R: ValueReader>(
     reader: &mut R,
     channel: usize,
     scalar: Scalar,
@@ -97,7 +97,7 @@ pub fn read_color_channel<R: ValueReader>(
 }
 
 /// A colour component in 0..1 as 0..255, rounded to the nearest; `None` outside 0..1 or NaN.
-pub fn unit_to_u8(value: f64) -> Option<u8> {
+pub(crate) fn unit_to_u8(value: f64) -> Option<u8> {
     (0.0..=1.0)
         .contains(&value)
         .then(|| (value * 255.0).round() as u8)
@@ -106,7 +106,7 @@ pub fn unit_to_u8(value: f64) -> Option<u8> {
 /// Converts a coordinate to f32, rejecting NaN, infinities and magnitudes beyond
 /// [`crate::geometry::MAX_COORDINATE`] (which the tracer's single-precision arithmetic cannot
 /// take, and which doubles would otherwise turn into silent infinities).
-pub fn narrow_coordinate<R: ValueReader>(
+pub(crate) fn narrow_coordinate<R: ValueReader>(
     reader: &R,
     axis: usize,
     value: f64,
@@ -131,7 +131,7 @@ pub fn narrow_coordinate<R: ValueReader>(
 }
 
 /// Reads one face and emits its fan triangles.
-pub fn read_face<R: ValueReader>(
+pub(crate) fn read_face<R: ValueReader>(
     reader: &mut R,
     layout: &FaceLayout,
     vertex_count: u64,
@@ -154,7 +154,7 @@ pub fn read_face<R: ValueReader>(
 
 /// Reads an index and checks it against the vertex count, which the caller guarantees is at
 /// most 2^32 so that every in-range index fits in u32.
-pub fn read_vertex_index<R: ValueReader>(
+pub(crate) fn read_vertex_index<R: ValueReader>(
     reader: &mut R,
     scalar: Scalar,
     vertex_count: u64,
@@ -171,7 +171,7 @@ pub fn read_vertex_index<R: ValueReader>(
     }
 }
 
-pub fn skip_properties<R: ValueReader>(
+pub(crate) fn skip_properties<R: ValueReader>(
     reader: &mut R,
     properties: &[Property],
 ) -> Result<(), Defect> {

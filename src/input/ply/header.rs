@@ -19,20 +19,20 @@ use crate::input::error::{InputError, InputErrorKind, Location};
 use crate::input::AttributeRequest;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Endian {
+pub(crate) enum Endian {
     Little,
     Big,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BodyEncoding {
+pub(crate) enum BodyEncoding {
     Ascii,
     Binary(Endian),
 }
 
 /// A PLY scalar type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Scalar {
+pub(crate) enum Scalar {
     I8,
     U8,
     I16,
@@ -57,7 +57,7 @@ impl Scalar {
         }
     }
 
-    pub fn size(self) -> usize {
+    pub(crate) fn size(self) -> usize {
         match self {
             Scalar::I8 | Scalar::U8 => 1,
             Scalar::I16 | Scalar::U16 => 2,
@@ -66,13 +66,13 @@ impl Scalar {
         }
     }
 
-    pub fn is_integer(self) -> bool {
+    pub(crate) fn is_integer(self) -> bool {
         !matches!(self, Scalar::F32 | Scalar::F64)
     }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Property {
+pub(crate) enum Property {
     Scalar(Scalar),
     List { count: Scalar, item: Scalar },
 }
@@ -88,7 +88,7 @@ impl Property {
 
 /// One `element` declaration with its properties in file order.
 #[derive(Clone, Debug)]
-pub struct Element {
+pub(crate) struct Element {
     pub name: String,
     pub count: u64,
     pub properties: Vec<Property>,
@@ -96,7 +96,7 @@ pub struct Element {
 
 impl Element {
     /// Size of one binary instance when it has no lists.
-    pub fn fixed_size(&self) -> Option<usize> {
+    pub(crate) fn fixed_size(&self) -> Option<usize> {
         self.properties
             .iter()
             .map(|property| match property {
@@ -108,7 +108,7 @@ impl Element {
 
     /// The fewest bytes one instance can occupy: lists empty in binary, and in ASCII one
     /// character per token (deliberately generous so that no valid file is rejected).
-    pub fn min_size(&self, encoding: BodyEncoding) -> u64 {
+    pub(crate) fn min_size(&self, encoding: BodyEncoding) -> u64 {
         match encoding {
             BodyEncoding::Binary(_) => self.properties.iter().map(|p| p.binary_min_size()).sum(),
             BodyEncoding::Ascii => self.properties.len() as u64,
@@ -119,7 +119,7 @@ impl Element {
 /// What to do with one vertex property. Normals and colours are read only when asked for
 /// and skipped otherwise.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum VertexRole {
+pub(crate) enum VertexRole {
     Coordinate {
         axis: usize,
         scalar: Scalar,
@@ -139,7 +139,7 @@ pub enum VertexRole {
 
 impl VertexRole {
     /// The property as stored, for skipping it.
-    pub fn property(self) -> Property {
+    pub(crate) fn property(self) -> Property {
         match self {
             VertexRole::Coordinate { scalar, .. }
             | VertexRole::Normal { scalar, .. }
@@ -163,12 +163,12 @@ fn lacking(types: &str, names: &[&str]) -> Box<str> {
     .into()
 }
 
-pub const NORMAL_NAMES: [&str; 3] = ["nx", "ny", "nz"];
-pub const COLOR_NAMES: [&str; 4] = ["red", "green", "blue", "alpha"];
+pub(crate) const NORMAL_NAMES: [&str; 3] = ["nx", "ny", "nz"];
+pub(crate) const COLOR_NAMES: [&str; 4] = ["red", "green", "blue", "alpha"];
 
 /// The vertex element and the role of each of its properties, in file order.
 #[derive(Clone, Debug)]
-pub struct VertexLayout {
+pub(crate) struct VertexLayout {
     pub element: usize,
     pub roles: Vec<VertexRole>,
 }
@@ -176,7 +176,7 @@ pub struct VertexLayout {
 impl VertexLayout {
     /// Why the vertices cannot give what `request` asks for, if they cannot: the first
     /// attribute asked for and missing, and which properties it lacks.
-    pub fn missing(&self, request: AttributeRequest) -> Option<InputErrorKind> {
+    pub(crate) fn missing(&self, request: AttributeRequest) -> Option<InputErrorKind> {
         let has_normal = |axis| {
             self.roles
                 .iter()
@@ -214,7 +214,7 @@ impl VertexLayout {
 /// The face element split around its index list: properties before it and after it are
 /// skipped.
 #[derive(Clone, Debug)]
-pub struct FaceLayout {
+pub(crate) struct FaceLayout {
     pub element: usize,
     pub before: Vec<Property>,
     pub length: Scalar,
@@ -223,7 +223,7 @@ pub struct FaceLayout {
 }
 
 #[derive(Clone, Debug)]
-pub struct Header {
+pub(crate) struct Header {
     pub encoding: BodyEncoding,
     pub elements: Vec<Element>,
     pub body_start: usize,
@@ -237,7 +237,7 @@ impl Header {
     /// The fewest bytes one instance of element `position` can occupy. A face needs at least
     /// three indices to be valid, so counting them keeps a lying face count from reserving
     /// more triangles than the file could describe.
-    pub fn min_instance_size(&self, position: usize) -> u64 {
+    pub(crate) fn min_instance_size(&self, position: usize) -> u64 {
         let element = &self.elements[position];
         let generic = element.min_size(self.encoding);
         if position != self.face.element {
@@ -254,7 +254,7 @@ impl Header {
 const AXIS_NAMES: [&str; 3] = ["x", "y", "z"];
 const FACE_LIST_NAMES: [&str; 2] = ["vertex_indices", "vertex_index"];
 
-pub fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, InputError> {
+pub(crate) fn parse_header(path: &Path, bytes: &[u8]) -> Result<Header, InputError> {
     if !starts_with_magic(bytes) {
         return Err(InputError::new(
             path,

@@ -34,7 +34,7 @@ const BLOCK: usize = 1 << 16;
 
 /// A binary element of `count` fixed-size instances starting at `start` in `bytes`, with the
 /// whole extent already known to lie inside `bytes`.
-pub struct FixedStrideElement<'a> {
+pub(crate) struct FixedStrideElement<'a> {
     pub path: &'a Path,
     pub name: &'a str,
     pub bytes: &'a [u8],
@@ -59,7 +59,7 @@ impl FixedStrideElement<'_> {
 
 /// Offset within a vertex and type of x, y and z, of the normal and colour components the
 /// file has, plus the vertex size, when it is fixed.
-pub struct FixedVertex {
+pub(crate) struct FixedVertex {
     stride: usize,
     coordinates: [(usize, Scalar); 3],
     normal: [Option<(usize, Scalar)>; 3],
@@ -67,7 +67,7 @@ pub struct FixedVertex {
 }
 
 impl FixedVertex {
-    pub fn from_layout(layout: &VertexLayout) -> Option<FixedVertex> {
+    pub(crate) fn from_layout(layout: &VertexLayout) -> Option<FixedVertex> {
         let mut vertex = FixedVertex {
             stride: 0,
             coordinates: [(0, Scalar::F32); 3],
@@ -94,14 +94,17 @@ impl FixedVertex {
         Some(vertex)
     }
 
-    pub fn stride(&self) -> usize {
+    pub(crate) fn stride(&self) -> usize {
         self.stride
     }
 }
 
 /// Decodes every instance of `element` with `decode(element, index)`, in parallel blocks; the
 /// first defect in element order wins.
-pub fn decode_all<T, F>(element: &FixedStrideElement, decode: F) -> Result<Vec<T>, InputError>
+pub(crate) fn decode_all<T, F>(
+    element: &FixedStrideElement,
+    decode: F,
+) -> Result<Vec<T>, InputError>
 where
     T: Clone + Default + Send,
     F: Fn(&FixedStrideElement, usize) -> Result<T, InputError> + Sync,
@@ -122,7 +125,7 @@ where
     Ok(values)
 }
 
-pub fn read_positions(
+pub(crate) fn read_positions(
     element: &FixedStrideElement,
     vertex: &FixedVertex,
 ) -> Result<Vec<Point>, InputError> {
@@ -132,7 +135,7 @@ pub fn read_positions(
 }
 
 /// Decodes instance `index` (counted from `element.start`, which must be below `element.count`).
-pub fn decode_vertex(
+pub(crate) fn decode_vertex(
     element: &FixedStrideElement,
     vertex: &FixedVertex,
     index: usize,
@@ -150,7 +153,7 @@ pub fn decode_vertex(
 }
 
 /// The normal of instance `index`; the caller checked that the file has all three components.
-pub fn decode_normal(
+pub(crate) fn decode_normal(
     element: &FixedStrideElement,
     vertex: &FixedVertex,
     index: usize,
@@ -169,7 +172,7 @@ pub fn decode_normal(
 }
 
 /// The colour of instance `index`, alpha opaque when the file has none.
-pub fn decode_color(
+pub(crate) fn decode_color(
     element: &FixedStrideElement,
     vertex: &FixedVertex,
     index: usize,
@@ -188,7 +191,7 @@ pub fn decode_color(
 }
 
 /// Face layout under the all-triangles assumption.
-pub struct TriangleFaces {
+pub(crate) struct TriangleFaces {
     length_offset: usize,
     length: Scalar,
     index: Scalar,
@@ -196,7 +199,7 @@ pub struct TriangleFaces {
 }
 
 impl TriangleFaces {
-    pub fn from_layout(layout: &FaceLayout) -> Option<TriangleFaces> {
+    pub(crate) fn from_layout(layout: &FaceLayout) -> Option<TriangleFaces> {
         let before = fixed_size(&layout.before)?;
         let after = fixed_size(&layout.after)?;
         Some(TriangleFaces {
@@ -207,7 +210,7 @@ impl TriangleFaces {
         })
     }
 
-    pub fn stride(&self) -> usize {
+    pub(crate) fn stride(&self) -> usize {
         self.stride
     }
 }
@@ -229,7 +232,7 @@ enum BlockOutcome {
 }
 
 /// Decodes all faces as triangles; `None` when some face is not a triangle.
-pub fn read_triangles(
+pub(crate) fn read_triangles(
     element: &FixedStrideElement,
     faces: &TriangleFaces,
     vertex_count: u64,

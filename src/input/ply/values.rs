@@ -13,14 +13,14 @@ use crate::input::error::{InputError, InputErrorKind, Location};
 
 /// A defect at a byte position, not yet attributed to an element.
 #[derive(Debug)]
-pub struct Defect {
+pub(crate) struct Defect {
     pub kind: InputErrorKind,
     pub byte_offset: u64,
     pub line: Option<u64>,
 }
 
 impl Defect {
-    pub fn at_element(self, path: &Path, element: &str, index: u64) -> InputError {
+    pub(crate) fn at_element(self, path: &Path, element: &str, index: u64) -> InputError {
         let location = Location::Element {
             element: element.to_string(),
             index,
@@ -32,7 +32,7 @@ impl Defect {
 }
 
 /// Sequential access to the values of a PLY body.
-pub trait ValueReader {
+pub(crate) trait ValueReader {
     /// A defect located at the start of the value read last.
     fn defect_at_last_value(&self, kind: InputErrorKind) -> Defect;
     fn read_integer(&mut self, scalar: Scalar) -> Result<i64, Defect>;
