@@ -123,8 +123,6 @@ impl Command {
             | Command::Query { file, .. }
             | Command::Render { file, .. } => Some(file),
             Command::Closest(args) => Some(&args.file),
-            #[cfg(feature = "report")]
-            Command::Report { .. } => None,
         }
     }
 }

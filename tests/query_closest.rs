@@ -17,7 +17,7 @@ use reducem::geometry::Point;
 use reducem::input::read_mesh;
 use reducem::mesh::Mesh;
 use reducem::query::{closest_points, ClosestPoint, FaceIds};
-use reducem::tools::gen::{generate, Kind};
+use reducem_gen::{generate, Kind};
 
 type Vector = [f64; 3];
 
