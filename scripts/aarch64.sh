@@ -18,12 +18,16 @@ export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="qemu-aarch64 -L /usr/aarch
 export CC_aarch64_unknown_linux_gnu=aarch64-linux-gnu-gcc
 arm() { qemu-aarch64 -L /usr/aarch64-linux-gnu "$@"; }
 
-cargo test -p reducem-core --target "$target"
+# The truncated-mapping test runs itself again as a child process, which qemu-user cannot start
+# without binfmt_misc (a machine-wide setting); x86-64 runs it.
+cargo test -p reducem-core --target "$target" -- \
+  --skip a_read_beyond_a_truncated_mapping_exits_74_naming_the_file
 
 cargo build -p reducem -p pipeline --bins
 cargo build -p reducem -p pipeline --bins --target "$target"
-x86_dir=target/debug
-arm_dir=target/$target/debug
+target_dir=${CARGO_TARGET_DIR:-target}
+x86_dir=$target_dir/debug
+arm_dir=$target_dir/$target/debug
 
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT

@@ -207,7 +207,10 @@ fn assert_exact(
 /// A generated mesh, through a PLY file of the calling test's own (tests run in parallel in one
 /// process, and two writers of one path would share its temporary).
 fn generated(kind: Kind, triangles: u64) -> Mesh {
-    let test = std::thread::current().name().unwrap_or("main").replace("::", "-");
+    let test = std::thread::current()
+        .name()
+        .unwrap_or("main")
+        .replace("::", "-");
     let ply = temp_path(&format!("closest-{test}-{}-{triangles}.ply", kind.name()));
     generate(kind, triangles, 5, &ply).expect("generate");
     read_mesh(&ply).expect("read")
