@@ -23,9 +23,12 @@ Exit codes (the same for reducem and pipeline):
   64  usage: bad arguments, or an output that is one of the command's inputs
   65  bad input: a malformed mesh, ReduceM or ray file (the message says where)
   70  internal error
-  74  I/O: reading or writing failed (missing file, permissions, disk full, output is a directory)
-  75  try again later (pipeline): work directory locked, stopped by a signal, stages not done
-  78  configuration or scene error (including an [output] path that is an input)";
+  74  I/O: reading or writing failed (missing file, permissions, disk full, output is a
+      directory), or a mapped file truncated by another process
+  75  try again later (pipeline): work directory locked, stopped by SIGTERM or SIGUSR1 (run the
+      same command again to resume), stages not done
+  78  configuration or scene error (including an [output] path that is an input)
+ 130  stopped by SIGINT (pipeline; run the same command again to resume)";
 
 /// A command line that cannot be run as given.
 #[derive(Debug, thiserror::Error)]

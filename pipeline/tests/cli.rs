@@ -264,6 +264,7 @@ fn help_shows_the_exit_codes() {
         "64  usage",
         "75  try again later",
         "78  configuration",
+        "130  stopped by SIGINT",
     ];
     for command in [&["--help"][..], &["run", "--help"], &["convert", "--help"]] {
         let help = String::from_utf8_lossy(&pipeline(command).stdout).to_string();
