@@ -43,3 +43,17 @@ pub fn undescribed_arguments(command: &clap::Command) -> Vec<String> {
     }
     undescribed
 }
+
+/// The parsed command line, or the exit code to end with once clap has printed why not: 0
+/// after `--help` or `--version`, 64 (usage) for arguments it refuses.
+pub fn parse_or_exit<C: clap::Parser>() -> Result<C, std::process::ExitCode> {
+    C::try_parse().map_err(|error| {
+        let code = if error.use_stderr() {
+            crate::exit_code::USAGE
+        } else {
+            crate::exit_code::SUCCESS
+        };
+        let _ = error.print();
+        std::process::ExitCode::from(code)
+    })
+}

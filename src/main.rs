@@ -225,17 +225,9 @@ impl From<InvalidRayAnswer> for InvalidRays {
 fn main() -> ExitCode {
     // Signals remove this process's temporaries; a truncated mapped file ends it with 74.
     let _ = reducem_core::signals::install_for_tool();
-    let cli = match Cli::try_parse() {
+    let cli = match reducem::cli::parse_or_exit::<Cli>() {
         Ok(cli) => cli,
-        Err(error) => {
-            let code = if error.use_stderr() {
-                exit_code::USAGE
-            } else {
-                exit_code::SUCCESS
-            };
-            let _ = error.print();
-            return ExitCode::from(code);
-        }
+        Err(code) => return code,
     };
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,

@@ -143,17 +143,9 @@ fn kind_parser() -> impl clap::builder::TypedValueParser<Value = gen::Kind> {
 
 fn main() -> ExitCode {
     let started = std::time::Instant::now();
-    let cli = match Cli::try_parse() {
+    let cli = match reducem::cli::parse_or_exit::<Cli>() {
         Ok(cli) => cli,
-        Err(error) => {
-            let code = if error.use_stderr() {
-                exit::USAGE
-            } else {
-                exit::SUCCESS
-            };
-            let _ = error.print();
-            return ExitCode::from(code);
-        }
+        Err(code) => return code,
     };
     let json = cli.command.log_format() == Some(progress::LogFormat::Json);
     match run(cli) {
