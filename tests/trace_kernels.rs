@@ -8,14 +8,10 @@ mod common;
 use common::*;
 use reducem::conversion::{convert_mesh, BuildParams, PIPELINE_MAX_STRIP_LENGTH};
 use reducem::format::reader::ReducemFile;
-use reducem::geometry::Aabb;
 use reducem::input::read_mesh;
-use reducem::render::camera::Camera;
-use reducem::render::plan::Plan;
-use reducem::render::sampling::Surface;
+use reducem::render::rays::RendererRays;
 use reducem::render::scene::Scene;
-use reducem::render::tiles;
-use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
+use reducem::trace::{Kernel, Ray};
 use reducem_gen::{generate, Kind};
 
 /// The benchmarks' view (`configs/scenes/ao16.toml`) at 48² pixels with 4 AO samples.
@@ -35,32 +31,8 @@ samples = 4
 /// its AO rays from the same secondary-ray frame and per-pixel seeds.
 fn renderer_rays(file: &ReducemFile) -> (Vec<Ray>, Vec<Ray>) {
     let scene = Scene::parse("AO_SCENE".as_ref(), AO_SCENE).expect("AO scene");
-    let size = scene.image.width;
-    let bounds = Aabb {
-        min: file.header().bounds_min,
-        max: file.header().bounds_max,
-    };
-    let ao = Plan::new(&scene, &bounds)
-        .ambient_occlusion
-        .expect("the scene plans ambient occlusion");
-    let camera = Camera::new(&scene.camera, &bounds, size, size);
-    let pixels = tiles(size, size).concat();
-    let primary: Vec<Ray> = pixels
-        .iter()
-        .map(|&p| camera.primary_ray(p % size, p / size))
-        .collect();
-    let hits = Tracer::new(file, TraceOptions::default()).intersect_batch(&primary);
-    let seed = scene.shading.seed;
-    let ambient_occlusion = pixels
-        .iter()
-        .zip(&primary)
-        .zip(hits)
-        .filter_map(|((&pixel, ray), hit)| Some((pixel, Surface::at_hit(file, ray, &hit?)?)))
-        .flat_map(|(pixel, surface)| {
-            (0..ao.samples).map(move |s| surface.ao_ray(seed, pixel, s, ao.max_distance))
-        })
-        .collect();
-    (primary, ambient_occlusion)
+    let rays = RendererRays::of(file, &scene).expect("the scene plans ambient occlusion");
+    (rays.primary, rays.ambient_occlusion)
 }
 
 /// Camera rays, 4 AO rays per hit and rays aimed at a few hundred vertices and edge midpoints.

@@ -23,6 +23,7 @@ pub mod camera;
 pub mod image;
 pub mod memory;
 pub mod plan;
+pub mod rays;
 pub mod residency;
 pub mod sampling;
 pub mod scene;

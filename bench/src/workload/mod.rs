@@ -18,17 +18,13 @@ use anyhow::Context;
 
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::reader::ReducemFile;
-use reducem::geometry::Aabb;
 use reducem::inspect::{file_stats, FileStats};
 use reducem::mesh::Mesh;
-use reducem::render::camera::Camera;
-use reducem::render::plan::Plan;
-use reducem::render::sampling::Surface;
+use reducem::render::rays::RendererRays;
 use reducem::render::scene::{
     AmbientOcclusion, CameraSettings, DirectionalLight, ImageSettings, Scene, Shading,
 };
-use reducem::render::tiles;
-use reducem::trace::{Ray, TraceOptions, Tracer};
+use reducem::trace::Ray;
 use reducem_gen::Kind;
 
 /// Generates the mesh once into `work` (kept for later runs) and reads it.
@@ -132,33 +128,10 @@ impl RaySet {
     /// light aside.
     pub fn new(file: &ReducemFile, size: u32, ao_per_hit: u32) -> RaySet {
         let scene = ao_scene(size, ao_per_hit);
-        let bounds = Aabb {
-            min: file.header().bounds_min,
-            max: file.header().bounds_max,
-        };
-        let ao = Plan::new(&scene, &bounds)
-            .ambient_occlusion
-            .expect("the AO scene plans ambient occlusion");
-        let camera = Camera::new(&scene.camera, &bounds, size, size);
-        let pixels = tiles(size, size).concat();
-        let primary: Vec<Ray> = pixels
-            .iter()
-            .map(|&p| camera.primary_ray(p % size, p / size))
-            .collect();
-        let hits = Tracer::new(file, TraceOptions::default()).intersect_batch(&primary);
-        let seed = scene.shading.seed;
-        let ambient_occlusion = pixels
-            .iter()
-            .zip(&primary)
-            .zip(hits)
-            .filter_map(|((&pixel, ray), hit)| Some((pixel, Surface::at_hit(file, ray, &hit?)?)))
-            .flat_map(|(pixel, surface)| {
-                (0..ao.samples).map(move |s| surface.ao_ray(seed, pixel, s, ao.max_distance))
-            })
-            .collect();
+        let rays = RendererRays::of(file, &scene).expect("the AO scene plans ambient occlusion");
         RaySet {
-            primary,
-            ambient_occlusion,
+            primary: rays.primary,
+            ambient_occlusion: rays.ambient_occlusion,
         }
     }
 }
