@@ -1,20 +1,17 @@
 //! The `pipeline` command-line contract: `run` on a generated input, `gen`, config errors with
 //! line and column, and the documented exit codes.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
+
+use common::pipeline;
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("pipeline-cli-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     dir
-}
-
-fn pipeline(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pipeline"))
-        .args(args)
-        .output()
-        .expect("run pipeline")
 }
 
 fn write_config(dir: &Path, body: &str) -> PathBuf {

@@ -3,9 +3,13 @@
 //! an earlier output, and work resumed from the files of every stage boundary ends in the
 //! same bytes.
 
+mod common;
+
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
+
+use common::{pipeline, temporaries};
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir =
@@ -13,14 +17,6 @@ fn temp_dir(name: &str) -> PathBuf {
     let _ = fs::remove_dir_all(&dir);
     fs::create_dir_all(&dir).expect("temp dir");
     dir
-}
-
-fn pipeline(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pipeline"))
-        .args(args)
-        .env("RAYON_NUM_THREADS", "2")
-        .output()
-        .expect("run pipeline")
 }
 
 fn stderr(output: &Output) -> String {
@@ -60,20 +56,6 @@ fn flip_middle_byte(path: &Path) {
     let middle = bytes.len() / 2;
     bytes[middle] ^= 0x04;
     fs::write(path, bytes).expect("write");
-}
-
-/// Every file a dead run's pid or this process left beside `dir`'s files, recursively.
-fn temporaries(dir: &Path) -> Vec<PathBuf> {
-    let mut found = Vec::new();
-    for entry in fs::read_dir(dir).expect("list").flatten() {
-        let path = entry.path();
-        if path.is_dir() {
-            found.extend(temporaries(&path));
-        } else if entry.file_name().to_string_lossy().contains(".tmp-") {
-            found.push(path);
-        }
-    }
-    found
 }
 
 #[test]

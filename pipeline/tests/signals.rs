@@ -2,10 +2,14 @@
 //! documented exit code and words, and the same command resumes to the same bytes; no
 //! temporary outlives its process; a locked work directory can be waited for.
 
+mod common;
+
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
+
+use common::temporaries;
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("pipeline-signals-{}-{name}", std::process::id()));
@@ -39,20 +43,6 @@ fn job(dir: &Path, triangles: u64) -> PathBuf {
     );
     fs::write(&config, body).expect("config");
     config
-}
-
-/// Every temporary (`.NAME.tmp-PID`) under `dir`.
-fn temporaries(dir: &Path) -> Vec<PathBuf> {
-    let mut found = Vec::new();
-    for entry in fs::read_dir(dir).expect("list").flatten() {
-        let path = entry.path();
-        if path.is_dir() {
-            found.extend(temporaries(&path));
-        } else if entry.file_name().to_string_lossy().contains(".tmp-") {
-            found.push(path);
-        }
-    }
-    found
 }
 
 fn send(child: &Child, signal: &str) {
