@@ -266,9 +266,8 @@ impl StripQuery<'_> {
     /// was found.
     ///
     /// Deviation from the paper: such a strip's kd-tree is not traversed. A box per block
-    /// culls more than the kd-tree's one plane per node (about 40% fewer blocks tested), and a
-    /// flat loop over the strip's few blocks (2.4 on average at the pipeline's strip length)
-    /// costs less than descending it.
+    /// culls more than the kd-tree's one plane per node, and a flat loop over a strip's few
+    /// blocks costs less than descending it (`docs/BENCHMARKS.md`, "Block boxes").
     ///
     /// The boxes of a group are tested before any of its blocks, against `t_far`, so that a
     /// kernel may test them in one pass; the bound of a hit found meanwhile is applied per
