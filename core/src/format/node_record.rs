@@ -1,5 +1,7 @@
 //! What the top-level node records share: their slots, and the checks of one node alone.
 
+use std::mem::{offset_of, size_of};
+
 use bytemuck::Pod;
 use wide::i32x4;
 
@@ -15,7 +17,7 @@ pub trait NodeRecord: Pod {
     /// Byte offset of slot 0's kind (or whole link), for errors.
     const KIND_FIELD: u64;
     /// Bytes from one slot's link word to the next.
-    const LINK_STRIDE: u64 = 4;
+    const LINK_STRIDE: u64 = size_of::<u32>() as u64;
     /// The exact empty slot, for errors.
     const EMPTY_SLOT: &'static str;
 
@@ -58,8 +60,8 @@ pub struct NodeLimits {
 }
 
 impl NodeRecord for TopNode {
-    const CHILD_FIELD: u64 = 96;
-    const KIND_FIELD: u64 = 112;
+    const CHILD_FIELD: u64 = offset_of!(TopNode, child) as u64;
+    const KIND_FIELD: u64 = offset_of!(TopNode, kind) as u64;
     const EMPTY_SLOT: &'static str = "min +inf, max -inf, child 0, kind 0";
 
     fn slot(&self, slot: usize) -> TopSlot {
@@ -162,8 +164,8 @@ fn slots_pass(occupied: u32, links: u32, exactly_empty: u32, empty_root: bool) -
 }
 
 impl NodeRecord for GridNode {
-    const CHILD_FIELD: u64 = 48;
-    const KIND_FIELD: u64 = 48;
+    const CHILD_FIELD: u64 = offset_of!(GridNode, link) as u64;
+    const KIND_FIELD: u64 = offset_of!(GridNode, link) as u64;
     const EMPTY_SLOT: &'static str = "all zero bytes";
 
     fn slot(&self, slot: usize) -> TopSlot {
@@ -190,7 +192,10 @@ impl NodeRecord for GridNode {
     fn inverted_axis(&self, slot: usize) -> Option<(usize, u64)> {
         (0..3)
             .find(|&axis| self.min[axis][slot] > self.max[axis][slot])
-            .map(|axis| (axis, (axis * 8 + slot * 2) as u64))
+            .map(|axis| {
+                let lane = (axis * TOP_WIDTH + slot) * size_of::<u16>();
+                (axis, (offset_of!(GridNode, min) + lane) as u64)
+            })
     }
 
     #[inline]

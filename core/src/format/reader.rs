@@ -38,7 +38,7 @@ use super::quantized::{vertex_part_bytes, AxisWordLayout, GridVertices};
 use super::references::{packed_bytes, packed_width, References, MIN_PACKED_BYTES};
 use super::vertices::StripVertices;
 use super::{
-    axis_bytes, GridNode, Header, PrecisionRecord, SectionKind, StripRecord, TopNode,
+    axis_bytes, FilePart, GridNode, Header, PrecisionRecord, SectionKind, StripRecord, TopNode,
     F32_VERTEX_BYTES,
 };
 use crate::geometry::Point;
@@ -81,7 +81,7 @@ pub enum FormatError {
     #[error("{}: {section} at byte {offset}: {detail}", path.display())]
     Invalid {
         path: PathBuf,
-        section: &'static str,
+        section: FilePart,
         offset: u64,
         detail: String,
     },
@@ -449,7 +449,7 @@ impl ReducemFile {
             .enumerate()
             .map(|(slot, kind)| {
                 (
-                    kind.name(),
+                    FilePart::Section(kind),
                     &self.header.sections[slot],
                     self.section_bytes(kind),
                 )
@@ -460,7 +460,7 @@ impl ReducemFile {
             .filter(|&kind| set.has(kind))
             .map(|kind| {
                 let entry = &self.attributes.record.sections[kind.slot()];
-                (kind.name(), entry, self.attribute_bytes(kind))
+                (FilePart::Attribute(kind), entry, self.attribute_bytes(kind))
             });
         for (name, entry, bytes) in core.chain(attributes) {
             let actual = xxhash_rust::xxh3::xxh3_64(bytes);
@@ -478,7 +478,7 @@ impl ReducemFile {
         Ok(())
     }
 
-    fn invalid(&self, section: &'static str, offset: u64, detail: String) -> FormatError {
+    fn invalid(&self, section: FilePart, offset: u64, detail: String) -> FormatError {
         FormatError::Invalid {
             path: self.path.clone(),
             section,

@@ -4,6 +4,8 @@
 use super::{StripRecord, TopNode};
 use bytemuck::{Pod, Zeroable};
 
+use super::attributes::AttributeSection;
+
 /// The sections of a version-2 file, in file order. The discriminant is the on-disk kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u32)]
@@ -55,3 +57,28 @@ const _: () = assert!(std::mem::size_of::<SectionEntry>() == 32);
 
 /// Number of entries in the section table.
 pub const SECTION_COUNT: usize = SectionKind::ALL.len();
+
+/// Where in a file a defect is: the file as a whole, a record of the header page, or a section.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FilePart {
+    /// The file as a whole (its length).
+    File,
+    /// The header, precision and attribute records of the header page.
+    Header,
+    /// The header's section table.
+    SectionTable,
+    Section(SectionKind),
+    Attribute(AttributeSection),
+}
+
+impl std::fmt::Display for FilePart {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            FilePart::File => "file",
+            FilePart::Header => "header",
+            FilePart::SectionTable => "section table",
+            FilePart::Section(kind) => kind.name(),
+            FilePart::Attribute(kind) => kind.name(),
+        })
+    }
+}

@@ -15,6 +15,7 @@ use crate::format::attributes::{
     FLAG_FACE_IDS, FLAG_NORMALS, GROUP_STRIPS,
 };
 use crate::format::face_ids::{self, BitStream, FaceIdDefect};
+use crate::format::FilePart;
 use crate::format::{Header, SectionEntry, SECTION_ALIGN};
 
 /// A file's attribute record and section ranges (all empty for files before 2.5).
@@ -276,7 +277,7 @@ impl ReducemFile {
         };
         self.checks.keep(FormatError::Invalid {
             path: self.path.clone(),
-            section: kind.name(),
+            section: FilePart::Attribute(kind),
             offset: self.attribute_offset(kind) + offset,
             detail,
         });
@@ -299,7 +300,7 @@ impl ReducemFile {
         let records = self.strip_records();
         let invalid = |kind: AttributeSection, at: u64, detail: String| FormatError::Invalid {
             path: self.path.clone(),
-            section: kind.name(),
+            section: FilePart::Attribute(kind),
             offset: self.attribute_offset(kind) + at,
             detail,
         };
@@ -354,7 +355,7 @@ impl ReducemFile {
                 let detail = format!("group {index} starts at vertex {first}, expected {expected}");
                 return Err(FormatError::Invalid {
                     path: self.path.clone(),
-                    section: AttributeSection::VertexGroups.name(),
+                    section: FilePart::Attribute(AttributeSection::VertexGroups),
                     offset: self.attribute_offset(AttributeSection::VertexGroups)
                         + index as u64 * 8,
                     detail,
@@ -372,7 +373,7 @@ impl ReducemFile {
             let detail = format!("{stored} vertices stored, the strips have {expected}");
             return Err(FormatError::Invalid {
                 path: self.path.clone(),
-                section: kind.name(),
+                section: FilePart::Attribute(kind),
                 offset: self.attribute_offset(kind),
                 detail,
             });

@@ -8,6 +8,7 @@
 //! thread that does not see another's bit yet validates the element again, to the same outcome.
 
 use crate::format::block_boxes::BlockBoxes;
+use crate::format::{FilePart, SectionKind};
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
@@ -28,7 +29,7 @@ pub(super) struct Passed(Option<Box<[AtomicU64]>>);
 
 /// A defect as [`FormatError::Invalid`] reports it, without the path.
 struct Defect {
-    section: &'static str,
+    section: FilePart,
     offset: u64,
     detail: String,
 }
@@ -88,7 +89,7 @@ impl LazyChecks {
                 detail,
             },
             FormatError::Io { source, .. } => Defect {
-                section: "strip_data",
+                section: FilePart::Section(SectionKind::StripData),
                 offset: 0,
                 detail: source.to_string(),
             },

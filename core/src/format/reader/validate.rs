@@ -16,7 +16,7 @@ use memmap2::Mmap;
 use rayon::prelude::*;
 
 use super::super::{
-    GridNode, NodeLimits, NodeRecord, SectionKind, StripRecord, TopNode, HEADER_PAGE,
+    FilePart, GridNode, NodeLimits, NodeRecord, SectionKind, StripRecord, TopNode, HEADER_PAGE,
 };
 use super::lazy::{LazyChecks, Passed};
 use super::{
@@ -55,11 +55,11 @@ pub(super) fn open(
     let sections = checker.sections(&header, node_bytes(node_grid.is_some()))?;
     let core_end = sections[section_slot(SectionKind::StripData)].end as u64;
     let attributes = super::attributes::read_record(checker.head, &header, core_end, file_len)
-        .map_err(|(offset, detail)| checker.invalid("header", offset, detail))?;
+        .map_err(|(offset, detail)| checker.invalid(FilePart::Header, offset, detail))?;
     let map = map_file(&file).map_err(io_error)?;
     if map.len() as u64 != file_len {
         let detail = "the file changed size while it was being opened".to_string();
-        return Err(checker.invalid("file", 0, detail));
+        return Err(checker.invalid(FilePart::File, 0, detail));
     }
     let validation = validation.unwrap_or(match file_len <= EAGER_VALIDATION_BYTES {
         true => Validation::Full,
@@ -153,7 +153,7 @@ pub(super) fn check_strip(
         let strips = opened.strip_count();
         let detail = format!("strip {index} outside 0..{strips}");
         return Err(Box::new(opened.invalid(
-            "strip_records",
+            FilePart::Section(SectionKind::StripRecords),
             opened.section_offset(SectionKind::StripRecords),
             detail,
         )));
@@ -195,7 +195,7 @@ impl Windows<'_> {
         let count = (records.end - records.start) / RECORD_BYTES;
         if count != opened.header.strip_count {
             return Err(opened.invalid(
-                "strip_records",
+                FilePart::Section(SectionKind::StripRecords),
                 records.start,
                 format!(
                     "{count} records, header says {} strips",
@@ -217,13 +217,18 @@ impl Windows<'_> {
         for first in (0..count).step_by(batch as usize) {
             let length = batch.min(count - first) * RECORD_BYTES;
             let window = self.map(records.start + first * RECORD_BYTES, length as usize)?;
-            let records: &[StripRecord] = bytemuck::try_cast_slice(&window)
-                .map_err(|_| opened.invalid("strip_records", records.start, "misaligned".into()))?;
+            let records: &[StripRecord] = bytemuck::try_cast_slice(&window).map_err(|_| {
+                opened.invalid(
+                    FilePart::Section(SectionKind::StripRecords),
+                    records.start,
+                    "misaligned".into(),
+                )
+            })?;
             triangles += self.validate_record_batch(first as usize, records)?;
         }
         if triangles != opened.header.triangle_count {
             return Err(opened.invalid(
-                "header",
+                FilePart::Header,
                 32,
                 format!(
                     "{triangles} triangles in strips, header says {}",
@@ -307,8 +312,11 @@ impl Windows<'_> {
             let length = batch.min(count - first) as u64 * node_bytes;
             let window = self.map(section.start + first as u64 * node_bytes, length as usize)?;
             let nodes: &[N] = bytemuck::try_cast_slice(&window).map_err(|_| {
-                self.opened
-                    .invalid("top_nodes", section.start, "misaligned".into())
+                self.opened.invalid(
+                    FilePart::Section(SectionKind::TopNodes),
+                    section.start,
+                    "misaligned".into(),
+                )
             })?;
             for (i, node) in nodes.iter().enumerate() {
                 tree.check(first + i, node)?;

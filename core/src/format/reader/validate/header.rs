@@ -1,5 +1,6 @@
 //! Header, precision record and section-table checks, before anything else is trusted.
 
+use std::mem::{offset_of, size_of};
 use std::ops::Range;
 use std::path::Path;
 
@@ -7,8 +8,8 @@ use super::strips::RECORD_BYTES;
 use crate::format::grid::{Grid, NodeGrid, MAX_GRID_BITS};
 use crate::format::reader::{FormatError, VertexLayout};
 use crate::format::{
-    Header, PrecisionRecord, SectionKind, VertexEncoding, ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES,
-    HEADER_PAGE, MAGIC, OLDEST_READ_MAJOR, PRECISION_CHECKSUMMED_BYTES, PRECISION_OFFSET,
+    FilePart, Header, PrecisionRecord, SectionEntry, SectionKind, VertexEncoding, ENDIAN_MARKER,
+    HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, OLDEST_READ_MAJOR, PRECISION_OFFSET,
     SECTION_ALIGN, VERSION_MAJOR,
 };
 
@@ -21,12 +22,7 @@ pub(super) struct Checker<'a> {
 }
 
 impl Checker<'_> {
-    pub(super) fn invalid(
-        &self,
-        section: &'static str,
-        offset: u64,
-        detail: String,
-    ) -> FormatError {
+    pub(super) fn invalid(&self, section: FilePart, offset: u64, detail: String) -> FormatError {
         FormatError::Invalid {
             path: self.path.to_path_buf(),
             section,
@@ -41,18 +37,26 @@ impl Checker<'_> {
                 "file is {} bytes, the header page alone is {HEADER_PAGE}",
                 self.file_len
             );
-            return Err(self.invalid("header", 0, detail));
+            return Err(self.invalid(FilePart::Header, 0, detail));
         }
         let header: Header = bytemuck::pod_read_unaligned(&self.head[..size_of::<Header>()]);
         if header.magic != MAGIC {
-            return Err(self.invalid("header", 0, "not a ReduceM file (bad magic)".into()));
+            return Err(self.invalid(
+                FilePart::Header,
+                offset_of!(Header, magic) as u64,
+                "not a ReduceM file (bad magic)".into(),
+            ));
         }
         if header.endian_marker != ENDIAN_MARKER {
             let detail = format!(
                 "endianness marker {:#010x}: written on or read on a big-endian host",
                 header.endian_marker
             );
-            return Err(self.invalid("header", 12, detail));
+            return Err(self.invalid(
+                FilePart::Header,
+                offset_of!(Header, endian_marker) as u64,
+                detail,
+            ));
         }
         if !(OLDEST_READ_MAJOR..=VERSION_MAJOR).contains(&header.version_major) {
             let advice = if header.version_major < OLDEST_READ_MAJOR {
@@ -65,21 +69,25 @@ impl Checker<'_> {
                  {VERSION_MAJOR}.x; {advice}",
                 header.version_major, header.version_minor
             );
-            return Err(self.invalid("header", 8, detail));
+            return Err(self.invalid(
+                FilePart::Header,
+                offset_of!(Header, version_major) as u64,
+                detail,
+            ));
         }
         let checksum = xxhash_rust::xxh3::xxh3_64(&self.head[..HEADER_CHECKSUMMED_BYTES]);
         if checksum != header.header_checksum || header.header_bytes as usize != size_of::<Header>()
         {
             return Err(self.invalid(
-                "header",
-                HEADER_CHECKSUMMED_BYTES as u64,
+                FilePart::Header,
+                offset_of!(Header, header_checksum) as u64,
                 "header checksum mismatch".into(),
             ));
         }
         if !(1..=255).contains(&header.leaf_windows) {
             return Err(self.invalid(
-                "header",
-                24,
+                FilePart::Header,
+                offset_of!(Header, leaf_windows) as u64,
                 format!("leaf size {} outside 1..=255", header.leaf_windows),
             ));
         }
@@ -95,8 +103,8 @@ impl Checker<'_> {
         let record: PrecisionRecord = bytemuck::pod_read_unaligned(bytes);
         if record.computed_checksum() != record.checksum {
             return Err(self.invalid(
-                "header",
-                (PRECISION_OFFSET + PRECISION_CHECKSUMMED_BYTES) as u64,
+                FilePart::Header,
+                (PRECISION_OFFSET + offset_of!(PrecisionRecord, checksum)) as u64,
                 "precision record checksum mismatch".into(),
             ));
         }
@@ -114,8 +122,8 @@ impl Checker<'_> {
         let at = |field: usize| (PRECISION_OFFSET + field) as u64;
         let Some(encoding) = VertexEncoding::from_u32(header.vertex_encoding) else {
             return Err(self.invalid(
-                "header",
-                20,
+                FilePart::Header,
+                offset_of!(Header, vertex_encoding) as u64,
                 format!("unknown vertex encoding {}", header.vertex_encoding),
             ));
         };
@@ -125,7 +133,11 @@ impl Checker<'_> {
                 header.vertex_encoding,
                 encoding.minor()
             );
-            return Err(self.invalid("header", 20, detail));
+            return Err(self.invalid(
+                FilePart::Header,
+                offset_of!(Header, vertex_encoding) as u64,
+                detail,
+            ));
         }
         let boxes = header.has_block_boxes();
         if boxes && matches!(encoding, VertexEncoding::Grid | VertexEncoding::GridNodes) {
@@ -133,19 +145,27 @@ impl Checker<'_> {
                 "vertex encoding {} (unpacked grid blocks) is not part of format 3",
                 header.vertex_encoding
             );
-            return Err(self.invalid("header", 20, detail));
+            return Err(self.invalid(
+                FilePart::Header,
+                offset_of!(Header, vertex_encoding) as u64,
+                detail,
+            ));
         }
         if !encoding.has_grid_nodes() && precision.node_shift != 0 {
             let detail = format!(
                 "node shift {} without grid top-level nodes",
                 precision.node_shift
             );
-            return Err(self.invalid("header", at(4), detail));
+            return Err(self.invalid(
+                FilePart::Header,
+                at(offset_of!(PrecisionRecord, node_shift)),
+                detail,
+            ));
         }
         match encoding {
             VertexEncoding::F32 if precision.grid_bits != 0 => Err(self.invalid(
-                "header",
-                at(0),
+                FilePart::Header,
+                at(offset_of!(PrecisionRecord, grid_bits)),
                 format!("f32 vertices with a {}-bit grid", precision.grid_bits),
             )),
             VertexEncoding::F32 => Ok((VertexLayout::F32 { boxes }, None)),
@@ -157,11 +177,19 @@ impl Checker<'_> {
                 let grid = precision.grid();
                 if !(1..=MAX_GRID_BITS).contains(&grid.bits) {
                     let detail = format!("grid of {} bits outside 1..={MAX_GRID_BITS}", grid.bits);
-                    return Err(self.invalid("header", at(0), detail));
+                    return Err(self.invalid(
+                        FilePart::Header,
+                        at(offset_of!(PrecisionRecord, grid_bits)),
+                        detail,
+                    ));
                 }
                 if !is_power_of_two(grid.cell) {
                     let detail = format!("grid cell {} is not a power of two", grid.cell);
-                    return Err(self.invalid("header", at(20), detail));
+                    return Err(self.invalid(
+                        FilePart::Header,
+                        at(offset_of!(PrecisionRecord, grid_cell)),
+                        detail,
+                    ));
                 }
                 let far = grid.far_corner();
                 if !grid.origin.iter().chain(&far).all(|c| c.is_finite()) {
@@ -169,14 +197,22 @@ impl Checker<'_> {
                         "grid from {:?} in steps of {} is not finite",
                         grid.origin, grid.cell
                     );
-                    return Err(self.invalid("header", at(8), detail));
+                    return Err(self.invalid(
+                        FilePart::Header,
+                        at(offset_of!(PrecisionRecord, grid_origin)),
+                        detail,
+                    ));
                 }
                 let node_grid = if encoding.has_grid_nodes() {
                     let shift = precision.node_shift;
                     let node_grid = NodeGrid::new(&grid, shift).ok_or_else(|| {
                         let detail =
                             format!("node grid of cell {} * 2^{shift} is not finite", grid.cell);
-                        self.invalid("header", at(4), detail)
+                        self.invalid(
+                            FilePart::Header,
+                            at(offset_of!(PrecisionRecord, node_shift)),
+                            detail,
+                        )
                     })?;
                     Some(node_grid)
                 } else {
@@ -203,11 +239,19 @@ impl Checker<'_> {
         let at = |field: usize| (PRECISION_OFFSET + field) as u64;
         if precision.grid_bits != 0 {
             let detail = format!("f32 vertices with a {}-bit grid", precision.grid_bits);
-            return Err(self.invalid("header", at(0), detail));
+            return Err(self.invalid(
+                FilePart::Header,
+                at(offset_of!(PrecisionRecord, grid_bits)),
+                detail,
+            ));
         }
         if precision.node_shift != 0 {
             let detail = format!("node shift {} in a lossless file", precision.node_shift);
-            return Err(self.invalid("header", at(4), detail));
+            return Err(self.invalid(
+                FilePart::Header,
+                at(offset_of!(PrecisionRecord, node_shift)),
+                detail,
+            ));
         }
         let base = Grid {
             bits: 0,
@@ -216,7 +260,11 @@ impl Checker<'_> {
         };
         if !is_power_of_two(base.cell) {
             let detail = format!("node grid cell {} is not a power of two", base.cell);
-            return Err(self.invalid("header", at(20), detail));
+            return Err(self.invalid(
+                FilePart::Header,
+                at(offset_of!(PrecisionRecord, grid_cell)),
+                detail,
+            ));
         }
         NodeGrid::new(&base, 0)
             .filter(|node| node.origin.iter().all(|c| c.is_finite()))
@@ -225,7 +273,11 @@ impl Checker<'_> {
                     "node grid from {:?} in steps of {} is not finite",
                     base.origin, base.cell
                 );
-                self.invalid("header", at(8), detail)
+                self.invalid(
+                    FilePart::Header,
+                    at(offset_of!(PrecisionRecord, grid_origin)),
+                    detail,
+                )
             })
     }
 
@@ -239,7 +291,8 @@ impl Checker<'_> {
         let mut ranges = [0..0, 0..0, 0..0];
         for (slot, kind) in SectionKind::ALL.into_iter().enumerate() {
             let entry = &header.sections[slot];
-            let table_offset = 104 + slot as u64 * 32;
+            let table_offset =
+                (offset_of!(Header, sections) + slot * size_of::<SectionEntry>()) as u64;
             let end = entry.offset.saturating_add(entry.length);
             let record = match kind {
                 SectionKind::TopNodes => node_bytes,
@@ -275,7 +328,7 @@ impl Checker<'_> {
                 None
             };
             if let Some(detail) = detail {
-                return Err(self.invalid("section table", table_offset, detail));
+                return Err(self.invalid(FilePart::SectionTable, table_offset, detail));
             }
             ranges[slot] = entry.offset as usize..end as usize;
             previous_end = end;

@@ -6,7 +6,7 @@ use std::mem::size_of;
 use super::{check_node, Windows};
 use crate::format::reader::{FormatError, ReducemFile};
 use crate::format::{
-    GridNode, NodeRecord, SectionKind, TopNode, TopSlot, MAX_TOP_DEPTH, TOP_WIDTH,
+    FilePart, GridNode, NodeRecord, SectionKind, TopNode, TopSlot, MAX_TOP_DEPTH, TOP_WIDTH,
 };
 
 /// Bytes of one top-level node record: [`GridNode`] with a node grid, else [`TopNode`].
@@ -44,7 +44,7 @@ impl TreeCheck<'_> {
 
     pub(super) fn fail(&self, index: usize, field: u64, detail: String) -> FormatError {
         self.opened.invalid(
-            "top_nodes",
+            FilePart::Section(SectionKind::TopNodes),
             self.opened.section_offset(SectionKind::TopNodes)
                 + index as u64 * self.node_bytes
                 + field,

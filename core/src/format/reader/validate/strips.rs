@@ -8,7 +8,9 @@ use crate::format::reader::{
     view_block, FormatError, PartTable, ReducemFile, StripView, VertexLayout,
 };
 use crate::format::references::References;
-use crate::format::{axis_bytes, SectionKind, StripRecord, F32_VERTEX_BYTES, MAX_STRIP_VERTICES};
+use crate::format::{
+    axis_bytes, FilePart, SectionKind, StripRecord, F32_VERTEX_BYTES, MAX_STRIP_VERTICES,
+};
 
 pub(super) const RECORD_BYTES: u64 = std::mem::size_of::<StripRecord>() as u64;
 
@@ -22,7 +24,11 @@ pub(super) fn strip_error(
         opened.section_offset(SectionKind::StripRecords) + index as u64 * RECORD_BYTES,
         |o| opened.section_offset(SectionKind::StripData) + o,
     );
-    opened.invalid("strip_data", offset, format!("strip {index}: {detail}"))
+    opened.invalid(
+        FilePart::Section(SectionKind::StripData),
+        offset,
+        format!("strip {index}: {detail}"),
+    )
 }
 
 /// A defect in a strip: the data-section offset where it is (if known) and what is wrong.
