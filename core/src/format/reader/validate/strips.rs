@@ -14,19 +14,20 @@ use crate::format::{
 
 pub(super) const RECORD_BYTES: u64 = std::mem::size_of::<StripRecord>() as u64;
 
-/// The error for a defect in strip `index`: at the record when the defect has no data offset.
+/// The error for a defect in strip `index`: in its block, or at its record when the defect has
+/// no data offset.
 pub(super) fn strip_error(
     opened: &ReducemFile,
     index: usize,
     (offset, detail): StripDefect,
 ) -> FormatError {
-    let offset = offset.map_or(
-        opened.section_offset(SectionKind::StripRecords) + index as u64 * RECORD_BYTES,
-        |o| opened.section_offset(SectionKind::StripData) + o,
-    );
+    let (kind, offset) = match offset {
+        Some(at) => (SectionKind::StripData, at),
+        None => (SectionKind::StripRecords, index as u64 * RECORD_BYTES),
+    };
     opened.invalid(
-        FilePart::Section(SectionKind::StripData),
-        offset,
+        FilePart::Section(kind),
+        opened.section_offset(kind) + offset,
         format!("strip {index}: {detail}"),
     )
 }

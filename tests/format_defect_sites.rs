@@ -1,0 +1,122 @@
+//! A crafted defect in each record kind is reported in its part of the file at the byte of
+//! the field that was changed, computed here from the record layout.
+
+mod common;
+
+use std::mem::{offset_of, size_of};
+
+use common::{temp_path, torus};
+use reducem::conversion::{convert_mesh, BuildParams};
+use reducem::format::reader::{FormatError, ReducemFile};
+use reducem::format::{
+    FilePart, Header, PrecisionRecord, SectionEntry, SectionKind, StripRecord, TopNode,
+    HEADER_CHECKSUMMED_BYTES, PRECISION_OFFSET,
+};
+
+fn file_bytes(name: &str, params: &BuildParams) -> Vec<u8> {
+    let path = temp_path(name);
+    convert_mesh(&torus(24, 12), params, &path).expect("convert");
+    std::fs::read(&path).expect("read back")
+}
+
+/// The part and absolute offset the opener reports for `bytes`.
+fn defect_site(name: &str, bytes: &[u8]) -> (FilePart, u64) {
+    let path = temp_path(name);
+    std::fs::write(&path, bytes).expect("write");
+    match ReducemFile::open(&path).err().expect("defect rejected") {
+        FormatError::Invalid {
+            section, offset, ..
+        } => (section, offset),
+        other => panic!("not a format defect: {other}"),
+    }
+}
+
+fn header(bytes: &[u8]) -> Header {
+    bytemuck::pod_read_unaligned(&bytes[..size_of::<Header>()])
+}
+
+/// `bytes` with the header replaced by `header`, its checksum recomputed.
+fn with_header(bytes: &[u8], mut header: Header) -> Vec<u8> {
+    let mut changed = bytes.to_vec();
+    changed[..size_of::<Header>()].copy_from_slice(bytemuck::bytes_of(&header));
+    header.header_checksum = xxhash_rust::xxh3::xxh3_64(&changed[..HEADER_CHECKSUMMED_BYTES]);
+    changed[..size_of::<Header>()].copy_from_slice(bytemuck::bytes_of(&header));
+    changed
+}
+
+fn section_offset(bytes: &[u8], kind: SectionKind) -> usize {
+    header(bytes).sections[kind as usize - 1].offset as usize
+}
+
+#[test]
+fn header_defects_are_reported_at_their_field() {
+    let bytes = file_bytes("site-header.rdm", &BuildParams::default());
+    let mut flipped = bytes.clone();
+    flipped[offset_of!(Header, endian_marker)] ^= 0xff;
+    let at = offset_of!(Header, endian_marker) as u64;
+    assert_eq!(defect_site("endian.rdm", &flipped), (FilePart::Header, at));
+
+    let mut bad = header(&bytes);
+    bad.leaf_windows = 0;
+    let at = offset_of!(Header, leaf_windows) as u64;
+    assert_eq!(
+        defect_site("leaf.rdm", &with_header(&bytes, bad)),
+        (FilePart::Header, at)
+    );
+}
+
+#[test]
+fn precision_defect_is_reported_at_its_field() {
+    let params = BuildParams {
+        grid_bits: Some(16),
+        ..BuildParams::default()
+    };
+    let bytes = file_bytes("site-precision.rdm", &params);
+    let range = PRECISION_OFFSET..PRECISION_OFFSET + size_of::<PrecisionRecord>();
+    let mut record: PrecisionRecord = bytemuck::pod_read_unaligned(&bytes[range.clone()]);
+    record.grid_cell *= 3.0;
+    let mut changed = bytes.clone();
+    changed[range].copy_from_slice(bytemuck::bytes_of(&record.sealed()));
+    let at = (PRECISION_OFFSET + offset_of!(PrecisionRecord, grid_cell)) as u64;
+    assert_eq!(defect_site("cell.rdm", &changed), (FilePart::Header, at));
+}
+
+#[test]
+fn section_table_defect_is_reported_at_its_entry() {
+    let bytes = file_bytes("site-table.rdm", &BuildParams::default());
+    let mut bad = header(&bytes);
+    let slot = SectionKind::StripRecords as usize - 1;
+    bad.sections[slot].offset += 1;
+    let at = offset_of!(Header, sections) + slot * size_of::<SectionEntry>();
+    assert_eq!(
+        defect_site("table.rdm", &with_header(&bytes, bad)),
+        (FilePart::SectionTable, at as u64)
+    );
+}
+
+#[test]
+fn top_node_defect_is_reported_at_its_slot() {
+    let bytes = file_bytes("site-node.rdm", &BuildParams::default());
+    let at = section_offset(&bytes, SectionKind::TopNodes) + offset_of!(TopNode, kind);
+    let mut changed = bytes.clone();
+    changed[at..at + 4].copy_from_slice(&0x8000_0001u32.to_le_bytes());
+    assert_eq!(
+        defect_site("node.rdm", &changed),
+        (FilePart::Section(SectionKind::TopNodes), at as u64)
+    );
+}
+
+#[test]
+fn strip_record_defect_is_reported_at_its_record() {
+    let bytes = file_bytes("site-record.rdm", &BuildParams::default());
+    let strip = 1;
+    let record =
+        section_offset(&bytes, SectionKind::StripRecords) + strip * size_of::<StripRecord>();
+    let at = record + offset_of!(StripRecord, vertex_count);
+    let mut changed = bytes.clone();
+    changed[at..at + 2].copy_from_slice(&2u16.to_le_bytes());
+    assert_eq!(
+        defect_site("record.rdm", &changed),
+        (FilePart::Section(SectionKind::StripRecords), record as u64)
+    );
+}
