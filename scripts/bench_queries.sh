@@ -322,8 +322,9 @@ rays[:, :3], rays[:, 3:6], rays[:, 7] = centre, targets - centre, np.inf
 rays.tofile(sys.argv[2])
 EOF
 (cd "$WORK" && "$PYTHON" hard.py "$(basename "$hard").decoded.ply" hard.rays)
-target/release/reducem inspect --json "$hard.rdm" | "$PYTHON" -c \
-  'import json, sys; s = json.load(sys.stdin); print(f"\nhard cases: sphere of {s[\"triangles\"]:,} triangles, closed: {s[\"closed\"]}")'
+target/release/reducem inspect --json "$hard.rdm" | "$PYTHON" -c 'import json, sys
+s = json.load(sys.stdin)
+print("\nhard cases: sphere of {:,} triangles, closed: {}".format(s["triangles"], s["closed"]))'
 target/release/reducem query "$hard.rdm" --rays "$WORK/hard.rays" --count -o "$WORK/hard.reducem" 2>/dev/null
 "$PYTHON" - "$WORK" "$(basename "$hard").decoded.ply" <<'EOF'
 import sys
