@@ -21,6 +21,7 @@
 use rayon::prelude::*;
 
 use super::FaceIds;
+use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
@@ -244,6 +245,8 @@ impl Walk {
         }
     }
 
+    /// Tests the windows of strip `strip` in the blocks whose box the ray may meet (every
+    /// window when the strip stores no block boxes).
     fn windows<V: VertexAccess>(
         &self,
         vertices: V,
@@ -251,8 +254,37 @@ impl Walk {
         strip: u32,
         each: &mut impl FnMut(u32, u16, TriangleHit),
     ) {
+        let windows = view.window_count();
+        let frame = match view.boxes.is_empty() {
+            true => None,
+            false => view.boxes.frame(vertices.point(0)),
+        };
+        let Some(frame) = frame else {
+            return self.window_range(vertices, view, strip, 0..windows, each);
+        };
+        for block in 0..view.boxes.count() {
+            let Some((min, max)) = view.boxes.decode(&frame, block) else {
+                break;
+            };
+            if self.may_meet(&min, &max) {
+                let first = block * BOX_WINDOWS;
+                let range = first..(first + BOX_WINDOWS).min(windows);
+                self.window_range(vertices, view, strip, range, each);
+            }
+        }
+    }
+
+    /// Tests the windows `range` of strip `strip`.
+    fn window_range<V: VertexAccess>(
+        &self,
+        vertices: V,
+        view: &StripView,
+        strip: u32,
+        range: std::ops::Range<usize>,
+        each: &mut impl FnMut(u32, u16, TriangleHit),
+    ) {
         let mut corners = [0u8; 3];
-        for window in 0..view.window_count() {
+        for window in range {
             view.references.read_into(window, &mut corners);
             let Some(triangle) = window_corners(corners, window) else {
                 continue;
