@@ -13,6 +13,7 @@ _Invalid = Literal["raise", "miss"]
 
 class _Hits(TypedDict):
     t_hit: NDArray[np.float32]
+    geometry_ids: NDArray[np.uint32]
     primitive_ids: NDArray[np.uint32]
     primitive_uvs: NDArray[np.float32]
     primitive_normals: NDArray[np.float32]
@@ -21,6 +22,12 @@ class _HitsWithAttributes(_Hits, total=False):
     # Present only when the file stores normals or colours.
     shading_normals: NDArray[np.float32]
     colors: NDArray[np.uint8]
+
+class _ClosestPoints(TypedDict):
+    points: NDArray[np.float32]
+    primitive_ids: NDArray[np.uint32]
+    primitive_uvs: NDArray[np.float32]
+    primitive_normals: NDArray[np.float32]
 
 class ReducemError(Exception):
     """A file, ray set, scene or conversion that reducem rejects; the message names the file,
@@ -56,6 +63,12 @@ class Scene:
         invalid: _Invalid = "raise",
     ) -> NDArray[np.bool_]:
         """Whether each ray hits anything on ``[tnear, tfar]``."""
+    def compute_closest_points(
+        self, query_points: ArrayLike, nthreads: int = 0
+    ) -> _ClosestPoints:
+        """The closest point of the surface to each of ``query_points`` (``(..., 3)``)."""
+    def compute_distance(self, query_points: ArrayLike, nthreads: int = 0) -> NDArray[np.float32]:
+        """The distance from each of ``query_points`` to the surface, ``(...)``."""
     def triangles(self) -> NDArray[np.float32]:
         """Every stored triangle, float32 ``(n, 3, 3)``, in file order and input winding."""
     def render(

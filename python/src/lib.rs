@@ -12,6 +12,8 @@
 
 mod convert;
 mod errors;
+mod points;
+mod primitive_ids;
 mod rays;
 mod render;
 mod scene;

@@ -1,0 +1,186 @@
+"""Queries beyond the closest hit, with Open3D's names: closest points and distances against a
+float64 numpy brute force, and `geometry_ids` of `cast_rays`."""
+
+import numpy as np
+import pytest
+
+import reducem
+from conftest import camera_rays, convert
+
+NO_ID = np.iinfo(np.uint32).max
+
+
+@pytest.fixture(scope="module")
+def scan(scan_ply):
+    return reducem.open(convert(scan_ply))
+
+
+def closest_on_triangles(point, triangles):
+    """Squared distance from `point` to each triangle and the closest points, in float64, by
+    the Voronoi regions of Ericson's "Real-Time Collision Detection" 5.1.5."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    ab, ac, ap = b - a, c - a, point - a
+    dot = lambda x, y: np.einsum("ij,ij->i", x, y)  # noqa: E731
+    d1, d2 = dot(ab, ap), dot(ac, ap)
+    bp, cp = point - b, point - c
+    d3, d4, d5, d6 = dot(ab, bp), dot(ac, bp), dot(ab, cp), dot(ac, cp)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denominator = va + vb + vc
+        u, v = vb / denominator, vc / denominator
+        on_ab = d1 / (d1 - d3)
+        on_ac = d2 / (d2 - d6)
+        on_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    regions = [
+        (d1 <= 0) & (d2 <= 0),
+        (d3 >= 0) & (d4 <= d3),
+        (d6 >= 0) & (d5 <= d6),
+        (vc <= 0) & (d1 >= 0) & (d3 <= 0),
+        (vb <= 0) & (d2 >= 0) & (d6 <= 0),
+        (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),
+    ]
+    points = [a, b, c, a + on_ab[:, None] * ab, a + on_ac[:, None] * ac, b + on_bc[:, None] * (c - b)]
+    closest = a + u[:, None] * ab + v[:, None] * ac
+    for region, at in zip(reversed(regions), reversed(points)):
+        closest = np.where(region[:, None], at, closest)
+    offset = point - closest
+    return dot(offset, offset), closest
+
+
+def brute_force_distances(triangles, points):
+    return np.array([np.sqrt(closest_on_triangles(p, triangles)[0].min()) for p in points])
+
+
+def points_near(scene, count=300, seed=3):
+    """Points on random triangles moved off the surface by up to 5% of the diagonal, and a few
+    far away."""
+    rng = np.random.default_rng(seed)
+    triangles = scene.triangles().astype(np.float64)
+    corners = triangles[rng.integers(0, len(triangles), count)]
+    u, v = rng.random(count), rng.random(count)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    on = corners[:, 0] + u[:, None] * (corners[:, 1] - corners[:, 0])
+    on += v[:, None] * (corners[:, 2] - corners[:, 0])
+    low, high = (b.astype(np.float64) for b in scene.bounds)
+    diagonal = np.linalg.norm(high - low)
+    offsets = rng.normal(size=(count, 3)) * 0.03 * diagonal
+    far = low + (high - low) * rng.uniform(-2, 3, (20, 3))
+    return np.concatenate([on + offsets, far]).astype(np.float32)
+
+
+def test_closest_points_are_the_brute_force_distance_on_the_named_face(model):
+    _, _, scene = model
+    triangles = scene.triangles().astype(np.float64)
+    points = points_near(scene)
+    found = scene.compute_closest_points(points)
+    distances = scene.compute_distance(points)
+    expected = brute_force_distances(triangles, points.astype(np.float64))
+    diagonal = np.linalg.norm(scene.bounds[1].astype(np.float64) - scene.bounds[0])
+    tolerance = 4 * np.finfo(np.float32).eps * diagonal
+    np.testing.assert_allclose(distances, expected, rtol=0, atol=tolerance)
+    ids = found["primitive_ids"]
+    assert ids.dtype == np.uint32 and np.all(ids < len(triangles))
+    corners = triangles[ids]
+    u, v = found["primitive_uvs"].astype(np.float64).T
+    assert np.all((u >= 0) & (v >= 0) & (u + v <= 1 + 1e-6))
+    on_face = corners[:, 0] + u[:, None] * (corners[:, 1] - corners[:, 0])
+    on_face += v[:, None] * (corners[:, 2] - corners[:, 0])
+    np.testing.assert_allclose(found["points"], on_face, rtol=0, atol=tolerance)
+    reached = np.linalg.norm(found["points"].astype(np.float64) - points, axis=1)
+    np.testing.assert_allclose(reached, expected, rtol=0, atol=tolerance)
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    np.testing.assert_allclose(found["primitive_normals"], normals, atol=1e-5)
+
+
+def test_closest_points_keep_the_leading_shape_and_take_float64(scan):
+    points = points_near(scan, count=40)[:60].reshape(3, 20, 3)
+    found = scan.compute_closest_points(points)
+    assert found["points"].shape == (3, 20, 3) and found["points"].dtype == np.float32
+    assert found["primitive_ids"].shape == (3, 20)
+    assert found["primitive_uvs"].shape == (3, 20, 2)
+    assert found["primitive_normals"].shape == (3, 20, 3)
+    assert scan.compute_distance(points).shape == (3, 20)
+    assert scan.compute_distance(points[0, 0]).shape == ()
+    wide = scan.compute_closest_points(points.astype(np.float64), nthreads=1)
+    for key, values in found.items():
+        np.testing.assert_array_equal(wide[key], values)
+    assert scan.compute_distance(np.zeros((0, 3))).shape == (0,)
+
+
+def test_bad_query_points_are_refused(scan):
+    with pytest.raises(ValueError, match=r"query_points must have shape \(\.\.\., 3\)"):
+        scan.compute_distance(np.zeros((4, 2), np.float32))
+    with pytest.raises(ValueError, match="query point 1 is not finite"):
+        scan.compute_closest_points(np.array([[0, 0, 0], [np.nan, 0, 0]], np.float32))
+    with pytest.raises(TypeError, match="float32 or float64"):
+        scan.compute_distance(np.zeros((4, 3), np.int32))
+
+
+def test_geometry_ids_are_zero_on_a_hit_and_max_on_a_miss(model):
+    _, _, scene = model
+    hits = scene.cast_rays(camera_rays(scene))
+    hit = np.isfinite(hits["t_hit"])
+    assert hits["geometry_ids"].dtype == np.uint32 and hits["geometry_ids"].shape == hit.shape
+    assert hit.any() and (~hit).any()
+    np.testing.assert_array_equal(hits["geometry_ids"], np.where(hit, 0, NO_ID))
+
+
+def cube():
+    """A closed unit cube, outward winding: 8 vertices, 12 triangles."""
+    vertices = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], np.float64)
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    triangles = [t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))]
+    return vertices, np.array(triangles, np.int64)
+
+
+def as_set(triangles):
+    """Triangles as a set of corner tuples, each rotated to start at its smallest corner (the
+    winding kept)."""
+    found = set()
+    for triangle in np.asarray(triangles, np.float64).tolist():
+        corners = [tuple(corner) for corner in triangle]
+        first = corners.index(min(corners))
+        found.add(tuple(corners[first:] + corners[:first]))
+    return found
+
+
+def test_from_arrays_converts_the_mesh_and_removes_its_temporary(tmp_path):
+    import gc
+
+    vertices, triangles = cube()
+    scene = reducem.from_arrays(vertices, triangles, max_length=4)
+    assert as_set(scene.triangles()) == as_set(vertices[triangles])
+    work = scene.path.parent
+    assert work.is_dir()
+    distance = scene.compute_distance(np.array([0.5, 0.5, 3.0]))
+    assert distance == np.float32(2.0)
+    del scene
+    gc.collect()
+    assert not work.exists()
+    kept = tmp_path / "cube.rdm"
+    scene = reducem.from_arrays(vertices.astype(np.float32), triangles.astype(np.int32), kept)
+    assert scene.path == kept and kept.is_file()
+    assert as_set(reducem.open(kept).triangles()) == as_set(vertices[triangles])
+
+
+def test_from_arrays_errors_name_the_array_and_index():
+    vertices, triangles = cube()
+    bad = triangles.copy()
+    bad[5, 2] = 8
+    with pytest.raises(ValueError, match=r"triangles\[5, 2\] = 8 is not a vertex index"):
+        reducem.from_arrays(vertices, bad)
+    bad[5, 2] = -1
+    with pytest.raises(ValueError, match=r"triangles\[5, 2\] = -1"):
+        reducem.from_arrays(vertices, bad)
+    nan = vertices.copy()
+    nan[3, 1] = np.nan
+    with pytest.raises(ValueError, match=r"vertices\[3\] is not finite"):
+        reducem.from_arrays(nan, triangles)
+    with pytest.raises(ValueError, match=r"vertices must have shape \(n, 3\)"):
+        reducem.from_arrays(vertices[:, :2], triangles)
+    with pytest.raises(TypeError, match="triangles must be integers"):
+        reducem.from_arrays(vertices, triangles.astype(np.float32))
+    with pytest.raises(TypeError, match="vertices must be float32 or float64"):
+        reducem.from_arrays(vertices.astype(np.int64), triangles)
