@@ -303,6 +303,8 @@ pub fn write_chunk(
         grid_nodes: params.grid_nodes,
         weld: WeldStats::default(),
         attributes: params.attributes,
+        closedness: None,
+        up: None,
     };
     write_layout(out, &info, &layout, &chunk.strips)?;
     Ok(chunk.stats)

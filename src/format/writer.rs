@@ -16,6 +16,7 @@ use super::attributes::{
 };
 use super::counts::{ChunkStats, WeldStats};
 use super::grid::{Grid, NodeGrid};
+use super::model::{Closedness, ModelRecord, UpAxis, MODEL_OFFSET};
 use super::{
     align_up, GridNode, Header, PrecisionRecord, SectionEntry, SectionKind, TopNode,
     VertexEncoding, ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, PRECISION_OFFSET,
@@ -39,6 +40,10 @@ pub struct FileInfo {
     pub weld: WeldStats,
     /// The attributes stored besides positions (format 2.5 when any).
     pub attributes: AttributeSet,
+    /// Edge counts over the whole mesh, when the build counted them (model record, 3.1).
+    pub closedness: Option<Closedness>,
+    /// The up-axis hint of the model record.
+    pub up: Option<UpAxis>,
 }
 
 impl FileInfo {
@@ -153,6 +158,9 @@ fn write_sections(
     file.write_all(bytemuck::bytes_of(&precision(info)?))?;
     file.seek(SeekFrom::Start(ATTRIBUTE_RECORD_OFFSET as u64))?;
     file.write_all(bytemuck::bytes_of(&attribute_record))?;
+    file.seek(SeekFrom::Start(MODEL_OFFSET as u64))?;
+    let model = ModelRecord::new(info.closedness, info.up);
+    file.write_all(bytemuck::bytes_of(&model))?;
     Ok(())
 }
 

@@ -305,6 +305,8 @@ pub fn write_encoded_strips(
         grid_nodes: false,
         weld: Default::default(),
         attributes: Default::default(),
+        closedness: None,
+        up: None,
     };
     write_file(path, &info, &top, encoded).expect("write file");
 }
@@ -327,6 +329,8 @@ pub fn write_chunk_under(
         grid_nodes: false,
         weld: Default::default(),
         attributes: Default::default(),
+        closedness: None,
+        up: None,
     };
     write_file(path, &info, top, &chunk.strips).expect("write file");
 }

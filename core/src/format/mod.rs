@@ -13,6 +13,7 @@ pub mod counts;
 pub mod face_ids;
 pub mod grid;
 pub mod implicit_tree;
+pub mod model;
 pub mod quantized;
 pub mod reader;
 pub mod references;
@@ -29,7 +30,7 @@ pub const MAGIC: [u8; 8] = *b"REDUCEM\0";
 /// the references of every vertex encoding. Writers write version 3.
 pub const VERSION_MAJOR: u16 = 3;
 /// Incremented on compatible additions; readers accept any minor of a major they read.
-pub const VERSION_MINOR: u16 = 0;
+pub const VERSION_MINOR: u16 = model::MODEL_MINOR;
 /// The oldest major this reader reads (version 2 files are read as before).
 pub const OLDEST_READ_MAJOR: u16 = 2;
 /// Version 2's minors: minor 1 added the [`PrecisionRecord`] and the grid vertex encoding,

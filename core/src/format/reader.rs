@@ -100,6 +100,8 @@ pub struct ReducemFile {
     node_grid: Option<NodeGrid>,
     sections: [Range<usize>; 3],
     attributes: AttributeSections,
+    /// The model record (since 3.1).
+    model: Option<super::model::ModelRecord>,
     checks: LazyChecks,
     /// The lengths of blocks' split axes and boxes by reference count, for views.
     parts: PartTable,
@@ -332,6 +334,11 @@ impl ReducemFile {
 
     pub fn header(&self) -> &Header {
         &self.header
+    }
+
+    /// The model record; `None` before format 3.1.
+    pub fn model(&self) -> Option<&super::model::ModelRecord> {
+        self.model.as_ref()
     }
 
     /// The precision record (zeros for a format 2.0 file: lossless, nothing welded).

@@ -1,11 +1,16 @@
 //! Queries beyond the closest hit of a ray: the closest point of the surface to a point
-//! ([`closest`], exact point-triangle distance in [`triangle_distance`]).
+//! ([`closest`], exact point-triangle distance in [`triangle_distance`]), every crossing of a
+//! ray counted or listed with an exact tie rule ([`crossings`]), inside/outside
+//! ([`occupancy`]) and signed distance ([`signed`]).
 //!
 //! Like the tracer, the queries read the mapped file in place through the reader's views and
 //! page in only what they visit; on a lazily validated file a corrupt part they reach is kept
 //! for [`ReducemFile::defect`], which callers report instead of an incomplete answer.
 
 pub mod closest;
+pub mod crossings;
+pub mod occupancy;
+pub mod signed;
 pub mod triangle_distance;
 
 use rayon::prelude::*;
@@ -14,6 +19,9 @@ use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
 use crate::triangle_index::TriangleIndex;
 pub use closest::{ClosestPoint, ClosestPointSearch};
+pub use crossings::{all_hits, count_crossings, AllHits, RayHit, NO_FACE};
+pub use occupancy::{occupancy, Occupancy};
+pub use signed::{signed_closest_points, SignedClosest};
 
 /// How a query names the triangle it answers with: the input face id when the file stores face
 /// ids, else the triangle's row in `decode` order (as `cast_rays` does).

@@ -61,6 +61,8 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         grid_nodes: job.config.strip.grid_nodes,
         weld: merged.weld,
         attributes: job.config.build_params().attributes,
+        closedness: None,
+        up: None,
     };
     let mut source = Spliced::new(job, merged, hierarchy, info.node_grid()?)?;
     let temporary = reducem::atomic::temporary_path(&output);

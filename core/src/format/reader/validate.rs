@@ -57,6 +57,8 @@ pub(super) fn open(
     let core_end = sections[section_slot(SectionKind::StripData)].end as u64;
     let attributes = super::attributes::read_record(checker.head, &header, core_end, file_len)
         .map_err(|(offset, detail)| checker.invalid("header", offset, detail))?;
+    let model = crate::format::model::read_record(checker.head, &header)
+        .map_err(|(offset, detail)| checker.invalid("header", offset, detail))?;
     let map = map_file(&file).map_err(io_error)?;
     if map.len() as u64 != file_len {
         let detail = "the file changed size while it was being opened".to_string();
@@ -84,6 +86,7 @@ pub(super) fn open(
         node_grid,
         sections,
         attributes,
+        model,
         checks,
         parts: PartTable::new(header.leaf_windows as usize, layout.boxes()),
     };
