@@ -11,6 +11,7 @@
 #![deny(unsafe_code)]
 
 mod convert;
+mod crossings;
 mod errors;
 mod points;
 mod primitive_ids;

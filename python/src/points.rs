@@ -6,6 +6,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 use reducem_core::format::reader::ReducemFile;
+use reducem_core::query::occupancy::point_inside;
 use reducem_core::query::ClosestPointSearch;
 use reducem_core::trace::unit_normal;
 
@@ -101,4 +102,42 @@ pub fn closest_points(
             },
         );
     answers
+}
+
+/// Rays that decide inside/outside: one on a closed file (the parity is exact), else
+/// `samples` (at least one).
+pub fn inside_rays(file: &ReducemFile, samples: u32) -> u32 {
+    match file.closed() {
+        true => 1,
+        false => samples.max(1),
+    }
+}
+
+/// 1.0 for each point inside the surface, 0.0 outside, decided by `rays` rays
+/// ([`point_inside`]).
+pub fn occupancy(file: &ReducemFile, points: Components<'_>, rays: u32) -> Vec<f32> {
+    (0..points.points())
+        .into_par_iter()
+        .map(|i| f32::from(u8::from(point_inside(file, &points.point(i), rays))))
+        .collect()
+}
+
+/// The distance from each point to the surface, negative inside (decided by `rays` rays).
+pub fn signed_distances(file: &ReducemFile, points: Components<'_>, rays: u32) -> Vec<f32> {
+    (0..points.points())
+        .into_par_iter()
+        .map_init(
+            || ClosestPointSearch::new(file),
+            |search, i| {
+                let point = points.point(i);
+                let Some(found) = search.closest(&point, f32::INFINITY) else {
+                    return f32::INFINITY;
+                };
+                match point_inside(file, &point, rays) {
+                    true => -found.distance,
+                    false => found.distance,
+                }
+            },
+        )
+        .collect()
 }

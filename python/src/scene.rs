@@ -5,12 +5,12 @@
 //! calls `reducem query` makes: the same rays give bit-identical `t` and normals.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
 use numpy::ndarray::{Array, IxDyn};
 use numpy::{PyArray, PyArray1};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyRuntimeWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
@@ -19,9 +19,10 @@ use reducem_core::format::reader::ReducemFile;
 use reducem_core::trace::{surface_attributes, Hit, HitAttributes, Kernel, TraceOptions, Tracer};
 
 use crate::errors::{format_error, reducem_error};
+use crate::crossings;
 use crate::points::{self, ClosestAnswers};
 use crate::primitive_ids::{PrimitiveIds, NO_PRIMITIVE};
-use crate::rays::{self, InvalidRays, Rays};
+use crate::rays::{self, Components, InvalidRays, Rays};
 
 /// Rays traced by one task: the chunk size of `reducem query` (large enough to amortize
 /// scheduling and keep packets of consecutive rays, small enough to balance).
@@ -34,6 +35,8 @@ pub struct Scene {
     /// How answers name triangles, made on the first query that names them (without face ids
     /// it reads every strip's references, which opening does not).
     primitive_ids: OnceLock<PrimitiveIds>,
+    /// The not-exact warning was given.
+    warned_not_exact: AtomicBool,
 }
 
 /// Maps the ReduceM file at `path` and validates it: a file up to 1 MiB in full, a larger one
@@ -48,6 +51,7 @@ pub fn open(py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
     Ok(Scene {
         file,
         primitive_ids: OnceLock::new(),
+        warned_not_exact: AtomicBool::new(false),
     })
 }
 
@@ -265,6 +269,101 @@ impl Scene {
         ndarray(py, answers.distances, &shape)
     }
 
+    /// How many times each ray of `rays` (as for `cast_rays`) crosses the surface on
+    /// `[tnear, tfar]`: int32 `(...)`. A crossing through an edge or a vertex of a closed,
+    /// consistently oriented mesh counts once; a ray in a triangle's plane crosses nothing there.
+    #[pyo3(signature = (rays, tnear = 0.0, tfar = f32::INFINITY, nthreads = 0))]
+    fn count_intersections<'py>(
+        &self,
+        py: Python<'py>,
+        rays: &Bound<'py, PyAny>,
+        tnear: f32,
+        tfar: f32,
+        nthreads: usize,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let query = RayQuery::new(tnear, tfar, nthreads, "raise")?;
+        let (shape, counts) = self.trace(py, rays, query, |scene, rays, _| {
+            crossings::count(&scene.file, rays)
+        })?;
+        ndarray(py, counts, &shape)
+    }
+
+    /// Every crossing of each ray of `rays` (as for `count_intersections`) on `[tnear, tfar]`:
+    /// a dict of `ray_splits` uint32 `(N + 1,)` (ray `i`'s crossings are
+    /// `ray_splits[i]:ray_splits[i + 1]`, `N` the number of rays, flattened), `ray_ids` uint32,
+    /// `t_hit` float32, `primitive_ids` uint32 `(H,)` and `primitive_uvs` float32 `(H, 2)`, a
+    /// ray's crossings contiguous, `t` ascending, ties by primitive id.
+    #[pyo3(signature = (rays, tnear = 0.0, tfar = f32::INFINITY, nthreads = 0))]
+    fn list_intersections<'py>(
+        &self,
+        py: Python<'py>,
+        rays: &Bound<'py, PyAny>,
+        tnear: f32,
+        tfar: f32,
+        nthreads: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        check_ids_fit(&self.file)?;
+        let query = RayQuery::new(tnear, tfar, nthreads, "raise")?;
+        let (_, found) = self.trace(py, rays, query, |scene, rays, _| {
+            crossings::list(&scene.file, scene.primitive_ids(), rays)
+        })?;
+        let hits = found.t.len();
+        let result = PyDict::new(py);
+        let splits = found.splits.len();
+        result.set_item("ray_splits", ndarray(py, found.splits, &[splits])?)?;
+        result.set_item("ray_ids", ndarray(py, found.ray_ids, &[hits])?)?;
+        result.set_item("t_hit", ndarray(py, found.t, &[hits])?)?;
+        result.set_item("primitive_ids", ndarray(py, found.ids, &[hits])?)?;
+        result.set_item("primitive_uvs", ndarray(py, found.uvs, &[hits, 2])?)?;
+        Ok(result)
+    }
+
+    /// The distance from each of `query_points` (as for `compute_closest_points`) to the
+    /// surface, negative inside: float32 `(...)`. Inside is the parity of one ray's crossings
+    /// on a closed mesh (exact), else the majority of `nsamples` rays in fixed directions (not
+    /// exact: a `RuntimeWarning` says so, once per scene).
+    #[pyo3(signature = (query_points, nthreads = 0, nsamples = 1))]
+    fn compute_signed_distance<'py>(
+        &self,
+        py: Python<'py>,
+        query_points: &Bound<'py, PyAny>,
+        nthreads: usize,
+        nsamples: u32,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let rays = points::inside_rays(&self.file, nsamples);
+        let (shape, distances) = self.per_point(py, query_points, nthreads, |file, points| {
+            points::signed_distances(file, points, rays)
+        })?;
+        self.warn_unless_exact(py)?;
+        ndarray(py, distances, &shape)
+    }
+
+    /// 1.0 for each of `query_points` inside the surface, 0.0 outside: float32 `(...)`,
+    /// decided as for `compute_signed_distance`.
+    #[pyo3(signature = (query_points, nthreads = 0, nsamples = 1))]
+    fn compute_occupancy<'py>(
+        &self,
+        py: Python<'py>,
+        query_points: &Bound<'py, PyAny>,
+        nthreads: usize,
+        nsamples: u32,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let rays = points::inside_rays(&self.file, nsamples);
+        let (shape, occupancy) = self.per_point(py, query_points, nthreads, |file, points| {
+            points::occupancy(file, points, rays)
+        })?;
+        self.warn_unless_exact(py)?;
+        ndarray(py, occupancy, &shape)
+    }
+
+    /// Whether the conversion found the mesh closed (every edge shared by exactly two
+    /// triangles running it in opposite directions); false when the file does not say (files
+    /// converted before closedness was stored).
+    #[getter]
+    fn closed(&self) -> bool {
+        self.file.closed()
+    }
+
     /// `(min, max)` of the stored vertices, float32 `(3,)` each.
     #[getter]
     fn bounds<'py>(
@@ -278,7 +377,8 @@ impl Scene {
         )
     }
 
-    /// The statistics `reducem inspect --json` prints, as a dict with the same keys.
+    /// The statistics `reducem inspect --json` prints, as a dict with the same keys, and
+    /// `closed`, `boundary_edges`, `nonmanifold_edges` (None when the file does not say).
     #[getter]
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         // The statistics read every strip: all of them are validated first.
@@ -286,7 +386,20 @@ impl Scene {
             .map_err(format_error)?;
         let stats = py.detach(|| reducem::inspect::file_stats(&self.file));
         let text = serde_json::to_string(&stats).map_err(reducem_error)?;
-        py.import("json")?.call_method1("loads", (text,))
+        let info = py.import("json")?.call_method1("loads", (text,))?;
+        // The closedness keys, unless the statistics carry them already.
+        let closedness = self.file.closedness();
+        let keys = [
+            ("closed", self.file.closed().into_pyobject(py)?.to_owned().into_any()),
+            ("boundary_edges", closedness.map(|c| c.boundary_edges).into_pyobject(py)?),
+            ("nonmanifold_edges", closedness.map(|c| c.nonmanifold_edges).into_pyobject(py)?),
+        ];
+        for (key, value) in keys {
+            if !info.contains(key)? {
+                info.set_item(key, value)?;
+            }
+        }
+        Ok(info)
     }
 
     /// Every stored triangle, float32 `(n, 3, 3)` (triangle, corner, axis), in file order and
@@ -438,6 +551,38 @@ impl Scene {
         })?;
         self.complete()?;
         Ok(found)
+    }
+
+    /// `answer` for `query_points` without the GIL on `nthreads` threads, and their leading
+    /// shape; fails when it met a corrupt part of the file.
+    fn per_point<T: Send>(
+        &self,
+        py: Python<'_>,
+        query_points: &Bound<'_, PyAny>,
+        nthreads: usize,
+        answer: impl Fn(&ReducemFile, Components<'_>) -> T + Sync,
+    ) -> PyResult<(Vec<usize>, T)> {
+        let found = points::with_points(py, query_points, |shape, components| {
+            let answers = py.detach(|| in_pool(nthreads, || Ok(answer(&self.file, components))));
+            Ok((shape, answers.map_err(PyValueError::new_err)?))
+        })?;
+        self.complete()?;
+        Ok(found)
+    }
+
+    /// A `RuntimeWarning`, the first time on this scene, that inside/outside answers are a
+    /// vote of rays rather than exact because the mesh is not known to be closed.
+    fn warn_unless_exact(&self, py: Python<'_>) -> PyResult<()> {
+        if self.file.closed() || self.warned_not_exact.swap(true, Ordering::Relaxed) {
+            return Ok(());
+        }
+        let message = format!(
+            "{}: the mesh is not known to be closed; inside/outside is the majority of \
+             nsamples rays, not exact",
+            self.file.path().display()
+        );
+        let warning = py.get_type::<PyRuntimeWarning>();
+        PyErr::warn(py, &warning, &std::ffi::CString::new(message)?, 1)
     }
 
     /// Fails when rays met a corrupt strip or node (the file is validated lazily, part by part

@@ -209,7 +209,10 @@ def test_bounds_info_and_triangles_match_the_tools(scan, reducem_bin, tmp_path):
             [reducem_bin, "inspect", "--json", path], check=True, capture_output=True
         ).stdout
     )
-    assert scene.info == stats
+    info = scene.info
+    assert {key: info[key] for key in stats} == stats
+    assert info["closed"] is scene.closed
+    assert {"boundary_edges", "nonmanifold_edges"} <= set(info)
     low, high = scene.bounds
     assert low.dtype == np.float32 and low.shape == (3,)
     np.testing.assert_array_equal(low, np.float32(stats["bounds_min"]))

@@ -1,11 +1,14 @@
-"""Queries beyond the closest hit, with Open3D's names: closest points and distances against a
-float64 numpy brute force, and `geometry_ids` of `cast_rays`."""
+"""Queries beyond the closest hit, with Open3D's names: closest points, distances, crossing
+counts and lists, occupancy and signed distance against float64 numpy brute forces (and the
+winding number), `geometry_ids` of `cast_rays`, and `from_arrays`."""
+
+import warnings
 
 import numpy as np
 import pytest
 
 import reducem
-from conftest import camera_rays, convert
+from conftest import camera_rays, convert, random_rays
 
 NO_ID = np.iinfo(np.uint32).max
 
@@ -184,3 +187,136 @@ def test_from_arrays_errors_name_the_array_and_index():
         reducem.from_arrays(vertices, triangles.astype(np.float32))
     with pytest.raises(TypeError, match="vertices must be float32 or float64"):
         reducem.from_arrays(vertices.astype(np.int64), triangles)
+
+
+def crossings_brute_force(triangles, rays, tnear=0.0, tfar=np.inf):
+    """Every crossing of each ray in float64 (Moller-Trumbore, no tie rule): a list per ray of
+    (t, triangle) and, per ray, the smallest distance of a crossing from its triangle's edges
+    in barycentric weight (rays crossing near an edge are left out of exact comparisons)."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    e1, e2 = b - a, c - a
+    found, margins = [], []
+    for ray in rays.astype(np.float64):
+        origin, direction = ray[:3], ray[3:]
+        p = np.cross(direction, e2)
+        det = np.einsum("ij,ij->i", e1, p)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inverse = 1.0 / det
+            s = origin - a
+            u = np.einsum("ij,ij->i", s, p) * inverse
+            q = np.cross(s, e1)
+            v = (q @ direction) * inverse
+            t = np.einsum("ij,ij->i", e2, q) * inverse
+        weights = np.stack([1 - u - v, u, v])
+        crossed = (det != 0) & np.all(weights >= 0, axis=0) & (t >= tnear) & (t <= tfar)
+        near = np.abs(weights).min(axis=0)
+        hits = sorted(zip(t[crossed].tolist(), np.flatnonzero(crossed).tolist()))
+        found.append(hits)
+        margin = near[crossed].min() if crossed.any() else np.inf
+        # A triangle just missed counts as near too.
+        missed = (det != 0) & (t >= tnear) & (t <= tfar) & ~crossed
+        if missed.any():
+            margin = min(margin, np.abs(np.minimum(weights[:, missed], 0)).sum(axis=0).min())
+        margins.append(margin)
+    return found, np.array(margins)
+
+
+def winding_numbers(triangles, points):
+    """The generalized winding number of each point in float64 (van Oosterom and Strackee's
+    solid angle of each triangle)."""
+    numbers = []
+    for point in points.astype(np.float64):
+        a, b, c = (triangles[:, k] - point for k in range(3))
+        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+        dot = lambda x, y: np.einsum("ij,ij->i", x, y)  # noqa: E731
+        numerator = dot(a, np.cross(b, c))
+        denominator = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb
+        numbers.append(2 * np.arctan2(numerator, denominator).sum() / (4 * np.pi))
+    return np.array(numbers)
+
+
+def test_counts_and_lists_equal_the_brute_force_away_from_edges(model):
+    _, _, scene = model
+    triangles = scene.triangles().astype(np.float64)
+    rays = random_rays(scene, count=400)
+    counts = scene.count_intersections(rays)
+    listed = scene.list_intersections(rays)
+    expected, margins = crossings_brute_force(triangles, rays)
+    clear = margins > 1e-4
+    assert clear.sum() > 300
+    assert counts.dtype == np.int32 and counts.shape == (400,)
+    np.testing.assert_array_equal(counts[clear], [len(hits) for hits, ok in zip(expected, clear) if ok])
+    splits = listed["ray_splits"]
+    assert splits.dtype == np.uint32 and splits.shape == (401,) and splits[0] == 0
+    np.testing.assert_array_equal(np.diff(splits), counts)
+    np.testing.assert_array_equal(listed["ray_ids"], np.repeat(np.arange(400), counts))
+    assert listed["primitive_uvs"].shape == (splits[-1], 2)
+    for i in np.flatnonzero(clear):
+        span = slice(splits[i], splits[i + 1])
+        t = listed["t_hit"][span]
+        assert np.all(np.diff(t) >= 0)
+        np.testing.assert_allclose(t, [hit[0] for hit in expected[i]], rtol=1e-4)
+        assert sorted(listed["primitive_ids"][span].tolist()) == sorted(h[1] for h in expected[i])
+
+
+def test_interval_and_leading_shape_of_counts(scan):
+    rays = camera_rays(scan, width=8, height=5)
+    counts = scan.count_intersections(rays, tnear=0.5, tfar=2.0, nthreads=1)
+    assert counts.shape == (5, 8)
+    listed = scan.list_intersections(rays.astype(np.float64), tnear=0.5, tfar=2.0)
+    np.testing.assert_array_equal(np.diff(listed["ray_splits"]), counts.reshape(-1))
+    assert np.all((listed["t_hit"] >= 0.5) & (listed["t_hit"] <= 2.0))
+    with pytest.raises(ValueError, match=r"ray 3 \(rays\[0, 3\]\) is invalid"):
+        bad = rays.copy()
+        bad[0, 3, 3:] = 0
+        scan.count_intersections(bad)
+
+
+def test_rays_from_inside_a_closed_mesh_at_vertices_and_edges_cross_once(sphere_ply):
+    """The hard case of counting: rays from the centre of a closed mesh aimed exactly at its
+    vertices, edge midpoints and centroids cross it once; rays from outside through the same
+    points, an even number of times."""
+    scene = reducem.open(convert(sphere_ply))
+    triangles = scene.triangles().astype(np.float64)
+    targets = np.concatenate(
+        [triangles[:, 0], (triangles[:, 0] + triangles[:, 1]) / 2, triangles.mean(axis=1)]
+    )
+    centre = np.zeros(3)
+    inside = np.concatenate([np.broadcast_to(centre, targets.shape), targets - centre], axis=1)
+    assert np.all(scene.count_intersections(inside.astype(np.float32)) == 1)
+    origins = 3 * targets
+    outside = np.concatenate([origins, targets - origins], axis=1).astype(np.float32)
+    assert np.all(scene.count_intersections(outside) % 2 == 0)
+
+
+def test_occupancy_and_signed_distance_follow_the_winding_number(sphere_ply):
+    scene = reducem.open(convert(sphere_ply))
+    triangles = scene.triangles().astype(np.float64)
+    rng = np.random.default_rng(5)
+    pick = triangles[rng.integers(0, len(triangles), 150)]
+    on = pick.mean(axis=1)
+    normals = np.cross(pick[:, 1] - pick[:, 0], pick[:, 2] - pick[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    step = 1e-4 * np.linalg.norm(scene.bounds[1] - scene.bounds[0])
+    points = np.concatenate([on + step * normals, on - step * normals]).astype(np.float32)
+    inside = winding_numbers(triangles, points) > 0.5
+    assert inside.sum() == 150
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        occupancy = scene.compute_occupancy(points, nsamples=3)
+        signed = scene.compute_signed_distance(points, nsamples=3)
+    assert occupancy.dtype == np.float32
+    np.testing.assert_array_equal(occupancy, inside.astype(np.float32))
+    distances = scene.compute_distance(points)
+    np.testing.assert_array_equal(signed, np.where(inside, -distances, distances))
+
+
+def test_an_open_mesh_warns_once_that_inside_is_not_exact():
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
+    scene = reducem.from_arrays(vertices, np.array([[0, 1, 2]]))
+    assert not scene.closed and scene.info["closed"] is False
+    with pytest.warns(RuntimeWarning, match="not known to be closed"):
+        scene.compute_occupancy(np.zeros((2, 3)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_array_equal(scene.compute_signed_distance([[0.25, 0.25, 1]]), [1.0])

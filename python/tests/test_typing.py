@@ -92,6 +92,10 @@ def check_positional(stubbed, runtime):
         "Scene.render",
         "Scene.compute_closest_points",
         "Scene.compute_distance",
+        "Scene.count_intersections",
+        "Scene.list_intersections",
+        "Scene.compute_signed_distance",
+        "Scene.compute_occupancy",
     ],
 )
 def test_stub_signatures_match_the_runtime(name):
@@ -151,7 +155,12 @@ def test_mypy_accepts_typed_use_of_the_package(tmp_path):
             missed: NDArray[np.uint32] = hits["geometry_ids"]
             nearest = scene.compute_closest_points(rays[..., :3], nthreads=2)
             far: NDArray[np.float32] = scene.compute_distance(nearest["points"])
-            print(missed, nearest["primitive_normals"], far)
+            counts: NDArray[np.int32] = scene.count_intersections(rays, tfar=5.0)
+            listed: NDArray[np.uint32] = scene.list_intersections(rays)["ray_splits"]
+            inside: NDArray[np.float32] = scene.compute_occupancy(rays[..., :3], nsamples=3)
+            signed = scene.compute_signed_distance(rays[..., :3], nthreads=1)
+            closed: bool = scene.closed
+            print(missed, nearest["primitive_normals"], far, counts, listed, inside, signed, closed)
             arrays: reducem.Scene = reducem.from_arrays(
                 np.zeros((3, 3)), np.array([[0, 1, 2]]), max_length=4
             )
