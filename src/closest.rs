@@ -11,7 +11,7 @@ use reducem::exit_code::UsageError;
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::output::Destination;
-use reducem::query::{closest_points, ClosestPoint, FaceIds};
+use reducem::query::{closest_points, signed_closest_points, ClosestPoint, FaceIds};
 
 /// Bytes of one point of a point file: f32 x, y, z.
 const POINT_BYTES: usize = 12;
@@ -33,15 +33,30 @@ pub struct ClosestArgs {
     /// closest point (NaN when none); u32 face id (the input face id when the file stores face ids, else the
     /// triangle's row in `reducem decode` order; 0xFFFFFFFF when none); f32 u, v, the closest
     /// point's barycentric weights of the triangle's second and third corners in input winding
-    /// (NaN when none); u32 flags, 0.
+    /// (NaN when none); u32 flags: 0 without --signed, else bit 0 the point is inside, bit 1 the
+    /// mesh is closed so the side is exact.
     #[arg(short, long)]
     output: PathBuf,
     /// Only surface points at most this far from a point count (model units, inclusive).
     #[arg(long, value_name = "D", default_value_t = f32::INFINITY, value_parser = parse_max_distance)]
     max_distance: f32,
+    /// Signed distance: negative inside the surface, with the side in the flags. Exact on a
+    /// closed mesh (one ray's parity), else the majority of --samples rays.
+    #[arg(long)]
+    signed: bool,
+    /// With --signed, rays per point on a mesh that is not closed.
+    #[arg(long, value_name = "N", default_value_t = 1, requires = "signed",
+        value_parser = clap::value_parser!(u32).range(1..))]
+    samples: u32,
     /// Worker threads; 0 uses one per core.
     #[arg(long, value_name = "N", default_value_t = 0)]
     threads: usize,
+}
+
+/// The sides of the points with `--signed`: inside or not, and whether that is exact.
+struct Sides {
+    inside: Vec<bool>,
+    exact: bool,
 }
 
 /// A point file that cannot be used, naming the file and where.
@@ -96,9 +111,19 @@ fn answer(args: &ClosestArgs, output: &Destination) -> anyhow::Result<()> {
     let (points, file) = (points?, file?);
     file.advise_batch(points.len());
     let started = Instant::now();
-    let answers = closest_points(&file, &points, args.max_distance);
+    let (answers, sides) = match args.signed {
+        false => (closest_points(&file, &points, args.max_distance), None),
+        true => {
+            let signed = signed_closest_points(&file, &points, args.max_distance, args.samples);
+            let sides = Sides {
+                inside: signed.inside,
+                exact: signed.exact,
+            };
+            (signed.closest, Some(sides))
+        }
+    };
     let face_ids = FaceIds::of(&file);
-    let records = encode(&file, &face_ids, &answers);
+    let records = encode(&file, &face_ids, &answers, sides.as_ref());
     let seconds = started.elapsed().as_secs_f64();
     // Answers that met a corrupt part of a lazily validated file are incomplete.
     super::complete(&file)?;
@@ -126,7 +151,7 @@ fn read_all(path: &Path) -> std::io::Result<Vec<u8>> {
 }
 
 /// The points of a point file; every coordinate finite.
-fn read_points(path: &Path) -> Result<Vec<Point>, PointFileError> {
+pub(crate) fn read_points(path: &Path) -> Result<Vec<Point>, PointFileError> {
     // Read to the end rather than mapped, so a pipe or `-` (standard input) gives every point.
     let bytes = read_all(path).map_err(|source| PointFileError::Io {
         path: path.to_path_buf(),
@@ -161,19 +186,42 @@ fn f32_at(bytes: &[u8], at: usize) -> f32 {
 }
 
 /// The answer records of `answers`, in order.
-fn encode(file: &ReducemFile, face_ids: &FaceIds, answers: &[Option<ClosestPoint>]) -> Vec<u8> {
+fn encode(
+    file: &ReducemFile,
+    face_ids: &FaceIds,
+    answers: &[Option<ClosestPoint>],
+    sides: Option<&Sides>,
+) -> Vec<u8> {
     let mut records = vec![0u8; answers.len() * ANSWER_BYTES];
     records
         .par_chunks_mut(ANSWER_BYTES)
         .zip(answers)
-        .for_each(|(record, answer)| {
+        .enumerate()
+        .for_each(|(index, (record, answer))| {
+            let inside = sides.is_some_and(|sides| sides.inside[index]);
+            let flags = match sides {
+                None => 0,
+                Some(sides) => u32::from(inside) | u32::from(sides.exact) << 1,
+            };
             let words: [u32; 8] = match answer {
                 None => {
                     let nan = f32::NAN.to_bits();
-                    [f32::INFINITY.to_bits(), nan, nan, nan, NO_FACE, nan, nan, 0]
+                    [
+                        f32::INFINITY.to_bits(),
+                        nan,
+                        nan,
+                        nan,
+                        NO_FACE,
+                        nan,
+                        nan,
+                        flags,
+                    ]
                 }
                 Some(found) => [
-                    found.distance.to_bits(),
+                    match inside {
+                        true => (-found.distance).to_bits(),
+                        false => found.distance.to_bits(),
+                    },
                     found.point[0].to_bits(),
                     found.point[1].to_bits(),
                     found.point[2].to_bits(),
@@ -182,7 +230,7 @@ fn encode(file: &ReducemFile, face_ids: &FaceIds, answers: &[Option<ClosestPoint
                         .unwrap_or(NO_FACE),
                     found.u.to_bits(),
                     found.v.to_bits(),
-                    0,
+                    flags,
                 ],
             };
             for (bytes, word) in record.chunks_exact_mut(4).zip(words) {

@@ -67,6 +67,15 @@ pub struct FileStats {
     /// Largest angle between an input normal and its stored code, in degrees; 0 without
     /// normals.
     pub normal_error_max_degrees: f64,
+    /// Every edge has exactly two triangles running it in opposite directions (format 3.1);
+    /// false when unknown.
+    pub closed: bool,
+    /// Edges used by one triangle, and by more than two or two in one direction; `null` when
+    /// the file does not say (before 3.1, or a conversion of several chunks).
+    pub boundary_edges: Option<u64>,
+    pub nonmanifold_edges: Option<u64>,
+    /// The up-axis hint, `"y"` or `"z"`; `null` when unknown.
+    pub up: Option<&'static str>,
 }
 
 /// Gathers the statistics; walks every strip once for the length figures.
@@ -138,7 +147,23 @@ pub fn file_stats(file: &ReducemFile) -> FileStats {
         normals: attributes.normals.name().to_string(),
         colors: attributes.colors,
         normal_error_max_degrees: file.attribute_record().normal_error_max_degrees,
+        closed: file.closed(),
+        boundary_edges: file.closedness().map(|c| c.boundary_edges),
+        nonmanifold_edges: file.closedness().map(|c| c.nonmanifold_edges),
+        up: file.up_axis().map(|up| up.name()),
     }
+}
+
+/// The text `inspect` prints for closedness and the up axis.
+pub fn model_line(stats: &FileStats) -> String {
+    let edges = match (stats.boundary_edges, stats.nonmanifold_edges) {
+        (Some(boundary), Some(nonmanifold)) => format!(
+            "{}: {boundary} boundary edges, {nonmanifold} non-manifold edges",
+            if stats.closed { "closed" } else { "not closed" }
+        ),
+        _ => "closedness unknown".to_string(),
+    };
+    format!("{edges}; up {}", stats.up.unwrap_or("unknown"))
 }
 
 fn relative(error: f64, diagonal: f64) -> f64 {

@@ -19,6 +19,7 @@
 
 pub mod chunking;
 pub mod cli;
+pub mod closedness;
 pub mod conversion;
 pub mod decode;
 pub mod exit_code;

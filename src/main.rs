@@ -1,6 +1,8 @@
 //! The `reducem` command: inspect, decode, query and render ReduceM files.
 
 mod closest;
+mod crossings;
+mod inside;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -86,12 +88,25 @@ enum Command {
         /// zero).
         #[arg(long, value_enum, default_value_t = HitRecord::Compact, conflicts_with = "occluded")]
         format: HitRecord,
+        /// Count every crossing in [tmin, tmax] instead: a u32 per ray. A crossing through an
+        /// edge or a vertex counts once (docs/QUERIES.md).
+        #[arg(long, conflicts_with_all = ["occluded", "format", "all"])]
+        count: bool,
+        /// List every crossing in [tmin, tmax] instead: per ray a u32 n, then n records of 16
+        /// bytes (f32 t, u32 face id, f32 u, f32 v), t ascending, ties by face id.
+        #[arg(long, conflicts_with_all = ["occluded", "format"])]
+        all: bool,
     },
     /// Find the closest surface point to each point of a binary point file (f32 x 3 per point)
     /// and write 32 bytes per point: distance, point, face id, barycentrics, flags. Prints a
     /// summary line on stderr.
     #[command(after_help = exit_code::HELP)]
     Closest(closest::ClosestArgs),
+    /// Tell for each point of a binary point file (f32 x 3 per point) whether it is inside the
+    /// surface: one byte per point, 1 inside. Exact on a closed mesh (one ray's parity), else
+    /// the majority of --samples rays. Prints a summary line on stderr.
+    #[command(after_help = exit_code::HELP)]
+    Inside(inside::InsideArgs),
     /// Render an image of the model as a scene file describes it, tracing only the effects the
     /// scene asks for. Every scene key, its default and unit: docs/SCENES.md.
     #[command(after_help = exit_code::HELP, allow_negative_numbers = true)]
@@ -123,6 +138,7 @@ impl Command {
             | Command::Query { file, .. }
             | Command::Render { file, .. } => Some(file),
             Command::Closest(args) => Some(&args.file),
+            Command::Inside(args) => Some(&args.file),
         }
     }
 }
@@ -295,8 +311,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             occluded,
             invalid_rays,
             format,
+            count,
+            all,
         } => {
             let output = Destination::prepare(&output, &[&file, &rays])?;
+            let every = match (count, all) {
+                (true, _) => Some(crossings::Crossings::Count),
+                (_, true) => Some(crossings::Crossings::All),
+                _ => None,
+            };
+            if let Some(mode) = every {
+                return crossings::run(&file, &rays, &output, mode, invalid_rays.into());
+            }
             let answer = match occluded {
                 true => Answer::Occlusion,
                 false => Answer::Hits(format.format()),
@@ -304,6 +330,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             query(&file, &rays, &output, answer, invalid_rays.into())
         }
         Command::Closest(args) => closest::run(args),
+        Command::Inside(args) => inside::run(args),
         Command::Render {
             file,
             scene,
@@ -590,6 +617,10 @@ fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<(
             if stats.colors { "yes" } else { "no" },
         );
     }
+    println!(
+        "  model              {}",
+        reducem::inspect::model_line(&stats)
+    );
     println!(
         "  file               {} bytes, {:.2} bytes/triangle",
         stats.file_bytes, stats.bytes_per_triangle

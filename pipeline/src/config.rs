@@ -54,6 +54,31 @@ pub struct Config {
 pub struct InputConfig {
     pub path: Option<PathBuf>,
     pub generate: Option<GenerateConfig>,
+    /// The model's up axis, `"y"` or `"z"`, stored as a hint for viewers; by default z for STL
+    /// and y otherwise ([`reducem::closedness::default_up`]).
+    #[serde(default)]
+    pub up: Option<UpName>,
+}
+
+/// `[input] up`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum UpName {
+    Y,
+    Z,
+}
+
+impl InputConfig {
+    /// The up axis to store: the configured one, else the default of the input's format.
+    pub fn up_axis(&self) -> reducem::format::model::UpAxis {
+        use reducem::format::model::UpAxis;
+        match (self.up, &self.path) {
+            (Some(UpName::Y), _) => UpAxis::Y,
+            (Some(UpName::Z), _) => UpAxis::Z,
+            (None, Some(path)) => reducem::closedness::default_up(path),
+            (None, None) => UpAxis::Y,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Deserialize)]

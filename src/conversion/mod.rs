@@ -12,9 +12,11 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
+use crate::closedness::count_edges;
 use crate::format::attributes::AttributeSet;
 use crate::format::counts::WeldStats;
 use crate::format::grid::{Grid, MAX_GRID_BITS};
+use crate::format::model::Closedness;
 use crate::format::writer::{FileInfo, WriteError};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
@@ -280,13 +282,33 @@ pub fn convert_mesh(
             source: std::io::Error::new(std::io::ErrorKind::InvalidInput, detail),
         });
     }
-    write_chunk(&encode_chunk(mesh, params), params, out)
+    let chunk = encode_chunk(mesh, params);
+    write_chunk_counted(&chunk, params, Some(stored_edges(mesh, params)), out)
+}
+
+/// The edge counts of `mesh` as stored: on the grid when vertices are quantized, since snapping
+/// can join or part edges.
+fn stored_edges(mesh: &Mesh, params: &BuildParams) -> Closedness {
+    match params.grid(&mesh.bounds()) {
+        Some(grid) => count_edges(&quantize_mesh(mesh, &grid).mesh),
+        None => count_edges(mesh),
+    }
 }
 
 /// Builds the top level over one encoded chunk and writes the file at `out`.
 pub fn write_chunk(
     chunk: &EncodedChunk,
     params: &BuildParams,
+    out: &Path,
+) -> Result<ChunkStats, WriteError> {
+    write_chunk_counted(chunk, params, None, out)
+}
+
+/// [`write_chunk`] with the whole model's edge counts when known.
+pub fn write_chunk_counted(
+    chunk: &EncodedChunk,
+    params: &BuildParams,
+    closedness: Option<Closedness>,
     out: &Path,
 ) -> Result<ChunkStats, WriteError> {
     let layout =
@@ -303,7 +325,7 @@ pub fn write_chunk(
         grid_nodes: params.grid_nodes,
         weld: WeldStats::default(),
         attributes: params.attributes,
-        closedness: None,
+        closedness,
         up: None,
     };
     write_layout(out, &info, &layout, &chunk.strips)?;

@@ -96,7 +96,9 @@ pub fn ray_hits(file: &ReducemFile, ray: &Ray, face_ids: &FaceIds) -> Vec<RayHit
 }
 
 /// Calls `each(strip, window, hit)` for every crossing of `ray` in `[tmin, tmax]`, in no
-/// particular order, the hit's weights those of the triangle's corners in input winding. On a
+/// particular order, the hit's weights those of the triangle's corners in input winding. An
+/// invalid ray (not finite, zero direction, `tmin` negative or above `tmax`) crosses nothing,
+/// as ray files answer it with `--invalid-rays miss`. On a
 /// lazily opened file a corrupt node or strip reached is skipped and kept for
 /// [`ReducemFile::defect`], as in tracing.
 pub fn for_each_crossing(
@@ -104,11 +106,23 @@ pub fn for_each_crossing(
     ray: &Ray,
     mut each: impl FnMut(u32, u16, TriangleHit),
 ) {
+    if !valid(ray) {
+        return;
+    }
     let walk = Walk::new(ray);
     match file.top_nodes() {
         TopNodes::F32(nodes) => walk.run(file, nodes, &(), &mut each),
         TopNodes::Grid(nodes, grid) => walk.run(file, nodes, &grid, &mut each),
     }
+}
+
+fn valid(ray: &Ray) -> bool {
+    let finite = |p: &Point| p.iter().all(|x| x.is_finite());
+    finite(&ray.origin)
+        && finite(&ray.direction)
+        && ray.direction != [0.0; 3]
+        && ray.tmin >= 0.0
+        && ray.tmin <= ray.tmax
 }
 
 /// The crossing of `triangle` (corners in input winding) by the ray of `space` in
