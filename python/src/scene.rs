@@ -18,8 +18,8 @@ use reducem_core::format::attributes::{AttributeSet, NormalEncoding};
 use reducem_core::format::reader::ReducemFile;
 use reducem_core::trace::{surface_attributes, Hit, HitAttributes, Kernel, TraceOptions, Tracer};
 
-use crate::errors::{format_error, reducem_error};
 use crate::crossings;
+use crate::errors::{format_error, reducem_error};
 use crate::points::{self, ClosestAnswers};
 use crate::primitive_ids::{PrimitiveIds, NO_PRIMITIVE};
 use crate::rays::{self, Components, InvalidRays, Rays};
@@ -390,9 +390,18 @@ impl Scene {
         // The closedness keys, unless the statistics carry them already.
         let closedness = self.file.closedness();
         let keys = [
-            ("closed", self.file.closed().into_pyobject(py)?.to_owned().into_any()),
-            ("boundary_edges", closedness.map(|c| c.boundary_edges).into_pyobject(py)?),
-            ("nonmanifold_edges", closedness.map(|c| c.nonmanifold_edges).into_pyobject(py)?),
+            (
+                "closed",
+                self.file.closed().into_pyobject(py)?.to_owned().into_any(),
+            ),
+            (
+                "boundary_edges",
+                closedness.map(|c| c.boundary_edges).into_pyobject(py)?,
+            ),
+            (
+                "nonmanifold_edges",
+                closedness.map(|c| c.nonmanifold_edges).into_pyobject(py)?,
+            ),
         ];
         for (key, value) in keys {
             if !info.contains(key)? {

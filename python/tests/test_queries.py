@@ -2,6 +2,7 @@
 counts and lists, occupancy and signed distance against float64 numpy brute forces (and the
 winding number), `geometry_ids` of `cast_rays`, and `from_arrays`."""
 
+import subprocess
 import warnings
 
 import numpy as np
@@ -320,3 +321,94 @@ def test_an_open_mesh_warns_once_that_inside_is_not_exact():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         np.testing.assert_array_equal(scene.compute_signed_distance([[0.25, 0.25, 1]]), [1.0])
+
+
+def run_tool(reducem_bin, *arguments):
+    subprocess.run([reducem_bin, *map(str, arguments)], check=True, capture_output=True)
+
+
+def ray_file(rays, path):
+    records = np.zeros((len(rays), 8), "<f4")
+    records[:, :6] = rays
+    records[:, 7] = np.inf
+    records.tofile(path)
+    return path
+
+
+def test_counts_and_lists_are_those_of_reducem_query(model, reducem_bin, tmp_path):
+    _, path, scene = model
+    rays = np.concatenate([random_rays(scene, count=500), camera_rays(scene).reshape(-1, 6)])
+    rays_file = ray_file(rays, tmp_path / "rays.bin")
+    run_tool(reducem_bin, "query", path, "--rays", rays_file, "-o", tmp_path / "counts", "--count")
+    counts = np.fromfile(tmp_path / "counts", "<u4")
+    np.testing.assert_array_equal(scene.count_intersections(rays), counts)
+    run_tool(reducem_bin, "query", path, "--rays", rays_file, "-o", tmp_path / "all", "--all")
+    data, at = np.fromfile(tmp_path / "all", np.uint8), 0
+    listed = scene.list_intersections(rays)
+    record = np.dtype([("t", "<f4"), ("id", "<u4"), ("u", "<f4"), ("v", "<f4")])
+    for i in range(len(rays)):
+        n = int(data[at : at + 4].view("<u4")[0])
+        hits = data[at + 4 : at + 4 + 16 * n].view(record)
+        at += 4 + 16 * n
+        span = slice(listed["ray_splits"][i], listed["ray_splits"][i + 1])
+        np.testing.assert_array_equal(listed["t_hit"][span], hits["t"])
+        np.testing.assert_array_equal(listed["primitive_ids"][span], hits["id"])
+        np.testing.assert_array_equal(listed["primitive_uvs"][span], np.stack([hits["u"], hits["v"]], 1))
+    assert at == len(data)
+
+
+def test_closest_signed_and_inside_are_those_of_the_tools(model, reducem_bin, tmp_path):
+    _, path, scene = model
+    points = points_near(scene)
+    points_file = tmp_path / "points.bin"
+    points.astype("<f4").tofile(points_file)
+    run_tool(reducem_bin, "closest", path, "--points", points_file, "-o", tmp_path / "c", "--signed", "--samples", 3)
+    answers = np.fromfile(tmp_path / "c", np.uint8).reshape(-1, 32)
+    distance = answers[:, :4].copy().view("<f4")[:, 0]
+    closest = answers[:, 4:16].copy().view("<f4")
+    ids = answers[:, 16:20].copy().view("<u4")[:, 0]
+    uvs = answers[:, 20:28].copy().view("<f4")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        np.testing.assert_array_equal(scene.compute_signed_distance(points, nsamples=3), distance)
+        occupancy = scene.compute_occupancy(points, nsamples=3)
+    found = scene.compute_closest_points(points)
+    np.testing.assert_array_equal(found["points"], closest)
+    np.testing.assert_array_equal(found["primitive_ids"], ids)
+    np.testing.assert_array_equal(found["primitive_uvs"], uvs)
+    run_tool(reducem_bin, "inside", path, "--points", points_file, "-o", tmp_path / "i", "--samples", 3)
+    np.testing.assert_array_equal(occupancy, np.fromfile(tmp_path / "i", np.uint8))
+
+
+def open3d_style_queries(scene, rays, points):
+    """Code written for Open3D's RaycastingScene (tensors aside): only its names and keys."""
+    hits = scene.cast_rays(rays, nthreads=2)
+    return {
+        "t_hit": hits["t_hit"],
+        "geometry_ids": hits["geometry_ids"],
+        "counts": scene.count_intersections(rays),
+        "listed": scene.list_intersections(rays)["t_hit"],
+        "closest": scene.compute_closest_points(points)["points"],
+        "distance": scene.compute_distance(points),
+        "signed": scene.compute_signed_distance(points),
+        "occupancy": scene.compute_occupancy(points),
+    }
+
+
+def test_open3d_code_runs_on_a_closed_cube_exactly():
+    vertices, triangles = cube()
+    scene = reducem.from_arrays(vertices, triangles)
+    assert scene.closed and scene.info["boundary_edges"] == 0
+    rays = np.array([[0.5, 0.5, -1, 0, 0, 1], [0.25, 0.75, 0.5, 1, 0, 0], [2, 2, 2, 1, 0, 0]])
+    points = np.array([[0.5, 0.5, 0.25], [0.5, 0.5, 2.0], [-1.0, 0.5, 0.5]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        answers = open3d_style_queries(scene, rays, points)
+    np.testing.assert_array_equal(answers["t_hit"], [1.0, 0.75, np.inf])
+    np.testing.assert_array_equal(answers["geometry_ids"], [0, 0, NO_ID])
+    np.testing.assert_array_equal(answers["counts"], [2, 1, 0])
+    np.testing.assert_array_equal(answers["listed"], [1.0, 2.0, 0.75])
+    np.testing.assert_array_equal(answers["closest"], [[0.5, 0.5, 0.0], [0.5, 0.5, 1.0], [0, 0.5, 0.5]])
+    np.testing.assert_array_equal(answers["distance"], [0.25, 1.0, 1.0])
+    np.testing.assert_array_equal(answers["signed"], [-0.25, 1.0, 1.0])
+    np.testing.assert_array_equal(answers["occupancy"], [1.0, 0.0, 0.0])
