@@ -124,6 +124,7 @@ def convert(
     output: _Path,
     *,
     progress: Optional[Callable[[str, int, int, str], object]] = None,
+    up: Literal["y", "z"] = ...,
     max_length: int = ...,
     leaf_windows: int = ...,
     sah_bins: int = ...,

@@ -26,6 +26,9 @@ pub struct Crossings {
 /// One crossing: `t`, primitive id, `u`, `v`.
 type Crossing = (f32, u32, f32, f32);
 
+/// One chunk's crossing counts per ray and its crossings, or its first invalid ray.
+type ChunkCrossings = Result<(Vec<u32>, Vec<Crossing>), usize>;
+
 /// The number of crossings of each ray in its interval (rays validated by
 /// [`Rays::chunk_into`]: `Err` with the first invalid one's index).
 pub fn count(file: &ReducemFile, rays: &Rays) -> Result<Vec<i32>, usize> {
@@ -48,7 +51,7 @@ pub fn count(file: &ReducemFile, rays: &Rays) -> Result<Vec<i32>, usize> {
 
 /// Every crossing of each ray in its interval, `t` ascending, ties by primitive id.
 pub fn list(file: &ReducemFile, ids: &PrimitiveIds, rays: &Rays) -> Result<Crossings, usize> {
-    let chunks: Vec<Result<(Vec<u32>, Vec<Crossing>), usize>> = (0..rays.traced().div_ceil(CHUNK))
+    let chunks: Vec<ChunkCrossings> = (0..rays.traced().div_ceil(CHUNK))
         .into_par_iter()
         .map_init(Vec::new, |traced, chunk| {
             let first = chunk * CHUNK;

@@ -294,6 +294,9 @@ def test_convert_settings_reach_the_file(scan_ply, tmp_path):
     info = reducem.open(out).info
     assert info["leaf_triangles"] == 4
     assert not (tmp_path / "leaf.rdm.work").exists()
+    for up in ("z", "y"):
+        reducem.convert(scan_ply, tmp_path / f"{up}.rdm", up=up)
+        assert reducem.open(tmp_path / f"{up}.rdm").info["up"] == up
 
 
 def test_convert_errors(scan_ply, tmp_path):
