@@ -172,6 +172,188 @@ for name in rows:
         print(f"largest |distance - {name}'s|: {gap:.3g}")
 EOF
 
+# Every crossing: `reducem query --count` and `--all` against Open3D's count_intersections and
+# list_intersections on RAYS incoherent rays across the bounds; `reducem inside` against
+# Open3D's compute_occupancy (nsamples=1) and trimesh's contains (with embreex when installed)
+# on the same points. Medians of RUNS runs of the queries alone, in Mqueries/s.
+RAYS=${RAYS:-$POINTS}
+cat >"$WORK/crossings.py" <<'EOF'
+"""argv: decoded rays_out points_in count. Writes incoherent rays between random points of the
+bounds grown by 10%, as a reducem ray file (f32 x 8: origin, direction, tmin, tmax)."""
+import sys
+
+import numpy as np
+
+from mesh import read_decoded
+
+decoded, out, count = sys.argv[1], sys.argv[2], int(sys.argv[3])
+vertices, _ = read_decoded(decoded)
+low, high = vertices.min(0).astype(np.float64), vertices.max(0).astype(np.float64)
+grow = 0.1 * (high - low)
+rng = np.random.default_rng(2)
+a = rng.uniform(low - grow, high + grow, (count, 3))
+b = rng.uniform(low - grow, high + grow, (count, 3))
+rays = np.zeros((count, 8), "<f4")
+rays[:, :3], rays[:, 3:6], rays[:, 7] = a, b - a, np.inf
+rays.tofile(out)
+EOF
+cat >"$WORK/crossing_peer.py" <<'EOF'
+"""One peer, one query kind, one run: prints `query_s`, saves the answers. argv: engine kind
+decoded input threads answers_out (kind: count, all, inside)."""
+import sys
+import time
+
+import numpy as np
+
+from mesh import read_decoded
+
+name, kind, decoded, source, threads, out = sys.argv[1:7]
+threads = int(threads)
+vertices, faces = read_decoded(decoded)
+if kind == "inside":
+    queries = np.fromfile(source, "<f4").reshape(-1, 3)
+else:
+    queries = np.fromfile(source, "<f4").reshape(-1, 8)[:, :6].copy()
+if name == "open3d":
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene(nthreads=threads)
+    scene.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(faces.astype(np.uint32)))
+    scene.count_intersections(o3d.core.Tensor(queries[:1, :6] if kind != "inside" else
+                                              np.array([[0, 0, 0, 1, 0, 0]], np.float32)))
+    tensor = o3d.core.Tensor(queries)
+    started = time.perf_counter()
+    if kind == "count":
+        answers = scene.count_intersections(tensor, nthreads=threads).numpy()
+    elif kind == "all":
+        answers = scene.list_intersections(tensor, nthreads=threads)["ray_splits"].numpy()
+    else:
+        answers = scene.compute_occupancy(tensor, nthreads=threads).numpy()
+    query = time.perf_counter() - started
+else:
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    mesh.contains(queries[:1])
+    started = time.perf_counter()
+    answers = mesh.contains(queries)
+    query = time.perf_counter() - started
+np.save(out, np.asarray(answers))
+print(query)
+EOF
+rays=$WORK/rays$RAYS.bin
+[[ -f $rays ]] || (cd "$WORK" && "$PYTHON" crossings.py "$(basename "$decoded")" "$(basename "$rays")" "$RAYS")
+"$PYTHON" -c "import trimesh" 2>/dev/null && has_trimesh=1 || { has_trimesh=0; echo "trimesh: not importable, skipped"; }
+crossing_results=$WORK/crossing-results.txt
+: >"$crossing_results"
+seconds_of() { grep -o 'seconds=[0-9.]*' "$1" | cut -d= -f2; }
+for run in $(seq "$RUNS"); do
+  for kind in count all; do
+    RAYON_NUM_THREADS=$THREADS target/release/reducem query "$model" --rays "$rays" --$kind \
+      -o "$WORK/reducem.$kind" 2>"$WORK/summary"
+    echo "$kind reducem $(seconds_of "$WORK/summary")" >>"$crossing_results"
+  done
+  target/release/reducem inside "$model" --points "$points" -o "$WORK/reducem.inside" \
+    --threads "$THREADS" 2>"$WORK/summary"
+  echo "inside reducem $(seconds_of "$WORK/summary")" >>"$crossing_results"
+  for kind in count all inside; do
+    if [[ " ${engines[*]} " == *" open3d "* ]]; then
+      input=$([[ $kind == inside ]] && basename "$points" || basename "$rays")
+      echo "$kind open3d $(cd "$WORK" && "$PYTHON" crossing_peer.py open3d $kind \
+        "$(basename "$decoded")" "$input" "$THREADS" "open3d.$kind.npy")" >>"$crossing_results"
+    fi
+  done
+  if ((has_trimesh)); then
+    echo "inside trimesh $(cd "$WORK" && "$PYTHON" crossing_peer.py trimesh inside \
+      "$(basename "$decoded")" "$(basename "$points")" "$THREADS" trimesh.inside.npy)" >>"$crossing_results"
+  fi
+done
+
+"$PYTHON" - "$crossing_results" "$WORK" "$RAYS" "$POINTS" "$THREADS" <<'EOF'
+import os
+import statistics
+import sys
+
+import numpy as np
+
+results, work, rays, points, threads = sys.argv[1:6]
+rows = {}
+for line in open(results):
+    kind, name, query = line.split()
+    rows.setdefault((kind, name), []).append(float(query))
+print(f"\n{int(rays):,} incoherent rays, {int(points):,} points, {threads} threads, medians")
+print(f"{'query':<8} {'engine':<10} {'Mqueries/s':>10} {'query s':>9}")
+for (kind, name), runs in rows.items():
+    count = int(points) if kind == "inside" else int(rays)
+    query = statistics.median(runs)
+    print(f"{kind:<8} {name:<10} {count / query / 1e6:>10.3f} {query:>9.3f}")
+counts = np.fromfile(f"{work}/reducem.count", "<u4")
+if os.path.exists(f"{work}/open3d.count.npy"):
+    other = np.load(f"{work}/open3d.count.npy")
+    print(f"rays whose count differs from Open3D's: {(counts != other).sum():,} of {len(counts):,}")
+EOF
+
+# The hard cases: rays from the centre of a closed generated sphere (HARD_TRIANGLES) at every
+# vertex, edge midpoint and centroid cross the surface exactly once; wrong counts per engine.
+HARD_TRIANGLES=${HARD_TRIANGLES:-20000}
+hard=$WORK/sphere$HARD_TRIANGLES
+[[ -f $hard.rdm ]] || {
+  target/release/pipeline gen sphere --triangles "$HARD_TRIANGLES" -o "$hard.ply"
+  target/release/pipeline convert "$hard.ply" -o "$hard.rdm" --log-format plain 2>/dev/null
+  target/release/reducem decode "$hard.rdm" -o "$hard.decoded.ply"
+}
+cat >"$WORK/hard.py" <<'EOF'
+"""argv: decoded rays_out. Rays from the vertex centroid at every vertex, edge midpoint and
+triangle centroid, computed in f64 and rounded once."""
+import sys
+
+import numpy as np
+
+from mesh import read_decoded
+
+vertices, faces = read_decoded(sys.argv[1])
+wide = vertices.astype(np.float64)
+corners = wide[faces]
+targets = np.concatenate([
+    wide,
+    (corners[:, 0] + corners[:, 1]) / 2, (corners[:, 1] + corners[:, 2]) / 2,
+    (corners[:, 2] + corners[:, 0]) / 2, corners.mean(1),
+]).astype(np.float32)
+centre = wide.mean(0).astype(np.float32)
+rays = np.zeros((len(targets), 8), "<f4")
+rays[:, :3], rays[:, 3:6], rays[:, 7] = centre, targets - centre, np.inf
+rays.tofile(sys.argv[2])
+EOF
+(cd "$WORK" && "$PYTHON" hard.py "$(basename "$hard").decoded.ply" hard.rays)
+target/release/reducem inspect --json "$hard.rdm" | "$PYTHON" -c \
+  'import json, sys; s = json.load(sys.stdin); print(f"\nhard cases: sphere of {s[\"triangles\"]:,} triangles, closed: {s[\"closed\"]}")'
+target/release/reducem query "$hard.rdm" --rays "$WORK/hard.rays" --count -o "$WORK/hard.reducem" 2>/dev/null
+"$PYTHON" - "$WORK" "$(basename "$hard").decoded.ply" <<'EOF'
+import sys
+
+import numpy as np
+
+sys.path.insert(0, sys.argv[1])
+from mesh import read_decoded
+
+work = sys.argv[1]
+counts = {"reducem": np.fromfile(f"{work}/hard.reducem", "<u4")}
+try:
+    import open3d as o3d
+
+    vertices, faces = read_decoded(f"{work}/{sys.argv[2]}")
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(faces.astype(np.uint32)))
+    rays = np.fromfile(f"{work}/hard.rays", "<f4").reshape(-1, 8)[:, :6].copy()
+    counts["open3d"] = scene.count_intersections(o3d.core.Tensor(rays)).numpy()
+except ImportError:
+    pass
+print(f"{'engine':<10} {'rays':>9} {'wrong counts':>13} {'%':>7}")
+for name, c in counts.items():
+    wrong = int((c != 1).sum())
+    print(f"{name:<10} {len(c):>9,} {wrong:>13,} {100 * wrong / len(c):>7.2f}")
+EOF
+
 # The Python package's rows (when `import reducem` works in PYTHON): cast_rays on a row-major
 # pinhole camera, test_occlusions on incoherent rays and compute_closest_points on the points
 # above, against Open3D in the same process, and `reducem query` on the same rays (its own

@@ -119,7 +119,7 @@ fn inspect_json_reports_the_grid_and_the_position_error() {
         .zip(&quantized.positions)
         .map(|(p, q)| distance(p, q))
         .fold(0.0, f64::max);
-    assert_eq!(stats["format_version"], "3.0");
+    assert_eq!(stats["format_version"], "3.1");
     assert_eq!(stats["vertex_encoding"], "grid");
     assert_eq!(stats["top_node_bytes"], 64);
     assert_eq!(stats["grid_bits"], 16);
@@ -142,7 +142,7 @@ fn inspect_json_reports_the_grid_and_the_position_error() {
     let output = reducem(&["inspect", lossless.to_str().unwrap(), "--json"]);
     let stats: serde_json::Value = serde_json::from_slice(&output.stdout).expect("one JSON object");
     assert_eq!(stats["vertex_encoding"], "f32");
-    assert_eq!(stats["format_version"], "3.0");
+    assert_eq!(stats["format_version"], "3.1");
     assert_eq!(stats["top_node_bytes"], 128);
     assert_eq!(stats["grid_bits"], 0);
     assert_eq!(stats["position_error_max"], 0.0);
@@ -156,7 +156,7 @@ fn inspect_json_reports_the_grid_and_the_position_error() {
     let output = reducem(&["inspect", grid_nodes.to_str().unwrap(), "--json"]);
     let stats: serde_json::Value = serde_json::from_slice(&output.stdout).expect("one JSON object");
     assert_eq!(stats["vertex_encoding"], "f32");
-    assert_eq!(stats["format_version"], "3.0");
+    assert_eq!(stats["format_version"], "3.1");
     assert_eq!(stats["top_node_bytes"], 64);
 }
 

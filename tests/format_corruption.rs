@@ -585,7 +585,7 @@ fn crafted_grid_nodes_are_rejected_naming_node_and_byte() {
 #[test]
 fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
     let bytes = grid_file_bytes("grid-nodes-version-source.rdm");
-    assert_eq!(&bytes[8..12], &[3, 0, 0, 0]);
+    assert_eq!(&bytes[8..12], &[3, 0, 1, 0]);
     assert_eq!(&bytes[20..24], &3u32.to_le_bytes());
     let message = open_error("grid-nodes-2.2.rdm", &claiming_version(&bytes, 2, 2));
     assert!(
@@ -622,7 +622,7 @@ fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
 #[test]
 fn lossless_grid_nodes_need_format_2_4_and_a_well_formed_node_grid() {
     let bytes = grid_node_file_bytes("lossless-grid-nodes-source.rdm");
-    assert_eq!(&bytes[8..12], &[3, 0, 0, 0]);
+    assert_eq!(&bytes[8..12], &[3, 0, 1, 0]);
     assert_eq!(&bytes[20..24], &4u32.to_le_bytes());
     let message = open_error(
         "lossless-grid-nodes-2.3.rdm",
