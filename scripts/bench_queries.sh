@@ -10,6 +10,9 @@
 #   scripts/bench_queries.sh                          # 1M-triangle scan, 1M points, 5 runs
 #   TRIANGLES=10000000 POINTS=1000000 RUNS=3 scripts/bench_queries.sh
 #
+# Then, when PYTHON imports the package (`pip install ./python`), the Python rows: see
+# `python_rows` at the end.
+#
 # PYTHON is an interpreter with numpy; Open3D (`pip install open3d-cpu`, which needs Debian's
 # libusb-1.0-0) and fcpw (`pip install fcpw`) are measured when they import. fcpw's Python
 # binding takes no thread count: it runs on every core, so THREADS should be the core count
@@ -351,3 +354,120 @@ for name, c in counts.items():
     wrong = int((c != 1).sum())
     print(f"{name:<10} {len(c):>9,} {wrong:>13,} {100 * wrong / len(c):>7.2f}")
 EOF
+
+# The Python package's rows (when `import reducem` works in PYTHON): cast_rays on a row-major
+# pinhole camera, test_occlusions on incoherent rays and compute_closest_points on the points
+# above, against Open3D in the same process, and `reducem query` on the same rays (its own
+# timing of the tracing, RAYON_NUM_THREADS=THREADS); medians of RUNS calls each.
+python_rows() {
+  "$PYTHON" -c "import reducem" 2>/dev/null || {
+    echo "reducem (Python): not importable, Python rows skipped"
+    return
+  }
+  cat >"$WORK/python_rays.py" <<'EOF'
+"""Python ray queries, one process: reducem's cast_rays on a row-major 1024x1024 pinhole camera
+and test_occlusions on incoherent rays, and compute_closest_points on the benchmark's points,
+against Open3D's RaycastingScene on the same triangles, rays, points and thread count. Writes
+both ray sets as ray files for `reducem query`. Prints `name Mqueries/s` (medians).
+argv: model decoded points threads runs work"""
+import statistics
+import sys
+import time
+
+import numpy as np
+
+import reducem
+from mesh import read_decoded
+
+model, decoded, points_path, threads, runs, work = sys.argv[1:7]
+threads, runs = int(threads), int(runs)
+scene = reducem.open(model)
+low, high = (np.asarray(b, np.float64) for b in scene.bounds)
+centre, size = (low + high) / 2, float(np.linalg.norm(high - low))
+
+# A pinhole camera as Open3D's create_rays_pinhole orders its rays: (height, width, 6), row by row.
+side = 1024
+eye = centre + np.array([0.3, 0.5, 1.0]) / np.linalg.norm([0.3, 0.5, 1.0]) * size
+forward = (centre - eye) / np.linalg.norm(centre - eye)
+right = np.cross(forward, [0.0, 1.0, 0.0])
+right /= np.linalg.norm(right)
+up = np.cross(right, forward)
+half = np.tan(np.radians(30.0))
+ys, xs = np.meshgrid(np.linspace(half, -half, side), np.linspace(-half, half, side), indexing="ij")
+directions = forward + xs[..., None] * right + ys[..., None] * up
+camera = np.concatenate([np.broadcast_to(eye, directions.shape), directions], -1).astype(np.float32)
+
+rng = np.random.default_rng(1)
+count = side * side
+origins = low + rng.random((count, 3)) * (high - low)
+spread = rng.normal(size=(count, 3))
+incoherent = np.concatenate([origins, spread], -1).astype(np.float32)
+
+
+def ray_file(rays, path):
+    flat = rays.reshape(-1, 6)
+    records = np.zeros((len(flat), 8), "<f4")
+    records[:, :6] = flat
+    records[:, 7] = np.inf
+    records.tofile(path)
+
+
+ray_file(camera, f"{work}/camera.rays")
+ray_file(incoherent, f"{work}/incoherent.rays")
+
+
+def rate(call, queries=count):
+    times = []
+    for _ in range(runs):
+        started = time.perf_counter()
+        call()
+        times.append(time.perf_counter() - started)
+    return queries / statistics.median(times) / 1e6
+
+
+points = np.fromfile(points_path, "<f4").reshape(-1, 3)
+
+
+figures = {
+    "reducem cast_rays camera": rate(lambda: scene.cast_rays(camera, nthreads=threads)),
+    "reducem test_occlusions incoherent": rate(
+        lambda: scene.test_occlusions(incoherent, nthreads=threads)
+    ),
+    "reducem compute_closest_points": rate(
+        lambda: scene.compute_closest_points(points, nthreads=threads), len(points)
+    ),
+}
+try:
+    import open3d as o3d
+except ImportError:
+    o3d = None
+if o3d is not None:
+    vertices, faces = read_decoded(decoded)
+    peer = o3d.t.geometry.RaycastingScene(nthreads=threads)
+    peer.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(faces.astype(np.uint32)))
+    peer.cast_rays(o3d.core.Tensor(camera[:1, :1]), nthreads=threads)
+    o3d_camera, o3d_incoherent = o3d.core.Tensor(camera), o3d.core.Tensor(incoherent)
+    figures["open3d cast_rays camera"] = rate(lambda: peer.cast_rays(o3d_camera, nthreads=threads))
+    figures["open3d test_occlusions incoherent"] = rate(
+        lambda: peer.test_occlusions(o3d_incoherent, nthreads=threads)
+    )
+    o3d_points = o3d.core.Tensor(points)
+    figures["open3d compute_closest_points"] = rate(
+        lambda: peer.compute_closest_points(o3d_points, nthreads=threads), len(points)
+    )
+for name, mrays in figures.items():
+    print(f"{name} {mrays:.2f}")
+EOF
+  echo "Python rows: Mqueries/s, $THREADS threads, medians of $RUNS calls"
+  (cd "$WORK" && OPENBLAS_NUM_THREADS=1 "$PYTHON" python_rays.py "$(basename "$model")" \
+    "$(basename "$decoded")" "$(basename "$points")" "$THREADS" "$RUNS" .)
+  for rays in camera incoherent; do
+    local occluded=()
+    [[ $rays == incoherent ]] && occluded=(--occluded)
+    for run in $(seq "$RUNS"); do
+      RAYON_NUM_THREADS=$THREADS target/release/reducem query "$model" --rays "$WORK/$rays.rays" \
+        -o "$WORK/query.answers" "${occluded[@]}" 2>&1 | grep -o 'mrays_per_s=[0-9.]*' | cut -d= -f2
+    done | sort -n | awk -v name="reducem query $rays" '{ v[NR] = $1 } END { print name, v[int((NR + 1) / 2)] }'
+  done
+}
+python_rows

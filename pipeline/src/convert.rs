@@ -31,7 +31,8 @@ pub struct ConvertArgs {
 }
 
 /// The configuration keys [`ConvertArgs::settings`] may set, with their table.
-pub const SETTING_SECTIONS: [(&str, &str); 9] = [
+pub const SETTING_SECTIONS: [(&str, &str); 10] = [
+    ("up", "input"),
     ("leaf_windows", "strip"),
     ("sah_bins", "strip"),
     ("grid_nodes", "strip"),
@@ -103,9 +104,16 @@ fn config_text(args: &ConvertArgs) -> anyhow::Result<String> {
             absolute(Path::new(&work))?
         }
     };
+    // `[input]` comes first, so its settings go in with its path.
+    let input_keys: String = args
+        .settings
+        .iter()
+        .filter(|(key, _)| SETTING_SECTIONS.contains(&(key.as_str(), "input")))
+        .map(|(key, value)| format!("{key} = {value}\n"))
+        .collect();
     let mut text = format!(
         "# Written by `pipeline convert`; `pipeline run` on this file resumes the same job.\n\
-         [input]\npath = {input}\n\n[output]\npath = {output}\n\n[work]\ndir = {work}\n"
+         [input]\npath = {input}\n{input_keys}\n[output]\npath = {output}\n\n[work]\ndir = {work}\n"
     );
     let mut strip = Vec::new();
     if let Some(max_length) = args.max_length {
@@ -133,6 +141,9 @@ fn config_text(args: &ConvertArgs) -> anyhow::Result<String> {
             .map(|(_, section)| *section)
             .ok_or_else(|| UsageError(format!("{key} is not a setting of convert")))?;
         let line = format!("{key} = {value}\n");
+        if section == "input" {
+            continue;
+        }
         match tables.iter_mut().find(|(name, _)| *name == section) {
             Some((_, lines)) => lines.push(line),
             None => work_keys += &line,

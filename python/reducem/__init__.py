@@ -12,8 +12,13 @@ the staged, resumable conversion of ``pipeline convert``; options are named like
 configuration keys. It reports to the ``reducem`` logger (stages at INFO, each unit of work at
 DEBUG) and, if given, calls ``progress(stage, done, total, unit)`` as each stage starts and
 after each unit of work.
+
+``reducem.from_arrays(vertices, triangles, path=None, **options)`` converts a mesh held in numpy
+arrays the same way (in a temporary file unless ``path`` is given) and opens it, for meshes that
+Open3D's ``add_triangles`` would take.
 """
 
+from ._arrays import from_arrays
 from ._native import ReducemError, Scene, convert, open
 
-__all__ = ["ReducemError", "Scene", "convert", "open"]
+__all__ = ["ReducemError", "Scene", "convert", "from_arrays", "open"]

@@ -13,6 +13,7 @@ _Invalid = Literal["raise", "miss"]
 
 class _Hits(TypedDict):
     t_hit: NDArray[np.float32]
+    geometry_ids: NDArray[np.uint32]
     primitive_ids: NDArray[np.uint32]
     primitive_uvs: NDArray[np.float32]
     primitive_normals: NDArray[np.float32]
@@ -21,6 +22,19 @@ class _HitsWithAttributes(_Hits, total=False):
     # Present only when the file stores normals or colours.
     shading_normals: NDArray[np.float32]
     colors: NDArray[np.uint8]
+
+class _ClosestPoints(TypedDict):
+    points: NDArray[np.float32]
+    primitive_ids: NDArray[np.uint32]
+    primitive_uvs: NDArray[np.float32]
+    primitive_normals: NDArray[np.float32]
+
+class _Intersections(TypedDict):
+    ray_splits: NDArray[np.uint32]
+    ray_ids: NDArray[np.uint32]
+    t_hit: NDArray[np.float32]
+    primitive_ids: NDArray[np.uint32]
+    primitive_uvs: NDArray[np.float32]
 
 class ReducemError(Exception):
     """A file, ray set, scene or conversion that reducem rejects; the message names the file,
@@ -38,6 +52,9 @@ class Scene:
     @property
     def path(self) -> pathlib.Path:
         """The file's path."""
+    @property
+    def closed(self) -> bool:
+        """Whether the conversion found the mesh closed; false when the file does not say."""
     def cast_rays(
         self,
         rays: ArrayLike,
@@ -56,6 +73,28 @@ class Scene:
         invalid: _Invalid = "raise",
     ) -> NDArray[np.bool_]:
         """Whether each ray hits anything on ``[tnear, tfar]``."""
+    def count_intersections(
+        self, rays: ArrayLike, tnear: float = 0.0, tfar: float = math.inf, nthreads: int = 0
+    ) -> NDArray[np.int32]:
+        """How many times each ray crosses the surface on ``[tnear, tfar]``, ``(...)``."""
+    def list_intersections(
+        self, rays: ArrayLike, tnear: float = 0.0, tfar: float = math.inf, nthreads: int = 0
+    ) -> _Intersections:
+        """Every crossing of each ray on ``[tnear, tfar]``, a ray's contiguous, t ascending."""
+    def compute_signed_distance(
+        self, query_points: ArrayLike, nthreads: int = 0, nsamples: int = 1
+    ) -> NDArray[np.float32]:
+        """The distance from each point to the surface, negative inside, ``(...)``."""
+    def compute_occupancy(
+        self, query_points: ArrayLike, nthreads: int = 0, nsamples: int = 1
+    ) -> NDArray[np.float32]:
+        """1.0 for each point inside the surface, 0.0 outside, ``(...)``."""
+    def compute_closest_points(
+        self, query_points: ArrayLike, nthreads: int = 0
+    ) -> _ClosestPoints:
+        """The closest point of the surface to each of ``query_points`` (``(..., 3)``)."""
+    def compute_distance(self, query_points: ArrayLike, nthreads: int = 0) -> NDArray[np.float32]:
+        """The distance from each of ``query_points`` to the surface, ``(...)``."""
     def triangles(self) -> NDArray[np.float32]:
         """Every stored triangle, float32 ``(n, 3, 3)``, in file order and input winding."""
     def render(
@@ -85,6 +124,7 @@ def convert(
     output: _Path,
     *,
     progress: Optional[Callable[[str, int, int, str], object]] = None,
+    up: Literal["y", "z"] = ...,
     max_length: int = ...,
     leaf_windows: int = ...,
     sah_bins: int = ...,

@@ -11,7 +11,10 @@
 #![deny(unsafe_code)]
 
 mod convert;
+mod crossings;
 mod errors;
+mod points;
+mod primitive_ids;
 mod rays;
 mod render;
 mod scene;

@@ -62,19 +62,48 @@ impl Rays<'_> {
         }
     }
 
-    /// The traced rays `range` (of `0..traced()`).
-    pub fn chunk(&self, range: Range<usize>) -> Vec<Ray> {
+    /// The traced rays `range` (of `0..traced()`), in `into` (cleared first; reused by a
+    /// thread from chunk to chunk). Checks the rays as it reads them, so that valid rays take
+    /// no pass of their own: the first invalid ray's index, and then `into` is incomplete.
+    pub fn chunk_into(&self, range: Range<usize>, into: &mut Vec<Ray>) -> Option<usize> {
+        into.clear();
         match self {
+            Rays::Valid { rays, .. } => {
+                into.extend_from_slice(&rays[range]);
+                None
+            }
             Rays::All {
-                components,
+                components: Components::F32(values),
                 tnear,
                 tfar,
-            } => range
-                .map(|i| to_ray(components.ray(i), *tnear, *tfar))
-                .collect(),
-            Rays::Valid { rays, .. } => rays[range].to_vec(),
+            } => read_rays(values, range, into, |x| x, (*tnear, *tfar)),
+            Rays::All {
+                components: Components::F64(values),
+                tnear,
+                tfar,
+            } => read_rays(values, range, into, |x| x as f32, (*tnear, *tfar)),
         }
     }
+}
+
+/// Rays `range` of `values` (six components each, converted by `to_f32`) appended to `into`
+/// until an invalid one, whose index it returns.
+fn read_rays<T: Copy>(
+    values: &[T],
+    range: Range<usize>,
+    into: &mut Vec<Ray>,
+    to_f32: impl Fn(T) -> f32,
+    (tnear, tfar): (f32, f32),
+) -> Option<usize> {
+    let components = values[6 * range.start..6 * range.end].chunks_exact(6);
+    for (i, ray) in range.zip(components) {
+        let ray: [f32; 6] = std::array::from_fn(|k| to_f32(ray[k]));
+        if !is_valid(&ray) {
+            return Some(i);
+        }
+        into.push(to_ray(ray, tnear, tfar));
+    }
+    None
 }
 
 /// The components of rays, C-contiguous, as the caller's array holds them.
@@ -85,10 +114,27 @@ pub enum Components<'a> {
 }
 
 impl Components<'_> {
+    /// Points in components that are points `(..., 3)`.
+    pub fn points(&self) -> usize {
+        match self {
+            Components::F32(values) => values.len() / 3,
+            Components::F64(values) => values.len() / 3,
+        }
+    }
+
+    /// Rays in components that are rays `(..., 6)`.
     pub fn len(&self) -> usize {
         match self {
             Components::F32(values) => values.len() / 6,
             Components::F64(values) => values.len() / 6,
+        }
+    }
+
+    /// Point `i` of components that are points `(..., 3)`, in f32 as [`Components::ray`].
+    pub fn point(&self, i: usize) -> [f32; 3] {
+        match self {
+            Components::F32(values) => std::array::from_fn(|k| values[3 * i + k]),
+            Components::F64(values) => std::array::from_fn(|k| values[3 * i + k] as f32),
         }
     }
 
@@ -109,10 +155,23 @@ pub fn with_components<T>(
     rays: &Bound<'_, PyAny>,
     read: impl FnOnce(Vec<usize>, Components<'_>) -> PyResult<T>,
 ) -> PyResult<T> {
-    let numpy = rays.py().import("numpy")?;
-    let array = numpy.call_method1("asarray", (rays,))?;
+    let layout = "(..., 6) [ox, oy, oz, dx, dy, dz]";
+    with_floats(rays, "rays", (6, layout), read)
+}
+
+/// [`with_components`] for an array named `name` whose last axis holds `width` components
+/// (described as `layout` in errors).
+pub fn with_floats<T>(
+    values: &Bound<'_, PyAny>,
+    name: &str,
+    (width, layout): (usize, &str),
+    read: impl FnOnce(Vec<usize>, Components<'_>) -> PyResult<T>,
+) -> PyResult<T> {
+    let numpy = values.py().import("numpy")?;
+    let array = numpy.call_method1("asarray", (values,))?;
     // The shape before `ascontiguousarray`, which makes a 0-d array 1-d.
-    let shape = leading_shape(&array.getattr("shape")?.extract::<Vec<usize>>()?)?;
+    let shape = array.getattr("shape")?.extract::<Vec<usize>>()?;
+    let shape = leading_shape(&shape, name, width, layout)?;
     let array = numpy.call_method1("ascontiguousarray", (array,))?;
     if let Ok(array) = array.cast::<PyArrayDyn<f32>>() {
         let readonly = array.readonly();
@@ -124,20 +183,20 @@ pub fn with_components<T>(
     }
     let dtype = array.getattr("dtype")?.str()?.to_string();
     Err(PyTypeError::new_err(format!(
-        "rays must be float32 or float64, got dtype {dtype}"
+        "{name} must be float32 or float64, got dtype {dtype}"
     )))
 }
 
 fn contiguous<T>(slice: Result<&[T], numpy::AsSliceError>) -> PyResult<&[T]> {
-    slice.map_err(|error| PyValueError::new_err(format!("rays: {error}")))
+    slice.map_err(|error| PyValueError::new_err(error.to_string()))
 }
 
-/// `shape[:-1]`, after checking that the last axis holds the six components.
-fn leading_shape(shape: &[usize]) -> PyResult<Vec<usize>> {
+/// `shape[:-1]`, after checking that the last axis holds `width` components.
+fn leading_shape(shape: &[usize], name: &str, width: usize, layout: &str) -> PyResult<Vec<usize>> {
     match shape.split_last() {
-        Some((6, leading)) => Ok(leading.to_vec()),
+        Some((&last, leading)) if last == width => Ok(leading.to_vec()),
         _ => Err(PyValueError::new_err(format!(
-            "rays must have shape (..., 6) [ox, oy, oz, dx, dy, dz], got shape {}",
+            "{name} must have shape {layout}, got shape {}",
             python_shape(shape)
         ))),
     }
@@ -164,42 +223,30 @@ pub fn check_interval(tnear: f32, tfar: f32) -> PyResult<()> {
     Ok(())
 }
 
-/// The rays of `components` on `[tnear, tfar]` (checked by [`check_interval`]), validated;
-/// `shape` names an invalid one. Runs without the GIL, on every core.
-pub fn validate<'a>(
-    shape: &[usize],
-    components: Components<'a>,
-    tnear: f32,
-    tfar: f32,
-    invalid: InvalidRays,
-) -> Result<Rays<'a>, String> {
-    let all = 0..components.len();
-    let first_invalid = all
-        .clone()
-        .into_par_iter()
-        .position_first(|i| !is_valid(&components.ray(i)));
-    let Some(first_invalid) = first_invalid else {
-        return Ok(Rays::All {
-            components,
-            tnear,
-            tfar,
-        });
-    };
-    if invalid == InvalidRays::Raise {
-        let ray = components.ray(first_invalid);
-        return Err(describe(first_invalid, ray, tnear, tfar, shape));
-    }
-    let (positions, rays): (Vec<usize>, Vec<Ray>) = all
+/// The valid rays of `components` on `[tnear, tfar]` and their positions, for `invalid="miss"`
+/// once a call met an invalid ray. Runs without the GIL, on every core.
+pub fn valid_only<'a>(components: Components<'a>, tnear: f32, tfar: f32) -> Rays<'a> {
+    let (positions, rays): (Vec<usize>, Vec<Ray>) = (0..components.len())
         .into_par_iter()
         .map(|i| (i, components.ray(i)))
         .filter(|(_, ray)| is_valid(ray))
         .map(|(i, ray)| (i, to_ray(ray, tnear, tfar)))
         .unzip();
-    Ok(Rays::Valid {
+    Rays::Valid {
         rays,
         positions,
         total: components.len(),
-    })
+    }
+}
+
+/// Why ray `index` of `components` (an invalid one, leading shape `shape`) is invalid.
+pub fn describe_invalid(
+    index: usize,
+    components: Components<'_>,
+    (tnear, tfar): (f32, f32),
+    shape: &[usize],
+) -> String {
+    describe(index, components.ray(index), tnear, tfar, shape)
 }
 
 /// What [`ray_file::parse_rays`] accepts of a ray, given an interval that

@@ -5,36 +5,38 @@
 //! calls `reducem query` makes: the same rays give bit-identical `t` and normals.
 
 use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
 use numpy::ndarray::{Array, IxDyn};
 use numpy::{PyArray, PyArray1};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyRuntimeWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 use reducem_core::format::attributes::{AttributeSet, NormalEncoding};
 use reducem_core::format::reader::ReducemFile;
 use reducem_core::trace::{surface_attributes, Hit, HitAttributes, Kernel, TraceOptions, Tracer};
-use reducem_core::triangle_index::TriangleIndex;
 
+use crate::crossings;
 use crate::errors::{format_error, reducem_error};
-use crate::rays::{self, InvalidRays, Rays};
+use crate::points::{self, ClosestAnswers};
+use crate::primitive_ids::{PrimitiveIds, NO_PRIMITIVE};
+use crate::rays::{self, Components, InvalidRays, Rays};
 
 /// Rays traced by one task: the chunk size of `reducem query` (large enough to amortize
 /// scheduling and keep packets of consecutive rays, small enough to balance).
 const CHUNK: usize = 4096;
 
-/// `primitive_ids` of a miss.
-const NO_PRIMITIVE: u32 = u32::MAX;
-
 /// A mapped ReduceM file.
-#[pyclass(frozen, module = "reducem")]
+#[pyclass(frozen, weakref, module = "reducem")]
 pub struct Scene {
     file: ReducemFile,
-    /// File-order positions of the triangles, counted on the first hit query (it reads every
-    /// strip's references, which opening does not).
-    triangle_index: OnceLock<TriangleIndex>,
+    /// How answers name triangles, made on the first query that names them (without face ids
+    /// it reads every strip's references, which opening does not).
+    primitive_ids: OnceLock<PrimitiveIds>,
+    /// The not-exact warning was given.
+    warned_not_exact: AtomicBool,
 }
 
 /// Maps the ReduceM file at `path` and validates it: a file up to 1 MiB in full, a larger one
@@ -48,14 +50,18 @@ pub fn open(py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
         .map_err(format_error)?;
     Ok(Scene {
         file,
-        triangle_index: OnceLock::new(),
+        primitive_ids: OnceLock::new(),
+        warned_not_exact: AtomicBool::new(false),
     })
 }
 
-/// The four answers of `cast_rays`, flat, in ray order.
+/// The answers of `cast_rays`, flat, in ray order: allocated zeroed (pages untouched until
+/// the tracing threads write them) and handed to numpy without a copy.
 struct Answers {
     t: Vec<f32>,
     ids: Vec<u32>,
+    /// 0 on a hit (a file is one geometry), [`NO_PRIMITIVE`] on a miss, as Open3D's.
+    geometry_ids: Vec<u32>,
     uvs: Vec<f32>,
     normals: Vec<f32>,
     /// Interpolated stored normals, three per ray; empty when the file has none.
@@ -64,12 +70,24 @@ struct Answers {
     colors: Vec<u8>,
 }
 
+/// The answers of one chunk of consecutive rays.
+struct AnswerChunk<'a> {
+    t: &'a mut [f32],
+    ids: &'a mut [u32],
+    geometry_ids: &'a mut [u32],
+    uvs: &'a mut [f32],
+    normals: &'a mut [f32],
+    shading_normals: Option<&'a mut [f32]>,
+    colors: Option<&'a mut [u8]>,
+}
+
 impl Answers {
-    fn misses(rays: usize, attributes: AttributeSet) -> Answers {
+    fn zeroed(rays: usize, attributes: AttributeSet) -> Answers {
         let per_ray = |present: bool, count: usize| if present { count * rays } else { 0 };
         Answers {
-            t: vec![f32::INFINITY; rays],
-            ids: vec![NO_PRIMITIVE; rays],
+            t: vec![0.0; rays],
+            ids: vec![0; rays],
+            geometry_ids: vec![0; rays],
             uvs: vec![0.0; 2 * rays],
             normals: vec![0.0; 3 * rays],
             shading_normals: vec![0.0; per_ray(attributes.normals != NormalEncoding::None, 3)],
@@ -77,12 +95,38 @@ impl Answers {
         }
     }
 
+    /// The answers cut into chunks of [`CHUNK`] rays.
+    fn chunks(&mut self) -> Vec<AnswerChunk<'_>> {
+        let mut shading_normals = self.shading_normals.chunks_mut(3 * CHUNK);
+        let mut colors = self.colors.chunks_mut(4 * CHUNK);
+        self.t
+            .chunks_mut(CHUNK)
+            .zip(self.ids.chunks_mut(CHUNK))
+            .zip(self.geometry_ids.chunks_mut(CHUNK))
+            .zip(self.uvs.chunks_mut(2 * CHUNK))
+            .zip(self.normals.chunks_mut(3 * CHUNK))
+            .map(|((((t, ids), geometry_ids), uvs), normals)| AnswerChunk {
+                t,
+                ids,
+                geometry_ids,
+                uvs,
+                normals,
+                shading_normals: shading_normals.next(),
+                colors: colors.next(),
+            })
+            .collect()
+    }
+
     /// These answers of the valid rays at `positions` of `total` rays, misses elsewhere.
     fn placed(self, positions: &[usize], total: usize, attributes: AttributeSet) -> Answers {
-        let mut all = Answers::misses(total, attributes);
+        let mut all = Answers::zeroed(total, attributes);
+        all.t.fill(f32::INFINITY);
+        all.ids.fill(NO_PRIMITIVE);
+        all.geometry_ids.fill(NO_PRIMITIVE);
         for (k, &at) in positions.iter().enumerate() {
             all.t[at] = self.t[k];
             all.ids[at] = self.ids[k];
+            all.geometry_ids[at] = self.geometry_ids[k];
             all.uvs[2 * at..2 * at + 2].copy_from_slice(&self.uvs[2 * k..2 * k + 2]);
             all.normals[3 * at..3 * at + 3].copy_from_slice(&self.normals[3 * k..3 * k + 3]);
             if !self.shading_normals.is_empty() {
@@ -97,13 +141,37 @@ impl Answers {
     }
 }
 
+impl AnswerChunk<'_> {
+    /// Writes ray `k`'s answer: every element, a miss's too (the buffers start zeroed).
+    fn write(&mut self, k: usize, hit: Option<&Hit>, id: u32, read: Option<HitAttributes>) {
+        let Some(hit) = hit else {
+            self.t[k] = f32::INFINITY;
+            self.ids[k] = NO_PRIMITIVE;
+            self.geometry_ids[k] = NO_PRIMITIVE;
+            return;
+        };
+        self.t[k] = hit.t;
+        self.ids[k] = id;
+        self.uvs[2 * k..2 * k + 2].copy_from_slice(&[hit.u, hit.v]);
+        self.normals[3 * k..3 * k + 3].copy_from_slice(&hit.normal);
+        let Some(read) = read else { return };
+        if let Some(normals) = self.shading_normals.as_deref_mut() {
+            normals[3 * k..3 * k + 3].copy_from_slice(&read.shading_normal);
+        }
+        if let (Some(colors), Some(color)) = (self.colors.as_deref_mut(), read.color) {
+            colors[4 * k..4 * k + 4].copy_from_slice(&color);
+        }
+    }
+}
+
 #[pymethods]
 impl Scene {
     /// Closest hits of `rays` (`(..., 6)`: origin, direction; float32 or float64, traced in
     /// float32) on `[tnear, tfar]`, in units of each direction's length. Returns a dict:
     /// `t_hit` float32 `(...)` (inf on a miss), `primitive_ids` uint32 `(...)` (the input
     /// face id when the file stores face ids, else the stored triangle's row in `triangles()`;
-    /// 4294967295 on a miss), `primitive_uvs` float32
+    /// 4294967295 on a miss), `geometry_ids` uint32 `(...)` (0 on a hit, 4294967295 on a
+    /// miss, as Open3D's for a scene of one geometry), `primitive_uvs` float32
     /// `(..., 2)` (barycentric weights of the triangle's second and third corners),
     /// `primitive_normals` float32 `(..., 3)` (unit geometric normal in input winding, zero on
     /// a miss). When the file stores normals, `shading_normals` float32 `(..., 3)` (the stored
@@ -128,6 +196,7 @@ impl Scene {
         let with = |extra: &[usize]| [&shape[..], extra].concat();
         result.set_item("t_hit", ndarray(py, answers.t, &shape)?)?;
         result.set_item("primitive_ids", ndarray(py, answers.ids, &shape)?)?;
+        result.set_item("geometry_ids", ndarray(py, answers.geometry_ids, &shape)?)?;
         result.set_item("primitive_uvs", ndarray(py, answers.uvs, &with(&[2]))?)?;
         result.set_item(
             "primitive_normals",
@@ -160,6 +229,141 @@ impl Scene {
         ndarray(py, occluded, &shape)
     }
 
+    /// The closest point of the surface to each of `query_points` (`(..., 3)`, float32 or
+    /// float64, computed in float32), exact point-triangle distance. Returns a dict: `points`
+    /// float32 `(..., 3)`, `primitive_ids` uint32 `(...)` (named as by `cast_rays`),
+    /// `primitive_uvs` float32 `(..., 2)` (the point's barycentric weights of the triangle's
+    /// second and third corners), `primitive_normals` float32 `(..., 3)` (the triangle's unit
+    /// geometric normal in input winding).
+    #[pyo3(signature = (query_points, nthreads = 0))]
+    fn compute_closest_points<'py>(
+        &self,
+        py: Python<'py>,
+        query_points: &Bound<'py, PyAny>,
+        nthreads: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        check_ids_fit(&self.file)?;
+        let (shape, answers) = self.closest(py, query_points, nthreads)?;
+        let result = PyDict::new(py);
+        let with = |extra: &[usize]| [&shape[..], extra].concat();
+        result.set_item("points", ndarray(py, answers.points, &with(&[3]))?)?;
+        result.set_item("primitive_ids", ndarray(py, answers.ids, &shape)?)?;
+        result.set_item("primitive_uvs", ndarray(py, answers.uvs, &with(&[2]))?)?;
+        result.set_item(
+            "primitive_normals",
+            ndarray(py, answers.normals, &with(&[3]))?,
+        )?;
+        Ok(result)
+    }
+
+    /// The distance from each of `query_points` (as for `compute_closest_points`) to the
+    /// surface: float32 `(...)`.
+    #[pyo3(signature = (query_points, nthreads = 0))]
+    fn compute_distance<'py>(
+        &self,
+        py: Python<'py>,
+        query_points: &Bound<'py, PyAny>,
+        nthreads: usize,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (shape, answers) = self.closest(py, query_points, nthreads)?;
+        ndarray(py, answers.distances, &shape)
+    }
+
+    /// How many times each ray of `rays` (as for `cast_rays`) crosses the surface on
+    /// `[tnear, tfar]`: int32 `(...)`. A crossing through an edge or a vertex of a closed,
+    /// consistently oriented mesh counts once; a ray in a triangle's plane crosses nothing there.
+    #[pyo3(signature = (rays, tnear = 0.0, tfar = f32::INFINITY, nthreads = 0))]
+    fn count_intersections<'py>(
+        &self,
+        py: Python<'py>,
+        rays: &Bound<'py, PyAny>,
+        tnear: f32,
+        tfar: f32,
+        nthreads: usize,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let query = RayQuery::new(tnear, tfar, nthreads, "raise")?;
+        let (shape, counts) = self.trace(py, rays, query, |scene, rays, _| {
+            crossings::count(&scene.file, rays)
+        })?;
+        ndarray(py, counts, &shape)
+    }
+
+    /// Every crossing of each ray of `rays` (as for `count_intersections`) on `[tnear, tfar]`:
+    /// a dict of `ray_splits` uint32 `(N + 1,)` (ray `i`'s crossings are
+    /// `ray_splits[i]:ray_splits[i + 1]`, `N` the number of rays, flattened), `ray_ids` uint32,
+    /// `t_hit` float32, `primitive_ids` uint32 `(H,)` and `primitive_uvs` float32 `(H, 2)`, a
+    /// ray's crossings contiguous, `t` ascending, ties by primitive id.
+    #[pyo3(signature = (rays, tnear = 0.0, tfar = f32::INFINITY, nthreads = 0))]
+    fn list_intersections<'py>(
+        &self,
+        py: Python<'py>,
+        rays: &Bound<'py, PyAny>,
+        tnear: f32,
+        tfar: f32,
+        nthreads: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        check_ids_fit(&self.file)?;
+        let query = RayQuery::new(tnear, tfar, nthreads, "raise")?;
+        let (_, found) = self.trace(py, rays, query, |scene, rays, _| {
+            crossings::list(&scene.file, scene.primitive_ids(), rays)
+        })?;
+        let hits = found.t.len();
+        let result = PyDict::new(py);
+        let splits = found.splits.len();
+        result.set_item("ray_splits", ndarray(py, found.splits, &[splits])?)?;
+        result.set_item("ray_ids", ndarray(py, found.ray_ids, &[hits])?)?;
+        result.set_item("t_hit", ndarray(py, found.t, &[hits])?)?;
+        result.set_item("primitive_ids", ndarray(py, found.ids, &[hits])?)?;
+        result.set_item("primitive_uvs", ndarray(py, found.uvs, &[hits, 2])?)?;
+        Ok(result)
+    }
+
+    /// The distance from each of `query_points` (as for `compute_closest_points`) to the
+    /// surface, negative inside: float32 `(...)`. Inside is the parity of one ray's crossings
+    /// on a closed mesh (exact), else the majority of `nsamples` rays in fixed directions (not
+    /// exact: a `RuntimeWarning` says so, once per scene).
+    #[pyo3(signature = (query_points, nthreads = 0, nsamples = 1))]
+    fn compute_signed_distance<'py>(
+        &self,
+        py: Python<'py>,
+        query_points: &Bound<'py, PyAny>,
+        nthreads: usize,
+        nsamples: u32,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let rays = points::inside_rays(&self.file, nsamples);
+        let (shape, distances) = self.per_point(py, query_points, nthreads, |file, points| {
+            points::signed_distances(file, points, rays)
+        })?;
+        self.warn_unless_exact(py)?;
+        ndarray(py, distances, &shape)
+    }
+
+    /// 1.0 for each of `query_points` inside the surface, 0.0 outside: float32 `(...)`,
+    /// decided as for `compute_signed_distance`.
+    #[pyo3(signature = (query_points, nthreads = 0, nsamples = 1))]
+    fn compute_occupancy<'py>(
+        &self,
+        py: Python<'py>,
+        query_points: &Bound<'py, PyAny>,
+        nthreads: usize,
+        nsamples: u32,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let rays = points::inside_rays(&self.file, nsamples);
+        let (shape, occupancy) = self.per_point(py, query_points, nthreads, |file, points| {
+            points::occupancy(file, points, rays)
+        })?;
+        self.warn_unless_exact(py)?;
+        ndarray(py, occupancy, &shape)
+    }
+
+    /// Whether the conversion found the mesh closed (every edge shared by exactly two
+    /// triangles running it in opposite directions); false when the file does not say (files
+    /// converted before closedness was stored).
+    #[getter]
+    fn closed(&self) -> bool {
+        self.file.closed()
+    }
+
     /// `(min, max)` of the stored vertices, float32 `(3,)` each.
     #[getter]
     fn bounds<'py>(
@@ -173,7 +377,8 @@ impl Scene {
         )
     }
 
-    /// The statistics `reducem inspect --json` prints, as a dict with the same keys.
+    /// The statistics `reducem inspect --json` prints, as a dict with the same keys, and
+    /// `closed`, `boundary_edges`, `nonmanifold_edges` (None when the file does not say).
     #[getter]
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         // The statistics read every strip: all of them are validated first.
@@ -181,7 +386,29 @@ impl Scene {
             .map_err(format_error)?;
         let stats = py.detach(|| reducem::inspect::file_stats(&self.file));
         let text = serde_json::to_string(&stats).map_err(reducem_error)?;
-        py.import("json")?.call_method1("loads", (text,))
+        let info = py.import("json")?.call_method1("loads", (text,))?;
+        // The closedness keys, unless the statistics carry them already.
+        let closedness = self.file.closedness();
+        let keys = [
+            (
+                "closed",
+                self.file.closed().into_pyobject(py)?.to_owned().into_any(),
+            ),
+            (
+                "boundary_edges",
+                closedness.map(|c| c.boundary_edges).into_pyobject(py)?,
+            ),
+            (
+                "nonmanifold_edges",
+                closedness.map(|c| c.nonmanifold_edges).into_pyobject(py)?,
+            ),
+        ];
+        for (key, value) in keys {
+            if !info.contains(key)? {
+                info.set_item(key, value)?;
+            }
+        }
+        Ok(info)
     }
 
     /// Every stored triangle, float32 `(n, 3, 3)` (triangle, corner, axis), in file order and
@@ -273,7 +500,7 @@ impl Scene {
         py: Python<'_>,
         rays: &Bound<'_, PyAny>,
         query: RayQuery,
-        answer: impl Fn(&Scene, &Rays, Kernel) -> T + Sync,
+        answer: impl Fn(&Scene, &Rays, Kernel) -> Result<T, usize> + Sync,
     ) -> PyResult<(Vec<usize>, T)> {
         let RayQuery {
             tnear,
@@ -285,14 +512,86 @@ impl Scene {
         let traced = rays::with_components(rays, |shape, components| {
             let answers = py.detach(|| {
                 in_pool(nthreads, || {
-                    let rays = rays::validate(&shape, components, tnear, tfar, invalid)?;
-                    Ok(answer(self, &rays, kernel))
+                    let all = Rays::All {
+                        components,
+                        tnear,
+                        tfar,
+                    };
+                    let first_invalid = match answer(self, &all, kernel) {
+                        Ok(answers) => return Ok(answers),
+                        Err(index) => index,
+                    };
+                    if invalid == InvalidRays::Raise {
+                        let interval = (tnear, tfar);
+                        return Err(rays::describe_invalid(
+                            first_invalid,
+                            components,
+                            interval,
+                            &shape,
+                        ));
+                    }
+                    let valid = rays::valid_only(components, tnear, tfar);
+                    answer(self, &valid, kernel)
+                        .map_err(|index| format!("ray {index} is invalid after filtering"))
                 })
             });
             Ok((shape, answers.map_err(PyValueError::new_err)?))
         })?;
         self.complete()?;
         Ok(traced)
+    }
+
+    /// Closest points of `query_points` without the GIL on `nthreads` threads, and their
+    /// leading shape; fails when the search met a corrupt part of the file.
+    fn closest(
+        &self,
+        py: Python<'_>,
+        query_points: &Bound<'_, PyAny>,
+        nthreads: usize,
+    ) -> PyResult<(Vec<usize>, ClosestAnswers)> {
+        let found = points::with_points(py, query_points, |shape, components| {
+            let answers = py.detach(|| {
+                in_pool(nthreads, || {
+                    let ids = self.primitive_ids();
+                    Ok(points::closest_points(&self.file, ids, components))
+                })
+            });
+            Ok((shape, answers.map_err(PyValueError::new_err)?))
+        })?;
+        self.complete()?;
+        Ok(found)
+    }
+
+    /// `answer` for `query_points` without the GIL on `nthreads` threads, and their leading
+    /// shape; fails when it met a corrupt part of the file.
+    fn per_point<T: Send>(
+        &self,
+        py: Python<'_>,
+        query_points: &Bound<'_, PyAny>,
+        nthreads: usize,
+        answer: impl Fn(&ReducemFile, Components<'_>) -> T + Sync,
+    ) -> PyResult<(Vec<usize>, T)> {
+        let found = points::with_points(py, query_points, |shape, components| {
+            let answers = py.detach(|| in_pool(nthreads, || Ok(answer(&self.file, components))));
+            Ok((shape, answers.map_err(PyValueError::new_err)?))
+        })?;
+        self.complete()?;
+        Ok(found)
+    }
+
+    /// A `RuntimeWarning`, the first time on this scene, that inside/outside answers are a
+    /// vote of rays rather than exact because the mesh is not known to be closed.
+    fn warn_unless_exact(&self, py: Python<'_>) -> PyResult<()> {
+        if self.file.closed() || self.warned_not_exact.swap(true, Ordering::Relaxed) {
+            return Ok(());
+        }
+        let message = format!(
+            "{}: the mesh is not known to be closed; inside/outside is the majority of \
+             nsamples rays, not exact",
+            self.file.path().display()
+        );
+        let warning = py.get_type::<PyRuntimeWarning>();
+        PyErr::warn(py, &warning, &std::ffi::CString::new(message)?, 1)
     }
 
     /// Fails when rays met a corrupt strip or node (the file is validated lazily, part by part
@@ -304,94 +603,83 @@ impl Scene {
             .map_or(Ok(()), |defect| Err(format_error(defect)))
     }
 
-    fn cast(&self, rays: &Rays, kernel: Kernel) -> Answers {
+    /// Closest hits of `rays`, or the index of the first invalid ray among them.
+    fn cast(&self, rays: &Rays, kernel: Kernel) -> Result<Answers, usize> {
         let tracer = Tracer::new(&self.file, trace_options(kernel));
-        let index = match self.file.attributes().face_ids {
-            true => None,
-            false => Some(
-                self.triangle_index
-                    .get_or_init(|| TriangleIndex::new(&self.file)),
-            ),
-        };
+        let ids = self.primitive_ids();
         let attributes = self.file.attributes();
-        let mut answers = Answers::misses(rays.traced(), attributes);
-        let hits: Vec<Option<Hit>> = (0..rays.traced())
-            .into_par_iter()
-            .step_by(CHUNK)
-            .flat_map_iter(|first| {
-                let last = (first + CHUNK).min(rays.traced());
-                tracer.intersect_chunk(&rays.chunk(first..last))
-            })
-            .collect();
-        let read: Vec<Option<(u32, Option<HitAttributes>)>> = hits
-            .par_iter()
-            .map(|hit| {
-                let hit = hit.as_ref()?;
-                let read = attributes
-                    .per_vertex()
-                    .then(|| surface_attributes(&self.file, hit));
-                Some((self.primitive_id(index, hit), read))
-            })
-            .collect();
-        for (k, (hit, read)) in hits.iter().zip(read).enumerate() {
-            let (Some(hit), Some((id, read))) = (hit, read) else {
-                continue;
-            };
-            answers.t[k] = hit.t;
-            answers.ids[k] = id;
-            answers.uvs[2 * k..2 * k + 2].copy_from_slice(&[hit.u, hit.v]);
-            answers.normals[3 * k..3 * k + 3].copy_from_slice(&hit.normal);
-            let Some(read) = read else { continue };
-            if !answers.shading_normals.is_empty() {
-                answers.shading_normals[3 * k..3 * k + 3].copy_from_slice(&read.shading_normal);
-            }
-            if let Some(color) = read.color {
-                answers.colors[4 * k..4 * k + 4].copy_from_slice(&color);
-            }
-        }
-        match rays {
+        let mut answers = Answers::zeroed(rays.traced(), attributes);
+        let first_invalid = AtomicUsize::new(usize::MAX);
+        answers.chunks().into_par_iter().enumerate().for_each_init(
+            Vec::new,
+            |traced, (chunk, mut out)| {
+                let first = chunk * CHUNK;
+                if let Some(invalid) = rays.chunk_into(first..first + out.t.len(), traced) {
+                    first_invalid.fetch_min(invalid, Ordering::Relaxed);
+                    return;
+                }
+                tracer.intersect_each(traced, |k, hit| {
+                    let id = hit.map_or(NO_PRIMITIVE, |hit| {
+                        ids.id(&self.file, hit.strip, hit.window)
+                    });
+                    let read = hit
+                        .filter(|_| attributes.per_vertex())
+                        .map(|hit| surface_attributes(&self.file, &hit));
+                    out.write(k, hit.as_ref(), id, read);
+                });
+            },
+        );
+        check_valid(first_invalid)?;
+        Ok(match rays {
             Rays::Valid {
                 positions, total, ..
             } => answers.placed(positions, *total, attributes),
             Rays::All { .. } => answers,
-        }
+        })
     }
 
-    fn occlusions(&self, rays: &Rays, kernel: Kernel) -> Vec<bool> {
+    /// Whether each of `rays` is occluded, or the index of the first invalid ray among them.
+    fn occlusions(&self, rays: &Rays, kernel: Kernel) -> Result<Vec<bool>, usize> {
         let tracer = Tracer::new(&self.file, trace_options(kernel));
         let mut occluded = vec![false; rays.traced()];
-        occluded
-            .par_chunks_mut(CHUNK)
-            .enumerate()
-            .for_each(|(chunk, out)| {
+        let first_invalid = AtomicUsize::new(usize::MAX);
+        occluded.par_chunks_mut(CHUNK).enumerate().for_each_init(
+            Vec::new,
+            |traced, (chunk, out)| {
                 let first = chunk * CHUNK;
-                let answers = tracer.occluded_chunk(&rays.chunk(first..first + out.len()));
-                out.copy_from_slice(&answers);
-            });
+                if let Some(invalid) = rays.chunk_into(first..first + out.len(), traced) {
+                    first_invalid.fetch_min(invalid, Ordering::Relaxed);
+                    return;
+                }
+                out.copy_from_slice(&tracer.occluded_chunk(traced));
+            },
+        );
+        check_valid(first_invalid)?;
         let Rays::Valid {
             positions, total, ..
         } = rays
         else {
-            return occluded;
+            return Ok(occluded);
         };
         let mut all = vec![false; *total];
         for (&at, answer) in positions.iter().zip(occluded) {
             all[at] = answer;
         }
-        all
+        Ok(all)
     }
 
-    /// The input face `hit` is on when the file stores face ids (no `index`), else its row
-    /// of `triangles()` (fits: see [`check_ids_fit`]).
-    fn primitive_id(&self, index: Option<&TriangleIndex>, hit: &Hit) -> u32 {
-        let Some(index) = index else {
-            let id = self.file.face_id(hit.strip as usize, hit.window as usize);
-            return id.unwrap_or(NO_PRIMITIVE);
-        };
-        index
-            .position(&self.file, hit.strip, hit.window)
-            .and_then(|position| u32::try_from(position).ok())
-            .unwrap_or(NO_PRIMITIVE)
+    /// The scene's [`PrimitiveIds`], made on the first query that names triangles.
+    fn primitive_ids(&self) -> &PrimitiveIds {
+        self.primitive_ids
+            .get_or_init(|| PrimitiveIds::of(&self.file))
+    }
+}
+
+/// `Err` with the first invalid ray's index when a chunk met one.
+fn check_valid(first_invalid: AtomicUsize) -> Result<(), usize> {
+    match first_invalid.into_inner() {
+        usize::MAX => Ok(()),
+        index => Err(index),
     }
 }
 

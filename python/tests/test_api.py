@@ -209,7 +209,10 @@ def test_bounds_info_and_triangles_match_the_tools(scan, reducem_bin, tmp_path):
             [reducem_bin, "inspect", "--json", path], check=True, capture_output=True
         ).stdout
     )
-    assert scene.info == stats
+    info = scene.info
+    assert {key: info[key] for key in stats} == stats
+    assert info["closed"] is scene.closed
+    assert {"boundary_edges", "nonmanifold_edges"} <= set(info)
     low, high = scene.bounds
     assert low.dtype == np.float32 and low.shape == (3,)
     np.testing.assert_array_equal(low, np.float32(stats["bounds_min"]))
@@ -291,6 +294,9 @@ def test_convert_settings_reach_the_file(scan_ply, tmp_path):
     info = reducem.open(out).info
     assert info["leaf_triangles"] == 4
     assert not (tmp_path / "leaf.rdm.work").exists()
+    for up in ("z", "y"):
+        reducem.convert(scan_ply, tmp_path / f"{up}.rdm", up=up)
+        assert reducem.open(tmp_path / f"{up}.rdm").info["up"] == up
 
 
 def test_convert_errors(scan_ply, tmp_path):
