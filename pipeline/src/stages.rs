@@ -20,13 +20,16 @@ pub enum UnitOfWork {
     Chunk,
 }
 
+/// A stage's units: their manifest keys and fingerprints.
+pub type Units = Vec<(String, Fingerprint)>;
+
 /// One stage of the table.
 pub struct StageDef {
     pub name: StageName,
     pub unit: UnitOfWork,
     /// The stage's units (manifest keys) with their fingerprints, from the results of the
     /// stages before it; why not when they cannot be known yet.
-    pub units: fn(&Job, &Results) -> Result<Vec<(String, Fingerprint)>, String>,
+    pub units: fn(&Job, &Results) -> Result<Units, String>,
     /// Puts the stage's recorded result into `results` if every unit is fresh; why not otherwise.
     pub fresh: fn(&Job, &mut Results) -> Result<(), String>,
     /// Does the stage's pending work (only `shard`'s chunks, for a per-chunk stage) and puts its
@@ -110,13 +113,13 @@ pub struct Results {
 const NOT_FRESH: &str = "not run, or stale";
 
 /// A result that the table's order puts in place before any stage asks for it.
-fn earlier<'r, T>(result: &'r Option<T>, stage: StageName) -> Result<&'r T, String> {
+fn earlier<T>(result: &Option<T>, stage: StageName) -> Result<&T, String> {
     result
         .as_ref()
         .ok_or_else(|| format!("the result of stage {stage} is missing"))
 }
 
-fn chunk_units(job: &Job, _: &Results) -> Result<Vec<(String, Fingerprint)>, String> {
+fn chunk_units(job: &Job, _: &Results) -> Result<Units, String> {
     let input = input::peek(job)?;
     Ok(vec![(chunk::UNIT.into(), chunk::fingerprint(job, &input))])
 }
@@ -133,7 +136,7 @@ fn chunk_run(job: &Job, results: &mut Results, _: Shard) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn strip_units(job: &Job, results: &Results) -> Result<Vec<(String, Fingerprint)>, String> {
+fn strip_units(job: &Job, results: &Results) -> Result<Units, String> {
     let chunked = earlier(&results.chunked, StageName::Chunk)?;
     let units = (0..chunked.chunk_count())
         .map(|chunk| (strip::unit(chunk), strip::fingerprint(job, chunked, chunk)))
@@ -166,7 +169,7 @@ fn merge_fingerprint(results: &Results) -> Result<Fingerprint, String> {
     Ok(merge::fingerprint(strip_digest))
 }
 
-fn merge_units(_: &Job, results: &Results) -> Result<Vec<(String, Fingerprint)>, String> {
+fn merge_units(_: &Job, results: &Results) -> Result<Units, String> {
     Ok(vec![(merge::UNIT.into(), merge_fingerprint(results)?)])
 }
 
@@ -189,7 +192,7 @@ fn hierarchy_fingerprint(results: &Results) -> Result<Fingerprint, String> {
     Ok(hierarchy::fingerprint(merged))
 }
 
-fn hierarchy_units(_: &Job, results: &Results) -> Result<Vec<(String, Fingerprint)>, String> {
+fn hierarchy_units(_: &Job, results: &Results) -> Result<Units, String> {
     Ok(vec![(
         hierarchy::UNIT.into(),
         hierarchy_fingerprint(results)?,
@@ -213,7 +216,7 @@ fn write_fingerprint(job: &Job, results: &Results) -> Result<Fingerprint, String
     Ok(write::fingerprint(job, built))
 }
 
-fn write_units(job: &Job, results: &Results) -> Result<Vec<(String, Fingerprint)>, String> {
+fn write_units(job: &Job, results: &Results) -> Result<Units, String> {
     Ok(vec![(write::UNIT.into(), write_fingerprint(job, results)?)])
 }
 
