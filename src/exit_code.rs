@@ -34,3 +34,32 @@ Exit codes (the same for reducem and pipeline):
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
 pub struct UsageError(pub String);
+
+/// An exit code and its kind, the name `pipeline --log-format json` reports it by.
+pub type Exit = (u8, &'static str);
+
+/// The exit code of `error`, by the first error in its chain that `specific` (the binary's own
+/// error types) or [`shared_exit`] knows; internal when neither knows any.
+pub fn classify(
+    error: &anyhow::Error,
+    specific: impl Fn(&(dyn std::error::Error + 'static)) -> Option<Exit>,
+) -> Exit {
+    error
+        .chain()
+        .find_map(|cause| specific(cause).or_else(|| shared_exit(cause)))
+        .unwrap_or((INTERNAL, "internal"))
+}
+
+/// The exit of the library's error types that both binaries meet.
+fn shared_exit(cause: &(dyn std::error::Error + 'static)) -> Option<Exit> {
+    if cause.is::<UsageError>() {
+        return Some((USAGE, "usage"));
+    }
+    if cause.is::<crate::input::InputError>() {
+        return Some((BAD_INPUT, "bad_input"));
+    }
+    if cause.is::<std::io::Error>() || cause.is::<crate::format::writer::WriteError>() {
+        return Some((IO, "io"));
+    }
+    None
+}

@@ -254,41 +254,40 @@ fn main() -> ExitCode {
     }
 }
 
-/// Classifies an error by the typed errors in its chain (the table in `exit_code`).
+/// The exit code of an error (the table in `exit_code`), by the typed errors in its chain.
 fn exit_code_of(error: &anyhow::Error) -> u8 {
-    for cause in error.chain() {
-        if cause.is::<UsageError>() {
-            return exit_code::USAGE;
-        }
-        if cause.is::<reducem::trace::kernel::KernelError>() {
-            return exit_code::USAGE;
-        }
-        if cause.is::<reducem::render::scene::SceneError>() {
-            return exit_code::CONFIG;
-        }
-        match cause.downcast_ref::<FormatError>() {
-            Some(FormatError::Io { .. }) => return exit_code::IO,
-            Some(FormatError::Invalid { .. }) => return exit_code::BAD_INPUT,
-            None => {}
-        }
-        match cause.downcast_ref::<RayFileError>() {
-            Some(RayFileError::Io { .. }) => return exit_code::IO,
-            Some(_) => return exit_code::BAD_INPUT,
-            None => {}
-        }
-        match cause.downcast_ref::<closest::PointFileError>() {
-            Some(closest::PointFileError::Io { .. }) => return exit_code::IO,
-            Some(_) => return exit_code::BAD_INPUT,
-            None => {}
-        }
-        if cause.is::<reducem::input::InputError>() {
-            return exit_code::BAD_INPUT;
-        }
-        if cause.is::<std::io::Error>() || cause.is::<reducem::render::image::ImageError>() {
-            return exit_code::IO;
-        }
+    exit_code::classify(error, reducem_exit).0
+}
+
+/// The exit of the error types only `reducem` meets.
+fn reducem_exit(cause: &(dyn std::error::Error + 'static)) -> Option<exit_code::Exit> {
+    if cause.is::<reducem::trace::kernel::KernelError>() {
+        return Some((exit_code::USAGE, "usage"));
     }
-    exit_code::INTERNAL
+    if cause.is::<reducem::render::scene::SceneError>() {
+        return Some((exit_code::CONFIG, "config"));
+    }
+    if let Some(error) = cause.downcast_ref::<FormatError>() {
+        return io_or_bad_input(matches!(error, FormatError::Io { .. }));
+    }
+    if let Some(error) = cause.downcast_ref::<RayFileError>() {
+        return io_or_bad_input(matches!(error, RayFileError::Io { .. }));
+    }
+    if let Some(error) = cause.downcast_ref::<closest::PointFileError>() {
+        return io_or_bad_input(matches!(error, closest::PointFileError::Io { .. }));
+    }
+    if cause.is::<reducem::render::image::ImageError>() {
+        return Some((exit_code::IO, "io"));
+    }
+    None
+}
+
+/// 74 for a file that could not be read, 65 for one that was read and is malformed.
+fn io_or_bad_input(is_io: bool) -> Option<exit_code::Exit> {
+    Some(match is_io {
+        true => (exit_code::IO, "io"),
+        false => (exit_code::BAD_INPUT, "bad_input"),
+    })
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {

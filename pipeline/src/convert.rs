@@ -9,9 +9,10 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::config::{Config, VertexEncodingName};
+use crate::error::UsageError;
 use crate::preflight::{self, Naming};
 use crate::progress::Progress;
-use crate::run::{self, RunOptions, UsageError};
+use crate::run::{self, RunOptions};
 use crate::workdir::WorkDir;
 
 /// The configuration's name inside the work directory.

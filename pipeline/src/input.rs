@@ -13,8 +13,8 @@ use reducem_gen::{self as gen, GeneratedSource};
 
 use crate::config::Input;
 use crate::fingerprint::hash_file;
-use crate::manifest::InputIdentity;
-use crate::stage::Job;
+use crate::job::Job;
+use crate::manifest::{InputIdentity, GENERATED, UNHASHED};
 
 /// The mesh and what identifies its content.
 pub struct ResolvedInput {
@@ -100,9 +100,6 @@ pub fn peek(job: &Job) -> Result<ResolvedInput, String> {
     }
 }
 
-/// Marks the content of a generated input.
-pub const GENERATED: &str = "generated: ";
-
 /// A generated mesh is fixed by its parameters and the generator's version; the words are what
 /// `status` shows when they change.
 fn generated_content(input: &Input) -> String {
@@ -142,9 +139,6 @@ fn remove_former_generated_files(job: &Job) -> anyhow::Result<()> {
     }
     Ok(())
 }
-
-/// Marks an input content that status could not know without hashing the file.
-pub const UNHASHED: &str = "unhashed: ";
 
 /// What status knows of a changed input: its size and modification time.
 fn unhashed_content(identity: &InputIdentity) -> String {

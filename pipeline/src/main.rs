@@ -269,7 +269,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => {
             reducem_core::signals::install_for_tool()?;
             if let Some(message) = config::too_few_triangles(kind, triangles) {
-                anyhow::bail!(run::UsageError(format!("--triangles {message}")));
+                anyhow::bail!(exit::UsageError(format!("--triangles {message}")));
             }
             let summary = gen::generate(kind, triangles, seed, &output)?;
             eprintln!(

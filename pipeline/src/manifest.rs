@@ -114,6 +114,12 @@ impl Manifest {
     }
 }
 
+/// Marks the content of a generated input.
+pub const GENERATED: &str = "generated: ";
+
+/// Marks an input content that status could not know without hashing the file.
+pub const UNHASHED: &str = "unhashed: ";
+
 fn changed_parts(
     recorded: &BTreeMap<String, String>,
     current: &BTreeMap<String, String>,
@@ -151,13 +157,13 @@ fn describe_change(name: &str, old: &str, new: &str) -> String {
 }
 
 fn describe_input_change(old: &str, new: &str) -> String {
-    if let Some(identity) = new.strip_prefix(crate::input::UNHASHED) {
+    if let Some(identity) = new.strip_prefix(UNHASHED) {
         return format!(
             "input changed: {identity} (the next run hashes it again and redoes the work only \
              if its content differs)"
         );
     }
-    let generated = crate::input::GENERATED;
+    let generated = GENERATED;
     if let Some(new) = new.strip_prefix(generated) {
         return match old.strip_prefix(generated) {
             Some(old) => format!("the generated input changed from a {old} to a {new}"),

@@ -1,56 +1,45 @@
-//! How a command ends: its exit code (the table in `reducem::exit_code`) and, with
-//! `--log-format json`, the error or the final summary as one JSON object with the same fields
-//! (`kind`, `file`, `element`, `index`, `offset`, `line`, `stage`, `chunk`, `counts`,
-//! `seconds`; null where they do not apply), so that log processors never parse a message.
+//! How a command fails: its exit code (the table and mapping in `reducem::exit_code`, with the
+//! pipeline's own error types) and, with `--log-format json`, the error as one JSON object with
+//! the fields of [`crate::outcome_json`] (`kind`, `file`, `element`, `index`, `offset`, `line`,
+//! `stage`, `chunk`; null where they do not apply), so that log processors never parse a message.
 
 use std::path::Path;
 
-use reducem::exit_code as exit;
+use reducem::exit_code::{self as exit, Exit};
 use reducem::input::{InputError, Location};
-use serde_json::{json, Value};
+use serde_json::Value;
 
 use crate::config::ConfigError;
+pub use crate::error::{InChunk, InStage};
 use crate::interrupt::Interrupted;
 use crate::lock::LockedError;
-use crate::run::{UpstreamPending, UsageError};
+use crate::outcome_json::fields;
 use crate::stage::chunk::NoTriangles;
-
-/// The stage a failed run stopped in (context on its error).
-#[derive(Debug, thiserror::Error)]
-#[error("stage {0}")]
-pub struct InStage(pub String);
-
-/// The chunk a failed unit worked on (context on its error).
-#[derive(Debug, thiserror::Error)]
-#[error("chunk {0}")]
-pub struct InChunk(pub usize);
+use crate::stage::UpstreamPending;
 
 /// The exit code and the JSON `kind` of an error, by the typed errors in its chain.
-pub fn classify(error: &anyhow::Error) -> (u8, &'static str) {
-    for cause in error.chain() {
-        if cause.is::<UsageError>() || cause.is::<exit::UsageError>() {
-            return (exit::USAGE, "usage");
-        }
-        if cause.is::<LockedError>() {
-            return (exit::TEMPORARY, "locked");
-        }
-        if let Some(interrupted) = cause.downcast_ref::<Interrupted>() {
-            return (interrupted.exit_code(), "interrupted");
-        }
-        if cause.is::<UpstreamPending>() {
-            return (exit::TEMPORARY, "stage_pending");
-        }
-        if cause.is::<ConfigError>() {
-            return (exit::CONFIG, "config");
-        }
-        if cause.is::<InputError>() || cause.is::<NoTriangles>() {
-            return (exit::BAD_INPUT, "bad_input");
-        }
-        if cause.is::<std::io::Error>() || cause.is::<reducem::format::writer::WriteError>() {
-            return (exit::IO, "io");
-        }
+pub fn classify(error: &anyhow::Error) -> Exit {
+    exit::classify(error, pipeline_exit)
+}
+
+/// The exit of the pipeline's own error types.
+fn pipeline_exit(cause: &(dyn std::error::Error + 'static)) -> Option<Exit> {
+    if cause.is::<LockedError>() {
+        return Some((exit::TEMPORARY, "locked"));
     }
-    (exit::INTERNAL, "internal")
+    if let Some(interrupted) = cause.downcast_ref::<Interrupted>() {
+        return Some((interrupted.exit_code(), "interrupted"));
+    }
+    if cause.is::<UpstreamPending>() {
+        return Some((exit::TEMPORARY, "stage_pending"));
+    }
+    if cause.is::<ConfigError>() {
+        return Some((exit::CONFIG, "config"));
+    }
+    if cause.is::<NoTriangles>() {
+        return Some((exit::BAD_INPUT, "bad_input"));
+    }
+    None
 }
 
 /// The error as one JSON object.
@@ -79,26 +68,6 @@ pub fn error_json(error: &anyhow::Error, seconds: f64) -> Value {
         }
     }
     object
-}
-
-/// The final summary of a successful run as one JSON object.
-pub fn summary_json(seconds: f64, counts: Value) -> Value {
-    let mut object = fields("done", seconds);
-    object["kind"] = "success".into();
-    object["exit_code"] = exit::SUCCESS.into();
-    object["stage"] = "run".into();
-    object["counts"] = counts;
-    object
-}
-
-/// Every field of the contract, null until known.
-fn fields(event: &str, seconds: f64) -> Value {
-    json!({
-        "time": crate::progress::unix_time(),
-        "event": event,
-        "kind": null, "file": null, "element": null, "index": null, "offset": null,
-        "line": null, "stage": null, "chunk": null, "counts": null, "seconds": seconds,
-    })
 }
 
 fn locate_input(object: &mut Value, error: &InputError) {

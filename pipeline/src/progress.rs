@@ -9,6 +9,8 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::time::unix_time;
+
 /// `--log-format`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum LogFormat {
@@ -109,7 +111,7 @@ impl Progress {
     }
 
     /// The final line of a successful run: plain text, or the JSON summary of
-    /// [`crate::outcome::summary_json`] with the output's counts.
+    /// [`crate::outcome_json::summary_json`] with the output's counts.
     pub fn summary(&self, seconds: f64, counts: Option<serde_json::Value>) {
         if self.sink.is_some() {
             self.event("run", "finished", &format!("finished in {seconds:.1} s"));
@@ -118,7 +120,7 @@ impl Progress {
         match self.mode {
             Mode::Json => {
                 let counts = counts.unwrap_or(serde_json::Value::Null);
-                eprintln!("{}", crate::outcome::summary_json(seconds, counts));
+                eprintln!("{}", crate::outcome_json::summary_json(seconds, counts));
             }
             Mode::Bars | Mode::Plain => eprintln!("pipeline: run: finished in {seconds:.1} s"),
         }
@@ -252,12 +254,6 @@ impl StageProgress {
             Mode::Bars | Mode::Plain => eprintln!("pipeline: {}: {message}", self.stage),
         }
     }
-}
-
-pub fn unix_time() -> f64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 #[cfg(test)]

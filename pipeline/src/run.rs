@@ -13,16 +13,14 @@ use std::time::{Duration, Instant};
 use anyhow::Context;
 
 use crate::config::{Config, ConfigError};
-use crate::input;
+use crate::error::InStage;
+use crate::error::UsageError;
 use crate::lock::{LockedError, WorkLock};
-use crate::outcome::InStage;
 use crate::preflight::{self, Naming};
 use crate::progress::{LogFormat, Progress};
-use crate::stage::chunk::Chunked;
-use crate::stage::hierarchy::Hierarchy;
-use crate::stage::merge::Merged;
-use crate::stage::{chunk, hierarchy, merge, strip, write, Job};
+use crate::stage::Job;
 pub use crate::stage::{Shard, StageName, UpstreamPending};
+use crate::stages::{self, UnitOfWork, STAGES};
 use crate::status;
 use crate::workdir::WorkDir;
 
@@ -68,11 +66,6 @@ pub struct RunOptions {
     pub shard: Shard,
 }
 
-/// A command line (or environment) that cannot be run as given.
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct UsageError(pub String);
-
 pub fn run(config_path: &Path, options: &RunOptions) -> anyhow::Result<()> {
     run_reporting(config_path, options, Progress::new(options.log_format))
 }
@@ -86,7 +79,10 @@ pub fn run_reporting(
 ) -> anyhow::Result<()> {
     let started = Instant::now();
     let config = Config::load(config_path)?;
-    if options.shard != Shard::WHOLE && options.stage != Some(StageName::Strip) {
+    let per_chunk = options
+        .stage
+        .is_some_and(|name| stages::stage(name).unit == UnitOfWork::Chunk);
+    if options.shard != Shard::WHOLE && !per_chunk {
         anyhow::bail!(UsageError("--shard applies to --stage strip only".into()));
     }
     if let Some(message) = preflight::unsafe_paths(&config, config_path, Naming::Config) {
@@ -97,17 +93,17 @@ pub fn run_reporting(
     let work = WorkDir::new(config.work_dir());
     work.create()
         .with_context(|| format!("creating {}", work.root().display()))?;
-    let shared = options.stage == Some(StageName::Strip);
-    let Some(_lock) = lock_work_dir(&work, shared, options.if_locked, &progress)? else {
+    // A per-chunk stage locks each chunk, so the tasks of one job share the work directory.
+    let Some(_lock) = lock_work_dir(&work, per_chunk, options.if_locked, &progress)? else {
         return Ok(());
     };
-    if !shared {
+    if !per_chunk {
         remove_dead_temporaries(&config, &work, &progress)?;
     }
     let job = Job::new(&config, work, &progress);
     let result = match options.stage {
-        None => run_all(&job),
-        Some(stage) => run_stage(&job, stage, options.shard),
+        None => stages::run_all(&job),
+        Some(stage) => stages::run_one(&job, stage, options.shard),
     };
     if let Err(error) = result {
         return Err(match status::first_unfinished_stage(&job) {
@@ -115,7 +111,8 @@ pub fn run_reporting(
             None => error,
         });
     }
-    let finished = matches!(options.stage, None | Some(StageName::Write));
+    let last = STAGES[STAGES.len() - 1].name;
+    let finished = options.stage.is_none_or(|stage| stage == last);
     if finished && (options.clean_after || !config.work.keep) {
         remove_work_dir(&config, config_path)?;
         let root = config.work_dir();
@@ -209,85 +206,6 @@ fn output_counts(config: &Config) -> Option<serde_json::Value> {
         "strips": header.strip_count,
         "bytes": std::fs::metadata(&config.output.path).ok()?.len(),
     }))
-}
-
-fn run_all(job: &Job) -> anyhow::Result<()> {
-    let input = input::resolve(job)?;
-    let chunked = chunk::run(job, &input)?;
-    let strip_digest = strip::run(job, &chunked, Shard::WHOLE)?;
-    let merged = merge::run(job, &chunked, &strip_digest)?;
-    let hierarchy = hierarchy::run(job, &merged)?;
-    write::run(job, &merged, &hierarchy)
-}
-
-fn run_stage(job: &Job, stage: StageName, shard: Shard) -> anyhow::Result<()> {
-    match stage {
-        StageName::Chunk => chunk::run(job, &input::resolve(job)?).map(drop),
-        StageName::Strip => strip::run(job, &chunked(job)?, shard).map(drop),
-        StageName::Merge => {
-            let chunked = chunked(job)?;
-            merge::run(job, &chunked, &stripped(job, &chunked)?).map(drop)
-        }
-        StageName::Hierarchy => hierarchy::run(job, &merged(job)?).map(drop),
-        StageName::Write => {
-            let merged = merged(job)?;
-            write::run(job, &merged, &built_hierarchy(job, &merged)?)
-        }
-    }
-}
-
-fn chunked(job: &Job) -> anyhow::Result<Chunked> {
-    let input = input::peek(job).map_err(|reason| UpstreamPending {
-        needed: StageName::Chunk,
-        reason,
-    })?;
-    chunk::fresh_result(job, &chunk::fingerprint(job, &input)).ok_or_else(|| {
-        UpstreamPending {
-            needed: StageName::Chunk,
-            reason: "not run, or stale".into(),
-        }
-        .into()
-    })
-}
-
-fn stripped(job: &Job, chunked: &Chunked) -> anyhow::Result<String> {
-    let missing = strip::pending_chunks(job, chunked, Shard::WHOLE);
-    if !missing.is_empty() {
-        let reason = format!(
-            "{} of {} chunks pending, first {}",
-            missing.len(),
-            chunked.chunk_count(),
-            missing[0]
-        );
-        return Err(UpstreamPending {
-            needed: StageName::Strip,
-            reason,
-        }
-        .into());
-    }
-    Ok(strip::digest(job, chunked))
-}
-
-fn merged(job: &Job) -> anyhow::Result<Merged> {
-    let chunked = chunked(job)?;
-    let fingerprint = merge::fingerprint(&stripped(job, &chunked)?);
-    merge::fresh_result(job, &fingerprint).ok_or_else(|| {
-        UpstreamPending {
-            needed: StageName::Merge,
-            reason: "not run, or stale".into(),
-        }
-        .into()
-    })
-}
-
-fn built_hierarchy(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
-    hierarchy::fresh_result(job, &hierarchy::fingerprint(merged)).ok_or_else(|| {
-        UpstreamPending {
-            needed: StageName::Hierarchy,
-            reason: "not run, or stale".into(),
-        }
-        .into()
-    })
 }
 
 /// `pipeline clean`: removes the work directory (under its lock, so not from under a run), only

@@ -1,4 +1,4 @@
-//! `pipeline status`: every stage, and every chunk of the strip stage, as done, pending or
+//! `pipeline status`: every stage of the table, and every chunk of a per-chunk stage, as done, pending or
 //! stale, with the reason, computed from the manifest without doing any work. The same walk
 //! names the stage a failed run stopped in.
 
@@ -8,13 +8,13 @@ use crate::config::Config;
 use crate::input;
 use crate::manifest::Freshness;
 use crate::progress::{LogFormat, Progress};
-use crate::stage::{chunk, hierarchy, merge, strip, write, Job};
+use crate::stage::{Job, StageName};
+use crate::stages::{Results, STAGES};
 use crate::workdir::WorkDir;
 
-const STAGES: [&str; 5] = ["chunk", "strip", "merge", "hierarchy", "write"];
-
-/// A unit (a stage, or `strip/chunk-N`) and its state.
+/// A unit (a stage, or `strip/chunk-N`), its stage and its state.
 struct UnitState {
+    stage: StageName,
     unit: String,
     state: State,
 }
@@ -33,7 +33,7 @@ pub fn status(config_path: &Path) -> anyhow::Result<()> {
     if let Ok(input) = input::peek(&job) {
         println!("{:<20} {}", "input", input.describe());
     }
-    for UnitState { unit, state } in unit_states(&job) {
+    for UnitState { unit, state, .. } in unit_states(&job) {
         match state {
             State::Done => println!("{unit:<20} done"),
             State::Pending(reason) => println!("{unit:<20} pending: {reason}"),
@@ -48,54 +48,38 @@ pub fn first_unfinished_stage(job: &Job) -> Option<String> {
     let first = unit_states(job)
         .into_iter()
         .find(|unit| !matches!(unit.state, State::Done))?;
-    let stage = first.unit.split('/').next().unwrap_or_default();
-    Some(stage.to_string())
+    Some(first.stage.to_string())
 }
 
+/// Every unit of every stage of the table, in order. A stage whose units cannot be known yet
+/// stands as one pending unit, and so does every stage after one that is not done.
 fn unit_states(job: &Job) -> Vec<UnitState> {
     let mut states = Vec::new();
-    let input = match input::peek(job) {
-        Ok(input) => input,
-        Err(reason) => return pending_from(states, "chunk", &reason),
-    };
-    let fingerprint = chunk::fingerprint(job, &input);
-    states.push(unit_state(
-        "chunk",
-        job.freshness(chunk::UNIT, &fingerprint),
-    ));
-    let Some(chunked) = chunk::fresh_result(job, &fingerprint) else {
-        return pending_from(states, "strip", "waits for chunk");
-    };
-    let mut strip_done = true;
-    for index in 0..chunked.chunk_count() {
-        let unit = strip::unit(index);
-        let state = job.freshness(&unit, &strip::fingerprint(job, &chunked, index));
-        strip_done &= state == Freshness::Fresh;
-        states.push(unit_state(&unit, state));
+    let mut results = Results::default();
+    let mut blocked: Option<String> = None;
+    for stage in &STAGES {
+        if let Some(reason) = &blocked {
+            states.push(pending(stage.name, reason));
+            continue;
+        }
+        match (stage.units)(job, &results) {
+            Ok(units) => states.extend(units.iter().map(|(unit, fingerprint)| {
+                unit_state(stage.name, unit, job.freshness(unit, fingerprint))
+            })),
+            Err(reason) => {
+                states.push(pending(stage.name, &reason));
+                blocked = Some(reason);
+                continue;
+            }
+        }
+        if (stage.fresh)(job, &mut results).is_err() {
+            blocked = Some(format!("waits for {}", stage.name));
+        }
     }
-    if !strip_done {
-        return pending_from(states, "merge", "waits for strip");
-    }
-    let merge_fingerprint = merge::fingerprint(&strip::digest(job, &chunked));
-    states.push(unit_state(
-        "merge",
-        job.freshness(merge::UNIT, &merge_fingerprint),
-    ));
-    let Some(merged) = merge::fresh_result(job, &merge_fingerprint) else {
-        return pending_from(states, "hierarchy", "waits for merge");
-    };
-    let hierarchy_fingerprint = hierarchy::fingerprint(&merged);
-    let hierarchy_state = job.freshness(hierarchy::UNIT, &hierarchy_fingerprint);
-    states.push(unit_state("hierarchy", hierarchy_state));
-    let Some(built) = hierarchy::fresh_result(job, &hierarchy_fingerprint) else {
-        return pending_from(states, "write", "waits for hierarchy");
-    };
-    let write_state = job.freshness(write::UNIT, &write::fingerprint(job, &built));
-    states.push(unit_state("write", write_state));
     states
 }
 
-fn unit_state(unit: &str, freshness: Freshness) -> UnitState {
+fn unit_state(stage: StageName, unit: &str, freshness: Freshness) -> UnitState {
     let state = match freshness {
         Freshness::Fresh => State::Done,
         Freshness::Pending => State::Pending("never run".into()),
@@ -105,17 +89,17 @@ fn unit_state(unit: &str, freshness: Freshness) -> UnitState {
         }
     };
     UnitState {
+        stage,
         unit: unit.to_string(),
         state,
     }
 }
 
-/// `states` followed by `first` and every later stage, pending for `reason`.
-fn pending_from(mut states: Vec<UnitState>, first: &str, reason: &str) -> Vec<UnitState> {
-    let start = STAGES.iter().position(|s| *s == first).unwrap_or(0);
-    states.extend(STAGES[start..].iter().map(|stage| UnitState {
+/// The whole of `stage`, pending for `reason`.
+fn pending(stage: StageName, reason: &str) -> UnitState {
+    UnitState {
+        stage,
         unit: stage.to_string(),
         state: State::Pending(reason.to_string()),
-    }));
-    states
+    }
 }

@@ -83,7 +83,7 @@ pub fn run(job: &Job, chunked: &Chunked, shard: Shard) -> anyhow::Result<String>
         let freshness = job.freshness(&unit(chunk), &fingerprint);
         if freshness != Freshness::Fresh {
             job.note_rebuild("strip", &freshness, &format!("chunk {chunk}"));
-            let written = strip_one(job, chunked, chunk).context(crate::outcome::InChunk(chunk))?;
+            let written = strip_one(job, chunked, chunk).context(crate::error::InChunk(chunk))?;
             job.complete(&unit(chunk), &fingerprint, &[written])?;
             converted.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         }
