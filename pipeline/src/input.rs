@@ -7,7 +7,7 @@ use std::path::Path;
 use std::time::UNIX_EPOCH;
 
 use anyhow::Context;
-use reducem::chunking::MeshSource;
+use reducem::input::MeshSource;
 use reducem::input::AttributeRequest;
 use reducem_gen::{self as gen, GeneratedSource};
 
@@ -31,7 +31,7 @@ impl ResolvedInput {
         window_bytes: usize,
     ) -> anyhow::Result<Box<dyn MeshSource>> {
         Ok(match &self.mesh {
-            Input::File(path) => reducem::chunking::open_source(path, request, window_bytes)?,
+            Input::File(path) => reducem::input::open_source(path, request, window_bytes)?,
             &Input::Generate {
                 kind,
                 triangles,
