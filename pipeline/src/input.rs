@@ -7,8 +7,8 @@ use std::path::Path;
 use std::time::UNIX_EPOCH;
 
 use anyhow::Context;
-use reducem::input::MeshSource;
 use reducem::input::AttributeRequest;
+use reducem::input::MeshSource;
 use reducem_gen::{self as gen, GeneratedSource};
 
 use crate::config::Input;

@@ -76,7 +76,7 @@ enum Command {
     /// WORK/convert.toml and runs (or resumes) it like `run`.
     #[command(after_help = exit::HELP)]
     Convert {
-        /// The mesh to convert (PLY or OBJ).
+        /// The mesh to convert (PLY, OBJ or STL, plain or gzip/zstd-compressed).
         input: PathBuf,
         /// The ReduceM file to write.
         #[arg(short, long)]
