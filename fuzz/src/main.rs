@@ -31,7 +31,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Fuzz one target (ply, obj, reducem, rays) or `all`, one after the other.
+    /// Fuzz one target (ply, obj, stl, reducem, rays) or `all`, one after the other.
     Run {
         target: String,
         /// Stop each target after this many seconds.

@@ -62,6 +62,29 @@ pub const PLY_DICTIONARY: &[&str] = &[
     "-0",
 ];
 
+/// Tokens for ASCII STL keywords and numbers, and the bytes that decide binary or ASCII.
+pub const STL_DICTIONARY: &[&str] = &[
+    "solid ",
+    "endsolid\n",
+    "facet normal 0 0 1\n",
+    "outer loop\n",
+    "vertex 0 0 0\n",
+    "vertex ",
+    "endloop\n",
+    "endfacet\n",
+    "\r\n",
+    "\n",
+    " ",
+    "\u{0}\u{0}\u{0}\u{0}",
+    "\u{1}\u{0}\u{0}\u{0}",
+    "\u{1f}\u{8b}",
+    "nan",
+    "inf",
+    "1e39",
+    "-0",
+    "1.0000000596046447753906250001",
+];
+
 /// Tokens for OBJ statements, references and numbers.
 pub const OBJ_DICTIONARY: &[&str] = &[
     "v ",

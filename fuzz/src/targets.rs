@@ -5,6 +5,8 @@
 //! * `ply`: the whole-file reader and the windowed stream agree on what they both accept, and
 //!   an accepted mesh converts to a file that opens, decodes to its triangle count and traces.
 //! * `obj`: an accepted mesh converts, opens, decodes and traces the same way.
+//! * `stl`: binary, ASCII and gzip/zstd-compressed STL through the table of formats; an
+//!   accepted mesh converts, opens, decodes and traces the same way.
 //! * `reducem`: an opened file decodes to its header's triangle count and traces single rays
 //!   and packets to the same hits (corrupt bounds may lose hits, never cause a panic).
 //! * `rays`: a ray file `query` accepts traces on a fixed closed model with packets equal to
@@ -16,19 +18,21 @@ use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::decode;
 use reducem::format::reader::ReducemFile;
 use reducem::input::{
-    read_obj, read_obj_with, weld_identical_positions, AttributeRequest, PlyFile, PlyStream,
+    read_mesh, read_mesh_with, read_obj, read_obj_with, weld_identical_positions, AttributeRequest,
+    PlyFile, PlyStream,
 };
 use reducem::mesh::Mesh;
 use reducem::trace::ray_file::parse_rays;
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
 use reducem::trace::{Hit, Ray, TraceOptions, Tracer};
 
-use crate::mutate::{Structure, OBJ_DICTIONARY, PLY_DICTIONARY};
+use crate::mutate::{Structure, OBJ_DICTIONARY, PLY_DICTIONARY, STL_DICTIONARY};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Target {
     Ply,
     Obj,
+    Stl,
     Reducem,
     Rays,
 }
@@ -47,12 +51,19 @@ const MAX_CONVERTED_TRIANGLES: usize = 20_000;
 const STREAM_WINDOW_BYTES: usize = 64;
 
 impl Target {
-    pub const ALL: [Target; 4] = [Target::Ply, Target::Obj, Target::Reducem, Target::Rays];
+    pub const ALL: [Target; 5] = [
+        Target::Ply,
+        Target::Obj,
+        Target::Stl,
+        Target::Reducem,
+        Target::Rays,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             Target::Ply => "ply",
             Target::Obj => "obj",
+            Target::Stl => "stl",
             Target::Reducem => "reducem",
             Target::Rays => "rays",
         }
@@ -67,6 +78,7 @@ impl Target {
         match self {
             Target::Ply => "ply",
             Target::Obj => "obj",
+            Target::Stl => "stl",
             Target::Reducem => "rdm",
             Target::Rays => "rays",
         }
@@ -76,6 +88,7 @@ impl Target {
         match self {
             Target::Ply => Structure::Text(PLY_DICTIONARY),
             Target::Obj => Structure::Text(OBJ_DICTIONARY),
+            Target::Stl => Structure::Text(STL_DICTIONARY),
             Target::Reducem => Structure::Reducem,
             Target::Rays => Structure::Rays,
         }
@@ -113,6 +126,12 @@ impl Workspace {
                 let _ = read_obj_with(&path, ALL_ATTRIBUTES);
                 read_obj(&path)
                     .map(|mesh| self.convert_and_trace(&weld_identical_positions(mesh)))
+                    .is_ok()
+            }
+            Target::Stl => {
+                let _ = read_mesh_with(&path, ALL_ATTRIBUTES);
+                read_mesh(&path)
+                    .map(|mesh| self.convert_and_trace(&mesh))
                     .is_ok()
             }
             Target::Reducem => ReducemFile::open(&path)

@@ -24,6 +24,7 @@ mod scan;
 mod soup;
 mod source;
 mod sphere;
+mod stl;
 mod terrain;
 #[cfg(test)]
 mod test_mesh;
@@ -35,6 +36,7 @@ use anyhow::Result;
 
 pub use perturb::perturbed_copies;
 pub use source::GeneratedSource;
+pub use stl::StlFlavour;
 
 /// Changes whenever any kind's mesh changes for the same `(kind, N, seed)`: the pipeline's
 /// fingerprint of a generated input is its parameters and this version, since no file is
@@ -168,16 +170,55 @@ pub struct GenSummary {
     pub triangles: u64,
 }
 
+/// The file formats [`generate_as`] writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// Binary little-endian PLY.
+    Ply,
+    Stl(StlFlavour),
+}
+
+impl OutputFormat {
+    /// Binary STL for a `.stl` name (any case), PLY otherwise.
+    pub fn for_path(path: &Path) -> OutputFormat {
+        let is_stl = path
+            .extension()
+            .is_some_and(|extension| extension.eq_ignore_ascii_case("stl"));
+        if is_stl {
+            OutputFormat::Stl(StlFlavour::Binary)
+        } else {
+            OutputFormat::Ply
+        }
+    }
+}
+
 /// Generates a mesh of `kind` with about `triangles` triangles and writes it
-/// atomically to `out` as binary little-endian PLY.
+/// atomically to `out` in the format its name says ([`OutputFormat::for_path`]).
 pub fn generate(kind: Kind, triangles: u64, seed: u64, out: &Path) -> Result<GenSummary> {
+    generate_as(kind, triangles, seed, out, OutputFormat::for_path(out))
+}
+
+/// [`generate`] in the file format `format`.
+pub fn generate_as(
+    kind: Kind,
+    triangles: u64,
+    seed: u64,
+    out: &Path,
+    format: OutputFormat,
+) -> Result<GenSummary> {
     let comment =
         format!("reducem pipeline gen kind={kind} seed={seed} requested_triangles={triangles}");
-    let target = ply::Target {
-        path: out,
-        comment: &comment,
-    };
-    ply::write(&*generator(kind, triangles, seed), &target)
+    let generator = generator(kind, triangles, seed);
+    match format {
+        OutputFormat::Ply => {
+            let target = ply::Target {
+                path: out,
+                comment: &comment,
+            };
+            ply::write(&*generator, &target)
+        }
+        OutputFormat::Stl(flavour) => stl::write(&*generator, flavour, out, &comment),
+    }
 }
 
 /// Splits `0..items` into consecutive chunks of `per_chunk` items (the last

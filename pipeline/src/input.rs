@@ -7,8 +7,8 @@ use std::path::Path;
 use std::time::UNIX_EPOCH;
 
 use anyhow::Context;
-use reducem::chunking::MeshSource;
 use reducem::input::AttributeRequest;
+use reducem::input::MeshSource;
 use reducem_gen::{self as gen, GeneratedSource};
 
 use crate::config::Input;
@@ -31,7 +31,7 @@ impl ResolvedInput {
         window_bytes: usize,
     ) -> anyhow::Result<Box<dyn MeshSource>> {
         Ok(match &self.mesh {
-            Input::File(path) => reducem::chunking::open_source(path, request, window_bytes)?,
+            Input::File(path) => reducem::input::open_source(path, request, window_bytes)?,
             &Input::Generate {
                 kind,
                 triangles,

@@ -76,7 +76,7 @@ enum Command {
     /// WORK/convert.toml and runs (or resumes) it like `run`.
     #[command(after_help = exit::HELP)]
     Convert {
-        /// The mesh to convert (PLY or OBJ).
+        /// The mesh to convert (PLY, OBJ or STL, plain or gzip/zstd-compressed).
         input: PathBuf,
         /// The ReduceM file to write.
         #[arg(short, long)]
@@ -125,12 +125,15 @@ enum Command {
         /// sphere 20; isosurface 96).
         #[arg(long)]
         triangles: u64,
-        /// The PLY file to write.
+        /// The file to write: binary PLY, or binary STL for a .stl name.
         #[arg(short, long)]
         output: PathBuf,
         /// Seed of the generator: the same seed gives the same mesh.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// With a .stl output: ASCII STL instead of binary.
+        #[arg(long)]
+        ascii: bool,
     },
 }
 
@@ -266,12 +269,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             triangles,
             output,
             seed,
+            ascii,
         } => {
             reducem_core::signals::install_for_tool()?;
             if let Some(message) = config::too_few_triangles(kind, triangles) {
                 anyhow::bail!(exit::UsageError(format!("--triangles {message}")));
             }
-            let summary = gen::generate(kind, triangles, seed, &output)?;
+            let format = match (gen::OutputFormat::for_path(&output), ascii) {
+                (gen::OutputFormat::Stl(_), true) => gen::OutputFormat::Stl(gen::StlFlavour::Ascii),
+                (_, true) => anyhow::bail!(run::UsageError("--ascii needs a .stl output".into())),
+                (format, false) => format,
+            };
+            let summary = gen::generate_as(kind, triangles, seed, &output, format)?;
             eprintln!(
                 "pipeline: wrote {} ({} vertices, {} triangles)",
                 output.display(),

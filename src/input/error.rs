@@ -74,8 +74,34 @@ impl fmt::Display for Location {
 pub enum InputErrorKind {
     #[error("cannot read file: {0}")]
     Io(String),
-    #[error("unsupported file extension (expected .ply or .obj)")]
-    UnsupportedExtension,
+    /// Neither the content nor the extension names a format read (the list of them).
+    #[error("not a mesh format reducem reads (it reads {0})")]
+    UnsupportedFormat(String),
+    /// `detail` says after how many decompressed bytes, and what the decoder found.
+    #[error("the {compression} stream is corrupt {detail}")]
+    Decompression {
+        compression: &'static str,
+        detail: Box<str>,
+    },
+    /// A binary STL whose size is not 84 + 50 × its declared facet count; read neither way,
+    /// since either number may be the wrong one.
+    #[error(
+        "the binary STL header declares {declared} facets ({expected_bytes} bytes), \
+         but the file has {bytes} bytes (room for {whole_facets} whole facets)"
+    )]
+    StlFacetCount {
+        declared: u32,
+        expected_bytes: u64,
+        bytes: u64,
+        whole_facets: u64,
+    },
+    #[error("expected '{expected}', found '{found}'")]
+    StlSyntax {
+        expected: &'static str,
+        found: Box<str>,
+    },
+    #[error("the text is not UTF-8")]
+    NotText,
     #[error("not a PLY file (it does not start with the line 'ply')")]
     NotPly,
     #[error("invalid PLY header: {0}")]

@@ -1,16 +1,22 @@
-//! Mesh input: PLY (binary little/big endian and ASCII) and OBJ, triangulated and welded.
+//! Mesh input: PLY (binary little/big endian and ASCII), OBJ and STL (binary and ASCII), plain
+//! or compressed with gzip or zstd, triangulated and welded.
 //!
-//! [`read_mesh`] is the one-call entry point. [`PlyFile`] is exposed separately so callers
+//! [`formats`] holds the table of formats, which recognises a file and opens it as a
+//! [`MeshSource`] for the chunker; [`read_mesh`] is the one-call entry point. [`PlyFile`] is exposed separately so callers
 //! can read positions and triangles without building a [`Mesh`], and [`PlyStream`] reads
 //! binary PLY window by window so the out-of-core chunker's memory stays bounded by the window
 //! rather than the file size.
 //! Every reader triangulates polygons as fans `(v0, vi, vi+1)`, keeping winding; welding is a
 //! separate pass so that both formats share it and streaming callers can skip it.
 
+mod compressed;
 mod error;
+pub mod formats;
 mod obj;
 mod obj_survey;
 mod ply;
+mod source;
+mod stl;
 mod stream;
 mod tolerance_weld;
 mod weld;
@@ -18,9 +24,15 @@ mod weld;
 use std::path::Path;
 
 pub use crate::format::counts::WeldStats;
+pub use compressed::Compression;
 pub use error::{InputError, InputErrorKind, Location};
+pub use formats::{
+    check_attributes, detect, open_source, read_mesh_with, Detected, MeshFormat, UpAxis, FORMATS,
+};
 pub use obj::{read_obj, read_obj_with};
 pub use ply::PlyFile;
+pub(crate) use source::pick;
+pub use source::MeshSource;
 pub use stream::PlyStream;
 pub(crate) use tolerance_weld::tolerance_representatives;
 pub use tolerance_weld::weld_within_tolerance;
@@ -70,51 +82,8 @@ pub struct Vertices {
     pub colors: Option<Vec<[u8; 4]>>,
 }
 
-/// Reads a mesh by file extension (`.ply` or `.obj`, any case), triangulates polygons and
-/// welds bit-identical positions.
+/// Reads a mesh in any format of the table ([`FORMATS`]), compressed or not, triangulates
+/// polygons and welds bit-identical positions.
 pub fn read_mesh(path: &Path) -> Result<Mesh, InputError> {
     read_mesh_with(path, AttributeRequest::default())
-}
-
-/// [`read_mesh`] with the vertex attributes `request` asks for; a file without them fails
-/// before its body is read (OBJ: after one pass over its lines), naming what it lacks.
-/// Welding keeps vertices with different attributes apart.
-pub fn read_mesh_with(path: &Path, request: AttributeRequest) -> Result<Mesh, InputError> {
-    let mesh = match mesh_kind(path)? {
-        MeshKind::Ply => PlyFile::open(path)?.read_mesh_with(request)?,
-        MeshKind::Obj => read_obj_with(path, request)?,
-    };
-    Ok(weld_identical_positions(mesh))
-}
-
-/// Fails, naming the file and what it lacks, when it cannot give the attributes `request`
-/// asks for. PLY: reads the header only; OBJ: one pass over its lines.
-pub fn check_attributes(path: &Path, request: AttributeRequest) -> Result<(), InputError> {
-    if !request.any() {
-        return Ok(());
-    }
-    match mesh_kind(path)? {
-        MeshKind::Ply => PlyFile::open(path)?.check_attributes(request),
-        MeshKind::Obj => obj::check_attributes(path, request),
-    }
-}
-
-enum MeshKind {
-    Ply,
-    Obj,
-}
-
-fn mesh_kind(path: &Path) -> Result<MeshKind, InputError> {
-    let extension = path
-        .extension()
-        .and_then(|extension| extension.to_str())
-        .map(str::to_ascii_lowercase);
-    match extension.as_deref() {
-        Some("ply") => Ok(MeshKind::Ply),
-        Some("obj") => Ok(MeshKind::Obj),
-        _ => {
-            let kind = InputErrorKind::UnsupportedExtension;
-            Err(InputError::new(path, Location::File, kind))
-        }
-    }
 }
