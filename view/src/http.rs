@@ -1,5 +1,5 @@
 //! The few HTTP requests the viewer answers, each on its own connection: the page, the
-//! WebSocket upgrade, and the full-resolution PNG. Every one needs the token; the upgrade also
+//! WebSocket upgrade, the full-resolution PNG and the scene file of a view. Every one needs the token; the upgrade also
 //! needs the page's own origin, so that no other web page in the browser can drive the viewer.
 
 use std::collections::HashMap;
@@ -101,15 +101,29 @@ fn answer(stream: TcpStream, viewer: &'static Viewer) -> io::Result<()> {
             Some(png) => respond(&mut stream, 200, "image/png", &png),
             None => respond(&mut stream, 400, "text/plain", b"bad view\n"),
         },
+        "/scene.toml" => match view_of_query(&request.query).and_then(|v| viewer.scene_toml(&v)) {
+            Some(toml) => respond(
+                &mut stream,
+                200,
+                "text/plain; charset=utf-8",
+                toml.as_bytes(),
+            ),
+            None => respond(&mut stream, 400, "text/plain", b"bad view\n"),
+        },
         _ => respond(&mut stream, 404, "text/plain", b"not found\n"),
     }
 }
 
-/// The view of `/image.png?camera=JSON&width=W&height=H`.
+/// The view of `/image.png?camera=JSON&width=W&height=H[&effects=JSON]`.
 fn view_of_query(query: &HashMap<String, String>) -> Option<View> {
     let camera: CameraView = serde_json::from_str(query.get("camera")?).ok()?;
+    let effects = match query.get("effects") {
+        Some(effects) => Some(serde_json::from_str(effects).ok()?),
+        None => None,
+    };
     Some(View {
         camera,
+        effects,
         width: query.get("width")?.parse().ok()?,
         height: query.get("height")?.parse().ok()?,
     })

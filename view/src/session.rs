@@ -6,8 +6,8 @@
 //! its frame in a one-frame outbox, so a frame the socket has not taken yet is replaced by a
 //! newer one rather than queued. A new view moves the generation on, which abandons the
 //! renderer's image at its next band (a coarse frame waits for the socket only while its view is
-//! the latest, so every view shows one); with no view to render the renderer sleeps, so a page
-//! that is connected but idle, or gone, costs no CPU.
+//! the latest, so every view shows one). The socket thread polls only while a frame may come;
+//! otherwise both threads sleep, so a page that is idle, or gone, costs no CPU.
 
 use std::net::TcpStream;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -17,7 +17,7 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 use tungstenite::{Message, WebSocket};
 
-use crate::views::{CameraView, EncodedFrame, Pick, View, Viewer};
+use crate::views::{CameraView, Effects, EncodedFrame, Pick, View, Viewer};
 
 /// How long a read waits before the socket thread looks into the outbox.
 const POLL: Duration = Duration::from_millis(5);
@@ -39,6 +39,9 @@ enum ServerMessage {
         camera: CameraView,
         triangles: u64,
         file_bytes: u64,
+        /// The scene's effects, and those the file can show.
+        effects: Effects,
+        available: Effects,
     },
     Pick {
         pick: Option<Pick>,
@@ -66,6 +69,8 @@ struct Shared {
 struct State {
     latest: Option<(u64, View)>,
     outbox: Option<EncodedFrame>,
+    /// The renderer is rendering a view.
+    rendering: bool,
 }
 
 /// The generation that tells the renderer the page is gone.
@@ -116,14 +121,22 @@ impl Shared {
         frame
     }
 
+    /// No frame to come: no view waiting or rendering, no frame to send.
+    fn idle(&self) -> bool {
+        let state = self.state();
+        !state.rendering && state.latest.is_none() && state.outbox.is_none()
+    }
+
     /// The next view to render, waiting for one; `None` once the page is gone.
     fn next_view(&self) -> Option<(u64, View)> {
         let mut state = self.state();
+        state.rendering = false;
         loop {
             if self.generation.load(Ordering::Acquire) == CLOSED {
                 return None;
             }
             if let Some(latest) = state.latest.take() {
+                state.rendering = true;
                 return Some(latest);
             }
             state = self.wake.wait(state).unwrap_or_else(|p| p.into_inner());
@@ -161,11 +174,12 @@ fn render_views(shared: &Shared, viewer: &Viewer) {
 
 /// Reads the page's messages and sends the latest frame, until the page closes.
 fn exchange(socket: &mut WebSocket<TcpStream>, shared: &Shared, viewer: &Viewer) -> SocketResult {
-    let polled = socket.get_ref().set_read_timeout(Some(POLL));
-    polled.map_err(tungstenite::Error::Io)?;
     let file = viewer.tracer.file();
+    let (effects, available) = viewer.scene_effects();
     let hello = ServerMessage::Hello {
         camera: viewer.initial_camera(),
+        effects,
+        available,
         triangles: file.header().triangle_count,
         file_bytes: file.file_bytes(),
     };
@@ -186,6 +200,10 @@ fn exchange(socket: &mut WebSocket<TcpStream>, shared: &Shared, viewer: &Viewer)
         if let Some(frame) = shared.take_frame() {
             socket.send(Message::binary(framed(&frame)))?;
         }
+        // Reads block while no frame can come, so an idle page costs no CPU.
+        let poll = (!shared.idle()).then_some(POLL);
+        let polled = socket.get_ref().set_read_timeout(poll);
+        polled.map_err(tungstenite::Error::Io)?;
     }
 }
 

@@ -29,12 +29,26 @@ pub struct CameraView {
     pub fov: f32,
 }
 
-/// A view the page asks for: a camera and the image size in pixels.
+/// A view the page asks for: a camera, the image size in pixels, the effects switched on (the
+/// scene's when the page names none).
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
 pub struct View {
     pub camera: CameraView,
     pub width: u32,
     pub height: u32,
+    #[serde(default)]
+    pub effects: Option<Effects>,
+}
+
+/// The page's effect switches.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Effects {
+    /// Shade with the stored normals, when the file has them.
+    pub stored_normals: bool,
+    /// Multiply by the stored colours, when the file has them.
+    pub colors: bool,
+    pub ambient_occlusion: bool,
+    pub shadows: bool,
 }
 
 /// What every connection shares: the file's tracer, the scene that shades it, the token.
@@ -96,6 +110,26 @@ impl Viewer {
         }
     }
 
+    /// The effects the scene shades with, and which of them the file can show.
+    pub fn scene_effects(&self) -> (Effects, Effects) {
+        let scene = &self.scene;
+        let shadows = casts_shadows(scene);
+        let stored = self.tracer.file().attributes();
+        let on = Effects {
+            stored_normals: scene.shading.smooth,
+            colors: scene.shading.vertex_colors,
+            ambient_occlusion: scene.ambient_occlusion.is_some(),
+            shadows,
+        };
+        let available = Effects {
+            stored_normals: stored.normals != NormalEncoding::None,
+            colors: stored.colors,
+            ambient_occlusion: true,
+            shadows: !(scene.directional_light.is_empty() && scene.point_light.is_empty()),
+        };
+        (on, available)
+    }
+
     /// The scene of `view`: the viewer's scene with the view's camera and size; `None` for a
     /// view no scene could hold (a camera with no direction or roll, a size out of range).
     pub fn scene_of(&self, view: &View) -> Option<Scene> {
@@ -107,6 +141,9 @@ impl Viewer {
         camera.up = view.camera.up;
         camera.fov_degrees = view.camera.fov;
         (scene.image.width, scene.image.height) = (view.width, view.height);
+        if let Some(effects) = view.effects {
+            switch_effects(&mut scene, effects);
+        }
         let sized = (1..=MAX_SIDE).contains(&view.width) && (1..=MAX_SIDE).contains(&view.height);
         (sized && scene.check().is_ok()).then_some(scene)
     }
@@ -237,6 +274,16 @@ impl Viewer {
         })
     }
 
+    /// The scene file of `view` for `reducem render --up z` (its positions and directions are
+    /// already the model's, turned for the up axis when the viewer's scene was).
+    pub fn scene_toml(&self, view: &View) -> Option<String> {
+        let scene = self.scene_of(view)?;
+        let text = toml::to_string(&scene).ok()?;
+        Some(format!(
+            "# reducem render FILE --scene THIS.toml --up z -o image.png: the viewer's image\n{text}"
+        ))
+    }
+
     /// The PNG `reducem render` writes of `view` with the viewer's scene.
     pub fn png(&self, view: &View) -> Option<Vec<u8>> {
         let scene = self.scene_of(view)?;
@@ -265,6 +312,34 @@ pub struct Pick {
     pub stored_normal: Option<[f32; 3]>,
     /// The interpolated stored colour (RGBA), when the file has colours.
     pub color: Option<[u8; 4]>,
+}
+
+/// `scene` with the page's switches: an effect switched off is left out, one switched on that
+/// the scene lacks is added (AO with its defaults, shadows from every light).
+fn switch_effects(scene: &mut Scene, effects: Effects) {
+    scene.shading.smooth = effects.stored_normals;
+    scene.shading.vertex_colors = effects.colors;
+    match effects.ambient_occlusion {
+        false => scene.ambient_occlusion = None,
+        true => _ = scene.ambient_occlusion.get_or_insert_default(),
+    }
+    if casts_shadows(scene) != effects.shadows {
+        scene
+            .directional_light
+            .iter_mut()
+            .for_each(|l| l.cast_shadows = effects.shadows);
+        scene
+            .point_light
+            .iter_mut()
+            .for_each(|l| l.cast_shadows = effects.shadows);
+    }
+}
+
+/// Some light of `scene` casts shadows.
+fn casts_shadows(scene: &Scene) -> bool {
+    let directional = scene.directional_light.iter().map(|l| l.cast_shadows);
+    let point = scene.point_light.iter().map(|l| l.cast_shadows);
+    directional.chain(point).any(|casts| casts)
 }
 
 /// `scene` with its primary shading only: no shadows, no AO, one sample per pixel.

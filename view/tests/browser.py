@@ -2,7 +2,8 @@
 
 The first frame arrives; a drag changes data-camera and the image; a click reports in #pick the
 face id `reducem query --format full` gives for the same pixel's ray; the image "save image"
-downloads equals `reducem render` with the same camera, byte for byte; a page that leaves
+downloads equals `reducem render` with the same camera, byte for byte; the AO switch brings an
+image of 16 samples per pixel; "copy scene" shows the scene; a page that leaves
 mid-frame does not stop the server; SIGTERM ends it with 0.
 
 Run: python3 view/tests/browser.py, with REDUCEM_BIN and PIPELINE_BIN naming the binaries
@@ -185,6 +186,14 @@ def main():
         expected = rendered_png(model, directory, view["camera"], view["width"], view["height"])
         assert saved == expected, "the saved image differs from reducem render's"
         print(f"the saved {view['width']}x{view['height']} image equals reducem render's")
+
+        driver.find_element(By.ID, "ambient_occlusion").click()
+        spp = lambda: driver.execute_script("return document.documentElement.dataset.spp")
+        wait_for(lambda: spp() == "16", "the AO image (16 samples per pixel)")
+        driver.find_element(By.ID, "copy").click()
+        scene_box = driver.find_element(By.ID, "scene")
+        wait_for(lambda: "[ambient_occlusion]" in scene_box.get_attribute("value"), "the scene text")
+        print("the AO switch brought 16 samples per pixel, and copy scene shows the scene")
 
         driver.execute_script("document.getElementById('scale').value = '1'")
         driver.execute_script("orbit(40, 0)")

@@ -173,6 +173,15 @@ fn view_message(camera: &Value, width: u32, height: u32) -> Value {
     serde_json::json!({ "camera": camera, "width": width, "height": height })
 }
 
+/// `value` as JSON, every byte percent-escaped for a query.
+fn escaped(value: &Value) -> String {
+    value
+        .to_string()
+        .bytes()
+        .map(|b| format!("%{b:02X}"))
+        .collect()
+}
+
 fn send(socket: &mut WebSocket<TcpStream>, message: Value) {
     socket
         .send(Message::text(message.to_string()))
@@ -309,11 +318,7 @@ fn a_view_gets_a_coarse_frame_then_the_full_one_and_picks_and_images_match_the_l
     }
     assert!(hits >= 1 && misses >= 1, "{hits} hits, {misses} misses");
 
-    let camera_query: String = camera
-        .to_string()
-        .bytes()
-        .map(|b| format!("%{b:02X}"))
-        .collect();
+    let camera_query = escaped(&camera);
     let target = format!(
         "/image.png?token={}&width=64&height=48&camera={camera_query}",
         server.token
@@ -346,5 +351,43 @@ fn a_page_that_leaves_mid_frame_leaves_the_server_serving_others() {
     assert_eq!(frame(&mut socket).0["width"], 16);
     let (status, _) = server.terminate();
     assert_eq!(status.code(), Some(0));
+    std::fs::remove_file(&file).unwrap();
+}
+
+#[test]
+fn the_scene_file_of_a_view_with_effects_switched_on_renders_its_saved_image() {
+    let file = model("scene");
+    let server = Server::start(&file, &["--up", "y"]);
+    let mut socket = server.page_socket();
+    let hello = text(&mut socket);
+    assert_eq!(hello["effects"]["ambient_occlusion"], false);
+    assert_eq!(hello["available"]["stored_normals"], false);
+    let effects = serde_json::json!({
+        "stored_normals": false, "colors": false, "ambient_occlusion": true, "shadows": true
+    });
+    let query = format!(
+        "?token={}&width=40&height=30&camera={}&effects={}",
+        server.token,
+        escaped(&hello["camera"]),
+        escaped(&effects)
+    );
+    let (status, toml) = server.get(&format!("/scene.toml{query}"));
+    assert_eq!(status, 200);
+    let scene = Scene::parse(Path::new("view.toml"), std::str::from_utf8(&toml).unwrap())
+        .expect("the scene file parses");
+    assert!(scene.ambient_occlusion.is_some());
+    assert!(scene
+        .directional_light
+        .iter()
+        .all(|light| light.cast_shadows));
+    let (status, png) = server.get(&format!("/image.png{query}"));
+    assert_eq!(status, 200);
+    let opened = ReducemFile::open(&file).unwrap();
+    let tracer = Tracer::new(&opened, TraceOptions::default());
+    let mut expected = Vec::new();
+    let report = render_into(&tracer, &scene, ImageFormat::Png, &mut expected).unwrap();
+    assert!(report.rays_of("ambient_occlusion") > 0 && report.rays_of("shadows") > 0);
+    assert!(png == expected, "the scene file renders the saved image");
+    drop(opened);
     std::fs::remove_file(&file).unwrap();
 }
