@@ -17,7 +17,9 @@ use serde::{Deserialize, Serialize};
 /// The largest image side the page may ask for, as `reducem render` allows.
 const MAX_SIDE: u32 = 16384;
 
-/// JPEG quality of the frames: smooth shading shows no blocking at 85.
+/// JPEG quality of the frames: smooth shading shows no blocking at 85. JPEG rather than WebP:
+/// the pure-Rust WebP encoder (image-webp) is lossless only, so lossy WebP would mean a C
+/// library; jpeg-encoder is pure Rust and every browser decodes JPEG.
 const JPEG_QUALITY: u8 = 85;
 
 /// The camera as the page holds it and `data-camera` shows it.
