@@ -23,6 +23,7 @@ use views::Viewer;
 #[derive(Parser)]
 #[command(
     name = "reducem view",
+    bin_name = "reducem view",
     version,
     about = "Serve an interactive view of a ReduceM file to a browser",
     after_help = exit_code::HELP
