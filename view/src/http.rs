@@ -12,7 +12,7 @@ use tungstenite::protocol::Role;
 use tungstenite::WebSocket;
 
 use crate::session;
-use crate::views::{CameraView, View, Viewer};
+use crate::views::{CameraView, UpAxis, View, Viewer};
 
 /// The page, its script and style in one file, served as it is.
 const PAGE: &str = include_str!("page.html");
@@ -114,16 +114,23 @@ fn answer(stream: TcpStream, viewer: &'static Viewer) -> io::Result<()> {
     }
 }
 
-/// The view of `/image.png?camera=JSON&width=W&height=H[&effects=JSON]`.
+/// The view of `/image.png?camera=JSON&width=W&height=H[&effects=JSON][&up=y|z]`.
 fn view_of_query(query: &HashMap<String, String>) -> Option<View> {
     let camera: CameraView = serde_json::from_str(query.get("camera")?).ok()?;
     let effects = match query.get("effects") {
         Some(effects) => Some(serde_json::from_str(effects).ok()?),
         None => None,
     };
+    let up = match query.get("up").map(String::as_str) {
+        None => None,
+        Some("y") => Some(UpAxis::Y),
+        Some("z") => Some(UpAxis::Z),
+        Some(_) => return None,
+    };
     Some(View {
         camera,
         effects,
+        up,
         width: query.get("width")?.parse().ok()?,
         height: query.get("height")?.parse().ok()?,
     })

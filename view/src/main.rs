@@ -18,7 +18,7 @@ use reducem::format::reader::ReducemFile;
 use reducem::render::scene::Scene;
 use reducem::trace::{TraceOptions, Tracer};
 
-use views::Viewer;
+use views::{UpAxis, Viewer};
 
 #[derive(Parser)]
 #[command(
@@ -44,14 +44,6 @@ struct Args {
     /// Threads that trace the frames; default all cores.
     #[arg(long)]
     threads: Option<usize>,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-enum UpAxis {
-    /// The model's up axis is y (scans, glTF).
-    Y,
-    /// The model's up axis is z, as scenes are written.
-    Z,
 }
 
 /// The scene the viewer shades with when none is given.
@@ -134,7 +126,8 @@ fn run(args: Args) -> anyhow::Result<()> {
         reducem::exit_code::UsageError(format!("--bind {}: {error}", args.bind))
     })?;
     let address = listener.local_addr()?;
-    let viewer: &'static Viewer = Box::leak(Box::new(Viewer::new(tracer, scene, new_token()?)));
+    let viewer = Viewer::new(tracer, scene, up_axis(&args), new_token()?);
+    let viewer: &'static Viewer = Box::leak(Box::new(viewer));
     let mut stdout = std::io::stdout().lock();
     writeln!(stdout, "http://{address}/?token={}", viewer.token)?;
     stdout.flush()?;
@@ -155,16 +148,12 @@ fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The scene file, or the default one, turned for the model's up axis.
+/// The scene file, or the default one.
 fn load_scene(args: &Args) -> anyhow::Result<Scene> {
-    let mut scene = match &args.scene {
+    Ok(match &args.scene {
         Some(path) => Scene::load(path)?,
         None => Scene::parse(std::path::Path::new("primary.toml"), DEFAULT_SCENE)?,
-    };
-    if up_axis(args) == UpAxis::Y {
-        scene.turn_to_y_up();
-    }
-    Ok(scene)
+    })
 }
 
 /// The model's up axis: the one place that will read the file's stored up hint once the format

@@ -17,7 +17,7 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 use tungstenite::{Message, WebSocket};
 
-use crate::views::{CameraView, Effects, EncodedFrame, Pick, View, Viewer};
+use crate::views::{CameraView, Effects, EncodedFrame, Pick, UpAxis, View, Viewer};
 
 /// How long a read waits before the socket thread looks into the outbox.
 const POLL: Duration = Duration::from_millis(5);
@@ -36,7 +36,10 @@ enum PageMessage {
 #[serde(tag = "type", rename_all = "lowercase")]
 enum ServerMessage {
     Hello {
+        /// The command line's up axis, and the first camera for either axis.
+        up: UpAxis,
         camera: CameraView,
+        cameras: Cameras,
         triangles: u64,
         file_bytes: u64,
         /// The scene's effects, and those the file can show.
@@ -46,6 +49,12 @@ enum ServerMessage {
     Pick {
         pick: Option<Pick>,
     },
+}
+
+#[derive(Serialize)]
+struct Cameras {
+    y: CameraView,
+    z: CameraView,
 }
 
 fn send(socket: &mut WebSocket<TcpStream>, message: &ServerMessage) -> SocketResult {
@@ -177,7 +186,12 @@ fn exchange(socket: &mut WebSocket<TcpStream>, shared: &Shared, viewer: &Viewer)
     let file = viewer.tracer.file();
     let (effects, available) = viewer.scene_effects();
     let hello = ServerMessage::Hello {
-        camera: viewer.initial_camera(),
+        up: viewer.up,
+        camera: viewer.initial_camera(viewer.up),
+        cameras: Cameras {
+            y: viewer.initial_camera(UpAxis::Y),
+            z: viewer.initial_camera(UpAxis::Z),
+        },
         effects,
         available,
         triangles: file.header().triangle_count,

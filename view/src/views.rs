@@ -40,6 +40,19 @@ pub struct View {
     pub height: u32,
     #[serde(default)]
     pub effects: Option<Effects>,
+    /// The model's up axis; the command line's when the page names none.
+    #[serde(default)]
+    pub up: Option<UpAxis>,
+}
+
+/// The model's up axis: scenes are written for z-up models and turned for y-up ones.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum UpAxis {
+    /// Up is y (scans, glTF).
+    Y,
+    /// Up is z, as scenes are written.
+    Z,
 }
 
 /// The page's effect switches.
@@ -53,10 +66,13 @@ pub struct Effects {
     pub shadows: bool,
 }
 
-/// What every connection shares: the file's tracer, the scene that shades it, the token.
+/// What every connection shares: the file's tracer, the scene that shades it (as written for a
+/// z-up model, and turned for a y-up one), the command line's up axis, the token.
 pub struct Viewer {
     pub tracer: &'static Tracer<'static>,
-    pub scene: Scene,
+    z_up_scene: Scene,
+    y_up_scene: Scene,
+    pub up: UpAxis,
     pub token: String,
     pub bounds: Aabb,
 }
@@ -85,7 +101,15 @@ pub struct FrameHeader {
 pub struct Stale;
 
 impl Viewer {
-    pub fn new(tracer: &'static Tracer<'static>, scene: Scene, token: String) -> Viewer {
+    /// The viewer of `tracer`'s file with `scene`, as written (for a z-up model).
+    pub fn new(
+        tracer: &'static Tracer<'static>,
+        scene: Scene,
+        up: UpAxis,
+        token: String,
+    ) -> Viewer {
+        let mut y_up_scene = scene.clone();
+        y_up_scene.turn_to_y_up();
         let header = tracer.file().header();
         let bounds = Aabb {
             min: header.bounds_min,
@@ -93,16 +117,28 @@ impl Viewer {
         };
         Viewer {
             tracer,
-            scene,
+            z_up_scene: scene,
+            y_up_scene,
+            up,
             token,
             bounds,
         }
     }
 
-    /// The camera the page starts from: the scene's, framed as `reducem render` frames it.
-    pub fn initial_camera(&self) -> CameraView {
-        let settings = &self.scene.camera;
-        let (width, height) = (self.scene.image.width, self.scene.image.height);
+    /// The scene for a model whose up axis is `up`.
+    fn scene(&self, up: UpAxis) -> &Scene {
+        match up {
+            UpAxis::Y => &self.y_up_scene,
+            UpAxis::Z => &self.z_up_scene,
+        }
+    }
+
+    /// The camera the page starts from for a model whose up axis is `up`: the scene's, framed as
+    /// `reducem render` frames it.
+    pub fn initial_camera(&self, up: UpAxis) -> CameraView {
+        let scene = self.scene(up);
+        let settings = &scene.camera;
+        let (width, height) = (scene.image.width, scene.image.height);
         let (position, look_at) = placement(settings, &self.bounds, width, height);
         CameraView {
             position: position.into(),
@@ -114,7 +150,7 @@ impl Viewer {
 
     /// The effects the scene shades with, and which of them the file can show.
     pub fn scene_effects(&self) -> (Effects, Effects) {
-        let scene = &self.scene;
+        let scene = &self.z_up_scene;
         let shadows = casts_shadows(scene);
         let stored = self.tracer.file().attributes();
         let on = Effects {
@@ -135,7 +171,7 @@ impl Viewer {
     /// The scene of `view`: the viewer's scene with the view's camera and size; `None` for a
     /// view no scene could hold (a camera with no direction or roll, a size out of range).
     pub fn scene_of(&self, view: &View) -> Option<Scene> {
-        let mut scene = self.scene.clone();
+        let mut scene = self.scene(view.up.unwrap_or(self.up)).clone();
         let camera = &mut scene.camera;
         (camera.auto, camera.direction) = (false, None);
         camera.position = Some(view.camera.position);

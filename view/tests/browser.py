@@ -152,6 +152,7 @@ def main():
         return
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select
 
     directory = Path(tempfile.mkdtemp(prefix="reducem-view-browser-"))
     viewer = driver = None
@@ -194,6 +195,11 @@ def main():
         scene_box = driver.find_element(By.ID, "scene")
         wait_for(lambda: "[ambient_occlusion]" in scene_box.get_attribute("value"), "the scene text")
         print("the AO switch brought 16 samples per pixel, and copy scene shows the scene")
+
+        Select(driver.find_element(By.ID, "up")).select_by_value("y")
+        wait_for(lambda: json.loads(camera(driver))["up"] == [0, 1, 0], "the y-up camera")
+        wait_for(lambda: "#up=y&camera=" in driver.current_url, "the camera in the URL fragment")
+        print("the up-axis switch reframes for y up, and the URL fragment follows")
 
         driver.execute_script("document.getElementById('scale').value = '1'")
         driver.execute_script("orbit(40, 0)")

@@ -269,6 +269,14 @@ fn a_view_gets_a_coarse_frame_then_the_full_one_and_picks_and_images_match_the_l
     let hello = text(&mut socket);
     assert_eq!(hello["type"], "hello");
     assert_eq!(hello["triangles"], 1152);
+    assert_eq!(
+        (hello["up"].as_str(), &hello["cameras"]["z"]),
+        (Some("z"), &hello["camera"])
+    );
+    assert_eq!(
+        hello["cameras"]["y"]["up"],
+        serde_json::json!([0.0, 1.0, 0.0])
+    );
     let camera = hello["camera"].clone();
     let mut view = view_message(&camera, 64, 48);
     view["type"] = "view".into();
