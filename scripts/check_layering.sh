@@ -3,9 +3,9 @@
 # in no build-side or tool dependency and never names a build-side module, and the streaming
 # writer never names the build side either; instruction-set-specific code stays in the tracer's
 # kernels. The tool crates sit above the library: neither reducem nor pipeline depends on
-# reducem-bench, and reducem-core on neither tool crate. The crate boundary already makes most
-# violations compile errors; this catches the rest (a new dependency, a path in a doc comment or
-# a macro).
+# reducem-bench, reducem-core on neither tool crate, and nothing on the viewer. The crate
+# boundary already makes most violations compile errors; this catches the rest (a new
+# dependency, a path in a doc comment or a macro).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 failed=0
@@ -19,6 +19,14 @@ fi
 for crate in reducem pipeline; do
   if cargo tree -p "$crate" -e normal,dev --prefix none | grep -E '^reducem-bench '; then
     echo "check_layering: $crate depends on reducem-bench (above)" >&2
+    failed=1
+  fi
+done
+
+# The viewer (reducem-view) sits above everything: no crate of the workspace depends on it.
+for crate in reducem-core reducem reducem-gen reducem-bench pipeline; do
+  if cargo tree -p "$crate" -e normal,dev,build --prefix none | grep -E '^reducem-view '; then
+    echo "check_layering: $crate depends on reducem-view (above)" >&2
     failed=1
   fi
 done

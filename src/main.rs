@@ -127,6 +127,14 @@ enum Command {
         #[command(flatten)]
         overrides: SceneOverrides,
     },
+    /// Serve an interactive view of a ReduceM file to a browser (runs the reducem-view binary:
+    /// `reducem view FILE [--bind ADDR:PORT] [--scene SCENE.toml] [--up y|z] [--threads N]`).
+    #[command(disable_help_flag = true)]
+    View {
+        /// The arguments of reducem-view.
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<std::ffi::OsString>,
+    },
 }
 
 impl Command {
@@ -139,6 +147,7 @@ impl Command {
             | Command::Render { file, .. } => Some(file),
             Command::Closest(args) => Some(&args.file),
             Command::Inside(args) => Some(&args.file),
+            Command::View { .. } => None,
         }
     }
 }
@@ -330,6 +339,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Command::Closest(args) => closest::run(args),
         Command::Inside(args) => inside::run(args),
+        Command::View { args } => exec_viewer(args),
         Command::Render {
             file,
             scene,
@@ -343,6 +353,23 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             render(&file, &scene, &destination, format, json)
         }
     }
+}
+
+/// `reducem view`: the viewer is its own binary (its crate depends on this one), found beside
+/// this executable, then on PATH; it replaces this process, so its exit code is the command's.
+fn exec_viewer(args: Vec<std::ffi::OsString>) -> anyhow::Result<()> {
+    use std::os::unix::process::CommandExt;
+    let beside = std::env::current_exe()
+        .ok()
+        .and_then(|exe| Some(exe.parent()?.join("reducem-view")))
+        .filter(|path| path.is_file());
+    let program = beside.unwrap_or_else(|| PathBuf::from("reducem-view"));
+    let error = std::process::Command::new(&program).args(args).exec();
+    eprintln!(
+        "reducem view needs the reducem-view binary: cargo install --locked --path view ({}: {error})",
+        program.display()
+    );
+    std::process::exit(69)
 }
 
 /// The image format of the output argument: by its extension, else PNG for a stream (`-`,

@@ -28,10 +28,7 @@ pub struct Camera {
 impl Camera {
     pub fn new(settings: &CameraSettings, bounds: &Aabb, width: u32, height: u32) -> Camera {
         let up_hint = Vec3::from(settings.up).normalize();
-        let (position, look_at) = match (settings.position, settings.look_at) {
-            (Some(position), Some(look_at)) => (Vec3::from(position), Vec3::from(look_at)),
-            _ => auto_placement(settings, bounds, width, height),
-        };
+        let (position, look_at) = placement(settings, bounds, width, height);
         let forward = (look_at - position).normalize_or(Vec3::NEG_Z);
         let side = forward.cross(up_hint);
         // A view along the up hint has no defined roll (scenes refuse it; a camera built
@@ -65,6 +62,20 @@ impl Camera {
             tmin: 0.0,
             tmax: f32::INFINITY,
         }
+    }
+}
+
+/// The camera's position and the point it looks at: as the settings place it, else framing
+/// `bounds` (the viewer starts from this and moves the camera as placed).
+pub fn placement(
+    settings: &CameraSettings,
+    bounds: &Aabb,
+    width: u32,
+    height: u32,
+) -> (Vec3, Vec3) {
+    match (settings.position, settings.look_at) {
+        (Some(position), Some(look_at)) => (Vec3::from(position), Vec3::from(look_at)),
+        _ => auto_placement(settings, bounds, width, height),
     }
 }
 

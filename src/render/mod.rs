@@ -144,8 +144,9 @@ pub fn render_rows<E>(
     render_in_bands(tracer, scene, order, BAND_PIXELS, rows)
 }
 
-/// [`render_rows`] in bands of about `band_pixels` fine pixels.
-fn render_in_bands<E>(
+/// [`render_rows`] in bands of about `band_pixels` fine pixels: smaller bands let a caller
+/// (the viewer) abandon an image sooner, by returning an error from `rows`.
+pub fn render_in_bands<E>(
     tracer: &Tracer,
     scene: &Scene,
     order: RowOrder,

@@ -37,12 +37,12 @@
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::geometry::Point;
 
 /// A parsed, checked scene.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Scene {
     #[serde(default)]
@@ -58,7 +58,7 @@ pub struct Scene {
     pub ambient_occlusion: Option<AmbientOcclusion>,
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct ImageSettings {
     pub width: u32,
@@ -80,7 +80,7 @@ impl Default for ImageSettings {
 
 /// Either `position` + `look_at`, or automatic framing (`auto = true`, or neither of them
 /// given) with an optional viewing `direction`.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct CameraSettings {
     pub auto: bool,
@@ -154,7 +154,7 @@ impl CameraSettings {
 pub const MIN_ROLL_SINE_SQUARED: f32 = 1e-12;
 
 /// Surface and environment terms of the shading; a key the table omits takes its default.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct Shading {
     /// Diffuse reflectance of every surface.
@@ -187,7 +187,7 @@ impl Default for Shading {
     }
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DirectionalLight {
     /// The direction the light travels, from the light into the scene.
@@ -198,7 +198,7 @@ pub struct DirectionalLight {
     pub cast_shadows: bool,
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct PointLight {
     pub position: Point,
@@ -208,7 +208,7 @@ pub struct PointLight {
     pub cast_shadows: bool,
 }
 
-#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields, default)]
 pub struct AmbientOcclusion {
     pub samples: u32,

@@ -1,0 +1,395 @@
+//! What the page asks to see, rendered with `reducem render`'s own shading: the scene of a view,
+//! its progressive frames, its images and its picks.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::Vec3;
+use reducem::format::attributes::NormalEncoding;
+use reducem::geometry::Aabb;
+use reducem::render::camera::{placement, Camera};
+use reducem::render::image::srgb_bytes;
+use reducem::render::scene::Scene;
+use reducem::render::{render_in_bands, Frame, RenderReport, RowOrder};
+use reducem::trace::ray_file::{trace_hits_as, HitFormat};
+use reducem::trace::Tracer;
+use serde::{Deserialize, Serialize};
+
+/// The largest image side the page may ask for, as `reducem render` allows.
+const MAX_SIDE: u32 = 16384;
+
+/// JPEG quality of the frames: smooth shading shows no blocking at 85. JPEG rather than WebP:
+/// the pure-Rust WebP encoder (image-webp) is lossless only, so lossy WebP would mean a C
+/// library; jpeg-encoder is pure Rust and every browser decodes JPEG.
+const JPEG_QUALITY: u8 = 85;
+
+/// The camera as the page holds it and `data-camera` shows it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CameraView {
+    pub position: [f32; 3],
+    pub look_at: [f32; 3],
+    pub up: [f32; 3],
+    pub fov: f32,
+}
+
+/// A view the page asks for: a camera, the image size in pixels, the effects switched on (the
+/// scene's when the page names none).
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+pub struct View {
+    pub camera: CameraView,
+    pub width: u32,
+    pub height: u32,
+    #[serde(default)]
+    pub effects: Option<Effects>,
+    /// The model's up axis; the command line's when the page names none.
+    #[serde(default)]
+    pub up: Option<UpAxis>,
+}
+
+/// The model's up axis: scenes are written for z-up models and turned for y-up ones.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum UpAxis {
+    /// Up is y (scans, glTF).
+    Y,
+    /// Up is z, as scenes are written.
+    Z,
+}
+
+/// The page's effect switches.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Effects {
+    /// Shade with the stored normals, when the file has them.
+    pub stored_normals: bool,
+    /// Multiply by the stored colours, when the file has them.
+    pub colors: bool,
+    pub ambient_occlusion: bool,
+    pub shadows: bool,
+}
+
+/// What every connection shares: the file's tracer, the scene that shades it (as written for a
+/// z-up model, and turned for a y-up one), the command line's up axis, the token.
+pub struct Viewer {
+    pub tracer: &'static Tracer<'static>,
+    z_up_scene: Scene,
+    y_up_scene: Scene,
+    pub up: UpAxis,
+    pub token: String,
+    pub bounds: Aabb,
+}
+
+/// One image of a view, encoded, with what the page shows about it.
+pub struct EncodedFrame {
+    pub header: FrameHeader,
+    pub jpeg: Vec<u8>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct FrameHeader {
+    pub generation: u64,
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel of the image (a quarter for the coarse frame).
+    pub spp: f32,
+    pub camera: CameraView,
+    pub rays: u64,
+    pub seconds: f64,
+    pub triangles: u64,
+    pub resident_bytes: Option<u64>,
+}
+
+/// A view's image was abandoned: the page asked for another view meanwhile.
+pub struct Stale;
+
+impl Viewer {
+    /// The viewer of `tracer`'s file with `scene`, as written (for a z-up model).
+    pub fn new(
+        tracer: &'static Tracer<'static>,
+        scene: Scene,
+        up: UpAxis,
+        token: String,
+    ) -> Viewer {
+        let mut y_up_scene = scene.clone();
+        y_up_scene.turn_to_y_up();
+        let header = tracer.file().header();
+        let bounds = Aabb {
+            min: header.bounds_min,
+            max: header.bounds_max,
+        };
+        Viewer {
+            tracer,
+            z_up_scene: scene,
+            y_up_scene,
+            up,
+            token,
+            bounds,
+        }
+    }
+
+    /// The scene for a model whose up axis is `up`.
+    fn scene(&self, up: UpAxis) -> &Scene {
+        match up {
+            UpAxis::Y => &self.y_up_scene,
+            UpAxis::Z => &self.z_up_scene,
+        }
+    }
+
+    /// The camera the page starts from for a model whose up axis is `up`: the scene's, framed as
+    /// `reducem render` frames it.
+    pub fn initial_camera(&self, up: UpAxis) -> CameraView {
+        let scene = self.scene(up);
+        let settings = &scene.camera;
+        let (width, height) = (scene.image.width, scene.image.height);
+        let (position, look_at) = placement(settings, &self.bounds, width, height);
+        CameraView {
+            position: position.into(),
+            look_at: look_at.into(),
+            up: settings.up,
+            fov: settings.fov_degrees,
+        }
+    }
+
+    /// The effects the scene shades with, and which of them the file can show.
+    pub fn scene_effects(&self) -> (Effects, Effects) {
+        let scene = &self.z_up_scene;
+        let shadows = casts_shadows(scene);
+        let stored = self.tracer.file().attributes();
+        let on = Effects {
+            stored_normals: scene.shading.smooth,
+            colors: scene.shading.vertex_colors,
+            ambient_occlusion: scene.ambient_occlusion.is_some(),
+            shadows,
+        };
+        let available = Effects {
+            stored_normals: stored.normals != NormalEncoding::None,
+            colors: stored.colors,
+            ambient_occlusion: true,
+            shadows: !(scene.directional_light.is_empty() && scene.point_light.is_empty()),
+        };
+        (on, available)
+    }
+
+    /// The scene of `view`: the viewer's scene with the view's camera and size; `None` for a
+    /// view no scene could hold (a camera with no direction or roll, a size out of range).
+    pub fn scene_of(&self, view: &View) -> Option<Scene> {
+        let mut scene = self.scene(view.up.unwrap_or(self.up)).clone();
+        let camera = &mut scene.camera;
+        (camera.auto, camera.direction) = (false, None);
+        camera.position = Some(view.camera.position);
+        camera.look_at = Some(view.camera.look_at);
+        camera.up = view.camera.up;
+        camera.fov_degrees = view.camera.fov;
+        (scene.image.width, scene.image.height) = (view.width, view.height);
+        if let Some(effects) = view.effects {
+            switch_effects(&mut scene, effects);
+        }
+        let sized = (1..=MAX_SIDE).contains(&view.width) && (1..=MAX_SIDE).contains(&view.height);
+        (sized && scene.check().is_ok()).then_some(scene)
+    }
+
+    /// The frames of `view` in the order the page shows them: a coarse one of a quarter of the
+    /// pixels with primary shading, the full-size one, then (when the scene declares shadows,
+    /// AO or antialiasing) the scene's own image, as `reducem render` makes it. Each goes to
+    /// `deliver` as soon as it is ready; work stops when `generation` leaves `current`.
+    pub fn render_progressively(
+        &self,
+        view: &View,
+        current: u64,
+        generation: &AtomicU64,
+        mut deliver: impl FnMut(EncodedFrame),
+    ) -> Result<(), Stale> {
+        let Some(scene) = self.scene_of(view) else {
+            return Ok(());
+        };
+        let primary = primary_only(&scene);
+        let mut coarse = primary.clone();
+        coarse.image.width = scene.image.width.div_ceil(2);
+        coarse.image.height = scene.image.height.div_ceil(2);
+        let mut stages = vec![(coarse, 0.25), (primary.clone(), 1.0)];
+        if scene != primary {
+            let samples = scene.ambient_occlusion.as_ref().map_or(1, |ao| ao.samples);
+            let spp = (samples * scene.image.antialiasing.pow(2)) as f32;
+            stages.push((scene.clone(), spp));
+        }
+        for (stage, spp) in stages {
+            let (frame, report) = self.render_while_current(&stage, current, generation)?;
+            deliver(self.encode(frame, &report, view.camera, current, spp));
+        }
+        Ok(())
+    }
+
+    /// `scene` rendered, or [`Stale`] as soon as a band ends with `generation` moved on.
+    fn render_while_current(
+        &self,
+        scene: &Scene,
+        current: u64,
+        generation: &AtomicU64,
+    ) -> Result<(Frame, RenderReport), Stale> {
+        let (width, height) = (scene.image.width, scene.image.height);
+        let mut pixels = Vec::with_capacity(width as usize * height as usize);
+        // A band of eight rows keeps a stale camera's leftover work to a few milliseconds.
+        let band_pixels = width.saturating_mul(scene.image.antialiasing.pow(2) * 8);
+        let report = render_in_bands(self.tracer, scene, RowOrder::TopDown, band_pixels, |rows| {
+            if generation.load(Ordering::Acquire) != current {
+                return Err(Stale);
+            }
+            pixels.extend_from_slice(rows);
+            Ok(())
+        })?;
+        let frame = Frame {
+            width,
+            height,
+            pixels,
+        };
+        Ok((frame, report))
+    }
+
+    fn encode(
+        &self,
+        frame: Frame,
+        report: &RenderReport,
+        camera: CameraView,
+        generation: u64,
+        spp: f32,
+    ) -> EncodedFrame {
+        let mut jpeg = Vec::new();
+        let encoder = jpeg_encoder::Encoder::new(&mut jpeg, JPEG_QUALITY);
+        let encoded = encoder.encode(
+            &srgb_bytes(&frame),
+            frame.width as u16,
+            frame.height as u16,
+            jpeg_encoder::ColorType::Rgb,
+        );
+        if let Err(error) = encoded {
+            eprintln!("reducem view: encoding a frame: {error}");
+        }
+        EncodedFrame {
+            header: FrameHeader {
+                generation,
+                width: frame.width,
+                height: frame.height,
+                spp,
+                camera,
+                rays: report.total_rays,
+                seconds: report.trace_seconds,
+                triangles: self.tracer.file().header().triangle_count,
+                resident_bytes: report.memory.mapped_resident_bytes,
+            },
+            jpeg,
+        }
+    }
+
+    /// What the primary ray through pixel `(x, y)` of `view` hits, answered as `reducem query
+    /// --format full` answers that ray.
+    pub fn pick(&self, view: &View, x: u32, y: u32) -> Option<Pick> {
+        let scene = self.scene_of(view)?;
+        if x >= view.width || y >= view.height {
+            return None;
+        }
+        let camera = Camera::new(&scene.camera, &self.bounds, view.width, view.height);
+        let ray = camera.primary_ray(x, y);
+        let record = trace_hits_as(self.tracer, &[ray], HitFormat::Full);
+        let f32_at =
+            |index: usize| f32::from_le_bytes(record[index * 4..][..4].try_into().unwrap());
+        let vector_at = |index: usize| [f32_at(index), f32_at(index + 1), f32_at(index + 2)];
+        let distance = f32_at(0);
+        let hit = distance.is_finite();
+        let face_id = u32::from_le_bytes(record[12..16].try_into().unwrap());
+        let attributes = self.tracer.file().attributes();
+        let position = Vec3::from(ray.origin) + Vec3::from(ray.direction) * distance;
+        Some(Pick {
+            x,
+            y,
+            ray_origin: ray.origin,
+            ray_direction: ray.direction,
+            hit,
+            distance: hit.then_some(distance),
+            position: hit.then_some(position.into()),
+            face_id: (hit && face_id != u32::MAX).then_some(face_id),
+            normal: hit.then(|| vector_at(4)),
+            stored_normal: (hit && attributes.normals != NormalEncoding::None)
+                .then(|| vector_at(7)),
+            color: (hit && attributes.colors).then(|| record[40..44].try_into().unwrap()),
+        })
+    }
+
+    /// The scene file of `view` for `reducem render --up z` (its positions and directions are
+    /// already the model's, turned for the up axis when the viewer's scene was).
+    pub fn scene_toml(&self, view: &View) -> Option<String> {
+        let scene = self.scene_of(view)?;
+        let text = toml::to_string(&scene).ok()?;
+        Some(format!(
+            "# reducem render FILE --scene THIS.toml --up z -o image.png: the viewer's image\n{text}"
+        ))
+    }
+
+    /// The PNG `reducem render` writes of `view` with the viewer's scene.
+    pub fn png(&self, view: &View) -> Option<Vec<u8>> {
+        let scene = self.scene_of(view)?;
+        let mut png = Vec::new();
+        let format = reducem::render::image::ImageFormat::Png;
+        reducem::render::image::render_into(self.tracer, &scene, format, &mut png).ok()?;
+        Some(png)
+    }
+}
+
+/// What a click on the page shows: the ray through the pixel and what it hits.
+#[derive(Debug, Serialize)]
+pub struct Pick {
+    pub x: u32,
+    pub y: u32,
+    pub ray_origin: [f32; 3],
+    pub ray_direction: [f32; 3],
+    pub hit: bool,
+    pub distance: Option<f32>,
+    pub position: Option<[f32; 3]>,
+    /// The input face id, when the file stores face ids.
+    pub face_id: Option<u32>,
+    /// The geometric normal.
+    pub normal: Option<[f32; 3]>,
+    /// The interpolated stored normal, when the file has normals.
+    pub stored_normal: Option<[f32; 3]>,
+    /// The interpolated stored colour (RGBA), when the file has colours.
+    pub color: Option<[u8; 4]>,
+}
+
+/// `scene` with the page's switches: an effect switched off is left out, one switched on that
+/// the scene lacks is added (AO with its defaults, shadows from every light).
+fn switch_effects(scene: &mut Scene, effects: Effects) {
+    scene.shading.smooth = effects.stored_normals;
+    scene.shading.vertex_colors = effects.colors;
+    match effects.ambient_occlusion {
+        false => scene.ambient_occlusion = None,
+        true => _ = scene.ambient_occlusion.get_or_insert_default(),
+    }
+    if casts_shadows(scene) != effects.shadows {
+        scene
+            .directional_light
+            .iter_mut()
+            .for_each(|l| l.cast_shadows = effects.shadows);
+        scene
+            .point_light
+            .iter_mut()
+            .for_each(|l| l.cast_shadows = effects.shadows);
+    }
+}
+
+/// Some light of `scene` casts shadows.
+fn casts_shadows(scene: &Scene) -> bool {
+    let directional = scene.directional_light.iter().map(|l| l.cast_shadows);
+    let point = scene.point_light.iter().map(|l| l.cast_shadows);
+    directional.chain(point).any(|casts| casts)
+}
+
+/// `scene` with its primary shading only: no shadows, no AO, one sample per pixel.
+fn primary_only(scene: &Scene) -> Scene {
+    let mut primary = scene.clone();
+    primary.ambient_occlusion = None;
+    primary.image.antialiasing = 1;
+    for light in &mut primary.directional_light {
+        light.cast_shadows = false;
+    }
+    for light in &mut primary.point_light {
+        light.cast_shadows = false;
+    }
+    primary
+}
