@@ -50,15 +50,9 @@ fn edge_use(from: PositionKey, to: PositionKey) -> EdgeUse {
     }
 }
 
-/// The up axis of a model read from `path` when the configuration names none: z for STL, whose
-/// CAD and printing sources stand on the xy plane, else y.
+/// The up axis of a model read from `path` when the configuration names none: its format's
+/// (z for STL, whose CAD and printing sources stand on the xy plane, else y); y when the
+/// format cannot be told, so the reading stage reports that instead.
 pub fn default_up(path: &std::path::Path) -> UpAxis {
-    let stl = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("stl"));
-    match stl {
-        true => UpAxis::Z,
-        false => UpAxis::Y,
-    }
+    crate::input::detect(path).map_or(UpAxis::Y, |detected| detected.format.default_up())
 }

@@ -277,7 +277,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             let format = match (gen::OutputFormat::for_path(&output), ascii) {
                 (gen::OutputFormat::Stl(_), true) => gen::OutputFormat::Stl(gen::StlFlavour::Ascii),
-                (_, true) => anyhow::bail!(run::UsageError("--ascii needs a .stl output".into())),
+                (_, true) => anyhow::bail!(exit::UsageError("--ascii needs a .stl output".into())),
                 (format, false) => format,
             };
             let summary = gen::generate_as(kind, triangles, seed, &output, format)?;

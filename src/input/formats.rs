@@ -16,23 +16,7 @@ use super::ply::io_error;
 use super::source::WindowedPly;
 use super::{obj, stl, weld_identical_positions, AttributeRequest, MeshSource, PlyFile, PlyStream};
 use crate::mesh::Mesh;
-
-/// The axis a format's files conventionally point up along.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum UpAxis {
-    Y,
-    Z,
-}
-
-impl UpAxis {
-    /// The value of the configuration key that names it.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            UpAxis::Y => "y",
-            UpAxis::Z => "z",
-        }
-    }
-}
+pub use reducem_core::format::model::UpAxis;
 
 /// One mesh format of the table.
 pub trait MeshFormat: Sync {

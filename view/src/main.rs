@@ -38,9 +38,10 @@ struct Args {
     /// configs/scenes/primary.toml.
     #[arg(long, value_name = "SCENE.toml")]
     scene: Option<PathBuf>,
-    /// The model's up axis: scenes are written for z-up models and turned for y-up ones.
-    #[arg(long, value_enum, default_value_t = UpAxis::Y)]
-    up: UpAxis,
+    /// The model's up axis: scenes are written for z-up models and turned for y-up ones;
+    /// default the axis stored in the file (`[input] up` at conversion), else y.
+    #[arg(long, value_enum)]
+    up: Option<UpAxis>,
     /// Threads that trace the frames; default all cores.
     #[arg(long)]
     threads: Option<usize>,
@@ -126,7 +127,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         reducem::exit_code::UsageError(format!("--bind {}: {error}", args.bind))
     })?;
     let address = listener.local_addr()?;
-    let viewer = Viewer::new(tracer, scene, up_axis(&args), new_token()?);
+    let viewer = Viewer::new(tracer, scene, up_axis(&args, file), new_token()?);
     let viewer: &'static Viewer = Box::leak(Box::new(viewer));
     let mut stdout = std::io::stdout().lock();
     writeln!(stdout, "http://{address}/?token={}", viewer.token)?;
@@ -156,10 +157,13 @@ fn load_scene(args: &Args) -> anyhow::Result<Scene> {
     })
 }
 
-/// The model's up axis: the one place that will read the file's stored up hint once the format
-/// has one; until then the command line's.
-fn up_axis(args: &Args) -> UpAxis {
-    args.up
+/// The model's up axis: the command line's, else the hint the file stores, else y.
+fn up_axis(args: &Args, file: &ReducemFile) -> UpAxis {
+    use reducem::format::model::UpAxis as Stored;
+    args.up.unwrap_or(match file.up_axis() {
+        Some(Stored::Z) => UpAxis::Z,
+        Some(Stored::Y) | None => UpAxis::Y,
+    })
 }
 
 /// 128 random bits in hex, URL-safe: the secret every request must carry.
