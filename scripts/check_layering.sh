@@ -48,4 +48,11 @@ if git ls-files '*.rs' | grep -v '^core/src/trace/kernel/' |
   failed=1
 fi
 
+# The pipeline's modules form layers (stages over jobs over manifests, errors and time as
+# leaves): no two import each other, directly or around a circle.
+if ! python3 scripts/module_cycles.py pipeline/src; then
+  echo "check_layering: pipeline modules import one another in a circle (above)" >&2
+  failed=1
+fi
+
 exit $failed
