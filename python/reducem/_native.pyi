@@ -141,6 +141,6 @@ def convert(
     clean_after: bool = ...,
     if_locked: Literal["fail", "skip"] = ...,
 ) -> None:
-    """Converts the mesh ``input`` (PLY or OBJ) to the ReduceM file ``output`` as ``pipeline
+    """Converts the mesh ``input`` (PLY, OBJ or STL, also .gz or .zst) to the ReduceM file ``output`` as ``pipeline
     convert`` does, resuming from its work directory. Options left out take the configuration's
     defaults; reports go to the ``reducem`` logger and to ``progress(stage, done, total, unit)``."""
