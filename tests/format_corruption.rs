@@ -7,7 +7,7 @@ use common::{temp_path, torus};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::decode;
 use reducem::format::reader::{FormatError, ReducemFile};
-use reducem::format::{PrecisionRecord, SectionKind, HEADER_PAGE, PRECISION_OFFSET};
+use reducem::format::{Defect, PrecisionRecord, SectionKind, HEADER_PAGE, PRECISION_OFFSET};
 
 fn valid_file_bytes(name: &str) -> Vec<u8> {
     file_bytes(name, &BuildParams::default())
@@ -175,6 +175,14 @@ fn rejection(name: &str, bytes: &[u8]) -> String {
         .to_string()
 }
 
+/// The kind of defect the opener reports for `bytes`.
+fn rejection_kind(name: &str, bytes: &[u8]) -> Option<Defect> {
+    open_bytes(name, bytes)
+        .err()
+        .unwrap_or_else(|| panic!("{name} opened"))
+        .defect()
+}
+
 #[test]
 fn crafted_node_links_are_rejected_naming_node_and_byte() {
     const INTERNAL: u32 = 1 << 31;
@@ -193,6 +201,10 @@ fn crafted_node_links_are_rejected_naming_node_and_byte() {
     assert!(
         named(&message, at) && message.contains("outside"),
         "{message}"
+    );
+    assert_eq!(
+        rejection_kind("loop.rdm", &self_loop),
+        Some(Defect::OutOfRange)
     );
 
     // A child beyond the node array.
@@ -224,6 +236,7 @@ fn crafted_node_links_are_rejected_naming_node_and_byte() {
             && message.contains("second parent"),
         "{message}"
     );
+    assert_eq!(rejection_kind("shared.rdm", &shared), Some(Defect::BadTree));
 
     // A kind with the internal bit and a count.
     let (bad_kind, at) = with_node_word(&bytes, node, KIND_FIELD + 4 * slot, INTERNAL | 3);
@@ -231,6 +244,10 @@ fn crafted_node_links_are_rejected_naming_node_and_byte() {
     assert!(
         named(&message, at) && message.contains("neither internal nor a strip count"),
         "{message}"
+    );
+    assert_eq!(
+        rejection_kind("kind.rdm", &bad_kind),
+        Some(Defect::BadEncoding)
     );
 }
 
@@ -256,6 +273,10 @@ fn crafted_leaves_and_empty_slots_are_rejected() {
         let (short_leaf, _) = with_node_word(&bytes, node, KIND_FIELD + 4 * slot, kind - 1);
         let message = rejection("short-leaf.rdm", &short_leaf);
         assert!(message.contains("leaves hold"), "{message}");
+        assert_eq!(
+            rejection_kind("short-leaf.rdm", &short_leaf),
+            Some(Defect::CountMismatch)
+        );
     }
 
     // An empty slot whose box is not exactly the empty box: a ray could enter it.
@@ -269,6 +290,10 @@ fn crafted_leaves_and_empty_slots_are_rejected() {
             && message.contains(&format!("at byte {kind_at}"))
             && message.contains("exact empty slot"),
         "{message}"
+    );
+    assert_eq!(
+        rejection_kind("loose-empty.rdm", &loose_empty),
+        Some(Defect::BadEncoding)
     );
 
     // An occupied slot after an empty one.
@@ -306,6 +331,10 @@ fn crafted_record_links_are_rejected() {
         message.contains("strip 0") && message.contains("past the section end"),
         "{message}"
     );
+    assert_eq!(
+        rejection_kind("far.rdm", &far_block),
+        Some(Defect::Truncated)
+    );
 
     // A reference beyond the strip's vertices.
     let data = section_offset(&bytes, SectionKind::StripData);
@@ -330,6 +359,10 @@ fn crafted_record_links_are_rejected() {
         message.contains(&format!("reference 0 is {} out of range", (1 << width) - 1))
             && message.contains(&format!("at byte {first_reference}")),
         "{message}"
+    );
+    assert_eq!(
+        rejection_kind("reference.rdm", &bad_reference),
+        Some(Defect::OutOfRange)
     );
 }
 

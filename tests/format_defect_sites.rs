@@ -1,5 +1,5 @@
 //! A crafted defect in each record kind is reported in its part of the file at the byte of
-//! the field that was changed, computed here from the record layout.
+//! the field that was changed, computed here from the record layout, with its kind.
 
 mod common;
 
@@ -9,7 +9,7 @@ use common::{temp_path, torus};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::reader::{FormatError, ReducemFile};
 use reducem::format::{
-    FilePart, Header, PrecisionRecord, SectionEntry, SectionKind, StripRecord, TopNode,
+    Defect, FilePart, Header, PrecisionRecord, SectionEntry, SectionKind, StripRecord, TopNode,
     HEADER_CHECKSUMMED_BYTES, PRECISION_OFFSET,
 };
 
@@ -19,15 +19,26 @@ fn file_bytes(name: &str, params: &BuildParams) -> Vec<u8> {
     std::fs::read(&path).expect("read back")
 }
 
-/// The part and absolute offset the opener reports for `bytes`.
-fn defect_site(name: &str, bytes: &[u8]) -> (FilePart, u64) {
+/// The part, absolute offset and kind the opener reports for `bytes`.
+fn defect_site(name: &str, bytes: &[u8]) -> (FilePart, u64, Defect) {
     let path = temp_path(name);
     std::fs::write(&path, bytes).expect("write");
-    match ReducemFile::open(&path).err().expect("defect rejected") {
+    let error = ReducemFile::open(&path).err().expect("defect rejected");
+    site_of(&error)
+}
+
+fn site_of(error: &FormatError) -> (FilePart, u64, Defect) {
+    match *error {
         FormatError::Invalid {
-            section, offset, ..
-        } => (section, offset),
-        other => panic!("not a format defect: {other}"),
+            section,
+            offset,
+            defect,
+            ..
+        } => {
+            assert_eq!(error.defect(), Some(defect));
+            (section, offset, defect)
+        }
+        ref other => panic!("not a format defect: {other}"),
     }
 }
 
@@ -54,14 +65,46 @@ fn header_defects_are_reported_at_their_field() {
     let mut flipped = bytes.clone();
     flipped[offset_of!(Header, endian_marker)] ^= 0xff;
     let at = offset_of!(Header, endian_marker) as u64;
-    assert_eq!(defect_site("endian.rdm", &flipped), (FilePart::Header, at));
+    assert_eq!(
+        defect_site("endian.rdm", &flipped),
+        (FilePart::Header, at, Defect::BadEndianMarker)
+    );
+
+    let mut flipped = bytes.clone();
+    flipped[offset_of!(Header, magic)] ^= 0xff;
+    let at = offset_of!(Header, magic) as u64;
+    assert_eq!(
+        defect_site("magic.rdm", &flipped),
+        (FilePart::Header, at, Defect::BadMagic)
+    );
+
+    let mut bad = header(&bytes);
+    bad.version_major = 99;
+    let at = offset_of!(Header, version_major) as u64;
+    assert_eq!(
+        defect_site("version.rdm", &with_header(&bytes, bad)),
+        (FilePart::Header, at, Defect::UnsupportedVersion)
+    );
+
+    let mut flipped = bytes.clone();
+    flipped[offset_of!(Header, triangle_count)] ^= 1;
+    let at = offset_of!(Header, header_checksum) as u64;
+    assert_eq!(
+        defect_site("header-checksum.rdm", &flipped),
+        (FilePart::Header, at, Defect::ChecksumMismatch)
+    );
+
+    assert_eq!(
+        defect_site("short.rdm", &bytes[..100]),
+        (FilePart::Header, 0, Defect::Truncated)
+    );
 
     let mut bad = header(&bytes);
     bad.leaf_windows = 0;
     let at = offset_of!(Header, leaf_windows) as u64;
     assert_eq!(
         defect_site("leaf.rdm", &with_header(&bytes, bad)),
-        (FilePart::Header, at)
+        (FilePart::Header, at, Defect::OutOfRange)
     );
 }
 
@@ -73,25 +116,80 @@ fn precision_defect_is_reported_at_its_field() {
     };
     let bytes = file_bytes("site-precision.rdm", &params);
     let range = PRECISION_OFFSET..PRECISION_OFFSET + size_of::<PrecisionRecord>();
+    let record: PrecisionRecord = bytemuck::pod_read_unaligned(&bytes[range.clone()]);
+    let mut tripled = record;
+    tripled.grid_cell *= 3.0;
+    let mut changed = bytes.clone();
+    changed[range.clone()].copy_from_slice(bytemuck::bytes_of(&tripled.sealed()));
+    let at = (PRECISION_OFFSET + offset_of!(PrecisionRecord, grid_cell)) as u64;
+    assert_eq!(
+        defect_site("cell.rdm", &changed),
+        (FilePart::Header, at, Defect::NotPowerOfTwo)
+    );
+
+    let mut infinite = record;
+    infinite.grid_origin[0] = f32::INFINITY;
+    let mut changed = bytes.clone();
+    changed[range].copy_from_slice(bytemuck::bytes_of(&infinite.sealed()));
+    let at = (PRECISION_OFFSET + offset_of!(PrecisionRecord, grid_origin)) as u64;
+    assert_eq!(
+        defect_site("origin.rdm", &changed),
+        (FilePart::Header, at, Defect::NonFinite)
+    );
+}
+
+#[test]
+fn lossless_file_with_a_vertex_grid_is_a_contradiction() {
+    let bytes = file_bytes("site-contradiction.rdm", &BuildParams::default());
+    let range = PRECISION_OFFSET..PRECISION_OFFSET + size_of::<PrecisionRecord>();
     let mut record: PrecisionRecord = bytemuck::pod_read_unaligned(&bytes[range.clone()]);
-    record.grid_cell *= 3.0;
+    record.grid_bits = 16;
     let mut changed = bytes.clone();
     changed[range].copy_from_slice(bytemuck::bytes_of(&record.sealed()));
-    let at = (PRECISION_OFFSET + offset_of!(PrecisionRecord, grid_cell)) as u64;
-    assert_eq!(defect_site("cell.rdm", &changed), (FilePart::Header, at));
+    let at = (PRECISION_OFFSET + offset_of!(PrecisionRecord, grid_bits)) as u64;
+    assert_eq!(
+        defect_site("f32-grid.rdm", &changed),
+        (FilePart::Header, at, Defect::Contradiction)
+    );
+}
+
+#[test]
+fn triangle_count_disagreeing_with_the_strips_is_a_count_mismatch() {
+    let bytes = file_bytes("site-count.rdm", &BuildParams::default());
+    let mut bad = header(&bytes);
+    bad.triangle_count += 1;
+    let at = offset_of!(Header, triangle_count) as u64;
+    assert_eq!(
+        defect_site("count.rdm", &with_header(&bytes, bad)),
+        (FilePart::Header, at, Defect::CountMismatch)
+    );
 }
 
 #[test]
 fn section_table_defect_is_reported_at_its_entry() {
     let bytes = file_bytes("site-table.rdm", &BuildParams::default());
-    let mut bad = header(&bytes);
     let slot = SectionKind::StripRecords as usize - 1;
-    bad.sections[slot].offset += 1;
     let at = offset_of!(Header, sections) + slot * size_of::<SectionEntry>();
+    let site = |defect| (FilePart::SectionTable, at as u64, defect);
+
+    let mut bad = header(&bytes);
+    bad.sections[slot].offset += 1;
+    let unaligned = with_header(&bytes, bad);
     assert_eq!(
-        defect_site("table.rdm", &with_header(&bytes, bad)),
-        (FilePart::SectionTable, at as u64)
+        defect_site("table.rdm", &unaligned),
+        site(Defect::Misaligned)
     );
+
+    let mut bad = header(&bytes);
+    bad.sections[slot].offset = bad.sections[slot - 1].offset;
+    let overlapping = with_header(&bytes, bad);
+    assert_eq!(
+        defect_site("overlap.rdm", &overlapping),
+        site(Defect::Overlap)
+    );
+
+    let cut = &bytes[..section_offset(&bytes, SectionKind::StripRecords) + 1];
+    assert_eq!(defect_site("cut.rdm", cut), site(Defect::Truncated));
 }
 
 #[test]
@@ -102,7 +200,11 @@ fn top_node_defect_is_reported_at_its_slot() {
     changed[at..at + 4].copy_from_slice(&0x8000_0001u32.to_le_bytes());
     assert_eq!(
         defect_site("node.rdm", &changed),
-        (FilePart::Section(SectionKind::TopNodes), at as u64)
+        (
+            FilePart::Section(SectionKind::TopNodes),
+            at as u64,
+            Defect::BadEncoding
+        )
     );
 }
 
@@ -117,6 +219,31 @@ fn strip_record_defect_is_reported_at_its_record() {
     changed[at..at + 2].copy_from_slice(&2u16.to_le_bytes());
     assert_eq!(
         defect_site("record.rdm", &changed),
-        (FilePart::Section(SectionKind::StripRecords), record as u64)
+        (
+            FilePart::Section(SectionKind::StripRecords),
+            record as u64,
+            Defect::OutOfRange
+        )
+    );
+}
+
+#[test]
+fn section_checksum_defect_is_reported_at_its_section() {
+    let bytes = file_bytes("site-checksum.rdm", &BuildParams::default());
+    let data = section_offset(&bytes, SectionKind::StripData);
+    let mut changed = bytes.clone();
+    // The lowest mantissa byte of the first vertex: the structure stays valid.
+    changed[data] ^= 1;
+    let path = temp_path("checksum.rdm");
+    std::fs::write(&path, &changed).expect("write");
+    let opened = ReducemFile::open(&path).expect("structure intact");
+    let error = opened.verify_checksums().expect_err("checksum differs");
+    assert_eq!(
+        site_of(&error),
+        (
+            FilePart::Section(SectionKind::StripData),
+            data as u64,
+            Defect::ChecksumMismatch
+        )
     );
 }

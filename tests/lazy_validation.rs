@@ -181,10 +181,10 @@ fn a_strip_corrupt_file_opens_and_fails_only_when_a_ray_reaches_the_strip() {
             &format!("lazy-corrupt-{name}.rdm"),
             &with_corrupt_strip(&bytes, corrupt_strip),
         );
-        let full_error = ReducemFile::open_with(&path, Validation::Full)
+        let full = ReducemFile::open_with(&path, Validation::Full)
             .err()
-            .expect("full validation rejects the corrupt strip")
-            .to_string();
+            .expect("full validation rejects the corrupt strip");
+        let full_error = full.to_string();
         assert!(
             full_error.contains(&format!("strip {corrupt_strip}:")),
             "{full_error}"
@@ -213,10 +213,9 @@ fn a_strip_corrupt_file_opens_and_fails_only_when_a_ray_reaches_the_strip() {
                 "{name} {variant}: a hit in the corrupt strip"
             );
         }
-        let lazy_error = lazy
-            .defect()
-            .expect("the ray reached the strip")
-            .to_string();
+        let lazy_defect = lazy.defect().expect("the ray reached the strip");
+        assert_eq!(lazy_defect.defect(), full.defect(), "{name}: the same kind");
+        let lazy_error = lazy_defect.to_string();
         assert_eq!(
             lazy_error, full_error,
             "{name}: the same file, byte and defect"
@@ -360,10 +359,16 @@ fn lazy_and_full_validation_agree_on_every_corruption() {
                     found_by_tracing += usize::from(defect.is_some());
                 }
             }
+            let validated = lazy.validate_all().err();
             assert_eq!(
-                lazy.validate_all().err().map(|e| e.to_string()),
-                full.err().map(|e| e.to_string()),
+                validated.as_ref().map(|e| e.to_string()),
+                full.as_ref().err().map(|e| e.to_string()),
                 "{name}: validate_all and a full open disagree"
+            );
+            assert_eq!(
+                validated.and_then(|e| e.defect()),
+                full.err().and_then(|e| e.defect()),
+                "{name}: validate_all and a full open disagree on the kind"
             );
         }
         // Every path ran: corruptions a full open rejects, among them some the rays reached,

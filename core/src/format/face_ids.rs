@@ -15,9 +15,10 @@
 use super::attributes::{
     FaceIdGroup, BASE_WIDTH_BITS, DELTA_WIDTH_BITS, GROUP_STRIPS, OFFSET_WIDTH_BITS,
 };
+use super::Defect;
 
-/// A defect in the stream: the bit where it is, and what is wrong.
-pub type FaceIdDefect = (u64, String);
+/// A defect in the stream: the bit where it is, its kind and what is wrong.
+pub type FaceIdDefect = (u64, Defect, String);
 
 /// A little-endian bit stream over a byte slice (bit `b` is bit `b mod 8` of byte `b / 8`).
 #[derive(Clone, Copy, Debug)]
@@ -93,19 +94,22 @@ fn entry_header(stream: &BitStream, at: u64, group_base: u32) -> Result<EntryHea
     let word = stream.word(at);
     let base_width = (word & low_bits(BASE_WIDTH_BITS)) as u32;
     if base_width > 32 {
-        return Err((at, format!("base width {base_width} is above 32")));
+        let detail = format!("base width {base_width} is above 32");
+        return Err((at, Defect::OutOfRange, detail));
     }
     let base_delta = (word >> BASE_WIDTH_BITS) & low_bits(base_width);
     let rest = word >> (BASE_WIDTH_BITS + base_width);
     let offset_width = (rest & low_bits(OFFSET_WIDTH_BITS)) as u32;
     if offset_width > 32 {
         let field = at + (BASE_WIDTH_BITS + base_width) as u64;
-        return Err((field, format!("offset width {offset_width} is above 32")));
+        let detail = format!("offset width {offset_width} is above 32");
+        return Err((field, Defect::OutOfRange, detail));
     }
     let delta_width = ((rest >> OFFSET_WIDTH_BITS) & low_bits(DELTA_WIDTH_BITS)) as u32;
     let flags = at + (BASE_WIDTH_BITS + base_width + OFFSET_WIDTH_BITS + DELTA_WIDTH_BITS) as u64;
     if flags > stream.bits() {
-        return Err((at, "the entry header passes the section end".into()));
+        let detail = "the entry header passes the section end".into();
+        return Err((at, Defect::Truncated, detail));
     }
     Ok(EntryHeader {
         smallest: group_base as u64 + base_delta,
@@ -121,7 +125,8 @@ impl EntryHeader {
     fn end(&self, stream: &BitStream, windows: u64) -> Result<u64, FaceIdDefect> {
         let flags_end = self.flags.saturating_add(windows);
         if flags_end > stream.bits() {
-            return Err((self.flags, "the entry's flags pass the section end".into()));
+            let detail = "the entry's flags pass the section end".into();
+            return Err((self.flags, Defect::Truncated, detail));
         }
         let offsets = stream.ones(self.flags, windows);
         let end = flags_end
@@ -129,7 +134,11 @@ impl EntryHeader {
             + (windows - offsets) * self.delta_width as u64;
         match end <= stream.bits() {
             true => Ok(end),
-            false => Err((self.flags, "the entry's ids pass the section end".into())),
+            false => Err((
+                self.flags,
+                Defect::Truncated,
+                "the entry's ids pass the section end".into(),
+            )),
         }
     }
 
@@ -154,6 +163,7 @@ impl EntryHeader {
             if window == 0 && !is_offset {
                 return Err((
                     self.flags,
+                    Defect::BadEncoding,
                     "the first window's flag is not an offset".into(),
                 ));
             }
@@ -168,7 +178,8 @@ impl EntryHeader {
                 (id as i64).wrapping_add(delta) as u64
             };
             let Ok(id) = u32::try_from(id) else {
-                return Err((value_at, format!("window {window}'s id {id} is not a u32")));
+                let detail = format!("window {window}'s id {id} is not a u32");
+                return Err((value_at, Defect::OutOfRange, detail));
             };
             visit(id);
         }
@@ -193,7 +204,8 @@ pub fn face_id(
     let header = entry_header(stream, at, group.base)?;
     let count = windows(strip);
     if window as u64 >= count {
-        return Err((at, format!("window {window} of a strip of {count} windows")));
+        let detail = format!("window {window} of a strip of {count} windows");
+        return Err((at, Defect::OutOfRange, detail));
     }
     header.end(stream, count)?;
     let mut found = 0;

@@ -10,6 +10,7 @@
 pub mod attributes;
 pub mod block_boxes;
 pub mod counts;
+mod defect;
 pub mod face_ids;
 pub mod grid;
 pub mod implicit_tree;
@@ -28,6 +29,7 @@ mod strip_record;
 mod top_node;
 mod vertex_encoding;
 
+pub use defect::Defect;
 pub use grid_node::*;
 pub use header::*;
 pub use node_record::*;

@@ -14,7 +14,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::reader::ReducemFile;
-use super::Header;
+use super::{Defect, Header};
 
 /// The first minor of format 3 with the model record.
 pub const MODEL_MINOR: u16 = 1;
@@ -140,8 +140,11 @@ pub fn has_model_record(header: &Header) -> bool {
 }
 
 /// The model record of the header page `head`, checked: `None` for files before 3.1; an error
-/// `(byte offset, detail)` for a checksum mismatch, unknown flags or an unknown up axis.
-pub fn read_record(head: &[u8], header: &Header) -> Result<Option<ModelRecord>, (u64, String)> {
+/// `(byte offset, kind, detail)` for a checksum mismatch, unknown flags or an unknown up axis.
+pub fn read_record(
+    head: &[u8],
+    header: &Header,
+) -> Result<Option<ModelRecord>, (u64, Defect, String)> {
     if !has_model_record(header) {
         return Ok(None);
     }
@@ -149,6 +152,7 @@ pub fn read_record(head: &[u8], header: &Header) -> Result<Option<ModelRecord>, 
     let Some(bytes) = head.get(MODEL_OFFSET..end) else {
         return Err((
             MODEL_OFFSET as u64,
+            Defect::Truncated,
             "header page too short for the model record".into(),
         ));
     };
@@ -156,17 +160,24 @@ pub fn read_record(head: &[u8], header: &Header) -> Result<Option<ModelRecord>, 
     let at = |field: usize| (MODEL_OFFSET + field) as u64;
     if record.computed_checksum() != record.checksum {
         let detail = "model record checksum mismatch".to_string();
-        return Err((at(MODEL_CHECKSUMMED_BYTES), detail));
+        return Err((
+            at(MODEL_CHECKSUMMED_BYTES),
+            Defect::ChecksumMismatch,
+            detail,
+        ));
     }
     if record.up_axis > 2 {
-        return Err((at(16), format!("unknown up axis {}", record.up_axis)));
+        let detail = format!("unknown up axis {}", record.up_axis);
+        return Err((at(16), Defect::BadEncoding, detail));
     }
     if record.flags & !EDGES_COUNTED != 0 {
-        return Err((at(20), format!("unknown model flags {:#x}", record.flags)));
+        let detail = format!("unknown model flags {:#x}", record.flags);
+        return Err((at(20), Defect::BadEncoding, detail));
     }
     if record.flags & EDGES_COUNTED == 0 && (record.boundary_edges | record.nonmanifold_edges) != 0
     {
-        return Err((at(0), "edge counts without the counted flag".into()));
+        let detail = "edge counts without the counted flag".into();
+        return Err((at(0), Defect::Contradiction, detail));
     }
     Ok(Some(record))
 }
@@ -225,10 +236,11 @@ mod tests {
         let mut record = ModelRecord::new(None, Some(UpAxis::Y));
         record.boundary_edges = 1;
         let error = read_record(&page(&record), &header(1)).unwrap_err();
-        assert_eq!(error.0, 504);
+        assert_eq!((error.0, error.1), (504, Defect::ChecksumMismatch));
         let mut record = ModelRecord::new(None, None);
         record.up_axis = 3;
         record.checksum = record.computed_checksum();
-        assert_eq!(read_record(&page(&record), &header(1)).unwrap_err().0, 496);
+        let error = read_record(&page(&record), &header(1)).unwrap_err();
+        assert_eq!((error.0, error.1), (496, Defect::BadEncoding));
     }
 }

@@ -38,8 +38,8 @@ use super::quantized::{vertex_part_bytes, AxisWordLayout, GridVertices};
 use super::references::{packed_bytes, packed_width, References, MIN_PACKED_BYTES};
 use super::vertices::StripVertices;
 use super::{
-    axis_bytes, FilePart, GridNode, Header, PrecisionRecord, SectionKind, StripRecord, TopNode,
-    F32_VERTEX_BYTES,
+    axis_bytes, Defect, FilePart, GridNode, Header, PrecisionRecord, SectionKind, StripRecord,
+    TopNode, F32_VERTEX_BYTES,
 };
 use crate::geometry::Point;
 use attributes::AttributeSections;
@@ -83,8 +83,20 @@ pub enum FormatError {
         path: PathBuf,
         section: FilePart,
         offset: u64,
+        /// What is wrong, for callers that act on the kind; `detail` words it with the values.
+        defect: Defect,
         detail: String,
     },
+}
+
+impl FormatError {
+    /// The kind of defect of an invalid file; `None` for an I/O error.
+    pub fn defect(&self) -> Option<Defect> {
+        match self {
+            FormatError::Invalid { defect, .. } => Some(*defect),
+            FormatError::Io { .. } => None,
+        }
+    }
 }
 
 /// A mapped, validated ReduceM file.
@@ -475,6 +487,7 @@ impl ReducemFile {
                 return Err(self.invalid(
                     name,
                     entry.offset,
+                    Defect::ChecksumMismatch,
                     format!(
                         "checksum {actual:#018x} does not match the header's {:#018x}",
                         entry.checksum
@@ -485,11 +498,18 @@ impl ReducemFile {
         Ok(())
     }
 
-    fn invalid(&self, section: FilePart, offset: u64, detail: String) -> FormatError {
+    fn invalid(
+        &self,
+        section: FilePart,
+        offset: u64,
+        defect: Defect,
+        detail: String,
+    ) -> FormatError {
         FormatError::Invalid {
             path: self.path.clone(),
             section,
             offset,
+            defect,
             detail,
         }
     }

@@ -15,7 +15,7 @@ use crate::format::attributes::{
     FLAG_FACE_IDS, FLAG_NORMALS, GROUP_STRIPS,
 };
 use crate::format::face_ids::{self, BitStream, FaceIdDefect};
-use crate::format::FilePart;
+use crate::format::{Defect, FilePart};
 use crate::format::{Header, SectionEntry, SECTION_ALIGN};
 
 /// A file's attribute record and section ranges (all empty for files before 2.5).
@@ -50,14 +50,14 @@ impl VertexAttributes<'_> {
 }
 
 /// Reads and checks the attribute record of the header page `head` of a file of `file_len`
-/// bytes whose last core section ends at `core_end`. Errors are `(offset, detail)` in the
+/// bytes whose last core section ends at `core_end`. Errors are `(offset, kind, detail)` in the
 /// header.
 pub(super) fn read_record(
     head: &[u8],
     header: &Header,
     core_end: u64,
     file_len: u64,
-) -> Result<AttributeSections, (u64, String)> {
+) -> Result<AttributeSections, (u64, Defect, String)> {
     if !header.has_attribute_record() {
         return Ok(AttributeSections::default());
     }
@@ -67,11 +67,16 @@ pub(super) fn read_record(
     let record: AttributeRecord = bytemuck::pod_read_unaligned(bytes);
     if record.computed_checksum() != record.checksum {
         let detail = "attribute record checksum mismatch".to_string();
-        return Err((at(ATTRIBUTE_CHECKSUMMED_BYTES), detail));
+        return Err((
+            at(ATTRIBUTE_CHECKSUMMED_BYTES),
+            Defect::ChecksumMismatch,
+            detail,
+        ));
     }
     if record.flags & !(FLAG_FACE_IDS | FLAG_NORMALS | FLAG_COLORS) != 0 {
         return Err((
             at(0),
+            Defect::BadEncoding,
             format!("unknown attribute flags {:#x}", record.flags),
         ));
     }
@@ -82,7 +87,7 @@ pub(super) fn read_record(
             "normal encoding {} does not match the normals flag",
             record.normal_encoding
         );
-        return Err((at(4), detail));
+        return Err((at(4), Defect::Contradiction, detail));
     }
     let set = record.set();
     let group_strips = if set.any() { GROUP_STRIPS as u32 } else { 0 };
@@ -91,7 +96,7 @@ pub(super) fn read_record(
             "{} strips per group, expected {group_strips}",
             record.group_strips
         );
-        return Err((at(8), detail));
+        return Err((at(8), Defect::OutOfRange, detail));
     }
     let groups = header.strip_count.div_ceil(GROUP_STRIPS as u64);
     let mut previous_end = core_end;
@@ -103,13 +108,14 @@ pub(super) fn read_record(
             if *entry != SectionEntry::default() {
                 return Err((
                     table_offset,
+                    Defect::Contradiction,
                     format!("{} entry of an absent attribute is not zero", kind.name()),
                 ));
             }
             continue;
         }
         check_entry(kind, entry, &set, groups, previous_end, file_len)
-            .map_err(|detail| (table_offset, detail))?;
+            .map_err(|(defect, detail)| (table_offset, defect, detail))?;
         let end = entry.offset + entry.length;
         ranges[kind.slot()] = entry.offset as usize..end as usize;
         previous_end = end;
@@ -122,7 +128,8 @@ pub(super) fn read_record(
     if let (Some(normals), Some(colors)) = (normals, colors) {
         if normals != colors {
             let detail = format!("{normals} normals but {colors} colours");
-            return Err((at(24 + AttributeSection::Colors.slot() * 32 + 16), detail));
+            let at_colors = at(24 + AttributeSection::Colors.slot() * 32 + 16);
+            return Err((at_colors, Defect::CountMismatch, detail));
         }
     }
     Ok(AttributeSections {
@@ -139,25 +146,27 @@ fn check_entry(
     groups: u64,
     previous_end: u64,
     file_len: u64,
-) -> Result<(), String> {
+) -> Result<(), (Defect, String)> {
     let name = kind.name();
     let end = entry.offset.saturating_add(entry.length);
     if entry.kind != kind as u32 {
-        return Err(format!(
+        let detail = format!(
             "section {name} has kind {}, expected {}",
             entry.kind, kind as u32
-        ));
+        );
+        return Err((Defect::BadEncoding, detail));
     }
-    if !entry.offset.is_multiple_of(SECTION_ALIGN) || entry.offset < previous_end {
-        return Err(format!(
-            "{name} offset {} is unaligned or overlaps",
-            entry.offset
-        ));
+    let unaligned_or_overlaps =
+        || format!("{name} offset {} is unaligned or overlaps", entry.offset);
+    if !entry.offset.is_multiple_of(SECTION_ALIGN) {
+        return Err((Defect::Misaligned, unaligned_or_overlaps()));
+    }
+    if entry.offset < previous_end {
+        return Err((Defect::Overlap, unaligned_or_overlaps()));
     }
     if end > file_len {
-        return Err(format!(
-            "{name} ends at {end}, past the file end {file_len}"
-        ));
+        let detail = format!("{name} ends at {end}, past the file end {file_len}");
+        return Err((Defect::Truncated, detail));
     }
     let length_ok = match kind {
         AttributeSection::FaceIds => true,
@@ -168,9 +177,12 @@ fn check_entry(
     };
     match length_ok {
         true => Ok(()),
-        false => Err(format!(
-            "{name} length {} does not fit {groups} groups or its records",
-            entry.length
+        false => Err((
+            Defect::OutOfRange,
+            format!(
+                "{name} length {} does not fit {groups} groups or its records",
+                entry.length
+            ),
         )),
     }
 }
@@ -211,7 +223,7 @@ impl ReducemFile {
             bytemuck::cast_slice(self.attribute_bytes(AttributeSection::FaceIdGroups));
         let group = groups
             .get(strip / GROUP_STRIPS)
-            .ok_or_else(|| (0, format!("strip {strip} has no group")))?;
+            .ok_or_else(|| (0, Defect::OutOfRange, format!("strip {strip} has no group")))?;
         let stream = BitStream::new(self.attribute_bytes(AttributeSection::FaceIds));
         let records = self.strip_records();
         face_ids::face_id(&stream, group, strip, window, |s| {
@@ -247,7 +259,8 @@ impl ReducemFile {
             }),
             _ => {
                 let detail = format!("strip {strip}'s vertices {range:?} pass the section end");
-                self.keep_attribute_defect(AttributeSection::VertexGroups, (0, detail));
+                let defect = (0, Defect::Truncated, detail);
+                self.keep_attribute_defect(AttributeSection::VertexGroups, defect);
                 None
             }
         }
@@ -260,17 +273,22 @@ impl ReducemFile {
         let first = groups
             .get(group * 8..group * 8 + 8)
             .map(|b| u64::from_le_bytes(b.try_into().unwrap_or_default()))
-            .ok_or_else(|| (0, format!("strip {strip} has no vertex group")))?;
+            .ok_or_else(|| {
+                let detail = format!("strip {strip} has no vertex group");
+                (0, Defect::OutOfRange, detail)
+            })?;
         let records = self.strip_records();
         let count = |s: usize| records.get(s).map_or(0, |r| r.vertex_count as u64);
         let start = first + (group * GROUP_STRIPS..strip).map(count).sum::<u64>();
-        let start = usize::try_from(start)
-            .map_err(|_| (group as u64 * 64, "vertex group beyond memory".to_string()))?;
+        let start = usize::try_from(start).map_err(|_| {
+            let detail = "vertex group beyond memory".to_string();
+            (group as u64 * 64, Defect::OutOfRange, detail)
+        })?;
         Ok(start..start + count(strip) as usize)
     }
 
     /// Keeps a defect found at bit (for `face_ids`) or byte `at` of attribute section `kind`.
-    fn keep_attribute_defect(&self, kind: AttributeSection, (at, detail): FaceIdDefect) {
+    fn keep_attribute_defect(&self, kind: AttributeSection, (at, defect, detail): FaceIdDefect) {
         let offset = match kind {
             AttributeSection::FaceIds => at / 8,
             _ => at,
@@ -279,6 +297,7 @@ impl ReducemFile {
             path: self.path.clone(),
             section: FilePart::Attribute(kind),
             offset: self.attribute_offset(kind) + offset,
+            defect,
             detail,
         });
     }
@@ -298,11 +317,14 @@ impl ReducemFile {
             bytemuck::cast_slice(self.attribute_bytes(AttributeSection::FaceIdGroups));
         let stream = BitStream::new(self.attribute_bytes(AttributeSection::FaceIds));
         let records = self.strip_records();
-        let invalid = |kind: AttributeSection, at: u64, detail: String| FormatError::Invalid {
-            path: self.path.clone(),
-            section: FilePart::Attribute(kind),
-            offset: self.attribute_offset(kind) + at,
-            detail,
+        let invalid = |kind: AttributeSection, at: u64, defect: Defect, detail: String| {
+            FormatError::Invalid {
+                path: self.path.clone(),
+                section: FilePart::Attribute(kind),
+                offset: self.attribute_offset(kind) + at,
+                defect,
+                detail,
+            }
         };
         let mut expected_start = 0;
         for (index, (group, strips)) in groups.iter().zip(records.chunks(GROUP_STRIPS)).enumerate()
@@ -315,6 +337,7 @@ impl ReducemFile {
                 return Err(invalid(
                     AttributeSection::FaceIdGroups,
                     index as u64 * 16,
+                    Defect::CountMismatch,
                     detail,
                 ));
             }
@@ -323,7 +346,9 @@ impl ReducemFile {
                 .map(|r| (r.reference_count as u64).saturating_sub(2))
                 .collect();
             expected_start = face_ids::decode_group(&stream, group, &windows, &mut |_, _| {})
-                .map_err(|(at, detail)| invalid(AttributeSection::FaceIds, at / 8, detail))?;
+                .map_err(|(at, defect, detail)| {
+                    invalid(AttributeSection::FaceIds, at / 8, defect, detail)
+                })?;
         }
         if expected_start.div_ceil(8) != stream.bits() / 8 {
             let detail = format!(
@@ -333,6 +358,7 @@ impl ReducemFile {
             return Err(invalid(
                 AttributeSection::FaceIds,
                 expected_start / 8,
+                Defect::CountMismatch,
                 detail,
             ));
         }
@@ -358,6 +384,7 @@ impl ReducemFile {
                     section: FilePart::Attribute(AttributeSection::VertexGroups),
                     offset: self.attribute_offset(AttributeSection::VertexGroups)
                         + index as u64 * 8,
+                    defect: Defect::CountMismatch,
                     detail,
                 });
             }
@@ -375,6 +402,7 @@ impl ReducemFile {
                 path: self.path.clone(),
                 section: FilePart::Attribute(kind),
                 offset: self.attribute_offset(kind),
+                defect: Defect::CountMismatch,
                 detail,
             });
         }

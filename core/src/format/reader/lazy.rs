@@ -8,7 +8,7 @@
 //! thread that does not see another's bit yet validates the element again, to the same outcome.
 
 use crate::format::block_boxes::BlockBoxes;
-use crate::format::{FilePart, SectionKind};
+use crate::format::{Defect, FilePart, SectionKind};
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
@@ -20,7 +20,7 @@ use crate::geometry::Point;
 pub(super) struct LazyChecks {
     pub(super) strips: Passed,
     pub(super) nodes: Passed,
-    first_defect: OnceLock<Defect>,
+    first_defect: OnceLock<KeptDefect>,
 }
 
 /// Bit `i % 64` of word `i / 64` is set once element `i` passed; `None` when every element was
@@ -28,9 +28,10 @@ pub(super) struct LazyChecks {
 pub(super) struct Passed(Option<Box<[AtomicU64]>>);
 
 /// A defect as [`FormatError::Invalid`] reports it, without the path.
-struct Defect {
+struct KeptDefect {
     section: FilePart,
     offset: u64,
+    defect: Defect,
     detail: String,
 }
 
@@ -81,16 +82,19 @@ impl LazyChecks {
             FormatError::Invalid {
                 section,
                 offset,
+                defect,
                 detail,
                 ..
-            } => Defect {
+            } => KeptDefect {
                 section,
                 offset,
+                defect,
                 detail,
             },
-            FormatError::Io { source, .. } => Defect {
+            FormatError::Io { source, .. } => KeptDefect {
                 section: FilePart::Section(SectionKind::StripData),
                 offset: 0,
+                defect: Defect::Unreadable,
                 detail: source.to_string(),
             },
         });
@@ -101,6 +105,7 @@ impl LazyChecks {
             path: path.to_path_buf(),
             section: defect.section,
             offset: defect.offset,
+            defect: defect.defect,
             detail: defect.detail.clone(),
         })
     }

@@ -16,7 +16,8 @@ use memmap2::Mmap;
 use rayon::prelude::*;
 
 use super::super::{
-    FilePart, GridNode, NodeLimits, NodeRecord, SectionKind, StripRecord, TopNode, HEADER_PAGE,
+    Defect, FilePart, GridNode, NodeLimits, NodeRecord, SectionKind, StripRecord, TopNode,
+    HEADER_PAGE,
 };
 use super::lazy::{LazyChecks, Passed};
 use super::{
@@ -55,13 +56,16 @@ pub(super) fn open(
     let sections = checker.sections(&header, node_bytes(node_grid.is_some()))?;
     let core_end = sections[section_slot(SectionKind::StripData)].end as u64;
     let attributes = super::attributes::read_record(checker.head, &header, core_end, file_len)
-        .map_err(|(offset, detail)| checker.invalid(FilePart::Header, offset, detail))?;
-    let model = crate::format::model::read_record(checker.head, &header)
-        .map_err(|(offset, detail)| checker.invalid(FilePart::Header, offset, detail))?;
+        .map_err(|(offset, defect, detail)| {
+            checker.invalid(FilePart::Header, offset, defect, detail)
+        })?;
+    let model = crate::format::model::read_record(checker.head, &header).map_err(
+        |(offset, defect, detail)| checker.invalid(FilePart::Header, offset, defect, detail),
+    )?;
     let map = map_file(&file).map_err(io_error)?;
     if map.len() as u64 != file_len {
         let detail = "the file changed size while it was being opened".to_string();
-        return Err(checker.invalid(FilePart::File, 0, detail));
+        return Err(checker.invalid(FilePart::File, 0, Defect::ChangedWhileMapped, detail));
     }
     let validation = validation.unwrap_or(match file_len <= EAGER_VALIDATION_BYTES {
         true => Validation::Full,
@@ -136,7 +140,7 @@ fn check_node_of<N: NodeRecord>(opened: &ReducemFile, index: usize) -> Result<()
         Some(node) => tree.check(index, node),
         None => {
             let detail = format!("node {index} outside 0..{}", nodes.len());
-            Err(tree.fail(0, 0, detail))
+            Err(tree.fail(0, 0, Defect::OutOfRange, detail))
         }
     }
 }
@@ -158,6 +162,7 @@ pub(super) fn check_strip(
         return Err(Box::new(opened.invalid(
             FilePart::Section(SectionKind::StripRecords),
             opened.section_offset(SectionKind::StripRecords),
+            Defect::OutOfRange,
             detail,
         )));
     };
@@ -200,6 +205,7 @@ impl Windows<'_> {
             return Err(opened.invalid(
                 FilePart::Section(SectionKind::StripRecords),
                 records.start,
+                Defect::CountMismatch,
                 format!(
                     "{count} records, header says {} strips",
                     opened.header.strip_count
@@ -224,6 +230,7 @@ impl Windows<'_> {
                 opened.invalid(
                     FilePart::Section(SectionKind::StripRecords),
                     records.start,
+                    Defect::Misaligned,
                     "misaligned".into(),
                 )
             })?;
@@ -233,6 +240,7 @@ impl Windows<'_> {
             return Err(opened.invalid(
                 FilePart::Header,
                 32,
+                Defect::CountMismatch,
                 format!(
                     "{triangles} triangles in strips, header says {}",
                     opened.header.triangle_count
@@ -318,6 +326,7 @@ impl Windows<'_> {
                 self.opened.invalid(
                     FilePart::Section(SectionKind::TopNodes),
                     section.start,
+                    Defect::Misaligned,
                     "misaligned".into(),
                 )
             })?;

@@ -8,9 +8,9 @@ use super::strips::RECORD_BYTES;
 use crate::format::grid::{Grid, NodeGrid, MAX_GRID_BITS};
 use crate::format::reader::{FormatError, VertexLayout};
 use crate::format::{
-    FilePart, Header, PrecisionRecord, SectionEntry, SectionKind, VertexEncoding, ENDIAN_MARKER,
-    HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, OLDEST_READ_MAJOR, PRECISION_OFFSET,
-    SECTION_ALIGN, VERSION_MAJOR,
+    Defect, FilePart, Header, PrecisionRecord, SectionEntry, SectionKind, VertexEncoding,
+    ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, OLDEST_READ_MAJOR,
+    PRECISION_OFFSET, SECTION_ALIGN, VERSION_MAJOR,
 };
 
 /// Header and section-table checks, before anything else is trusted.
@@ -22,11 +22,18 @@ pub(super) struct Checker<'a> {
 }
 
 impl Checker<'_> {
-    pub(super) fn invalid(&self, section: FilePart, offset: u64, detail: String) -> FormatError {
+    pub(super) fn invalid(
+        &self,
+        section: FilePart,
+        offset: u64,
+        defect: Defect,
+        detail: String,
+    ) -> FormatError {
         FormatError::Invalid {
             path: self.path.to_path_buf(),
             section,
             offset,
+            defect,
             detail,
         }
     }
@@ -37,13 +44,14 @@ impl Checker<'_> {
                 "file is {} bytes, the header page alone is {HEADER_PAGE}",
                 self.file_len
             );
-            return Err(self.invalid(FilePart::Header, 0, detail));
+            return Err(self.invalid(FilePart::Header, 0, Defect::Truncated, detail));
         }
         let header: Header = bytemuck::pod_read_unaligned(&self.head[..size_of::<Header>()]);
         if header.magic != MAGIC {
             return Err(self.invalid(
                 FilePart::Header,
                 offset_of!(Header, magic) as u64,
+                Defect::BadMagic,
                 "not a ReduceM file (bad magic)".into(),
             ));
         }
@@ -55,6 +63,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 offset_of!(Header, endian_marker) as u64,
+                Defect::BadEndianMarker,
                 detail,
             ));
         }
@@ -72,6 +81,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 offset_of!(Header, version_major) as u64,
+                Defect::UnsupportedVersion,
                 detail,
             ));
         }
@@ -81,6 +91,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 offset_of!(Header, header_checksum) as u64,
+                Defect::ChecksumMismatch,
                 "header checksum mismatch".into(),
             ));
         }
@@ -88,6 +99,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 offset_of!(Header, leaf_windows) as u64,
+                Defect::OutOfRange,
                 format!("leaf size {} outside 1..=255", header.leaf_windows),
             ));
         }
@@ -105,6 +117,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 (PRECISION_OFFSET + offset_of!(PrecisionRecord, checksum)) as u64,
+                Defect::ChecksumMismatch,
                 "precision record checksum mismatch".into(),
             ));
         }
@@ -124,6 +137,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 offset_of!(Header, vertex_encoding) as u64,
+                Defect::BadEncoding,
                 format!("unknown vertex encoding {}", header.vertex_encoding),
             ));
         };
@@ -136,6 +150,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 offset_of!(Header, vertex_encoding) as u64,
+                Defect::BadEncoding,
                 detail,
             ));
         }
@@ -148,6 +163,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 offset_of!(Header, vertex_encoding) as u64,
+                Defect::BadEncoding,
                 detail,
             ));
         }
@@ -159,6 +175,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 at(offset_of!(PrecisionRecord, node_shift)),
+                Defect::Contradiction,
                 detail,
             ));
         }
@@ -166,6 +183,7 @@ impl Checker<'_> {
             VertexEncoding::F32 if precision.grid_bits != 0 => Err(self.invalid(
                 FilePart::Header,
                 at(offset_of!(PrecisionRecord, grid_bits)),
+                Defect::Contradiction,
                 format!("f32 vertices with a {}-bit grid", precision.grid_bits),
             )),
             VertexEncoding::F32 => Ok((VertexLayout::F32 { boxes }, None)),
@@ -180,6 +198,7 @@ impl Checker<'_> {
                     return Err(self.invalid(
                         FilePart::Header,
                         at(offset_of!(PrecisionRecord, grid_bits)),
+                        Defect::OutOfRange,
                         detail,
                     ));
                 }
@@ -188,6 +207,7 @@ impl Checker<'_> {
                     return Err(self.invalid(
                         FilePart::Header,
                         at(offset_of!(PrecisionRecord, grid_cell)),
+                        Defect::NotPowerOfTwo,
                         detail,
                     ));
                 }
@@ -200,6 +220,7 @@ impl Checker<'_> {
                     return Err(self.invalid(
                         FilePart::Header,
                         at(offset_of!(PrecisionRecord, grid_origin)),
+                        Defect::NonFinite,
                         detail,
                     ));
                 }
@@ -211,6 +232,7 @@ impl Checker<'_> {
                         self.invalid(
                             FilePart::Header,
                             at(offset_of!(PrecisionRecord, node_shift)),
+                            Defect::NonFinite,
                             detail,
                         )
                     })?;
@@ -242,6 +264,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 at(offset_of!(PrecisionRecord, grid_bits)),
+                Defect::Contradiction,
                 detail,
             ));
         }
@@ -250,6 +273,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 at(offset_of!(PrecisionRecord, node_shift)),
+                Defect::Contradiction,
                 detail,
             ));
         }
@@ -263,6 +287,7 @@ impl Checker<'_> {
             return Err(self.invalid(
                 FilePart::Header,
                 at(offset_of!(PrecisionRecord, grid_cell)),
+                Defect::NotPowerOfTwo,
                 detail,
             ));
         }
@@ -276,6 +301,7 @@ impl Checker<'_> {
                 self.invalid(
                     FilePart::Header,
                     at(offset_of!(PrecisionRecord, grid_origin)),
+                    Defect::NonFinite,
                     detail,
                 )
             })
@@ -299,36 +325,50 @@ impl Checker<'_> {
                 SectionKind::StripRecords => RECORD_BYTES,
                 SectionKind::StripData => 4,
             };
-            let detail = if entry.kind != kind as u32 {
-                Some(format!(
-                    "section {slot} has kind {}, expected {}",
-                    entry.kind, kind as u32
-                ))
-            } else if !entry.offset.is_multiple_of(SECTION_ALIGN) || entry.offset < previous_end {
-                Some(format!(
+            let unaligned_or_overlaps = || {
+                format!(
                     "{} offset {} is unaligned or overlaps",
                     kind.name(),
                     entry.offset
+                )
+            };
+            let defect = if entry.kind != kind as u32 {
+                Some((
+                    Defect::BadEncoding,
+                    format!(
+                        "section {slot} has kind {}, expected {}",
+                        entry.kind, kind as u32
+                    ),
                 ))
+            } else if !entry.offset.is_multiple_of(SECTION_ALIGN) {
+                Some((Defect::Misaligned, unaligned_or_overlaps()))
+            } else if entry.offset < previous_end {
+                Some((Defect::Overlap, unaligned_or_overlaps()))
             } else if end > self.file_len {
-                Some(format!(
-                    "{} ends at {end}, past the file end {}",
-                    kind.name(),
-                    self.file_len
+                Some((
+                    Defect::Truncated,
+                    format!(
+                        "{} ends at {end}, past the file end {}",
+                        kind.name(),
+                        self.file_len
+                    ),
                 ))
             } else if !entry.length.is_multiple_of(record)
                 || (kind == SectionKind::TopNodes && entry.length == 0)
             {
-                Some(format!(
-                    "{} length {} is not a positive multiple of {record}",
-                    kind.name(),
-                    entry.length
+                Some((
+                    Defect::OutOfRange,
+                    format!(
+                        "{} length {} is not a positive multiple of {record}",
+                        kind.name(),
+                        entry.length
+                    ),
                 ))
             } else {
                 None
             };
-            if let Some(detail) = detail {
-                return Err(self.invalid(FilePart::SectionTable, table_offset, detail));
+            if let Some((defect, detail)) = defect {
+                return Err(self.invalid(FilePart::SectionTable, table_offset, defect, detail));
             }
             ranges[slot] = entry.offset as usize..end as usize;
             previous_end = end;

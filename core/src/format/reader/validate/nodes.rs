@@ -6,7 +6,7 @@ use std::mem::size_of;
 use super::{check_node, Windows};
 use crate::format::reader::{FormatError, ReducemFile};
 use crate::format::{
-    FilePart, GridNode, NodeRecord, SectionKind, TopNode, TopSlot, MAX_TOP_DEPTH, TOP_WIDTH,
+    Defect, FilePart, GridNode, NodeRecord, SectionKind, TopNode, TopSlot, MAX_TOP_DEPTH, TOP_WIDTH,
 };
 
 /// Bytes of one top-level node record: [`GridNode`] with a node grid, else [`TopNode`].
@@ -42,12 +42,19 @@ impl TreeCheck<'_> {
         }
     }
 
-    pub(super) fn fail(&self, index: usize, field: u64, detail: String) -> FormatError {
+    pub(super) fn fail(
+        &self,
+        index: usize,
+        field: u64,
+        defect: Defect,
+        detail: String,
+    ) -> FormatError {
         self.opened.invalid(
             FilePart::Section(SectionKind::TopNodes),
             self.opened.section_offset(SectionKind::TopNodes)
                 + index as u64 * self.node_bytes
                 + field,
+            defect,
             format!("node {index}: {detail}"),
         )
     }
@@ -58,12 +65,17 @@ impl TreeCheck<'_> {
         node: &N,
     ) -> Result<(), FormatError> {
         if self.depth.get(index) == Some(&u8::MAX) {
-            return Err(self.fail(index, 0, "has no parent".into()));
+            return Err(self.fail(index, 0, Defect::BadTree, "has no parent".into()));
         }
         let occupied = node.occupied();
         let empty_model = index == 0 && self.opened.header.strip_count == 0;
         if occupied == 0 && !empty_model {
-            return Err(self.fail(index, N::KIND_FIELD, "has no children".into()));
+            return Err(self.fail(
+                index,
+                N::KIND_FIELD,
+                Defect::BadTree,
+                "has no children".into(),
+            ));
         }
         for slot in 0..TOP_WIDTH {
             self.check_slot(index, node, slot, slot >= occupied)?;
@@ -86,13 +98,13 @@ impl TreeCheck<'_> {
                     "slot {slot} follows an empty slot but is not the exact empty slot ({})",
                     N::EMPTY_SLOT
                 );
-                return Err(self.fail(index, kind_field, detail));
+                return Err(self.fail(index, kind_field, Defect::BadEncoding, detail));
             }
             return Ok(());
         }
         if let Some((axis, field)) = node.inverted_axis(slot) {
             let detail = format!("slot {slot}: box minimum above its maximum on axis {axis}");
-            return Err(self.fail(index, field, detail));
+            return Err(self.fail(index, field, Defect::BadBounds, detail));
         }
         match node.slot(slot) {
             TopSlot::Internal(child) => self.adopt(index, slot, child as usize, child_field),
@@ -101,7 +113,7 @@ impl TreeCheck<'_> {
                 let end = first as u64 + count as u64;
                 if end > strips {
                     let detail = format!("slot {slot}: strips {first}..{end} outside 0..{strips}");
-                    return Err(self.fail(index, child_field, detail));
+                    return Err(self.fail(index, child_field, Defect::OutOfRange, detail));
                 }
                 self.leaf_strips += count as u64;
                 Ok(())
@@ -109,6 +121,7 @@ impl TreeCheck<'_> {
             TopSlot::Invalid(kind) => Err(self.fail(
                 index,
                 kind_field,
+                Defect::BadEncoding,
                 format!("slot {slot}: kind {kind:#x} is neither internal nor a strip count"),
             )),
             TopSlot::Empty => unreachable!("occupied slots come before the first empty one"),
@@ -126,18 +139,23 @@ impl TreeCheck<'_> {
         let nodes = self.nodes;
         if child <= index || child >= nodes {
             let detail = format!("slot {slot}: child {child} outside {}..{nodes}", index + 1);
-            return Err(self.fail(index, field, detail));
+            return Err(self.fail(index, field, Defect::OutOfRange, detail));
         }
         if self.depth.is_empty() {
             return Ok(());
         }
         let child_depth = self.depth[index] + 1;
         if child_depth as usize > MAX_TOP_DEPTH {
-            return Err(self.fail(index, field, format!("deeper than {MAX_TOP_DEPTH} levels")));
+            return Err(self.fail(
+                index,
+                field,
+                Defect::BadTree,
+                format!("deeper than {MAX_TOP_DEPTH} levels"),
+            ));
         }
         if self.depth[child] != u8::MAX {
             let detail = format!("slot {slot}: child {child} has a second parent");
-            return Err(self.fail(index, field, detail));
+            return Err(self.fail(index, field, Defect::BadTree, detail));
         }
         self.depth[child] = child_depth;
         Ok(())
@@ -151,7 +169,7 @@ impl TreeCheck<'_> {
                 "leaves hold {} strips, the file has {strips}",
                 self.leaf_strips
             );
-            return Err(self.fail(0, 0, detail));
+            return Err(self.fail(0, 0, Defect::CountMismatch, detail));
         }
         Ok(())
     }

@@ -9,7 +9,7 @@ use crate::format::reader::{
 };
 use crate::format::references::References;
 use crate::format::{
-    axis_bytes, FilePart, SectionKind, StripRecord, F32_VERTEX_BYTES, MAX_STRIP_VERTICES,
+    axis_bytes, Defect, FilePart, SectionKind, StripRecord, F32_VERTEX_BYTES, MAX_STRIP_VERTICES,
 };
 
 pub(super) const RECORD_BYTES: u64 = std::mem::size_of::<StripRecord>() as u64;
@@ -19,7 +19,7 @@ pub(super) const RECORD_BYTES: u64 = std::mem::size_of::<StripRecord>() as u64;
 pub(super) fn strip_error(
     opened: &ReducemFile,
     index: usize,
-    (offset, detail): StripDefect,
+    (offset, defect, detail): StripDefect,
 ) -> FormatError {
     let (kind, offset) = match offset {
         Some(at) => (SectionKind::StripData, at),
@@ -28,12 +28,14 @@ pub(super) fn strip_error(
     opened.invalid(
         FilePart::Section(kind),
         opened.section_offset(kind) + offset,
+        defect,
         format!("strip {index}: {detail}"),
     )
 }
 
-/// A defect in a strip: the data-section offset where it is (if known) and what is wrong.
-pub(super) type StripDefect = (Option<u64>, String);
+/// A defect in a strip: the data-section offset where it is (if known), its kind and what is
+/// wrong.
+pub(super) type StripDefect = (Option<u64>, Defect, String);
 
 /// What a strip block's length depends on besides its record.
 pub(super) struct BlockShape<'a> {
@@ -50,6 +52,7 @@ impl BlockShape<'_> {
         if !(3..=MAX_STRIP_VERTICES).contains(&vertices) || references < 3 {
             return Err((
                 None,
+                Defect::OutOfRange,
                 format!("{vertices} vertices and {references} references"),
             ));
         }
@@ -59,7 +62,7 @@ impl BlockShape<'_> {
                 "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
                 2 * nodes
             );
-            return Err((None, detail));
+            return Err((None, Defect::CountMismatch, detail));
         }
         Ok(nodes)
     }
@@ -188,7 +191,7 @@ impl BlockShape<'_> {
                 for (axis, word) in words.iter().enumerate() {
                     let at = (axis * words_layout.bits() / 3 / 8) as u64;
                     word.check(grid.bits)
-                        .map_err(|detail| (Some(start + at), detail))?;
+                        .map_err(|detail| (Some(start + at), Defect::OutOfRange, detail))?;
                 }
                 vertex_part_bytes(record.vertex_count as usize, &words, words_layout)
             }
@@ -226,7 +229,7 @@ impl CheckedBlock<'_> {
         let offset = area_start + view.references.byte_of(position) as u64;
         let detail =
             format!("reference {position} is {reference} out of range ({vertices} vertices)");
-        (Some(offset), detail)
+        (Some(offset), Defect::OutOfRange, detail)
     }
 
     /// Checks the `nodes` split axes (each 0, 1 or 2) and the box exponents.
@@ -236,7 +239,8 @@ impl CheckedBlock<'_> {
         let references_start = boxes_start - view.references.stored_bytes() as u64;
         if let Some(node) = first_axis_3(view.axes, nodes) {
             let axes_start = references_start - view.axes.len() as u64;
-            return Err((Some(axes_start), format!("node {node} has split axis 3")));
+            let detail = format!("node {node} has split axis 3");
+            return Err((Some(axes_start), Defect::BadEncoding, detail));
         }
         let exponents = view
             .boxes
@@ -247,7 +251,7 @@ impl CheckedBlock<'_> {
                 "block box exponent {} on axis {axis} outside {EXPONENTS:?}",
                 exponents[axis]
             );
-            return Err((Some(boxes_start + axis as u64), detail));
+            return Err((Some(boxes_start + axis as u64), Defect::OutOfRange, detail));
         }
         Ok(())
     }
@@ -264,7 +268,7 @@ pub(super) fn first_axis_3(axes: &[u8], nodes: usize) -> Option<usize> {
 
 pub(super) fn past_the_end(start: u64, length: u64, data_len: u64) -> StripDefect {
     let detail = format!("block of {length} bytes runs past the section end {data_len}");
-    (Some(start), detail)
+    (Some(start), Defect::Truncated, detail)
 }
 
 /// The count of real triangles among the references, or the first reference naming no vertex
