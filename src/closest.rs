@@ -96,20 +96,35 @@ fn parse_max_distance(text: &str) -> Result<f32, String> {
 
 pub fn run(args: ClosestArgs) -> anyhow::Result<()> {
     let output = Destination::prepare(&args.output, &[&args.file, &args.points])?;
+    in_pool(args.threads, || answer(&args, &output))
+}
+
+/// Runs `work` on a pool of `threads` workers (0: one per core), as `--threads` asks.
+pub(crate) fn in_pool<T: Send>(
+    threads: usize,
+    work: impl FnOnce() -> anyhow::Result<T> + Send,
+) -> anyhow::Result<T> {
     let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads)
+        .num_threads(threads)
         .build()
-        .map_err(|error| UsageError(format!("--threads {}: {error}", args.threads)))?;
-    pool.install(|| answer(&args, &output))
+        .map_err(|error| UsageError(format!("--threads {threads}: {error}")))?;
+    pool.install(work)
+}
+
+/// The points of `points` and the file at `file`, read and opened side by side, the file told
+/// how many queries come.
+pub(crate) fn points_and_file(
+    points: &Path,
+    file: &Path,
+) -> anyhow::Result<(Vec<Point>, ReducemFile)> {
+    let (points, file) = rayon::join(|| read_points(points), || ReducemFile::open(file));
+    let (points, file) = (points?, file?);
+    file.advise_batch(points.len());
+    Ok((points, file))
 }
 
 fn answer(args: &ClosestArgs, output: &Destination) -> anyhow::Result<()> {
-    let (points, file) = rayon::join(
-        || read_points(&args.points),
-        || ReducemFile::open(&args.file),
-    );
-    let (points, file) = (points?, file?);
-    file.advise_batch(points.len());
+    let (points, file) = points_and_file(&args.points, &args.file)?;
     let started = Instant::now();
     let (answers, sides) = match args.signed {
         false => (closest_points(&file, &points, args.max_distance), None),
@@ -151,7 +166,7 @@ fn read_all(path: &Path) -> std::io::Result<Vec<u8>> {
 }
 
 /// The points of a point file; every coordinate finite.
-pub(crate) fn read_points(path: &Path) -> Result<Vec<Point>, PointFileError> {
+fn read_points(path: &Path) -> Result<Vec<Point>, PointFileError> {
     // Read to the end rather than mapped, so a pipe or `-` (standard input) gives every point.
     let bytes = read_all(path).map_err(|source| PointFileError::Io {
         path: path.to_path_buf(),

@@ -5,12 +5,10 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use reducem::exit_code::UsageError;
-use reducem::format::reader::ReducemFile;
 use reducem::output::Destination;
 use reducem::query::occupancy;
 
-use crate::closest::read_points;
+use crate::closest::{in_pool, points_and_file};
 
 #[derive(Clone, Debug, clap::Args)]
 pub struct InsideArgs {
@@ -34,20 +32,11 @@ pub struct InsideArgs {
 
 pub fn run(args: InsideArgs) -> anyhow::Result<()> {
     let output = Destination::prepare(&args.output, &[&args.file, &args.points])?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads)
-        .build()
-        .map_err(|error| UsageError(format!("--threads {}: {error}", args.threads)))?;
-    pool.install(|| answer(&args, &output))
+    in_pool(args.threads, || answer(&args, &output))
 }
 
 fn answer(args: &InsideArgs, output: &Destination) -> anyhow::Result<()> {
-    let (points, file) = rayon::join(
-        || read_points(&args.points),
-        || ReducemFile::open(&args.file),
-    );
-    let (points, file) = (points?, file?);
-    file.advise_batch(points.len());
+    let (points, file) = points_and_file(&args.points, &args.file)?;
     let started = Instant::now();
     let answers = occupancy(&file, &points, args.samples);
     let seconds = started.elapsed().as_secs_f64();

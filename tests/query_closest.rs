@@ -8,16 +8,14 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{canonical, temp_path, torus, SplitMix64};
-use reducem::conversion::{convert_mesh, BuildParams};
+use common::{canonical, converted, generated, temp_path, torus, SplitMix64};
+use reducem::conversion::BuildParams;
 use reducem::decode;
 use reducem::format::reader::{ReducemFile, Validation};
 use reducem::format::SectionKind;
 use reducem::geometry::Point;
-use reducem::input::read_mesh;
-use reducem::mesh::Mesh;
 use reducem::query::{closest_points, ClosestPoint, FaceIds};
-use reducem_gen::{generate, Kind};
+use reducem_gen::Kind;
 
 type Vector = [f64; 3];
 
@@ -202,25 +200,6 @@ fn assert_exact(
             .fold(0.0, f64::max);
         assert!(off <= tol, "{case}: u, v give {weighted:?}");
     }
-}
-
-/// A generated mesh, through a PLY file of the calling test's own (tests run in parallel in one
-/// process, and two writers of one path would share its temporary).
-fn generated(kind: Kind, triangles: u64) -> Mesh {
-    let test = std::thread::current()
-        .name()
-        .unwrap_or("main")
-        .replace("::", "-");
-    let ply = temp_path(&format!("closest-{test}-{}-{triangles}.ply", kind.name()));
-    generate(kind, triangles, 5, &ply).expect("generate");
-    read_mesh(&ply).expect("read")
-}
-
-fn converted(mesh: &Mesh, params: &BuildParams, name: &str) -> (PathBuf, ReducemFile) {
-    let path = temp_path(name);
-    convert_mesh(mesh, params, &path).expect("convert");
-    let file = ReducemFile::open(&path).expect("open");
-    (path, file)
 }
 
 /// Every answer of `file` for `points` checked against the brute force over its decoded

@@ -11,17 +11,16 @@ mod common;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use common::{icosphere, temp_path, torus, SplitMix64};
-use reducem::conversion::{convert_mesh, BuildParams};
+use common::{converted, generated, icosphere, temp_path, torus, SplitMix64};
+use reducem::conversion::BuildParams;
 use reducem::decode;
 use reducem::format::model::Closedness;
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
-use reducem::input::read_mesh;
 use reducem::mesh::Mesh;
 use reducem::query::{all_hits, count_crossings, occupancy, signed_closest_points, FaceIds};
 use reducem::trace::Ray;
-use reducem_gen::{generate, Kind};
+use reducem_gen::Kind;
 
 type Vector = [f64; 3];
 
@@ -90,24 +89,6 @@ fn brute_force(ray: &Ray, triangle: &[Point; 3]) -> Verdict {
         t if t < tmin + slack || t > tmax - slack => Verdict::Unsure,
         t => Verdict::Hit(t),
     }
-}
-
-/// A generated mesh, through a PLY file of the calling test's own.
-fn generated(kind: Kind, triangles: u64) -> Mesh {
-    let test = std::thread::current()
-        .name()
-        .unwrap_or("main")
-        .replace("::", "-");
-    let ply = temp_path(&format!("crossings-{test}-{}-{triangles}.ply", kind.name()));
-    generate(kind, triangles, 5, &ply).expect("generate");
-    read_mesh(&ply).expect("read")
-}
-
-fn converted(mesh: &Mesh, params: &BuildParams, name: &str) -> (PathBuf, ReducemFile) {
-    let path = temp_path(name);
-    convert_mesh(mesh, params, &path).expect("convert");
-    let file = ReducemFile::open(&path).expect("open");
-    (path, file)
 }
 
 /// Random rays through the bounds of `triangles`, some bounded.

@@ -104,15 +104,6 @@ pub fn closest_points(
     answers
 }
 
-/// Rays that decide inside/outside: one on a closed file (the parity is exact), else
-/// `samples` (at least one).
-pub fn inside_rays(file: &ReducemFile, samples: u32) -> u32 {
-    match file.closed() {
-        true => 1,
-        false => samples.max(1),
-    }
-}
-
 /// 1.0 for each point inside the surface, 0.0 outside, decided by `rays` rays
 /// ([`point_inside`]).
 pub fn occupancy(file: &ReducemFile, points: Components<'_>, rays: u32) -> Vec<f32> {

@@ -16,6 +16,7 @@ use pyo3::types::PyDict;
 use rayon::prelude::*;
 use reducem_core::format::attributes::{AttributeSet, NormalEncoding};
 use reducem_core::format::reader::ReducemFile;
+use reducem_core::query::occupancy::inside_rays;
 use reducem_core::trace::{surface_attributes, Hit, HitAttributes, Kernel, TraceOptions, Tracer};
 
 use crate::crossings;
@@ -330,7 +331,7 @@ impl Scene {
         nthreads: usize,
         nsamples: u32,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let rays = points::inside_rays(&self.file, nsamples);
+        let rays = inside_rays(&self.file, nsamples);
         let (shape, distances) = self.per_point(py, query_points, nthreads, |file, points| {
             points::signed_distances(file, points, rays)
         })?;
@@ -348,7 +349,7 @@ impl Scene {
         nthreads: usize,
         nsamples: u32,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let rays = points::inside_rays(&self.file, nsamples);
+        let rays = inside_rays(&self.file, nsamples);
         let (shape, occupancy) = self.per_point(py, query_points, nthreads, |file, points| {
             points::occupancy(file, points, rays)
         })?;

@@ -6,12 +6,14 @@ use std::path::{Path, PathBuf};
 
 use reducem::conversion::write_file;
 use reducem::conversion::ChunkStats;
+use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::conversion::{strip_bounds, EncodedChunk};
 use reducem::decode;
 use reducem::format::grid::Grid;
 use reducem::format::reader::ReducemFile;
 use reducem::format::writer::FileInfo;
 use reducem::geometry::{is_degenerate, Aabb, Point};
+use reducem::input::read_mesh;
 use reducem::mesh::Mesh;
 use reducem::quantize::quantize_mesh;
 pub use reducem::splitmix::SplitMix64;
@@ -20,12 +22,33 @@ use reducem::strip_windows;
 use reducem::toplevel::{self, TopLevel, TopLevelParams};
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
 use reducem::trace::{Hit, Kernel, Ray, TraceOptions, Tracer};
+use reducem_gen::{generate, Kind};
 
 /// A fresh path in the system temp dir, unique per test and process.
 pub fn temp_path(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("reducem-tests-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("create temp dir");
     dir.join(name)
+}
+
+/// A generated mesh, through a PLY file of the calling test's own (tests run in parallel in one
+/// process, and two writers of one path would share its temporary).
+pub fn generated(kind: Kind, triangles: u64) -> Mesh {
+    let test = std::thread::current()
+        .name()
+        .unwrap_or("main")
+        .replace("::", "-");
+    let ply = temp_path(&format!("{test}-{}-{triangles}.ply", kind.name()));
+    generate(kind, triangles, 5, &ply).expect("generate");
+    read_mesh(&ply).expect("read")
+}
+
+/// `mesh` converted with `params` to the temporary file `name`, and opened.
+pub fn converted(mesh: &Mesh, params: &BuildParams, name: &str) -> (PathBuf, ReducemFile) {
+    let path = temp_path(name);
+    convert_mesh(mesh, params, &path).expect("convert");
+    let file = ReducemFile::open(&path).expect("open");
+    (path, file)
 }
 
 /// A `w` × `h` quad grid with bumps, two triangles per quad, consistent winding.

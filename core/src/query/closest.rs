@@ -18,12 +18,12 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
+use super::child_box::ChildBox;
 use super::triangle_distance::{closest_on_triangle, TrianglePoint};
 use crate::format::block_boxes::BOX_WINDOWS;
-use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, INTERNAL_CHILD, TOP_WIDTH};
+use crate::format::{TopSlot, INTERNAL_CHILD, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::strip_windows::window_corners;
 
@@ -264,34 +264,6 @@ fn box_bound(query: &[f64; 3], min: &Point, max: &Point) -> f64 {
     };
     let squared = (0..3).map(|axis| gap(axis) * gap(axis)).sum::<f64>();
     squared * BOUND_SHRINK
-}
-
-/// A top-level node record's child boxes as f32 `(min, max)`.
-trait ChildBox: NodeRecord {
-    /// What decoding a box takes besides the node.
-    type Grid;
-    fn child_box(&self, slot: usize, grid: &Self::Grid) -> (Point, Point);
-}
-
-impl ChildBox for TopNode {
-    type Grid = ();
-
-    fn child_box(&self, slot: usize, _: &()) -> (Point, Point) {
-        self.slot_box(slot)
-    }
-}
-
-impl ChildBox for GridNode {
-    type Grid = NodeGrid;
-
-    /// Through [`NodeGrid::decode_axis`], the expression the writer rounded the boxes outward
-    /// with.
-    fn child_box(&self, slot: usize, grid: &NodeGrid) -> (Point, Point) {
-        let decode = |q: &[[u16; TOP_WIDTH]; 3]| {
-            std::array::from_fn(|axis| grid.decode_axis(q[axis][slot], axis))
-        };
-        (decode(&self.min), decode(&self.max))
-    }
 }
 
 #[cfg(test)]

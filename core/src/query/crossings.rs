@@ -20,12 +20,12 @@
 
 use rayon::prelude::*;
 
+use super::child_box::ChildBox;
 use super::FaceIds;
 use crate::format::block_boxes::BOX_WINDOWS;
-use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, TOP_WIDTH};
+use crate::format::{TopSlot, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::strip_windows::window_corners;
 use crate::trace::watertight::{edge, resolve, RayPoint, RaySpace, TriangleHit};
@@ -200,7 +200,7 @@ impl Walk {
         }
     }
 
-    fn run<N: NodeBox>(
+    fn run<N: ChildBox>(
         &self,
         file: &ReducemFile,
         nodes: &[N],
@@ -324,31 +324,6 @@ impl Walk {
             }
         }
         true
-    }
-}
-
-/// A top-level node record's child boxes as f32 `(min, max)`.
-trait NodeBox: NodeRecord {
-    type Grid;
-    fn child_box(&self, slot: usize, grid: &Self::Grid) -> (Point, Point);
-}
-
-impl NodeBox for TopNode {
-    type Grid = ();
-
-    fn child_box(&self, slot: usize, _: &()) -> (Point, Point) {
-        self.slot_box(slot)
-    }
-}
-
-impl NodeBox for GridNode {
-    type Grid = NodeGrid;
-
-    fn child_box(&self, slot: usize, grid: &NodeGrid) -> (Point, Point) {
-        let decode = |q: &[[u16; TOP_WIDTH]; 3]| {
-            std::array::from_fn(|axis| grid.decode_axis(q[axis][slot], axis))
-        };
-        (decode(&self.min), decode(&self.max))
     }
 }
 

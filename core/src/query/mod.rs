@@ -7,6 +7,7 @@
 //! page in only what they visit; on a lazily validated file a corrupt part they reach is kept
 //! for [`ReducemFile::defect`], which callers report instead of an incomplete answer.
 
+mod child_box;
 pub mod closest;
 pub mod crossings;
 pub mod occupancy;

@@ -21,16 +21,24 @@ pub struct Occupancy {
 /// one ray on a closed file, else the majority of `samples` rays (at least one; a tie is
 /// outside).
 pub fn occupancy(file: &ReducemFile, points: &[Point], samples: u32) -> Occupancy {
-    let exact = file.closed();
-    let rays = match exact {
-        true => 1,
-        false => samples.max(1),
-    };
+    let rays = inside_rays(file, samples);
     let inside = points
         .par_iter()
         .map(|point| point_inside(file, point, rays))
         .collect();
-    Occupancy { inside, exact }
+    Occupancy {
+        inside,
+        exact: file.closed(),
+    }
+}
+
+/// The rays that decide inside/outside: one on a closed file (its parity is exact), else
+/// `samples` (at least one).
+pub fn inside_rays(file: &ReducemFile, samples: u32) -> u32 {
+    match file.closed() {
+        true => 1,
+        false => samples.max(1),
+    }
 }
 
 /// Whether more than half of `rays` rays from `point` in [`direction`]s `0..rays` cross the

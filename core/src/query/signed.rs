@@ -4,7 +4,7 @@
 use rayon::prelude::*;
 
 use super::closest::{ClosestPoint, ClosestPointSearch};
-use super::occupancy::point_inside;
+use super::occupancy::{inside_rays, point_inside};
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
 
@@ -38,11 +38,7 @@ pub fn signed_closest_points(
     max_distance: f32,
     samples: u32,
 ) -> SignedClosest {
-    let exact = file.closed();
-    let rays = match exact {
-        true => 1,
-        false => samples.max(1),
-    };
+    let rays = inside_rays(file, samples);
     let (closest, inside) = points
         .par_iter()
         .map_init(
@@ -56,6 +52,6 @@ pub fn signed_closest_points(
     SignedClosest {
         closest,
         inside,
-        exact,
+        exact: file.closed(),
     }
 }

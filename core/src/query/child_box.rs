@@ -1,0 +1,34 @@
+//! The child boxes of both top-level node records, decoded alike for the walks that bound
+//! their distance to a point or their overlap with a ray.
+
+use crate::format::grid::NodeGrid;
+use crate::format::{GridNode, NodeRecord, TopNode, TOP_WIDTH};
+use crate::geometry::Point;
+
+/// A top-level node record's child boxes as f32 `(min, max)`.
+pub(crate) trait ChildBox: NodeRecord {
+    /// What decoding a box takes besides the node.
+    type Grid;
+    fn child_box(&self, slot: usize, grid: &Self::Grid) -> (Point, Point);
+}
+
+impl ChildBox for TopNode {
+    type Grid = ();
+
+    fn child_box(&self, slot: usize, _: &()) -> (Point, Point) {
+        self.slot_box(slot)
+    }
+}
+
+impl ChildBox for GridNode {
+    type Grid = NodeGrid;
+
+    /// Through [`NodeGrid::decode_axis`], the expression the writer rounded the boxes outward
+    /// with.
+    fn child_box(&self, slot: usize, grid: &NodeGrid) -> (Point, Point) {
+        let decode = |q: &[[u16; TOP_WIDTH]; 3]| {
+            std::array::from_fn(|axis| grid.decode_axis(q[axis][slot], axis))
+        };
+        (decode(&self.min), decode(&self.max))
+    }
+}
