@@ -13,6 +13,7 @@
 mod convert;
 mod crossings;
 mod errors;
+mod order;
 mod points;
 mod primitive_ids;
 mod rays;

@@ -45,8 +45,9 @@ pub enum Rays<'a> {
         tnear: f32,
         tfar: f32,
     },
-    /// Invalid rays answered as misses: the valid ones and their positions among `total`.
-    Valid {
+    /// Rays gathered out of the caller's array (the valid ones, for `invalid="miss"`, or all
+    /// of them in the order they are traced in) and each one's position among `total`.
+    Gathered {
         rays: Vec<Ray>,
         positions: Vec<usize>,
         total: usize,
@@ -58,7 +59,22 @@ impl Rays<'_> {
     pub fn traced(&self) -> usize {
         match self {
             Rays::All { components, .. } => components.len(),
-            Rays::Valid { rays, .. } => rays.len(),
+            Rays::Gathered { rays, .. } => rays.len(),
+        }
+    }
+
+    /// Traced ray `i` (of `0..traced()`), `None` when it is invalid.
+    pub fn ray(&self, i: usize) -> Option<Ray> {
+        match self {
+            Rays::Gathered { rays, .. } => Some(rays[i]),
+            Rays::All {
+                components,
+                tnear,
+                tfar,
+            } => {
+                let ray = components.ray(i);
+                is_valid(&ray).then(|| to_ray(ray, *tnear, *tfar))
+            }
         }
     }
 
@@ -68,7 +84,7 @@ impl Rays<'_> {
     pub fn chunk_into(&self, range: Range<usize>, into: &mut Vec<Ray>) -> Option<usize> {
         into.clear();
         match self {
-            Rays::Valid { rays, .. } => {
+            Rays::Gathered { rays, .. } => {
                 into.extend_from_slice(&rays[range]);
                 None
             }
@@ -140,7 +156,7 @@ impl Components<'_> {
 
     /// Ray `i` in f32; float64 components are computed in f32 as Open3D does (the nearest f32
     /// of each).
-    fn ray(&self, i: usize) -> [f32; 6] {
+    pub fn ray(&self, i: usize) -> [f32; 6] {
         match self {
             Components::F32(values) => std::array::from_fn(|k| values[6 * i + k]),
             Components::F64(values) => std::array::from_fn(|k| values[6 * i + k] as f32),
@@ -232,7 +248,7 @@ pub fn valid_only<'a>(components: Components<'a>, tnear: f32, tfar: f32) -> Rays
         .filter(|(_, ray)| is_valid(ray))
         .map(|(i, ray)| (i, to_ray(ray, tnear, tfar)))
         .unzip();
-    Rays::Valid {
+    Rays::Gathered {
         rays,
         positions,
         total: components.len(),

@@ -1,8 +1,9 @@
 //! `reducem.open(path) -> Scene`: a mapped, validated file and its ray queries.
 //!
-//! Tracing runs without the GIL on rayon's threads (a pool of `nthreads` when given), in chunks
-//! of consecutive rays through [`Tracer::intersect_chunk`] and [`Tracer::occluded_chunk`], the
-//! calls `reducem query` makes: the same rays give bit-identical `t` and normals.
+//! Tracing runs without the GIL on rayon's threads (a pool of `nthreads` when given), chunk by
+//! chunk through [`Tracer::intersect_each`] and [`Tracer::occluded_chunk`], the calls
+//! `reducem query` makes, in the order [`order`] picks: the same rays give bit-identical `t`
+//! and normals.
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -21,13 +22,10 @@ use reducem_core::trace::{surface_attributes, Hit, HitAttributes, Kernel, TraceO
 
 use crate::crossings;
 use crate::errors::{format_error, reducem_error};
+use crate::order::{self, ChunkOrder};
 use crate::points::{self, ClosestAnswers};
 use crate::primitive_ids::{PrimitiveIds, NO_PRIMITIVE};
 use crate::rays::{self, Components, InvalidRays, Rays};
-
-/// Rays traced by one task: the chunk size of `reducem query` (large enough to amortize
-/// scheduling and keep packets of consecutive rays, small enough to balance).
-const CHUNK: usize = 4096;
 
 /// A mapped ReduceM file.
 #[pyclass(frozen, weakref, module = "reducem")]
@@ -96,16 +94,16 @@ impl Answers {
         }
     }
 
-    /// The answers cut into chunks of [`CHUNK`] rays.
-    fn chunks(&mut self) -> Vec<AnswerChunk<'_>> {
-        let mut shading_normals = self.shading_normals.chunks_mut(3 * CHUNK);
-        let mut colors = self.colors.chunks_mut(4 * CHUNK);
+    /// The answers cut into chunks of `rays` rays.
+    fn chunks(&mut self, rays: usize) -> Vec<AnswerChunk<'_>> {
+        let mut shading_normals = self.shading_normals.chunks_mut(3 * rays);
+        let mut colors = self.colors.chunks_mut(4 * rays);
         self.t
-            .chunks_mut(CHUNK)
-            .zip(self.ids.chunks_mut(CHUNK))
-            .zip(self.geometry_ids.chunks_mut(CHUNK))
-            .zip(self.uvs.chunks_mut(2 * CHUNK))
-            .zip(self.normals.chunks_mut(3 * CHUNK))
+            .chunks_mut(rays)
+            .zip(self.ids.chunks_mut(rays))
+            .zip(self.geometry_ids.chunks_mut(rays))
+            .zip(self.uvs.chunks_mut(2 * rays))
+            .zip(self.normals.chunks_mut(3 * rays))
             .map(|((((t, ids), geometry_ids), uvs), normals)| AnswerChunk {
                 t,
                 ids,
@@ -283,7 +281,7 @@ impl Scene {
         nthreads: usize,
     ) -> PyResult<Bound<'py, PyAny>> {
         let query = RayQuery::new(tnear, tfar, nthreads, "raise")?;
-        let (shape, counts) = self.trace(py, rays, query, |scene, rays, _| {
+        let (shape, counts) = self.trace(py, rays, query, |scene, rays, _, _| {
             crossings::count(&scene.file, rays)
         })?;
         ndarray(py, counts, &shape)
@@ -305,7 +303,7 @@ impl Scene {
     ) -> PyResult<Bound<'py, PyDict>> {
         check_ids_fit(&self.file)?;
         let query = RayQuery::new(tnear, tfar, nthreads, "raise")?;
-        let (_, found) = self.trace(py, rays, query, |scene, rays, _| {
+        let (_, found) = self.trace(py, rays, query, |scene, rays, _, _| {
             crossings::list(&scene.file, scene.primitive_ids(), rays)
         })?;
         let hits = found.t.len();
@@ -331,12 +329,13 @@ impl Scene {
         nthreads: usize,
         nsamples: u32,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let rays = inside_rays(&self.file, nsamples);
-        let (shape, distances) = self.per_point(py, query_points, nthreads, |file, points| {
-            points::signed_distances(file, points, rays)
-        })?;
-        self.warn_unless_exact(py)?;
-        ndarray(py, distances, &shape)
+        self.inside_query(
+            py,
+            query_points,
+            nthreads,
+            nsamples,
+            points::signed_distances,
+        )
     }
 
     /// 1.0 for each of `query_points` inside the surface, 0.0 outside: float32 `(...)`,
@@ -349,12 +348,7 @@ impl Scene {
         nthreads: usize,
         nsamples: u32,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let rays = inside_rays(&self.file, nsamples);
-        let (shape, occupancy) = self.per_point(py, query_points, nthreads, |file, points| {
-            points::occupancy(file, points, rays)
-        })?;
-        self.warn_unless_exact(py)?;
-        ndarray(py, occupancy, &shape)
+        self.inside_query(py, query_points, nthreads, nsamples, points::occupancy)
     }
 
     /// Whether the conversion found the mesh closed (every edge shared by exactly two
@@ -501,7 +495,7 @@ impl Scene {
         py: Python<'_>,
         rays: &Bound<'_, PyAny>,
         query: RayQuery,
-        answer: impl Fn(&Scene, &Rays, Kernel) -> Result<T, usize> + Sync,
+        answer: impl Fn(&Scene, &Rays, &[usize], Kernel) -> Result<T, usize> + Sync,
     ) -> PyResult<(Vec<usize>, T)> {
         let RayQuery {
             tnear,
@@ -518,7 +512,7 @@ impl Scene {
                         tnear,
                         tfar,
                     };
-                    let first_invalid = match answer(self, &all, kernel) {
+                    let first_invalid = match answer(self, &all, &shape, kernel) {
                         Ok(answers) => return Ok(answers),
                         Err(index) => index,
                     };
@@ -532,7 +526,7 @@ impl Scene {
                         ));
                     }
                     let valid = rays::valid_only(components, tnear, tfar);
-                    answer(self, &valid, kernel)
+                    answer(self, &valid, &shape, kernel)
                         .map_err(|index| format!("ray {index} is invalid after filtering"))
                 })
             });
@@ -580,6 +574,24 @@ impl Scene {
         Ok(found)
     }
 
+    /// `answer` of `query_points` and the rays that decide inside from `nsamples` (one on a
+    /// closed mesh), as an array of their leading shape; warns when that is not exact.
+    fn inside_query<'py>(
+        &self,
+        py: Python<'py>,
+        query_points: &Bound<'py, PyAny>,
+        nthreads: usize,
+        nsamples: u32,
+        answer: fn(&ReducemFile, Components<'_>, u32) -> Vec<f32>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let rays = inside_rays(&self.file, nsamples);
+        let (shape, answers) = self.per_point(py, query_points, nthreads, |file, points| {
+            answer(file, points, rays)
+        })?;
+        self.warn_unless_exact(py)?;
+        ndarray(py, answers, &shape)
+    }
+
     /// A `RuntimeWarning`, the first time on this scene, that inside/outside answers are a
     /// vote of rays rather than exact because the mesh is not known to be closed.
     fn warn_unless_exact(&self, py: Python<'_>) -> PyResult<()> {
@@ -604,59 +616,76 @@ impl Scene {
             .map_or(Ok(()), |defect| Err(format_error(defect)))
     }
 
-    /// Closest hits of `rays`, or the index of the first invalid ray among them.
-    fn cast(&self, rays: &Rays, kernel: Kernel) -> Result<Answers, usize> {
+    /// Closest hits of `rays` (leading shape `shape`), or the index of the first invalid ray
+    /// among them.
+    fn cast(&self, rays: &Rays, shape: &[usize], kernel: Kernel) -> Result<Answers, usize> {
+        let (sorted, order) = trace_order(rays, shape)?;
+        let rays = sorted.as_ref().unwrap_or(rays);
         let tracer = Tracer::new(&self.file, trace_options(kernel));
         let ids = self.primitive_ids();
         let attributes = self.file.attributes();
         let mut answers = Answers::zeroed(rays.traced(), attributes);
+        let chunk_rays = order.chunk_rays();
         let first_invalid = AtomicUsize::new(usize::MAX);
-        answers.chunks().into_par_iter().enumerate().for_each_init(
-            Vec::new,
-            |traced, (chunk, mut out)| {
-                let first = chunk * CHUNK;
-                if let Some(invalid) = rays.chunk_into(first..first + out.t.len(), traced) {
-                    first_invalid.fetch_min(invalid, Ordering::Relaxed);
-                    return;
-                }
-                tracer.intersect_each(traced, |k, hit| {
-                    let id = hit.map_or(NO_PRIMITIVE, |hit| {
-                        ids.id(&self.file, hit.strip, hit.window)
+        answers
+            .chunks(chunk_rays)
+            .into_par_iter()
+            .enumerate()
+            .for_each_init(
+                || (Vec::new(), Vec::new()),
+                |(traced, places), (chunk, mut out)| {
+                    let range = chunk * chunk_rays..chunk * chunk_rays + out.t.len();
+                    if let Some(invalid) = order.read(rays, range, traced, places) {
+                        first_invalid.fetch_min(invalid, Ordering::Relaxed);
+                        return;
+                    }
+                    tracer.intersect_each(traced, |k, hit| {
+                        let id = hit.map_or(NO_PRIMITIVE, |hit| {
+                            ids.id(&self.file, hit.strip, hit.window)
+                        });
+                        let read = hit
+                            .filter(|_| attributes.per_vertex())
+                            .map(|hit| surface_attributes(&self.file, &hit));
+                        out.write(places[k] as usize, hit.as_ref(), id, read);
                     });
-                    let read = hit
-                        .filter(|_| attributes.per_vertex())
-                        .map(|hit| surface_attributes(&self.file, &hit));
-                    out.write(k, hit.as_ref(), id, read);
-                });
-            },
-        );
+                },
+            );
         check_valid(first_invalid)?;
         Ok(match rays {
-            Rays::Valid {
+            Rays::Gathered {
                 positions, total, ..
             } => answers.placed(positions, *total, attributes),
             Rays::All { .. } => answers,
         })
     }
 
-    /// Whether each of `rays` is occluded, or the index of the first invalid ray among them.
-    fn occlusions(&self, rays: &Rays, kernel: Kernel) -> Result<Vec<bool>, usize> {
+    /// Whether each of `rays` (leading shape `shape`) is occluded, or the index of the first
+    /// invalid ray among them.
+    fn occlusions(&self, rays: &Rays, shape: &[usize], kernel: Kernel) -> Result<Vec<bool>, usize> {
+        let (sorted, order) = trace_order(rays, shape)?;
+        let rays = sorted.as_ref().unwrap_or(rays);
         let tracer = Tracer::new(&self.file, trace_options(kernel));
         let mut occluded = vec![false; rays.traced()];
+        let chunk_rays = order.chunk_rays();
         let first_invalid = AtomicUsize::new(usize::MAX);
-        occluded.par_chunks_mut(CHUNK).enumerate().for_each_init(
-            Vec::new,
-            |traced, (chunk, out)| {
-                let first = chunk * CHUNK;
-                if let Some(invalid) = rays.chunk_into(first..first + out.len(), traced) {
-                    first_invalid.fetch_min(invalid, Ordering::Relaxed);
-                    return;
-                }
-                out.copy_from_slice(&tracer.occluded_chunk(traced));
-            },
-        );
+        occluded
+            .par_chunks_mut(chunk_rays)
+            .enumerate()
+            .for_each_init(
+                || (Vec::new(), Vec::new()),
+                |(traced, places), (chunk, out)| {
+                    let range = chunk * chunk_rays..chunk * chunk_rays + out.len();
+                    if let Some(invalid) = order.read(rays, range, traced, places) {
+                        first_invalid.fetch_min(invalid, Ordering::Relaxed);
+                        return;
+                    }
+                    for (&place, answer) in places.iter().zip(tracer.occluded_chunk(traced)) {
+                        out[place as usize] = answer;
+                    }
+                },
+            );
         check_valid(first_invalid)?;
-        let Rays::Valid {
+        let Rays::Gathered {
             positions, total, ..
         } = rays
         else {
@@ -673,6 +702,16 @@ impl Scene {
     fn primitive_ids(&self) -> &PrimitiveIds {
         self.primitive_ids
             .get_or_init(|| PrimitiveIds::of(&self.file))
+    }
+}
+
+/// The rays to trace (`Some` when they are gathered out of `rays` in another order) and how to
+/// cut them into chunks: camera rays in bands of tiles, an incoherent batch sorted as
+/// `reducem query` sorts it, anything else as it comes ([`order`]).
+fn trace_order(rays: &Rays, shape: &[usize]) -> Result<(Option<Rays<'static>>, ChunkOrder), usize> {
+    match ChunkOrder::of(rays, shape) {
+        ChunkOrder::Input => Ok((order::sorted(rays)?, ChunkOrder::Input)),
+        bands => Ok((None, bands)),
     }
 }
 

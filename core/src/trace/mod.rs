@@ -47,6 +47,7 @@ use strip::StripQuery;
 use top::RayWalk;
 
 pub use ray::{Hit, Ray};
+pub use ray_order::coherent_order;
 
 /// Tuning of the traversal. Results do not depend on it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

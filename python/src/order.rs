@@ -1,0 +1,203 @@
+//! The order `cast_rays` and `test_occlusions` trace a batch in. Answers do not depend on it
+//! (packets and single rays give bit-identical hits); the work does:
+//! * A row-major pinhole camera (one origin, directions stepping evenly along each row, as
+//!   Open3D's `create_rays_pinhole` and an `(H, W, 6)` grid give them) is traced in bands of
+//!   whole rows, each band tile by tile in the packet blocks `reducem render` traces
+//!   ([`reducem::render::tiles`]): packets of compact blocks stay together deeper in the
+//!   hierarchy than packets of eight rays of one row.
+//! * An incoherent batch is traced in the order `reducem query` traces it
+//!   ([`coherent_order`]: by direction octant and origin cell), its answers put back in place.
+//! * Anything else in its own order, chunk by chunk.
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+use reducem_core::trace::{coherent_order, Ray};
+
+use crate::rays::{Components, Rays};
+
+/// Rays traced by one task in input order: the chunk size of `reducem query` (large enough to
+/// amortize scheduling and keep packets of consecutive rays, small enough to balance).
+pub const CHUNK: usize = 4096;
+
+/// Rows of a band: the height of `reducem render`'s tiles.
+const BAND_ROWS: usize = 8;
+
+/// Rays sampled to tell a camera: their origins must all be the first ray's.
+const ORIGIN_SAMPLES: usize = 64;
+
+/// Rows sampled to confirm a row width found in a flat batch.
+const ROW_SAMPLES: usize = 16;
+
+/// Rays searched for the end of a flat batch's first row.
+const LONGEST_ROW: usize = 1 << 16;
+
+/// How a batch of rays is cut into chunks and in which order a chunk's rays are traced.
+pub enum ChunkOrder {
+    /// Consecutive rays, [`CHUNK`] at a time, in their order.
+    Input,
+    /// Bands of [`BAND_ROWS`] rows of an image `width` rays wide; `band` and `last_band` list
+    /// a full band's and the last band's rays (offsets in the band) tile by tile.
+    Image {
+        width: usize,
+        band: Vec<u32>,
+        last_band: Vec<u32>,
+    },
+}
+
+impl ChunkOrder {
+    /// Bands for rays that are a pinhole camera's in row-major order, else input order.
+    pub fn of(rays: &Rays, shape: &[usize]) -> ChunkOrder {
+        let Rays::All { components, .. } = rays else {
+            return ChunkOrder::Input;
+        };
+        let Some(width) = camera_width(*components, shape) else {
+            return ChunkOrder::Input;
+        };
+        let rows = components.len() / width;
+        let last_rows = match rows % BAND_ROWS {
+            0 => BAND_ROWS,
+            rest => rest,
+        };
+        ChunkOrder::Image {
+            width,
+            band: band_order(width, BAND_ROWS),
+            last_band: band_order(width, last_rows),
+        }
+    }
+
+    /// Rays per chunk (the last may have fewer).
+    pub fn chunk_rays(&self) -> usize {
+        match self {
+            ChunkOrder::Input => CHUNK,
+            ChunkOrder::Image { width, .. } => BAND_ROWS * width,
+        }
+    }
+
+    /// The rays of chunk `range` of `rays`, in the order they are traced, into `traced`, and
+    /// each one's offset in the chunk into `places` (both cleared first); or the index of the
+    /// chunk's first invalid ray.
+    pub fn read(
+        &self,
+        rays: &Rays,
+        range: Range<usize>,
+        traced: &mut Vec<Ray>,
+        places: &mut Vec<u32>,
+    ) -> Option<usize> {
+        places.clear();
+        let ChunkOrder::Image {
+            band, last_band, ..
+        } = self
+        else {
+            places.extend(0..range.len() as u32);
+            return rays.chunk_into(range, traced);
+        };
+        let order = if range.len() == band.len() {
+            band
+        } else {
+            last_band
+        };
+        traced.clear();
+        for &offset in order {
+            let Some(ray) = rays.ray(range.start + offset as usize) else {
+                // The first invalid ray in index order, as input order reports it.
+                return rays.chunk_into(range, traced);
+            };
+            traced.push(ray);
+        }
+        places.extend_from_slice(order);
+        None
+    }
+}
+
+/// The rays of `rays` gathered in the order `reducem query` traces an incoherent batch, each
+/// with its position among the caller's rays; `Ok(None)` when their order is coherent enough
+/// (or too few to reorder), `Err` with the first invalid ray's index.
+pub fn sorted(rays: &Rays) -> Result<Option<Rays<'static>>, usize> {
+    let (all, positions, total) = match rays {
+        Rays::All { components, .. } => {
+            let all: Option<Vec<Ray>> = (0..components.len())
+                .into_par_iter()
+                .map(|i| rays.ray(i))
+                .collect();
+            let Some(all) = all else {
+                let invalid = (0..components.len())
+                    .into_par_iter()
+                    .position_first(|i| rays.ray(i).is_none());
+                return Err(invalid.unwrap_or(0));
+            };
+            (all, None, components.len())
+        }
+        Rays::Gathered {
+            rays,
+            positions,
+            total,
+        } => (rays.clone(), Some(positions), *total),
+    };
+    let Some(order) = coherent_order(&all) else {
+        return Ok(None);
+    };
+    let position = |index: usize| positions.map_or(index, |positions| positions[index]);
+    Ok(Some(Rays::Gathered {
+        rays: order.par_iter().map(|&index| all[index as usize]).collect(),
+        positions: order
+            .iter()
+            .map(|&index| position(index as usize))
+            .collect(),
+        total,
+    }))
+}
+
+/// The offsets in a band of `rows` rows, `width` wide, tile by tile in packet order.
+fn band_order(width: usize, rows: usize) -> Vec<u32> {
+    reducem::render::tiles(width as u32, rows as u32).concat()
+}
+
+/// The row width of `components` when they are a pinhole camera's rays in row-major order:
+/// one origin (sampled), and rows either the array's last leading axis or, in a flat batch,
+/// found where the step between consecutive directions jumps.
+fn camera_width(components: Components<'_>, shape: &[usize]) -> Option<usize> {
+    let count = components.len();
+    if count < 2 * BAND_ROWS {
+        return None;
+    }
+    let origin = |i: usize| -> [f32; 3] { std::array::from_fn(|k| components.ray(i)[k]) };
+    let first = origin(0);
+    let step = (count / ORIGIN_SAMPLES).max(1);
+    if (0..count).step_by(step).any(|i| origin(i) != first) {
+        return None;
+    }
+    let width = match shape {
+        [.., rows, width] if *rows > 1 => *width,
+        _ => row_width(components)?,
+    };
+    (width > 1 && count.is_multiple_of(width) && count / width > 1).then_some(width)
+}
+
+/// The length of the first row of a flat batch of camera rays: where the step between
+/// consecutive directions stops being about the previous one; confirmed on sampled rows.
+fn row_width(components: Components<'_>) -> Option<usize> {
+    let count = components.len();
+    let direction = |i: usize| -> [f32; 3] { std::array::from_fn(|k| components.ray(i)[3 + k]) };
+    let step = |i: usize| difference(direction(i + 1), direction(i));
+    let jumps_after = |i: usize| i >= 1 && jumps(step(i - 1), step(i));
+    let width = (1..count.min(LONGEST_ROW) - 1).find(|&i| jumps_after(i))? + 1;
+    if !count.is_multiple_of(width) {
+        return None;
+    }
+    let rows = count / width;
+    (1..rows)
+        .step_by((rows / ROW_SAMPLES).max(1))
+        .all(|row| jumps_after(row * width - 1))
+        .then_some(width)
+}
+
+/// Whether `next` is far from `previous` (a row's end), not a smooth change of step.
+fn jumps(previous: [f32; 3], next: [f32; 3]) -> bool {
+    let size = |v: [f32; 3]| v.iter().map(|x| x.abs()).sum::<f32>();
+    size(difference(next, previous)) > 0.5 * size(previous)
+}
+
+fn difference(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    std::array::from_fn(|k| a[k] - b[k])
+}
