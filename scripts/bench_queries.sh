@@ -356,9 +356,10 @@ for name, c in counts.items():
 EOF
 
 # The Python package's rows (when `import reducem` works in PYTHON): cast_rays on a row-major
-# pinhole camera, test_occlusions on incoherent rays and compute_closest_points on the points
-# above, against Open3D in the same process, and `reducem query` on the same rays (its own
-# timing of the tracing, RAYON_NUM_THREADS=THREADS); medians of RUNS calls each.
+# pinhole camera (shaped (H, W, 6) and flat), test_occlusions on incoherent rays and
+# compute_closest_points on the points above, against Open3D in the same process, and `reducem
+# query` on the same rays (its own timing of the tracing, RAYON_NUM_THREADS=THREADS); medians of
+# RUNS calls each.
 python_rows() {
   "$PYTHON" -c "import reducem" 2>/dev/null || {
     echo "reducem (Python): not importable, Python rows skipped"
@@ -430,6 +431,9 @@ points = np.fromfile(points_path, "<f4").reshape(-1, 3)
 
 figures = {
     "reducem cast_rays camera": rate(lambda: scene.cast_rays(camera, nthreads=threads)),
+    "reducem cast_rays camera (H*W, 6)": rate(
+        lambda: scene.cast_rays(camera.reshape(-1, 6), nthreads=threads)
+    ),
     "reducem test_occlusions incoherent": rate(
         lambda: scene.test_occlusions(incoherent, nthreads=threads)
     ),

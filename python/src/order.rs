@@ -74,40 +74,44 @@ impl ChunkOrder {
         }
     }
 
-    /// The rays of chunk `range` of `rays`, in the order they are traced, into `traced`, and
-    /// each one's offset in the chunk into `places` (both cleared first); or the index of the
-    /// chunk's first invalid ray.
-    pub fn read(
-        &self,
-        rays: &Rays,
-        range: Range<usize>,
-        traced: &mut Vec<Ray>,
-        places: &mut Vec<u32>,
-    ) -> Option<usize> {
-        places.clear();
+    /// The rays of chunk `range` of `rays`, in the order they are traced, into `chunk`; or
+    /// the index of the chunk's first invalid ray.
+    pub fn read(&self, rays: &Rays, range: Range<usize>, chunk: &mut Chunk) -> Option<usize> {
+        chunk.places.clear();
         let ChunkOrder::Image {
             band, last_band, ..
         } = self
         else {
-            places.extend(0..range.len() as u32);
-            return rays.chunk_into(range, traced);
+            chunk.places.extend(0..range.len() as u32);
+            return rays.chunk_into(range, &mut chunk.rays);
         };
         let order = if range.len() == band.len() {
             band
         } else {
             last_band
         };
-        traced.clear();
-        for &offset in order {
-            let Some(ray) = rays.ray(range.start + offset as usize) else {
-                // The first invalid ray in index order, as input order reports it.
-                return rays.chunk_into(range, traced);
-            };
-            traced.push(ray);
+        // Read in input order (contiguous, checked as read), then gathered into tile order.
+        let invalid = rays.chunk_into(range, &mut chunk.read);
+        if invalid.is_some() {
+            return invalid;
         }
-        places.extend_from_slice(order);
+        chunk.rays.clear();
+        chunk
+            .rays
+            .extend(order.iter().map(|&offset| chunk.read[offset as usize]));
+        chunk.places.extend_from_slice(order);
         None
     }
+}
+
+/// The rays of one chunk as they are traced, and each one's offset in the chunk; buffers a
+/// thread reuses from chunk to chunk.
+#[derive(Default)]
+pub struct Chunk {
+    pub rays: Vec<Ray>,
+    pub places: Vec<u32>,
+    /// A band's rays in input order, before they are gathered into tile order.
+    read: Vec<Ray>,
 }
 
 /// The rays of `rays` gathered in the order `reducem query` traces an incoherent batch, each

@@ -22,7 +22,7 @@ use reducem_core::trace::{surface_attributes, Hit, HitAttributes, Kernel, TraceO
 
 use crate::crossings;
 use crate::errors::{format_error, reducem_error};
-use crate::order::{self, ChunkOrder};
+use crate::order::{self, Chunk, ChunkOrder};
 use crate::points::{self, ClosestAnswers};
 use crate::primitive_ids::{PrimitiveIds, NO_PRIMITIVE};
 use crate::rays::{self, Components, InvalidRays, Rays};
@@ -631,25 +631,22 @@ impl Scene {
             .chunks(chunk_rays)
             .into_par_iter()
             .enumerate()
-            .for_each_init(
-                || (Vec::new(), Vec::new()),
-                |(traced, places), (chunk, mut out)| {
-                    let range = chunk * chunk_rays..chunk * chunk_rays + out.t.len();
-                    if let Some(invalid) = order.read(rays, range, traced, places) {
-                        first_invalid.fetch_min(invalid, Ordering::Relaxed);
-                        return;
-                    }
-                    tracer.intersect_each(traced, |k, hit| {
-                        let id = hit.map_or(NO_PRIMITIVE, |hit| {
-                            ids.id(&self.file, hit.strip, hit.window)
-                        });
-                        let read = hit
-                            .filter(|_| attributes.per_vertex())
-                            .map(|hit| surface_attributes(&self.file, &hit));
-                        out.write(places[k] as usize, hit.as_ref(), id, read);
+            .for_each_init(Chunk::default, |traced, (chunk, mut out)| {
+                let range = chunk * chunk_rays..chunk * chunk_rays + out.t.len();
+                if let Some(invalid) = order.read(rays, range, traced) {
+                    first_invalid.fetch_min(invalid, Ordering::Relaxed);
+                    return;
+                }
+                tracer.intersect_each(&traced.rays, |k, hit| {
+                    let id = hit.map_or(NO_PRIMITIVE, |hit| {
+                        ids.id(&self.file, hit.strip, hit.window)
                     });
-                },
-            );
+                    let read = hit
+                        .filter(|_| attributes.per_vertex())
+                        .map(|hit| surface_attributes(&self.file, &hit));
+                    out.write(traced.places[k] as usize, hit.as_ref(), id, read);
+                });
+            });
         check_valid(first_invalid)?;
         Ok(match rays {
             Rays::Gathered {
@@ -671,19 +668,17 @@ impl Scene {
         occluded
             .par_chunks_mut(chunk_rays)
             .enumerate()
-            .for_each_init(
-                || (Vec::new(), Vec::new()),
-                |(traced, places), (chunk, out)| {
-                    let range = chunk * chunk_rays..chunk * chunk_rays + out.len();
-                    if let Some(invalid) = order.read(rays, range, traced, places) {
-                        first_invalid.fetch_min(invalid, Ordering::Relaxed);
-                        return;
-                    }
-                    for (&place, answer) in places.iter().zip(tracer.occluded_chunk(traced)) {
-                        out[place as usize] = answer;
-                    }
-                },
-            );
+            .for_each_init(Chunk::default, |traced, (chunk, out)| {
+                let range = chunk * chunk_rays..chunk * chunk_rays + out.len();
+                if let Some(invalid) = order.read(rays, range, traced) {
+                    first_invalid.fetch_min(invalid, Ordering::Relaxed);
+                    return;
+                }
+                let occluded = tracer.occluded_chunk(&traced.rays);
+                for (&place, answer) in traced.places.iter().zip(occluded) {
+                    out[place as usize] = answer;
+                }
+            });
         check_valid(first_invalid)?;
         let Rays::Gathered {
             positions, total, ..
