@@ -118,27 +118,23 @@ pub struct Chunk {
 /// with its position among the caller's rays; `Ok(None)` when their order is coherent enough
 /// (or too few to reorder), `Err` with the first invalid ray's index.
 pub fn sorted(rays: &Rays) -> Result<Option<Rays<'static>>, usize> {
-    let (all, positions, total) = match rays {
+    let read;
+    let (all, positions, total): (&[Ray], _, _) = match rays {
         Rays::All { components, .. } => {
-            let all: Option<Vec<Ray>> = (0..components.len())
+            read = (0..components.len())
                 .into_par_iter()
                 .map(|i| rays.ray(i))
-                .collect();
-            let Some(all) = all else {
-                let invalid = (0..components.len())
-                    .into_par_iter()
-                    .position_first(|i| rays.ray(i).is_none());
-                return Err(invalid.unwrap_or(0));
-            };
-            (all, None, components.len())
+                .collect::<Option<Vec<Ray>>>()
+                .ok_or_else(|| first_invalid(rays, components.len()))?;
+            (&read, None, components.len())
         }
         Rays::Gathered {
             rays,
             positions,
             total,
-        } => (rays.clone(), Some(positions), *total),
+        } => (rays, Some(positions), *total),
     };
-    let Some(order) = coherent_order(&all) else {
+    let Some(order) = coherent_order(all) else {
         return Ok(None);
     };
     let position = |index: usize| positions.map_or(index, |positions| positions[index]);
@@ -152,6 +148,14 @@ pub fn sorted(rays: &Rays) -> Result<Option<Rays<'static>>, usize> {
     }))
 }
 
+/// The index of the first invalid one of the `count` rays of `rays`.
+fn first_invalid(rays: &Rays, count: usize) -> usize {
+    (0..count)
+        .into_par_iter()
+        .position_first(|i| rays.ray(i).is_none())
+        .unwrap_or(0)
+}
+
 /// The offsets in a band of `rows` rows, `width` wide, tile by tile in packet order.
 fn band_order(width: usize, rows: usize) -> Vec<u32> {
     reducem::render::tiles(width as u32, rows as u32).concat()
@@ -162,6 +166,7 @@ fn band_order(width: usize, rows: usize) -> Vec<u32> {
 /// found where the step between consecutive directions jumps.
 fn camera_width(components: Components<'_>, shape: &[usize]) -> Option<usize> {
     let count = components.len();
+    // Too few rays for bands to pay; the row search below needs a few steps.
     if count < 2 * BAND_ROWS {
         return None;
     }
