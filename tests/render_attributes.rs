@@ -10,7 +10,6 @@ use glam::Vec3;
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::attributes::{AttributeSet, NormalEncoding};
 use reducem::format::reader::ReducemFile;
-use reducem::geometry::Aabb;
 use reducem::mesh::Mesh;
 use reducem::render::attributes::srgb_to_linear;
 use reducem::render::camera::Camera;
@@ -103,12 +102,9 @@ fn from_above(height: f32, extra: &str) -> String {
 /// The primary ray of every pixel of `scene` on `file`, as the renderer traces it.
 fn primary_rays(file: &ReducemFile, scene: &str) -> Vec<Ray> {
     let scene = Scene::parse(Path::new("test.toml"), scene).expect("scene");
-    let bounds = Aabb {
-        min: file.header().bounds_min,
-        max: file.header().bounds_max,
-    };
     let (width, height) = (scene.image.width, scene.image.height);
-    let camera = Camera::new(&scene.camera, &bounds, width, height);
+    let tracer = Tracer::new(file, TraceOptions::default());
+    let camera = Camera::new(&tracer, &scene.camera, width, height);
     (0..width * height)
         .map(|p| camera.primary_ray(p % width, p / width))
         .collect()

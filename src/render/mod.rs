@@ -14,12 +14,14 @@
 //!
 //! Shading is Lambertian with a two-sided normal: `albedo × colour × (ambient × AO + Σ lights
 //! intensity × cos θ × visibility / falloff)`, point lights falling off with squared distance,
-//! then sRGB-encoded to 8-bit PNG ([`image`]). The normal is the geometric one, or the stored
-//! vertex normals interpolated when the file has them; the colour is white, or the stored vertex
-//! colours interpolated ([`attributes`]).
+//! times the exposure through the scene's tone curve, then sRGB-encoded to 8-bit PNG
+//! ([`image`]). The normal is the geometric one, or the stored vertex normals interpolated when
+//! the file has them; the colour is white, or the stored vertex colours interpolated
+//! ([`attributes`]). An automatic camera without a direction is framed by [`framing`].
 
 pub mod attributes;
 pub mod camera;
+pub mod framing;
 pub mod image;
 pub mod memory;
 pub mod plan;
@@ -253,8 +255,9 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             min: header.bounds_min,
             max: header.bounds_max,
         };
-        let plan = Plan::new(scene, &bounds);
-        let camera = Camera::new(&scene.camera, &bounds, plan.width, plan.height);
+        let (width, height) = (scene.image.width, scene.image.height);
+        let camera = Camera::new(tracer, &scene.camera, width, height);
+        let plan = Plan::new(scene, &bounds, &camera);
         let used = AttributeUse::new(file.attributes(), &scene.shading);
         BandRenderer {
             tracer,
@@ -315,10 +318,10 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             unoccluded
         });
 
-        let exposure = self.scene.shading.exposure;
+        let (exposure, tone_curve) = (self.scene.shading.exposure, self.scene.shading.tone_curve);
         shade(self.scene, plan, &surfaces, &visibility, ambient.as_deref())
             .into_iter()
-            .map(|pixel| pixel.map(|channel| channel * exposure))
+            .map(|pixel| pixel.map(|channel| tone_curve.apply(channel * exposure)))
             .collect()
     }
 

@@ -7,6 +7,7 @@
 
 use glam::Vec3;
 
+use super::camera::Camera;
 use super::scene::Scene;
 use crate::geometry::Aabb;
 
@@ -50,10 +51,16 @@ pub struct Plan {
 }
 
 impl Plan {
-    pub fn new(scene: &Scene, bounds: &Aabb) -> Plan {
+    /// The plan of `scene` on a model within `bounds`, seen by `camera` (which turns the lights
+    /// given relative to it).
+    pub fn new(scene: &Scene, bounds: &Aabb, camera: &Camera) -> Plan {
         let directional = scene.directional_light.iter().map(|l| Light {
             source: LightSource::Directional {
-                toward_light: -Vec3::from(l.direction).normalize(),
+                toward_light: -match l.relative_to_camera {
+                    true => camera.to_model(Vec3::from(l.direction)),
+                    false => Vec3::from(l.direction),
+                }
+                .normalize(),
             },
             intensity: l.intensity,
             cast_shadows: l.cast_shadows,

@@ -5,7 +5,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
 use reducem::format::attributes::NormalEncoding;
-use reducem::geometry::Aabb;
 use reducem::render::camera::{placement, Camera};
 use reducem::render::image::srgb_bytes;
 use reducem::render::scene::Scene;
@@ -74,7 +73,6 @@ pub struct Viewer {
     y_up_scene: Scene,
     pub up: UpAxis,
     pub token: String,
-    pub bounds: Aabb,
 }
 
 /// One image of a view, encoded, with what the page shows about it.
@@ -110,18 +108,12 @@ impl Viewer {
     ) -> Viewer {
         let mut y_up_scene = scene.clone();
         y_up_scene.turn_to_y_up();
-        let header = tracer.file().header();
-        let bounds = Aabb {
-            min: header.bounds_min,
-            max: header.bounds_max,
-        };
         Viewer {
             tracer,
             z_up_scene: scene,
             y_up_scene,
             up,
             token,
-            bounds,
         }
     }
 
@@ -139,7 +131,7 @@ impl Viewer {
         let scene = self.scene(up);
         let settings = &scene.camera;
         let (width, height) = (scene.image.width, scene.image.height);
-        let (position, look_at) = placement(settings, &self.bounds, width, height);
+        let (position, look_at) = placement(self.tracer, settings, width, height);
         CameraView {
             position: position.into(),
             look_at: look_at.into(),
@@ -285,7 +277,7 @@ impl Viewer {
         if x >= view.width || y >= view.height {
             return None;
         }
-        let camera = Camera::new(&scene.camera, &self.bounds, view.width, view.height);
+        let camera = Camera::new(self.tracer, &scene.camera, view.width, view.height);
         let ray = camera.primary_ray(x, y);
         let record = trace_hits_as(self.tracer, &[ray], HitFormat::Full);
         let f32_at =
