@@ -248,3 +248,35 @@ fn vertex_colours_multiply_the_albedo() {
         "{red_pixels} red, {sky_pixels} sky"
     );
 }
+
+/// The normals view shows the flat square's geometric normal, +z, as the sRGB codes 128, 128,
+/// 255 at every pixel it covers, with stored normals and colours or without, and the background
+/// elsewhere.
+#[test]
+fn the_normals_view_shows_the_geometric_normal() {
+    let square = two_coloured_square();
+    let plain = convert(&square, &BuildParams::default(), "normals-view.rdm");
+    let coloured = convert(
+        &square,
+        &with_attributes(COLORS),
+        "normals-view-colours.rdm",
+    );
+    let scene = from_above(12.0, "mode = \"normals\"\n");
+    for file in [&plain, &coloured] {
+        let frame = render_scene(file, &scene);
+        let background = srgb_bytes(&Frame {
+            width: 1,
+            height: 1,
+            pixels: vec![[0.05, 0.06, 0.08]],
+        });
+        let bytes = srgb_bytes(&frame);
+        let mut covered = 0;
+        for pixel in bytes.chunks_exact(3) {
+            if pixel != background.as_slice() {
+                assert_eq!(pixel, [128, 128, 255]);
+                covered += 1;
+            }
+        }
+        assert!(covered > 1000, "{covered} pixels show the square");
+    }
+}

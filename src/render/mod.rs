@@ -45,7 +45,7 @@ use camera::Camera;
 use plan::{AoPlan, Light, LightSource, Plan};
 use residency::Residency;
 use sampling::Surface;
-use scene::Scene;
+use scene::{Scene, Shading, ShadingMode};
 
 /// Tile edge in pixels: 64 rays, eight packets of [`PACKET_COLUMNS`] × [`PACKET_ROWS`] pixels.
 const TILE: u32 = 8;
@@ -318,6 +318,9 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             unoccluded
         });
 
+        if self.scene.shading.mode == ShadingMode::Normals {
+            return normal_colors(&self.scene.shading, &surfaces);
+        }
         let (exposure, tone_curve) = (self.scene.shading.exposure, self.scene.shading.tone_curve);
         shade(self.scene, plan, &surfaces, &visibility, ambient.as_deref())
             .into_iter()
@@ -561,6 +564,21 @@ fn shade(
                 light_sum += lit * irradiance(light, &surface);
             }
             (albedo * surface.color * light_sum).into()
+        })
+        .collect()
+}
+
+/// The normals view: each pixel's geometric normal as the linear RGB whose sRGB codes are the
+/// components mapped from [-1, 1] to [0, 255]; the background as the scene gives it.
+fn normal_colors(shading: &Shading, surfaces: &[Option<Surface>]) -> Vec<[f32; 3]> {
+    surfaces
+        .iter()
+        .map(|surface| match surface {
+            Some(surface) => surface.normal.to_array().map(|component| {
+                let code = ((component.clamp(-1.0, 1.0) * 0.5 + 0.5) * 255.0 + 0.5) as u8;
+                attributes::srgb_to_linear(code)
+            }),
+            None => shading.background,
         })
         .collect()
 }

@@ -169,6 +169,8 @@ pub struct Shading {
     pub exposure: f32,
     /// Maps the exposed radiance to the image's values.
     pub tone_curve: ToneCurve,
+    /// Light the model, or show its geometric normals as colours.
+    pub mode: ShadingMode,
     /// Shade with the file's stored vertex normals, interpolated, when it has them.
     pub smooth: bool,
     /// Multiply the albedo by the file's stored vertex colours, interpolated, when it has them.
@@ -184,10 +186,23 @@ impl Default for Shading {
             seed: 1,
             exposure: 1.0,
             tone_curve: ToneCurve::Linear,
+            mode: ShadingMode::Lit,
             smooth: true,
             vertex_colors: true,
         }
     }
+}
+
+/// What a pixel of the model shows.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ShadingMode {
+    /// The lights, ambient light and effects of the scene.
+    #[default]
+    Lit,
+    /// The geometric normal (turned towards the camera) as a colour: each component from -1 to
+    /// 1 as the sRGB code from 0 to 255 of red, green and blue; no light, shadow or AO.
+    Normals,
 }
 
 /// How exposed linear radiance becomes the image's value, channel by channel.
