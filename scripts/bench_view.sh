@@ -9,8 +9,50 @@
 #   scripts/bench_view.sh /tmp/scan10m.rdm 2 10
 #
 # Needs chromium, chromium-driver and python3 with selenium (pip install selenium).
+#
+# With --first-picture, the first picture instead: `reducem render` of each shipped scene with its
+# automatic camera and the file's stored up axis, at SIZE² (default 512), and for each the fill
+# (the fraction of pixels not of the background colour) and the 10th, 50th and 90th percentiles
+# of the model's pixels' luminance (Rec. 709 weights on the 8-bit sRGB codes). Needs numpy.
+#
+#   scripts/bench_view.sh --first-picture MODEL [SIZE]
 set -euo pipefail
 cd "$(dirname "$0")/.."
+if [ "${1:-}" = --first-picture ]; then
+    model=$2
+    size=${3:-512}
+    cargo build --release --quiet -p reducem --bin reducem
+    images=$(mktemp -d)
+    trap 'rm -rf "$images"' EXIT
+    for scene in primary occlusion shadows; do
+        target/release/reducem render "$model" --scene "configs/scenes/$scene.toml" \
+            --width "$size" --height "$size" -o "$images/$scene.pfm" >/dev/null
+    done
+    "${PYTHON:-python3}" - "$images"/*.pfm <<'EOF'
+import os, sys
+import numpy as np
+
+def linear_rgb(path):
+    with open(path, "rb") as f:
+        assert f.readline().strip() == b"PF"
+        width, height = map(int, f.readline().split())
+        scale = float(f.readline())
+        pixels = np.frombuffer(f.read(), dtype="<f4" if scale < 0 else ">f4")
+    return pixels.reshape(height * width, 3)
+
+for path in sys.argv[1:]:
+    pixels = linear_rgb(path)
+    values, counts = np.unique(pixels, axis=0, return_counts=True)
+    model = np.any(pixels != values[counts.argmax()], axis=1)
+    x = np.clip(np.nan_to_num(pixels[model]), 0, 1)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    luminance = np.floor(srgb * 255 + 0.5) @ np.array([0.2126, 0.7152, 0.0722])
+    p10, p50, p90 = np.percentile(luminance, [10, 50, 90])
+    scene = os.path.basename(path).removesuffix(".pfm")
+    print(f"{scene}.toml: fill {model.mean():.3f}, luminance p10 {p10:.0f} p50 {p50:.0f} p90 {p90:.0f}")
+EOF
+    exit 0
+fi
 model=$1
 threads=${2:-2}
 seconds=${3:-10}

@@ -156,9 +156,10 @@ impl Command {
 #[derive(Clone, Debug, clap::Args)]
 struct SceneOverrides {
     /// The model's up axis: scenes are written for z-up models; y turns every position and
-    /// direction of the scene for a y-up model (such as the Stanford bunny).
-    #[arg(long, value_enum, default_value_t = UpAxis::Z)]
-    up: UpAxis,
+    /// direction of the scene for a y-up model (such as the Stanford bunny). Default: the axis
+    /// stored in the file (`[input] up` at conversion), else z.
+    #[arg(long, value_enum)]
+    up: Option<UpAxis>,
     /// Image width in pixels ([image] width).
     #[arg(long)]
     width: Option<u32>,
@@ -349,8 +350,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => {
             let destination = Destination::prepare(&output, &[&file, &scene])?;
             let format = image_format(&output)?;
-            let scene = load_scene(&scene, &overrides)?;
-            render(&file, &scene, &destination, format, json)
+            let scene = Scene::load(&scene)?;
+            let model = ReducemFile::open(&file)?;
+            let up = overrides.up.unwrap_or_else(|| stored_up_axis(&model));
+            render(
+                &model,
+                &prepare_scene(scene, &overrides, up)?,
+                &destination,
+                format,
+                json,
+            )
         }
     }
 }
@@ -493,11 +502,22 @@ impl std::fmt::Display for QuerySummary {
     }
 }
 
-/// The scene file, turned and overridden as the command line asks; an override that makes the
-/// scene invalid is a usage error.
-fn load_scene(path: &Path, overrides: &SceneOverrides) -> anyhow::Result<Scene> {
-    let mut scene = Scene::load(path)?;
-    if overrides.up == UpAxis::Y {
+/// The up axis the file stores; z, as scenes are written, for a file that stores none.
+fn stored_up_axis(file: &ReducemFile) -> UpAxis {
+    match file.up_axis() {
+        Some(reducem::format::model::UpAxis::Y) => UpAxis::Y,
+        Some(reducem::format::model::UpAxis::Z) | None => UpAxis::Z,
+    }
+}
+
+/// The scene turned for a model whose up axis is `up` and overridden as the command line asks;
+/// an override that makes the scene invalid is a usage error.
+fn prepare_scene(
+    mut scene: Scene,
+    overrides: &SceneOverrides,
+    up: UpAxis,
+) -> anyhow::Result<Scene> {
+    if up == UpAxis::Y {
         scene.turn_to_y_up();
     }
     apply_overrides(&mut scene, overrides);
@@ -530,19 +550,18 @@ fn apply_overrides(scene: &mut Scene, overrides: &SceneOverrides) {
 }
 
 fn render(
-    path: &Path,
+    file: &ReducemFile,
     scene: &Scene,
     output: &Destination,
     format: ImageFormat,
     json: bool,
 ) -> anyhow::Result<()> {
     reducem::render::memory::check(scene, format).map_err(UsageError)?;
-    let file = ReducemFile::open(path)?;
     let options = TraceOptions {
         kernel: Kernel::from_env()?,
         ..TraceOptions::default()
     };
-    let tracer = Tracer::new(&file, options);
+    let tracer = Tracer::new(file, options);
     let report = output
         .write(|out| {
             let report = reducem::render::image::render_into(&tracer, scene, format, out).map_err(
@@ -553,7 +572,7 @@ fn render(
             )?;
             // A render that met a corrupt part of the file is incomplete: nothing is renamed
             // into place.
-            complete(&file)?;
+            complete(file)?;
             anyhow::Ok(report)
         })
         .map_err(|error| match error.is::<std::io::Error>() {

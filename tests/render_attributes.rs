@@ -10,7 +10,6 @@ use glam::Vec3;
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::attributes::{AttributeSet, NormalEncoding};
 use reducem::format::reader::ReducemFile;
-use reducem::geometry::Aabb;
 use reducem::mesh::Mesh;
 use reducem::render::attributes::srgb_to_linear;
 use reducem::render::camera::Camera;
@@ -103,12 +102,9 @@ fn from_above(height: f32, extra: &str) -> String {
 /// The primary ray of every pixel of `scene` on `file`, as the renderer traces it.
 fn primary_rays(file: &ReducemFile, scene: &str) -> Vec<Ray> {
     let scene = Scene::parse(Path::new("test.toml"), scene).expect("scene");
-    let bounds = Aabb {
-        min: file.header().bounds_min,
-        max: file.header().bounds_max,
-    };
     let (width, height) = (scene.image.width, scene.image.height);
-    let camera = Camera::new(&scene.camera, &bounds, width, height);
+    let tracer = Tracer::new(file, TraceOptions::default());
+    let camera = Camera::new(&tracer, &scene.camera, width, height);
     (0..width * height)
         .map(|p| camera.primary_ray(p % width, p / width))
         .collect()
@@ -251,4 +247,36 @@ fn vertex_colours_multiply_the_albedo() {
         red_pixels > 300 && sky_pixels > 300,
         "{red_pixels} red, {sky_pixels} sky"
     );
+}
+
+/// The normals view shows the flat square's geometric normal, +z, as the sRGB codes 128, 128,
+/// 255 at every pixel it covers, with stored normals and colours or without, and the background
+/// elsewhere.
+#[test]
+fn the_normals_view_shows_the_geometric_normal() {
+    let square = two_coloured_square();
+    let plain = convert(&square, &BuildParams::default(), "normals-view.rdm");
+    let coloured = convert(
+        &square,
+        &with_attributes(COLORS),
+        "normals-view-colours.rdm",
+    );
+    let scene = from_above(12.0, "mode = \"normals\"\n");
+    for file in [&plain, &coloured] {
+        let frame = render_scene(file, &scene);
+        let background = srgb_bytes(&Frame {
+            width: 1,
+            height: 1,
+            pixels: vec![[0.05, 0.06, 0.08]],
+        });
+        let bytes = srgb_bytes(&frame);
+        let mut covered = 0;
+        for pixel in bytes.chunks_exact(3) {
+            if pixel != background.as_slice() {
+                assert_eq!(pixel, [128, 128, 255]);
+                covered += 1;
+            }
+        }
+        assert!(covered > 1000, "{covered} pixels show the square");
+    }
 }

@@ -14,12 +14,14 @@
 //!
 //! Shading is Lambertian with a two-sided normal: `albedo × colour × (ambient × AO + Σ lights
 //! intensity × cos θ × visibility / falloff)`, point lights falling off with squared distance,
-//! then sRGB-encoded to 8-bit PNG ([`image`]). The normal is the geometric one, or the stored
-//! vertex normals interpolated when the file has them; the colour is white, or the stored vertex
-//! colours interpolated ([`attributes`]).
+//! times the exposure through the scene's tone curve, then sRGB-encoded to 8-bit PNG
+//! ([`image`]). The normal is the geometric one, or the stored vertex normals interpolated when
+//! the file has them; the colour is white, or the stored vertex colours interpolated
+//! ([`attributes`]). An automatic camera without a direction is framed by [`framing`].
 
 pub mod attributes;
 pub mod camera;
+pub mod framing;
 pub mod image;
 pub mod memory;
 pub mod plan;
@@ -43,7 +45,7 @@ use camera::Camera;
 use plan::{AoPlan, Light, LightSource, Plan};
 use residency::Residency;
 use sampling::Surface;
-use scene::Scene;
+use scene::{Scene, Shading, ShadingMode};
 
 /// Tile edge in pixels: 64 rays, eight packets of [`PACKET_COLUMNS`] × [`PACKET_ROWS`] pixels.
 const TILE: u32 = 8;
@@ -253,8 +255,9 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             min: header.bounds_min,
             max: header.bounds_max,
         };
-        let plan = Plan::new(scene, &bounds);
-        let camera = Camera::new(&scene.camera, &bounds, plan.width, plan.height);
+        let (width, height) = (scene.image.width, scene.image.height);
+        let camera = Camera::new(tracer, &scene.camera, width, height);
+        let plan = Plan::new(scene, &bounds, &camera);
         let used = AttributeUse::new(file.attributes(), &scene.shading);
         BandRenderer {
             tracer,
@@ -315,10 +318,13 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             unoccluded
         });
 
-        let exposure = self.scene.shading.exposure;
+        if self.scene.shading.mode == ShadingMode::Normals {
+            return normal_colors(&self.scene.shading, &surfaces);
+        }
+        let (exposure, tone_curve) = (self.scene.shading.exposure, self.scene.shading.tone_curve);
         shade(self.scene, plan, &surfaces, &visibility, ambient.as_deref())
             .into_iter()
-            .map(|pixel| pixel.map(|channel| channel * exposure))
+            .map(|pixel| pixel.map(|channel| tone_curve.apply(channel * exposure)))
             .collect()
     }
 
@@ -558,6 +564,21 @@ fn shade(
                 light_sum += lit * irradiance(light, &surface);
             }
             (albedo * surface.color * light_sum).into()
+        })
+        .collect()
+}
+
+/// The normals view: each pixel's geometric normal as the linear RGB whose sRGB codes are the
+/// components mapped from [-1, 1] to [0, 255]; the background as the scene gives it.
+fn normal_colors(shading: &Shading, surfaces: &[Option<Surface>]) -> Vec<[f32; 3]> {
+    surfaces
+        .iter()
+        .map(|surface| match surface {
+            Some(surface) => surface.normal.to_array().map(|component| {
+                let code = ((component.clamp(-1.0, 1.0) * 0.5 + 0.5) * 255.0 + 0.5) as u8;
+                attributes::srgb_to_linear(code)
+            }),
+            None => shading.background,
         })
         .collect()
 }

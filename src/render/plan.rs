@@ -7,7 +7,8 @@
 
 use glam::Vec3;
 
-use super::scene::Scene;
+use super::camera::Camera;
+use super::scene::{Scene, ShadingMode};
 use crate::geometry::Aabb;
 
 /// AO distance when the scene gives none, as a fraction of the model's bounds diagonal.
@@ -50,10 +51,16 @@ pub struct Plan {
 }
 
 impl Plan {
-    pub fn new(scene: &Scene, bounds: &Aabb) -> Plan {
+    /// The plan of `scene` on a model within `bounds`, seen by `camera` (which turns the lights
+    /// given relative to it).
+    pub fn new(scene: &Scene, bounds: &Aabb, camera: &Camera) -> Plan {
         let directional = scene.directional_light.iter().map(|l| Light {
             source: LightSource::Directional {
-                toward_light: -Vec3::from(l.direction).normalize(),
+                toward_light: -match l.relative_to_camera {
+                    true => camera.to_model(Vec3::from(l.direction)),
+                    false => Vec3::from(l.direction),
+                }
+                .normalize(),
             },
             intensity: l.intensity,
             cast_shadows: l.cast_shadows,
@@ -66,20 +73,26 @@ impl Plan {
             cast_shadows: l.cast_shadows,
         });
         let lights: Vec<Light> = directional.chain(point).collect();
+        // The normals view shows no light: nothing to trace for shadows or AO.
+        let lit = scene.shading.mode == ShadingMode::Lit;
         let shadow_lights = (0..lights.len())
-            .filter(|&i| lights[i].cast_shadows)
+            .filter(|&i| lit && lights[i].cast_shadows)
             .collect();
         let diagonal = if bounds.is_empty() {
             1.0
         } else {
             (Vec3::from(bounds.max) - Vec3::from(bounds.min)).length()
         };
-        let ambient_occlusion = scene.ambient_occlusion.as_ref().map(|ao| AoPlan {
-            samples: ao.samples,
-            max_distance: ao.max_distance.unwrap_or_else(|| {
-                ao.distance_fraction.unwrap_or(DEFAULT_AO_DISTANCE_FRACTION) * diagonal
-            }),
-        });
+        let ambient_occlusion = scene
+            .ambient_occlusion
+            .as_ref()
+            .filter(|_| lit)
+            .map(|ao| AoPlan {
+                samples: ao.samples,
+                max_distance: ao.max_distance.unwrap_or_else(|| {
+                    ao.distance_fraction.unwrap_or(DEFAULT_AO_DISTANCE_FRACTION) * diagonal
+                }),
+            });
         Plan {
             width: scene.image.width,
             height: scene.image.height,

@@ -27,14 +27,15 @@ impl RendererRays {
             min: file.header().bounds_min,
             max: file.header().bounds_max,
         };
-        let ao = Plan::new(scene, &bounds).ambient_occlusion?;
-        let camera = Camera::new(&scene.camera, &bounds, size, size);
+        let tracer = Tracer::new(file, TraceOptions::default());
+        let camera = Camera::new(&tracer, &scene.camera, size, size);
+        let ao = Plan::new(scene, &bounds, &camera).ambient_occlusion?;
         let pixels = tiles(size, size).concat();
         let primary: Vec<Ray> = pixels
             .iter()
             .map(|&p| camera.primary_ray(p % size, p / size))
             .collect();
-        let hits = Tracer::new(file, TraceOptions::default()).intersect_batch(&primary);
+        let hits = tracer.intersect_batch(&primary);
         let seed = scene.shading.seed;
         let ambient_occlusion = pixels
             .iter()

@@ -167,6 +167,10 @@ pub struct Shading {
     pub seed: u32,
     /// Multiplies the linear radiance before the image is encoded.
     pub exposure: f32,
+    /// Maps the exposed radiance to the image's values.
+    pub tone_curve: ToneCurve,
+    /// Light the model, or show its geometric normals as colours.
+    pub mode: ShadingMode,
     /// Shade with the file's stored vertex normals, interpolated, when it has them.
     pub smooth: bool,
     /// Multiply the albedo by the file's stored vertex colours, interpolated, when it has them.
@@ -181,8 +185,50 @@ impl Default for Shading {
             background: [0.05, 0.06, 0.08],
             seed: 1,
             exposure: 1.0,
+            tone_curve: ToneCurve::Linear,
+            mode: ShadingMode::Lit,
             smooth: true,
             vertex_colors: true,
+        }
+    }
+}
+
+/// What a pixel of the model shows.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ShadingMode {
+    /// The lights, ambient light and effects of the scene.
+    #[default]
+    Lit,
+    /// The geometric normal (turned towards the camera) as a colour: each component from -1 to
+    /// 1 as the sRGB code from 0 to 255 of red, green and blue; no light, shadow or AO.
+    Normals,
+}
+
+/// How exposed linear radiance becomes the image's value, channel by channel.
+#[derive(Clone, Copy, Debug, Default, Deserialize, Serialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum ToneCurve {
+    /// The radiance itself, clipped at 1 when encoded.
+    #[default]
+    Linear,
+    /// A shoulder that reaches 1 at [`FILMIC_WHITE`] instead of clipping at 1, so that bright
+    /// lit faces keep their shading while exposure brightens the rest.
+    Filmic,
+}
+
+/// The exposed radiance the filmic curve maps to 1.
+pub const FILMIC_WHITE: f32 = 2.0;
+
+impl ToneCurve {
+    pub fn apply(self, value: f32) -> f32 {
+        match self {
+            ToneCurve::Linear => value,
+            // Reinhard's curve with a white point: x (1 + x / w²) / (1 + x).
+            ToneCurve::Filmic => {
+                let value = value.max(0.0);
+                value * (1.0 + value / (FILMIC_WHITE * FILMIC_WHITE)) / (1.0 + value)
+            }
         }
     }
 }
@@ -196,6 +242,10 @@ pub struct DirectionalLight {
     pub intensity: f32,
     #[serde(default)]
     pub cast_shadows: bool,
+    /// `direction` is in the camera's frame (x right, y up, z towards the viewer), so the light
+    /// keeps its place in the image from any side: a key light from the upper left stays there.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub relative_to_camera: bool,
 }
 
 #[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
@@ -296,7 +346,9 @@ impl Scene {
         camera.direction = camera.direction.map(turn);
         camera.up = turn(camera.up);
         for light in &mut self.directional_light {
-            light.direction = turn(light.direction);
+            if !light.relative_to_camera {
+                light.direction = turn(light.direction);
+            }
         }
         for light in &mut self.point_light {
             light.position = turn(light.position);
@@ -467,6 +519,33 @@ mod tests {
         assert_eq!(scene.camera.position, Some([1.0, 3.0, -2.0]));
         assert_eq!(scene.camera.up, [0.0, 1.0, 0.0]);
         assert_eq!(scene.directional_light[0].direction, [0.0, -1.0, 0.0]);
+    }
+
+    #[test]
+    fn lights_relative_to_the_camera_are_not_turned_for_y_up() {
+        let text = "[[directional_light]]\ndirection = [0.5, -0.6, -0.6]\n\
+                    relative_to_camera = true\n\
+                    [[directional_light]]\ndirection = [0.0, 0.0, -1.0]\n";
+        let mut scene = Scene::parse(Path::new("s.toml"), text).expect("parse");
+        scene.turn_to_y_up();
+        assert_eq!(scene.directional_light[0].direction, [0.5, -0.6, -0.6]);
+        assert_eq!(scene.directional_light[1].direction, [0.0, -1.0, 0.0]);
+    }
+
+    #[test]
+    fn the_filmic_curve_reaches_one_at_its_white_and_keeps_the_order() {
+        let filmic = |x: f32| ToneCurve::Filmic.apply(x);
+        assert_eq!(filmic(FILMIC_WHITE), 1.0);
+        assert_eq!(filmic(0.0), 0.0);
+        assert_eq!(ToneCurve::Linear.apply(1.5), 1.5);
+        let values: Vec<f32> = (0..=40).map(|i| filmic(i as f32 * 0.05)).collect();
+        assert!(
+            values.windows(2).all(|pair| pair[0] < pair[1]),
+            "{values:?}"
+        );
+        let text = format!("{MINIMAL}[shading]\ntone_curve = \"filmic\"\n");
+        let scene = Scene::parse(Path::new("s.toml"), &text).expect("parse");
+        assert_eq!(scene.shading.tone_curve, ToneCurve::Filmic);
     }
 
     #[test]

@@ -5,10 +5,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
 use reducem::format::attributes::NormalEncoding;
-use reducem::geometry::Aabb;
 use reducem::render::camera::{placement, Camera};
 use reducem::render::image::srgb_bytes;
-use reducem::render::scene::Scene;
+use reducem::render::scene::{Scene, ShadingMode};
 use reducem::render::{render_in_bands, Frame, RenderReport, RowOrder};
 use reducem::trace::ray_file::{trace_hits_as, HitFormat};
 use reducem::trace::Tracer;
@@ -64,6 +63,9 @@ pub struct Effects {
     pub colors: bool,
     pub ambient_occlusion: bool,
     pub shadows: bool,
+    /// Show the geometric normals as colours instead of the lit model.
+    #[serde(default)]
+    pub normals_view: bool,
 }
 
 /// What every connection shares: the file's tracer, the scene that shades it (as written for a
@@ -74,7 +76,6 @@ pub struct Viewer {
     y_up_scene: Scene,
     pub up: UpAxis,
     pub token: String,
-    pub bounds: Aabb,
 }
 
 /// One image of a view, encoded, with what the page shows about it.
@@ -110,18 +111,12 @@ impl Viewer {
     ) -> Viewer {
         let mut y_up_scene = scene.clone();
         y_up_scene.turn_to_y_up();
-        let header = tracer.file().header();
-        let bounds = Aabb {
-            min: header.bounds_min,
-            max: header.bounds_max,
-        };
         Viewer {
             tracer,
             z_up_scene: scene,
             y_up_scene,
             up,
             token,
-            bounds,
         }
     }
 
@@ -139,7 +134,7 @@ impl Viewer {
         let scene = self.scene(up);
         let settings = &scene.camera;
         let (width, height) = (scene.image.width, scene.image.height);
-        let (position, look_at) = placement(settings, &self.bounds, width, height);
+        let (position, look_at) = placement(self.tracer, settings, width, height);
         CameraView {
             position: position.into(),
             look_at: look_at.into(),
@@ -158,12 +153,14 @@ impl Viewer {
             colors: scene.shading.vertex_colors,
             ambient_occlusion: scene.ambient_occlusion.is_some(),
             shadows,
+            normals_view: scene.shading.mode == ShadingMode::Normals,
         };
         let available = Effects {
             stored_normals: stored.normals != NormalEncoding::None,
             colors: stored.colors,
             ambient_occlusion: true,
             shadows: !(scene.directional_light.is_empty() && scene.point_light.is_empty()),
+            normals_view: true,
         };
         (on, available)
     }
@@ -285,7 +282,7 @@ impl Viewer {
         if x >= view.width || y >= view.height {
             return None;
         }
-        let camera = Camera::new(&scene.camera, &self.bounds, view.width, view.height);
+        let camera = Camera::new(self.tracer, &scene.camera, view.width, view.height);
         let ray = camera.primary_ray(x, y);
         let record = trace_hits_as(self.tracer, &[ray], HitFormat::Full);
         let f32_at =
@@ -353,10 +350,15 @@ pub struct Pick {
 }
 
 /// `scene` with the page's switches: an effect switched off is left out, one switched on that
-/// the scene lacks is added (AO with its defaults, shadows from every light).
+/// the scene lacks is added (AO with its defaults, shadows from every light); the normals view
+/// leaves out both.
 fn switch_effects(scene: &mut Scene, effects: Effects) {
     scene.shading.smooth = effects.stored_normals;
     scene.shading.vertex_colors = effects.colors;
+    scene.shading.mode = match effects.normals_view {
+        true => ShadingMode::Normals,
+        false => ShadingMode::Lit,
+    };
     match effects.ambient_occlusion {
         false => scene.ambient_occlusion = None,
         true => _ = scene.ambient_occlusion.get_or_insert_default(),
@@ -370,6 +372,10 @@ fn switch_effects(scene: &mut Scene, effects: Effects) {
             .point_light
             .iter_mut()
             .for_each(|l| l.cast_shadows = effects.shadows);
+    }
+    // The normals view shows no light: its image is the primary one, with no samples to add.
+    if effects.normals_view {
+        *scene = primary_only(scene);
     }
 }
 

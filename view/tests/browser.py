@@ -196,6 +196,16 @@ def main():
         wait_for(lambda: "[ambient_occlusion]" in scene_box.get_attribute("value"), "the scene text")
         print("the AO switch brought 16 samples per pixel, and copy scene shows the scene")
 
+        # Clicked by script: the scene text shown above may cover the switch in a narrow window.
+        switch = driver.find_element(By.ID, "normals_view")
+        driver.execute_script("arguments[0].click()", switch)
+        wait_for(lambda: spp() == "1", "the normals view (no AO samples)")
+        driver.find_element(By.ID, "copy").click()
+        wait_for(lambda: 'mode = "normals"' in scene_box.get_attribute("value"), "the normals scene")
+        driver.execute_script("arguments[0].click()", switch)
+        wait_for(lambda: spp() == "16", "the lit AO image again")
+        print("the normal colours switch shows the normals view, without AO samples")
+
         Select(driver.find_element(By.ID, "up")).select_by_value("y")
         wait_for(lambda: json.loads(camera(driver))["up"] == [0, 1, 0], "the y-up camera")
         wait_for(lambda: "#up=y&camera=" in driver.current_url, "the camera in the URL fragment")

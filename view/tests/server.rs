@@ -305,12 +305,7 @@ fn a_view_gets_a_coarse_frame_then_the_full_one_and_picks_and_images_match_the_l
         (pick["x"], pick["y"]) = (x.into(), y.into());
         send(&mut socket, pick.clone());
         let answer = text(&mut socket);
-        let header = opened.header();
-        let bounds = reducem::geometry::Aabb {
-            min: header.bounds_min,
-            max: header.bounds_max,
-        };
-        let ray = Camera::new(&scene.camera, &bounds, 64, 48).primary_ray(x, y);
+        let ray = Camera::new(&tracer, &scene.camera, 64, 48).primary_ray(x, y);
         let record = trace_hits_as(&tracer, &[ray], HitFormat::Full);
         let t = f32::from_le_bytes(record[..4].try_into().unwrap());
         let picked = &answer["pick"];

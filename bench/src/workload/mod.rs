@@ -106,6 +106,7 @@ pub fn ao_scene(size: u32, samples: u32) -> Scene {
             direction: [-0.4, -0.3, -1.0],
             intensity: 0.3,
             cast_shadows: false,
+            relative_to_camera: false,
         }],
         point_light: Vec::new(),
         ambient_occlusion: Some(AmbientOcclusion {
