@@ -11,16 +11,20 @@
 //! those roundings on any axis) before the conservative slab test of
 //! [`crate::trace::prepared`], and the ray's `[tmin, tmax]` by the same relative margin.
 
+use arrayvec::ArrayVec;
 use wide::f32x4;
 
-use super::child_box::ChildBox;
+use crate::format::block_boxes::{BoxFrame, BOX_WINDOWS, CODE_BIAS, MAX_CODE};
+use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{TopSlot, TOP_WIDTH};
+use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::trace::kernel::crossing_blocks::{for_each_candidate, StripBlocks, MASK_BLOCKS};
 use crate::trace::kernel::Kernel;
-use crate::trace::prepared::{max_not_nan_x4, min_not_nan_x4, FAR_INFLATION};
+use crate::trace::prepared::{
+    max_not_nan, max_not_nan_x4, min_not_nan, min_not_nan_x4, FAR_INFLATION,
+};
 use crate::trace::watertight::{RayPoint, RaySpace};
 use crate::trace::Ray;
 
@@ -40,6 +44,8 @@ pub(super) struct CrossingWalk {
     entry_reciprocal: [f32x4; 3],
     exit_reciprocal: [f32x4; 3],
     negative: [bool; 3],
+    /// The same in the lanes `x, y, z` of one register (lane 3 unused), for block boxes.
+    axes: AxisLanes,
     /// `[tmin, tmax]` grown by [`MARGIN`].
     t_near: f32,
     t_far: f32,
@@ -58,6 +64,8 @@ impl CrossingWalk {
             }
         });
         let splat = |v: &Point| v.map(f32x4::splat);
+        let negative = ray.direction.map(|d| d.is_sign_negative());
+        let all_ones = negative.map(|n| f32::from_bits(if n { u32::MAX } else { 0 }));
         CrossingWalk {
             kernel,
             space: RaySpace::new(ray.origin, ray.direction),
@@ -65,7 +73,13 @@ impl CrossingWalk {
             origin: splat(&ray.origin),
             entry_reciprocal: splat(&entry_reciprocal),
             exit_reciprocal: splat(&exit_reciprocal),
-            negative: ray.direction.map(|d| d.is_sign_negative()),
+            negative,
+            axes: AxisLanes {
+                origin: axis_lanes(&ray.origin),
+                entry_reciprocal: axis_lanes(&entry_reciprocal),
+                exit_reciprocal: axis_lanes(&exit_reciprocal),
+                negative: axis_lanes(&all_ones),
+            },
             t_near: ray.tmin * (1.0 - MARGIN),
             t_far: ray.tmax * (1.0 + MARGIN),
         }
@@ -80,7 +94,7 @@ impl CrossingWalk {
         }
     }
 
-    fn nodes<N: ChildBox>(
+    fn nodes<N: NodeBoxes>(
         &self,
         file: &ReducemFile,
         nodes: &[N],
@@ -90,8 +104,8 @@ impl CrossingWalk {
         if nodes.is_empty() {
             return;
         }
-        let mut stack = Vec::with_capacity(64);
-        stack.push(0u32);
+        let mut stack = NodeStack::default();
+        stack.push(0);
         let mut visits = file.node_visits();
         while let Some(index) = stack.pop() {
             // A file changed in place after its validation may link nodes in circles.
@@ -102,7 +116,7 @@ impl CrossingWalk {
             let Some(node) = file.top_node(nodes, index as usize) else {
                 continue;
             };
-            let mut entered = self.entered(&child_boxes(node, grid));
+            let mut entered = self.entered(&node.boxes(grid));
             while entered != 0 {
                 let slot = entered.trailing_zeros() as usize;
                 entered &= entered - 1;
@@ -128,7 +142,7 @@ impl CrossingWalk {
         each: &mut impl FnMut(u32, usize, [RayPoint; 3]),
     ) {
         let view = file.strip(strip as usize);
-        let blocks = view.window_count().div_ceil(BLOCK_WINDOWS);
+        let blocks = view.window_count().div_ceil(BOX_WINDOWS);
         let mut candidate = |window: usize, corners: [RayPoint; 3]| each(strip, window, corners);
         for first_block in (0..blocks).step_by(MASK_BLOCKS) {
             let count = (blocks - first_block).min(MASK_BLOCKS);
@@ -148,7 +162,7 @@ impl CrossingWalk {
     }
 
     /// Of the `count` blocks from `first_block`, those whose box the ray may meet (all when
-    /// the boxes cannot be framed: only in a corrupt strip, which validation reports).
+    /// the boxes cannot be framed or read: only in a corrupt strip, which validation reports).
     fn entered_blocks(&self, view: &StripView, first_block: usize, count: usize) -> u64 {
         let anchor = match view.vertices {
             StripVertices::F32(vertices) => vertices.point(0),
@@ -158,23 +172,35 @@ impl CrossingWalk {
         let Some(frame) = view.boxes.frame(anchor) else {
             return all;
         };
+        let planes = BlockPlanes::new(&frame);
         let mut mask = 0u64;
-        for group in (0..count).step_by(4) {
-            let lanes = 4.min(count - group);
-            // A box past the stored ones (a corrupt strip) stays NaN, which is entered.
-            let mut boxes: FourBoxes = ([[f32::NAN; 4]; 3], [[f32::NAN; 4]; 3]);
-            for lane in 0..lanes {
-                if let Some((min, max)) = view.boxes.decode(&frame, first_block + group + lane) {
-                    for axis in 0..3 {
-                        boxes.0[axis][lane] = min[axis];
-                        boxes.1[axis][lane] = max[axis];
-                    }
-                }
-            }
-            let entered = self.entered(&boxes) & ((1 << lanes) - 1);
-            mask |= u64::from(entered) << group;
+        for block in 0..count {
+            let Some(codes) = view.boxes.codes(first_block + block) else {
+                return mask | (all & (u64::MAX << block));
+            };
+            let (min, max) = planes.decode(codes);
+            mask |= u64::from(self.block_entered(min, max)) << block;
         }
         mask
+    }
+
+    /// [`CrossingWalk::entered`] for one box held axis by axis in lanes.
+    #[inline(always)]
+    fn block_entered(&self, min: f32x4, max: f32x4) -> bool {
+        let axes = &self.axes;
+        let (low, high) = (min - axes.origin, max - axes.origin);
+        let reach = (low.abs() + high.abs()).to_array();
+        let widen = f32x4::splat((reach[0] + reach[1] + reach[2]) * MARGIN);
+        let (low, high) = (low - widen, high + widen);
+        let entry = axes.negative.select(high, low) * axes.entry_reciprocal;
+        let exit = axes.negative.select(low, high) * axes.exit_reciprocal;
+        let (entry, exit) = (
+            entry.to_array(),
+            (exit * f32x4::splat(FAR_INFLATION)).to_array(),
+        );
+        let near = (0..3).fold(self.t_near, |near, axis| max_not_nan(near, entry[axis]));
+        let far = (0..3).fold(self.t_far, |far, axis| min_not_nan(far, exit[axis]));
+        near <= far
     }
 
     /// The boxes the ray may meet within its grown interval, each grown by [`MARGIN`] (module
@@ -202,22 +228,99 @@ impl CrossingWalk {
     }
 }
 
-/// Windows per block box (format 3).
-const BLOCK_WINDOWS: usize = crate::format::block_boxes::BOX_WINDOWS;
+/// A point's `x, y, z` in lanes 0 to 2 (lane 3 zero).
+fn axis_lanes(p: &Point) -> f32x4 {
+    f32x4::from([p[0], p[1], p[2], 0.0])
+}
+
+/// A ray's origin, reciprocals and direction signs (all-ones lanes) axis by axis in lanes.
+struct AxisLanes {
+    origin: f32x4,
+    entry_reciprocal: f32x4,
+    exit_reciprocal: f32x4,
+    negative: f32x4,
+}
+
+/// A strip's box frame in lanes, to decode one block box into `x, y, z` lanes as
+/// [`crate::format::block_boxes::decode_plane`] does, bit for bit (the code minus the bias
+/// and the product by the power-of-two scale are exact, the sum rounds once).
+struct BlockPlanes {
+    anchor: f32x4,
+    scale: f32x4,
+}
+
+impl BlockPlanes {
+    fn new(frame: &BoxFrame) -> BlockPlanes {
+        BlockPlanes {
+            anchor: axis_lanes(&frame.anchor),
+            scale: axis_lanes(&frame.scale),
+        }
+    }
+
+    #[inline(always)]
+    fn decode(&self, codes: [u8; 3]) -> (f32x4, f32x4) {
+        let plane = |shift: u8| {
+            let code = |axis: usize| f32::from((codes[axis] >> shift) & MAX_CODE);
+            let bias = CODE_BIAS as f32;
+            let offset = f32x4::from([code(0) - bias, code(1) - bias, code(2) - bias, 0.0]);
+            self.anchor + offset * self.scale
+        };
+        (plane(0), plane(4))
+    }
+}
+
+/// Nodes pending in a walk: inline, then on the heap (only in trees deeper than any built).
+#[derive(Default)]
+struct NodeStack {
+    inline: ArrayVec<u32, 64>,
+    spill: Vec<u32>,
+}
+
+impl NodeStack {
+    #[inline(always)]
+    fn push(&mut self, node: u32) {
+        if let Err(full) = self.inline.try_push(node) {
+            self.spill.push(full.element());
+        }
+    }
+
+    /// The node pushed last: spilled ones are newer than every inline one.
+    #[inline(always)]
+    fn pop(&mut self) -> Option<u32> {
+        self.spill.pop().or_else(|| self.inline.pop())
+    }
+}
+
+/// A top-level node record's four child boxes axis by axis, as f32, whatever its layout: the
+/// walk's one view of the nodes.
+trait NodeBoxes: NodeRecord {
+    /// What decoding the boxes takes besides the node.
+    type Grid;
+    fn boxes(&self, grid: &Self::Grid) -> FourBoxes;
+}
+
+impl NodeBoxes for TopNode {
+    type Grid = ();
+
+    #[inline(always)]
+    fn boxes(&self, _: &()) -> FourBoxes {
+        (self.min, self.max)
+    }
+}
+
+impl NodeBoxes for GridNode {
+    type Grid = NodeGrid;
+
+    /// Through [`NodeGrid::decode_axis`], the expression the writer rounded the boxes outward
+    /// with.
+    #[inline(always)]
+    fn boxes(&self, grid: &NodeGrid) -> FourBoxes {
+        let decode = |q: &[[u16; TOP_WIDTH]; 3]| {
+            std::array::from_fn(|axis| q[axis].map(|q| grid.decode_axis(q, axis)))
+        };
+        (decode(&self.min), decode(&self.max))
+    }
+}
 
 // The four lanes of a box test are a node's four slots.
 const _: () = assert!(TOP_WIDTH == 4);
-
-/// A node's child boxes axis by axis.
-#[inline(always)]
-fn child_boxes<N: ChildBox>(node: &N, grid: &N::Grid) -> FourBoxes {
-    let mut boxes: FourBoxes = ([[0.0; 4]; 3], [[0.0; 4]; 3]);
-    for slot in 0..TOP_WIDTH {
-        let (min, max) = node.child_box(slot, grid);
-        for axis in 0..3 {
-            boxes.0[axis][slot] = min[axis];
-            boxes.1[axis][slot] = max[axis];
-        }
-    }
-    boxes
-}
