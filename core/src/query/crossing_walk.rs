@@ -23,7 +23,7 @@ use crate::geometry::Point;
 use crate::trace::kernel::crossing_blocks::{for_each_candidate, StripBlocks, MASK_BLOCKS};
 use crate::trace::kernel::Kernel;
 use crate::trace::prepared::{
-    max_not_nan, max_not_nan_x4, min_not_nan, min_not_nan_x4, FAR_INFLATION,
+    max_not_nan, max_not_nan_x4, min_not_nan, min_not_nan_x4, PreparedRay, FAR_INFLATION,
 };
 use crate::trace::watertight::{RayPoint, RaySpace};
 use crate::trace::Ray;
@@ -53,31 +53,23 @@ pub(super) struct CrossingWalk {
 
 impl CrossingWalk {
     pub(super) fn new(ray: &Ray, kernel: Kernel) -> CrossingWalk {
-        let exit_reciprocal = ray.direction.map(|d| 1.0 / d);
-        // Clamped as `PreparedRay` does for subnormal components; `1 / ±0` stays infinite.
-        let entry_reciprocal: Point = std::array::from_fn(|axis| {
-            let r = exit_reciprocal[axis];
-            if ray.direction[axis] == 0.0 {
-                r
-            } else {
-                r.clamp(-f32::MAX, f32::MAX)
-            }
-        });
+        let prepared = PreparedRay::new(ray);
         let splat = |v: &Point| v.map(f32x4::splat);
-        let negative = ray.direction.map(|d| d.is_sign_negative());
-        let all_ones = negative.map(|n| f32::from_bits(if n { u32::MAX } else { 0 }));
+        let all_ones = prepared
+            .negative
+            .map(|n| f32::from_bits(if n { u32::MAX } else { 0 }));
         CrossingWalk {
             kernel,
-            space: RaySpace::new(ray.origin, ray.direction),
+            space: prepared.space,
             range: (ray.tmin, ray.tmax),
             origin: splat(&ray.origin),
-            entry_reciprocal: splat(&entry_reciprocal),
-            exit_reciprocal: splat(&exit_reciprocal),
-            negative,
+            entry_reciprocal: splat(&prepared.entry_reciprocal),
+            exit_reciprocal: splat(&prepared.exit_reciprocal),
+            negative: prepared.negative,
             axes: AxisLanes {
                 origin: axis_lanes(&ray.origin),
-                entry_reciprocal: axis_lanes(&entry_reciprocal),
-                exit_reciprocal: axis_lanes(&exit_reciprocal),
+                entry_reciprocal: axis_lanes(&prepared.entry_reciprocal),
+                exit_reciprocal: axis_lanes(&prepared.exit_reciprocal),
                 negative: axis_lanes(&all_ones),
             },
             t_near: ray.tmin * (1.0 - MARGIN),
