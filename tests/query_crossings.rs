@@ -11,15 +11,20 @@ mod common;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use common::{converted, generated, icosphere, temp_path, torus, SplitMix64};
+use common::{
+    converted, generated, icosphere, open_with_long_strips, open_with_long_strips_on_grid,
+    temp_path, torus, SplitMix64,
+};
 use reducem::conversion::BuildParams;
 use reducem::decode;
 use reducem::format::model::Closedness;
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;
+use reducem::query::crossings::{all_hits_on, count_crossings_on, crossing, RayHit};
 use reducem::query::{all_hits, count_crossings, occupancy, signed_closest_points, FaceIds};
-use reducem::trace::Ray;
+use reducem::trace::watertight::RaySpace;
+use reducem::trace::{Kernel, Ray};
 use reducem_gen::Kind;
 
 type Vector = [f64; 3];
@@ -208,6 +213,100 @@ fn grid_files_count_their_quantized_triangles() {
     }
 }
 
+/// The crossings of `ray` by the scalar tie rule ([`crossing`]) on every triangle, in `decode`
+/// order, nothing culled: what every kernel's walk must list, bit for bit.
+fn scalar_hits(triangles: &[[Point; 3]], ray: &Ray) -> Vec<RayHit> {
+    let space = RaySpace::new(ray.origin, ray.direction);
+    let mut hits: Vec<RayHit> = triangles
+        .iter()
+        .enumerate()
+        .filter_map(|(face, triangle)| {
+            let hit = crossing(&space, triangle, ray.tmin, ray.tmax)?;
+            Some(RayHit {
+                t: hit.t,
+                face_id: face as u32,
+                u: hit.weights[1],
+                v: hit.weights[2],
+            })
+        })
+        .collect();
+    hits.sort_by(|a, b| a.t.total_cmp(&b.t).then(a.face_id.cmp(&b.face_id)));
+    hits
+}
+
+fn hit_bits(hits: &[RayHit]) -> Vec<[u32; 4]> {
+    hits.iter()
+        .map(|h| [h.t.to_bits(), h.face_id, h.u.to_bits(), h.v.to_bits()])
+        .collect()
+}
+
+/// Every kernel's counts and hit lists equal the scalar tie rule on every triangle, bit for
+/// bit, for random rays and for rays through every vertex and edge midpoint.
+fn assert_kernels_equal_the_scalar_rule(what: &str, file: &ReducemFile) {
+    let triangles: Vec<[Point; 3]> = decode::triangles(file).collect();
+    let mut rays = random_rays(&triangles, 200, 5);
+    let points: Vec<Point> = triangles.iter().flatten().copied().collect();
+    let centre: Point = std::array::from_fn(|i| {
+        let sum: f64 = points.iter().map(|p| f64::from(p[i])).sum();
+        (sum / points.len() as f64) as f32
+    });
+    let corners_and_midpoints = triangles.iter().take(300).flat_map(|[a, b, _]| {
+        [
+            *a,
+            std::array::from_fn(|i| ((f64::from(a[i]) + f64::from(b[i])) / 2.0) as f32),
+        ]
+    });
+    rays.extend(rays_at(centre, &corners_and_midpoints.collect::<Vec<_>>()));
+    let expected: Vec<Vec<RayHit>> = rays
+        .iter()
+        .map(|ray| scalar_hits(&triangles, ray))
+        .collect();
+    let face_ids = FaceIds::of(file);
+    for kernel in Kernel::supported() {
+        let counts = count_crossings_on(file, &rays, kernel);
+        let listed = all_hits_on(file, &rays, &face_ids, kernel);
+        for (index, expected) in expected.iter().enumerate() {
+            let hits =
+                &listed.hits[listed.splits[index] as usize..listed.splits[index + 1] as usize];
+            assert_eq!(
+                hit_bits(hits),
+                hit_bits(expected),
+                "{what} {kernel}: ray {index} {:?}",
+                rays[index]
+            );
+            assert_eq!(
+                counts[index] as usize,
+                expected.len(),
+                "{what} {kernel}: ray {index}"
+            );
+        }
+    }
+    assert!(file.defect().is_none(), "{what}");
+}
+
+#[test]
+fn every_kernel_lists_what_the_scalar_tie_rule_lists() {
+    for kind in Kind::ALL {
+        let mesh = generated(kind, 1_500);
+        let name = format!("crossings-kernels-{}.rdm", kind.name());
+        let (_, file) = converted(&mesh, &BuildParams::default(), &name);
+        assert_kernels_equal_the_scalar_rule(kind.name(), &file);
+    }
+    let scan = generated(Kind::Scan, 1_500);
+    let params = BuildParams {
+        grid_bits: Some(12),
+        ..BuildParams::default()
+    };
+    let (_, file) = converted(&scan, &params, "crossings-kernels-grid.rdm");
+    assert_kernels_equal_the_scalar_rule("grid scan", &file);
+    // Strips of up to 1000 windows store no block boxes and span more than one block mask.
+    let sphere = icosphere(3);
+    let file = open_with_long_strips(&sphere, "crossings-kernels-long.rdm", 1_000);
+    assert_kernels_equal_the_scalar_rule("long strips", &file);
+    let file = open_with_long_strips_on_grid(&sphere, "crossings-kernels-long-grid.rdm", 1_000, 14);
+    assert_kernels_equal_the_scalar_rule("long grid strips", &file);
+}
+
 /// `mesh` with every position rotated about an oblique axis, scaled and moved, in f64 then
 /// rounded once.
 fn placed(mesh: &Mesh, scale: f64, offset: f64) -> Mesh {
@@ -268,23 +367,29 @@ fn rays_through_vertices_edges_and_centroids_of_closed_meshes_count_exactly() {
         assert!(file.closed(), "{what}: {:?}", file.closedness());
         let targets = vertex_edge_and_centroid_targets(&mesh);
         let centre = [offset as f32; 3];
-        for (k, count) in count_crossings(&file, &rays_at(centre, &targets))
-            .iter()
-            .enumerate()
-        {
-            assert_eq!(*count, 1, "{what}: from the centre at {:?}", targets[k]);
-        }
         let outside = [0, 1, 2].map(|i| (offset + scale * [2.9, -1.7, 2.3][i]) as f32);
-        for (k, count) in count_crossings(&file, &rays_at(outside, &targets))
-            .iter()
-            .enumerate()
-        {
-            assert_eq!(
-                count % 2,
-                0,
-                "{what}: from outside at {:?}: {count}",
-                targets[k]
-            );
+        for kernel in Kernel::supported() {
+            for (k, count) in count_crossings_on(&file, &rays_at(centre, &targets), kernel)
+                .iter()
+                .enumerate()
+            {
+                assert_eq!(
+                    *count, 1,
+                    "{what} {kernel}: from the centre at {:?}",
+                    targets[k]
+                );
+            }
+            for (k, count) in count_crossings_on(&file, &rays_at(outside, &targets), kernel)
+                .iter()
+                .enumerate()
+            {
+                assert_eq!(
+                    count % 2,
+                    0,
+                    "{what} {kernel}: from outside at {:?}: {count}",
+                    targets[k]
+                );
+            }
         }
     }
     let ring = torus(40, 16);

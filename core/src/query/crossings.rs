@@ -18,16 +18,15 @@
 //! nothing. The f32 edge functions are used when none is zero: rounding keeps their signs or
 //! makes them zero, so they decide as the exact ones would.
 
+use std::sync::OnceLock;
+
 use rayon::prelude::*;
 
-use super::child_box::ChildBox;
+use super::crossing_walk::CrossingWalk;
 use super::FaceIds;
-use crate::format::block_boxes::BOX_WINDOWS;
-use crate::format::reader::{ReducemFile, StripView, TopNodes};
-use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{TopSlot, TOP_WIDTH};
+use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
-use crate::strip_windows::window_corners;
+use crate::trace::kernel::Kernel;
 use crate::trace::watertight::{edge, resolve, RayPoint, RaySpace, TriangleHit};
 use crate::trace::Ray;
 
@@ -54,12 +53,28 @@ pub struct AllHits {
     pub hits: Vec<RayHit>,
 }
 
+/// Rays per rayon task of [`all_hits`]: each task fills one hit list, not one per ray.
+const RAYS_PER_TASK: usize = 1024;
+
+/// The kernel the crossing queries run on when none is given: `REDUCEM_KERNEL`'s when it
+/// names one this CPU runs (the commands refuse any other before querying), else the fastest.
+/// Answers do not depend on it.
+pub fn default_kernel() -> Kernel {
+    static KERNEL: OnceLock<Kernel> = OnceLock::new();
+    *KERNEL.get_or_init(|| Kernel::from_env().unwrap_or_else(|_| Kernel::detect()))
+}
+
 /// The number of crossings of every ray in `[tmin, tmax]`, in parallel (rayon's current pool).
 pub fn count_crossings(file: &ReducemFile, rays: &[Ray]) -> Vec<u32> {
+    count_crossings_on(file, rays, default_kernel())
+}
+
+/// [`count_crossings`] on `kernel`.
+pub fn count_crossings_on(file: &ReducemFile, rays: &[Ray], kernel: Kernel) -> Vec<u32> {
     rays.par_iter()
         .map(|ray| {
             let mut count = 0u32;
-            for_each_crossing(file, ray, |_, _, _| count += 1);
+            for_each_crossing_on(file, ray, kernel, |_, _, _| count += 1);
             count
         })
         .collect()
@@ -67,16 +82,38 @@ pub fn count_crossings(file: &ReducemFile, rays: &[Ray]) -> Vec<u32> {
 
 /// Every crossing of every ray in `[tmin, tmax]`, in parallel (rayon's current pool).
 pub fn all_hits(file: &ReducemFile, rays: &[Ray], face_ids: &FaceIds) -> AllHits {
-    let per_ray: Vec<Vec<RayHit>> = rays
-        .par_iter()
-        .map(|ray| ray_hits(file, ray, face_ids))
+    all_hits_on(file, rays, face_ids, default_kernel())
+}
+
+/// [`all_hits`] on `kernel`.
+pub fn all_hits_on(
+    file: &ReducemFile,
+    rays: &[Ray],
+    face_ids: &FaceIds,
+    kernel: Kernel,
+) -> AllHits {
+    let per_task: Vec<(Vec<usize>, Vec<RayHit>)> = rays
+        .par_chunks(RAYS_PER_TASK)
+        .map(|rays| {
+            let (mut counts, mut hits) = (Vec::with_capacity(rays.len()), Vec::new());
+            for ray in rays {
+                let before = hits.len();
+                push_ray_hits(file, ray, face_ids, kernel, &mut hits);
+                counts.push(hits.len() - before);
+            }
+            (counts, hits)
+        })
         .collect();
     let mut splits = Vec::with_capacity(rays.len() + 1);
     splits.push(0u32);
-    let mut hits = Vec::with_capacity(per_ray.iter().map(Vec::len).sum());
-    for ray_hits in per_ray {
-        hits.extend(ray_hits);
-        splits.push(u32::try_from(hits.len()).unwrap_or(u32::MAX));
+    let mut hits = Vec::with_capacity(per_task.iter().map(|(_, h)| h.len()).sum());
+    for (counts, task_hits) in per_task {
+        let mut end = hits.len();
+        for count in counts {
+            end += count;
+            splits.push(u32::try_from(end).unwrap_or(u32::MAX));
+        }
+        hits.extend(task_hits);
     }
     AllHits { splits, hits }
 }
@@ -84,7 +121,20 @@ pub fn all_hits(file: &ReducemFile, rays: &[Ray], face_ids: &FaceIds) -> AllHits
 /// The crossings of one ray, `t` ascending, ties by face id.
 pub fn ray_hits(file: &ReducemFile, ray: &Ray, face_ids: &FaceIds) -> Vec<RayHit> {
     let mut hits = Vec::new();
-    for_each_crossing(file, ray, |strip, window, hit| {
+    push_ray_hits(file, ray, face_ids, default_kernel(), &mut hits);
+    hits
+}
+
+/// Appends the crossings of `ray` to `hits`, `t` ascending, ties by face id.
+fn push_ray_hits(
+    file: &ReducemFile,
+    ray: &Ray,
+    face_ids: &FaceIds,
+    kernel: Kernel,
+    hits: &mut Vec<RayHit>,
+) {
+    let before = hits.len();
+    for_each_crossing_on(file, ray, kernel, |strip, window, hit| {
         hits.push(RayHit {
             t: hit.t,
             face_id: face_ids.id(file, strip, window).unwrap_or(NO_FACE),
@@ -92,8 +142,7 @@ pub fn ray_hits(file: &ReducemFile, ray: &Ray, face_ids: &FaceIds) -> Vec<RayHit
             v: hit.weights[2],
         })
     });
-    hits.sort_unstable_by(|a, b| a.t.total_cmp(&b.t).then(a.face_id.cmp(&b.face_id)));
-    hits
+    hits[before..].sort_unstable_by(|a, b| a.t.total_cmp(&b.t).then(a.face_id.cmp(&b.face_id)));
 }
 
 /// Calls `each(strip, window, hit)` for every crossing of `ray` in `[tmin, tmax]`, in no
@@ -102,19 +151,32 @@ pub fn ray_hits(file: &ReducemFile, ray: &Ray, face_ids: &FaceIds) -> Vec<RayHit
 /// as ray files answer it with `--invalid-rays miss`. On a
 /// lazily opened file a corrupt node or strip reached is skipped and kept for
 /// [`ReducemFile::defect`], as in tracing.
-pub fn for_each_crossing(
+pub fn for_each_crossing(file: &ReducemFile, ray: &Ray, each: impl FnMut(u32, u16, TriangleHit)) {
+    for_each_crossing_on(file, ray, default_kernel(), each)
+}
+
+/// [`for_each_crossing`] on `kernel`: the kernel finds the windows that may cross in its lanes,
+/// and each of them is settled by [`crossing`]'s rule on bit-identical ray-space corners.
+pub fn for_each_crossing_on(
     file: &ReducemFile,
     ray: &Ray,
+    kernel: Kernel,
     mut each: impl FnMut(u32, u16, TriangleHit),
 ) {
     if !valid(ray) {
         return;
     }
-    let walk = Walk::new(ray);
-    match file.top_nodes() {
-        TopNodes::F32(nodes) => walk.run(file, nodes, &(), &mut each),
-        TopNodes::Grid(nodes, grid) => walk.run(file, nodes, &grid, &mut each),
-    }
+    let (tmin, tmax) = (ray.tmin, ray.tmax);
+    CrossingWalk::new(ray, kernel).run(file, &mut |strip, window, corners| {
+        // Odd windows are wound the other way (`strip_windows::window_corners`).
+        let c = match window % 2 {
+            0 => corners,
+            _ => [corners[1], corners[0], corners[2]],
+        };
+        if let Some(hit) = settle(&c, tmin, tmax) {
+            each(strip, window as u16, hit);
+        }
+    });
 }
 
 fn valid(ray: &Ray) -> bool {
@@ -134,12 +196,17 @@ pub fn crossing(
     tmin: f32,
     tmax: f32,
 ) -> Option<TriangleHit> {
-    let c = triangle.map(|p| space.transform(&p));
+    settle(&triangle.map(|p| space.transform(&p)), tmin, tmax)
+}
+
+/// [`crossing`] of the triangle whose ray-space corners (in input winding) are `c`.
+#[inline(always)]
+fn settle(c: &[RayPoint; 3], tmin: f32, tmax: f32) -> Option<TriangleHit> {
     let w = [edge(&c[1], &c[2]), edge(&c[2], &c[0]), edge(&c[0], &c[1])];
     if w.contains(&0.0) {
-        return crossing_on_edge(&c, tmin, tmax);
+        return crossing_on_edge(c, tmin, tmax);
     }
-    resolve(&c, w, tmin, tmax)
+    resolve(c, w, tmin, tmax)
 }
 
 /// [`crossing`] when an f32 edge function is zero: exact edge functions in f64, a zero one
@@ -183,147 +250,6 @@ fn tie_sign(w: f64, p: &RayPoint, q: &RayPoint) -> i8 {
             0 => sign(p.x, q.x),
             s => s,
         },
-    }
-}
-
-/// One ray's walk over the top-level hierarchy: a box is entered when the ray may meet it.
-struct Walk {
-    ray: Ray,
-    space: RaySpace,
-}
-
-impl Walk {
-    fn new(ray: &Ray) -> Walk {
-        Walk {
-            ray: *ray,
-            space: RaySpace::new(ray.origin, ray.direction),
-        }
-    }
-
-    fn run<N: ChildBox>(
-        &self,
-        file: &ReducemFile,
-        nodes: &[N],
-        grid: &N::Grid,
-        each: &mut impl FnMut(u32, u16, TriangleHit),
-    ) {
-        if nodes.is_empty() {
-            return;
-        }
-        let mut stack = vec![0u32];
-        let mut visits = file.node_visits();
-        while let Some(index) = stack.pop() {
-            // A file changed in place after its validation may link nodes in circles.
-            visits = match visits.checked_sub(1) {
-                Some(left) => left,
-                None => return,
-            };
-            let Some(node) = file.top_node(nodes, index as usize) else {
-                continue;
-            };
-            for slot in 0..TOP_WIDTH {
-                let (min, max) = node.child_box(slot, grid);
-                match node.slot(slot) {
-                    TopSlot::Internal(child) if self.may_meet(&min, &max) => stack.push(child),
-                    TopSlot::Leaf { first, count } if self.may_meet(&min, &max) => {
-                        for strip in file.leaf_strips(first, count) {
-                            self.strip(file, strip, each);
-                        }
-                    }
-                    _ => {}
-                }
-            }
-        }
-    }
-
-    /// Tests every window of strip `strip`.
-    fn strip(&self, file: &ReducemFile, strip: u32, each: &mut impl FnMut(u32, u16, TriangleHit)) {
-        let view = file.strip(strip as usize);
-        match view.vertices {
-            StripVertices::F32(vertices) => self.windows(vertices, &view, strip, each),
-            StripVertices::Grid(vertices) => self.windows(vertices, &view, strip, each),
-        }
-    }
-
-    /// Tests the windows of strip `strip` in the blocks whose box the ray may meet (every
-    /// window when the strip stores no block boxes).
-    fn windows<V: VertexAccess>(
-        &self,
-        vertices: V,
-        view: &StripView,
-        strip: u32,
-        each: &mut impl FnMut(u32, u16, TriangleHit),
-    ) {
-        let windows = view.window_count();
-        let frame = match view.boxes.is_empty() {
-            true => None,
-            false => view.boxes.frame(vertices.point(0)),
-        };
-        let Some(frame) = frame else {
-            return self.window_range(vertices, view, strip, 0..windows, each);
-        };
-        for block in 0..view.boxes.count() {
-            let Some((min, max)) = view.boxes.decode(&frame, block) else {
-                break;
-            };
-            if self.may_meet(&min, &max) {
-                let first = block * BOX_WINDOWS;
-                let range = first..(first + BOX_WINDOWS).min(windows);
-                self.window_range(vertices, view, strip, range, each);
-            }
-        }
-    }
-
-    /// Tests the windows `range` of strip `strip`.
-    fn window_range<V: VertexAccess>(
-        &self,
-        vertices: V,
-        view: &StripView,
-        strip: u32,
-        range: std::ops::Range<usize>,
-        each: &mut impl FnMut(u32, u16, TriangleHit),
-    ) {
-        let mut corners = [0u8; 3];
-        for window in range {
-            view.references.read_into(window, &mut corners);
-            let Some(triangle) = window_corners(corners, window) else {
-                continue;
-            };
-            let triangle = triangle.map(|r| vertices.point(r as usize));
-            if let Some(hit) = crossing(&self.space, &triangle, self.ray.tmin, self.ray.tmax) {
-                each(strip, window as u16, hit);
-            }
-        }
-    }
-
-    /// Whether the ray may meet the box `min..max` within `[tmin, tmax]`: a slab test in f64 on
-    /// the box widened by a relative margin, so that no box holding a triangle the rounded
-    /// ray-space test accepts is skipped. A NaN plane (only in a corrupt box) is entered.
-    fn may_meet(&self, min: &Point, max: &Point) -> bool {
-        let (mut near, mut far) = (f64::from(self.ray.tmin), f64::from(self.ray.tmax));
-        let margin = 1e-5;
-        near -= near.abs() * margin;
-        far += far.abs() * margin;
-        for axis in 0..3 {
-            let origin = f64::from(self.ray.origin[axis]);
-            let (low, high) = (f64::from(min[axis]), f64::from(max[axis]));
-            let widen = ((low - origin).abs() + (high - origin).abs() + (high - low)) * margin;
-            let (low, high) = (low - widen, high + widen);
-            let direction = f64::from(self.ray.direction[axis]);
-            if direction == 0.0 {
-                if origin < low || origin > high {
-                    return false;
-                }
-                continue;
-            }
-            let (a, b) = ((low - origin) / direction, (high - origin) / direction);
-            near = near.max(a.min(b));
-            far = far.min(a.max(b));
-            if near > far {
-                return false;
-            }
-        }
-        true
     }
 }
 

@@ -9,6 +9,7 @@
 
 mod child_box;
 pub mod closest;
+mod crossing_walk;
 pub mod crossings;
 pub mod occupancy;
 pub mod signed;

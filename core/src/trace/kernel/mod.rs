@@ -18,6 +18,7 @@
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+pub(crate) mod crossing_blocks;
 mod detect;
 mod portable;
 pub(super) mod prefetch;

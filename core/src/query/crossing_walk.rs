@@ -1,0 +1,318 @@
+//! One ray's walk to every window it may cross: the top-level hierarchy and each strip's block
+//! boxes culled by a widened box test four boxes at a time, then the entered blocks' windows
+//! tested in the kernel's lanes ([`crate::trace::kernel::crossing_blocks`]), which hands back
+//! the candidates for the exact tie rule.
+//!
+//! **Why widened boxes.** The tie rule decides a ray through an edge or a vertex on the
+//! rounded ray-space corners, which may put the crossing on a triangle the exact ray misses by
+//! a few ulps of its distance to the origin; a box holding that triangle on its face must not
+//! be culled then, or the crossing is counted on neither side. Every box is therefore grown
+//! by [`MARGIN`] times the sum of its distances to the origin on all three axes (the scale of
+//! those roundings on any axis) before the conservative slab test of
+//! [`crate::trace::prepared`], and the ray's `[tmin, tmax]` by the same relative margin.
+
+use arrayvec::ArrayVec;
+use wide::f32x4;
+
+use crate::format::block_boxes::{BoxFrame, BOX_WINDOWS, CODE_BIAS, MAX_CODE};
+use crate::format::grid::NodeGrid;
+use crate::format::reader::{ReducemFile, StripView, TopNodes};
+use crate::format::vertices::{StripVertices, VertexAccess};
+use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, TOP_WIDTH};
+use crate::geometry::Point;
+use crate::trace::kernel::crossing_blocks::{for_each_candidate, StripBlocks, MASK_BLOCKS};
+use crate::trace::kernel::Kernel;
+use crate::trace::prepared::{
+    max_not_nan, max_not_nan_x4, min_not_nan, min_not_nan_x4, PreparedRay, FAR_INFLATION,
+};
+use crate::trace::watertight::{RayPoint, RaySpace};
+use crate::trace::Ray;
+
+/// Relative growth of boxes and of the ray's interval: far above the few f32 roundings of the
+/// ray-space transform and of the slab test.
+const MARGIN: f32 = 1.0 / 65_536.0;
+
+/// Four boxes axis by axis: `min[axis][box]`, `max[axis][box]`.
+type FourBoxes = ([[f32; 4]; 3], [[f32; 4]; 3]);
+
+/// A valid ray (finite, non-zero direction, `0 <= tmin <= tmax`) ready for the walk.
+pub(super) struct CrossingWalk {
+    kernel: Kernel,
+    space: RaySpace,
+    range: (f32, f32),
+    origin: [f32x4; 3],
+    entry_reciprocal: [f32x4; 3],
+    exit_reciprocal: [f32x4; 3],
+    negative: [bool; 3],
+    /// The same in the lanes `x, y, z` of one register (lane 3 unused), for block boxes.
+    axes: AxisLanes,
+    /// `[tmin, tmax]` grown by [`MARGIN`].
+    t_near: f32,
+    t_far: f32,
+}
+
+impl CrossingWalk {
+    pub(super) fn new(ray: &Ray, kernel: Kernel) -> CrossingWalk {
+        let prepared = PreparedRay::new(ray);
+        let splat = |v: &Point| v.map(f32x4::splat);
+        let all_ones = prepared
+            .negative
+            .map(|n| f32::from_bits(if n { u32::MAX } else { 0 }));
+        CrossingWalk {
+            kernel,
+            space: prepared.space,
+            range: (ray.tmin, ray.tmax),
+            origin: splat(&ray.origin),
+            entry_reciprocal: splat(&prepared.entry_reciprocal),
+            exit_reciprocal: splat(&prepared.exit_reciprocal),
+            negative: prepared.negative,
+            axes: AxisLanes {
+                origin: axis_lanes(&ray.origin),
+                entry_reciprocal: axis_lanes(&prepared.entry_reciprocal),
+                exit_reciprocal: axis_lanes(&prepared.exit_reciprocal),
+                negative: axis_lanes(&all_ones),
+            },
+            t_near: ray.tmin * (1.0 - MARGIN),
+            t_far: ray.tmax * (1.0 + MARGIN),
+        }
+    }
+
+    /// Calls `each(strip, window, corners)` for every candidate window of the file (see
+    /// [`for_each_candidate`]); corrupt nodes reached are skipped as in tracing.
+    pub(super) fn run(&self, file: &ReducemFile, each: &mut impl FnMut(u32, usize, [RayPoint; 3])) {
+        match file.top_nodes() {
+            TopNodes::F32(nodes) => self.nodes(file, nodes, &(), each),
+            TopNodes::Grid(nodes, grid) => self.nodes(file, nodes, &grid, each),
+        }
+    }
+
+    fn nodes<N: NodeBoxes>(
+        &self,
+        file: &ReducemFile,
+        nodes: &[N],
+        grid: &N::Grid,
+        each: &mut impl FnMut(u32, usize, [RayPoint; 3]),
+    ) {
+        if nodes.is_empty() {
+            return;
+        }
+        let mut stack = NodeStack::default();
+        stack.push(0);
+        let mut visits = file.node_visits();
+        while let Some(index) = stack.pop() {
+            // A file changed in place after its validation may link nodes in circles.
+            visits = match visits.checked_sub(1) {
+                Some(left) => left,
+                None => return,
+            };
+            let Some(node) = file.top_node(nodes, index as usize) else {
+                continue;
+            };
+            let mut entered = self.entered(&node.boxes(grid));
+            while entered != 0 {
+                let slot = entered.trailing_zeros() as usize;
+                entered &= entered - 1;
+                match node.slot(slot) {
+                    TopSlot::Internal(child) => stack.push(child),
+                    TopSlot::Leaf { first, count } => {
+                        for strip in file.leaf_strips(first, count) {
+                            self.strip(file, strip, each);
+                        }
+                    }
+                    TopSlot::Empty | TopSlot::Invalid(_) => {}
+                }
+            }
+        }
+    }
+
+    /// The candidate windows of strip `strip` in the blocks whose box the ray may meet (every
+    /// block when the strip stores no boxes).
+    fn strip(
+        &self,
+        file: &ReducemFile,
+        strip: u32,
+        each: &mut impl FnMut(u32, usize, [RayPoint; 3]),
+    ) {
+        let view = file.strip(strip as usize);
+        let blocks = view.window_count().div_ceil(BOX_WINDOWS);
+        let mut candidate = |window: usize, corners: [RayPoint; 3]| each(strip, window, corners);
+        for first_block in (0..blocks).step_by(MASK_BLOCKS) {
+            let count = (blocks - first_block).min(MASK_BLOCKS);
+            let mask = match view.boxes.is_empty() {
+                true => u64::MAX >> (MASK_BLOCKS - count),
+                false => self.entered_blocks(&view, first_block, count),
+            };
+            if mask != 0 {
+                let blocks = StripBlocks {
+                    view: &view,
+                    mask,
+                    first_block,
+                };
+                for_each_candidate(self.kernel, &self.space, self.range, blocks, &mut candidate);
+            }
+        }
+    }
+
+    /// Of the `count` blocks from `first_block`, those whose box the ray may meet (all when
+    /// the boxes cannot be framed or read: only in a corrupt strip, which validation reports).
+    fn entered_blocks(&self, view: &StripView, first_block: usize, count: usize) -> u64 {
+        let anchor = match view.vertices {
+            StripVertices::F32(vertices) => vertices.point(0),
+            StripVertices::Grid(vertices) => vertices.point(0),
+        };
+        let all = u64::MAX >> (MASK_BLOCKS - count);
+        let Some(frame) = view.boxes.frame(anchor) else {
+            return all;
+        };
+        let planes = BlockPlanes::new(&frame);
+        let mut mask = 0u64;
+        for block in 0..count {
+            let Some(codes) = view.boxes.codes(first_block + block) else {
+                return mask | (all & (u64::MAX << block));
+            };
+            let (min, max) = planes.decode(codes);
+            mask |= u64::from(self.block_entered(min, max)) << block;
+        }
+        mask
+    }
+
+    /// [`CrossingWalk::entered`] for one box held axis by axis in lanes.
+    #[inline(always)]
+    fn block_entered(&self, min: f32x4, max: f32x4) -> bool {
+        let axes = &self.axes;
+        let (low, high) = (min - axes.origin, max - axes.origin);
+        let reach = (low.abs() + high.abs()).to_array();
+        let widen = f32x4::splat((reach[0] + reach[1] + reach[2]) * MARGIN);
+        let (low, high) = (low - widen, high + widen);
+        let entry = axes.negative.select(high, low) * axes.entry_reciprocal;
+        let exit = axes.negative.select(low, high) * axes.exit_reciprocal;
+        let (entry, exit) = (
+            entry.to_array(),
+            (exit * f32x4::splat(FAR_INFLATION)).to_array(),
+        );
+        let near = (0..3).fold(self.t_near, |near, axis| max_not_nan(near, entry[axis]));
+        let far = (0..3).fold(self.t_far, |far, axis| min_not_nan(far, exit[axis]));
+        near <= far
+    }
+
+    /// The boxes the ray may meet within its grown interval, each grown by [`MARGIN`] (module
+    /// documentation), as a bit mask. A NaN plane (only in a corrupt box) is entered.
+    #[inline(always)]
+    fn entered(&self, (min, max): &FourBoxes) -> u32 {
+        let low = [0, 1, 2].map(|axis| f32x4::from(min[axis]) - self.origin[axis]);
+        let high = [0, 1, 2].map(|axis| f32x4::from(max[axis]) - self.origin[axis]);
+        let reach = |axis: usize| low[axis].abs() + high[axis].abs();
+        let widen = (reach(0) + reach(1) + reach(2)) * f32x4::splat(MARGIN);
+        let mut near = f32x4::splat(self.t_near);
+        let mut far = f32x4::splat(self.t_far);
+        for axis in 0..3 {
+            let (low, high) = (low[axis] - widen, high[axis] + widen);
+            let (entry, exit) = match self.negative[axis] {
+                true => (high, low),
+                false => (low, high),
+            };
+            let entry = entry * self.entry_reciprocal[axis];
+            let exit = exit * self.exit_reciprocal[axis] * f32x4::splat(FAR_INFLATION);
+            near = max_not_nan_x4(near, entry);
+            far = min_not_nan_x4(far, exit);
+        }
+        near.simd_le(far).to_bitmask()
+    }
+}
+
+/// A point's `x, y, z` in lanes 0 to 2 (lane 3 zero).
+fn axis_lanes(p: &Point) -> f32x4 {
+    f32x4::from([p[0], p[1], p[2], 0.0])
+}
+
+/// A ray's origin, reciprocals and direction signs (all-ones lanes) axis by axis in lanes.
+struct AxisLanes {
+    origin: f32x4,
+    entry_reciprocal: f32x4,
+    exit_reciprocal: f32x4,
+    negative: f32x4,
+}
+
+/// A strip's box frame in lanes, to decode one block box into `x, y, z` lanes as
+/// [`crate::format::block_boxes::decode_plane`] does, bit for bit (the code minus the bias
+/// and the product by the power-of-two scale are exact, the sum rounds once).
+struct BlockPlanes {
+    anchor: f32x4,
+    scale: f32x4,
+}
+
+impl BlockPlanes {
+    fn new(frame: &BoxFrame) -> BlockPlanes {
+        BlockPlanes {
+            anchor: axis_lanes(&frame.anchor),
+            scale: axis_lanes(&frame.scale),
+        }
+    }
+
+    #[inline(always)]
+    fn decode(&self, codes: [u8; 3]) -> (f32x4, f32x4) {
+        let plane = |shift: u8| {
+            let code = |axis: usize| f32::from((codes[axis] >> shift) & MAX_CODE);
+            let bias = CODE_BIAS as f32;
+            let offset = f32x4::from([code(0) - bias, code(1) - bias, code(2) - bias, 0.0]);
+            self.anchor + offset * self.scale
+        };
+        (plane(0), plane(4))
+    }
+}
+
+/// Nodes pending in a walk: inline, then on the heap (only in trees deeper than any built).
+#[derive(Default)]
+struct NodeStack {
+    inline: ArrayVec<u32, 64>,
+    spill: Vec<u32>,
+}
+
+impl NodeStack {
+    #[inline(always)]
+    fn push(&mut self, node: u32) {
+        if let Err(full) = self.inline.try_push(node) {
+            self.spill.push(full.element());
+        }
+    }
+
+    /// The node pushed last: spilled ones are newer than every inline one.
+    #[inline(always)]
+    fn pop(&mut self) -> Option<u32> {
+        self.spill.pop().or_else(|| self.inline.pop())
+    }
+}
+
+/// A top-level node record's four child boxes axis by axis, as f32, whatever its layout: the
+/// walk's one view of the nodes.
+trait NodeBoxes: NodeRecord {
+    /// What decoding the boxes takes besides the node.
+    type Grid;
+    fn boxes(&self, grid: &Self::Grid) -> FourBoxes;
+}
+
+impl NodeBoxes for TopNode {
+    type Grid = ();
+
+    #[inline(always)]
+    fn boxes(&self, _: &()) -> FourBoxes {
+        (self.min, self.max)
+    }
+}
+
+impl NodeBoxes for GridNode {
+    type Grid = NodeGrid;
+
+    /// Through [`NodeGrid::decode_axis`], the expression the writer rounded the boxes outward
+    /// with.
+    #[inline(always)]
+    fn boxes(&self, grid: &NodeGrid) -> FourBoxes {
+        let decode = |q: &[[u16; TOP_WIDTH]; 3]| {
+            std::array::from_fn(|axis| q[axis].map(|q| grid.decode_axis(q, axis)))
+        };
+        (decode(&self.min), decode(&self.max))
+    }
+}
+
+// The four lanes of a box test are a node's four slots.
+const _: () = assert!(TOP_WIDTH == 4);
