@@ -34,6 +34,7 @@ cargo build --release --bin reducem
 bench=target/release/examples/bench_trace
 reducem=target/release/reducem
 dir=/tmp/reducem-bench
+mkdir -p "$dir"
 
 # One run of the command: "WALL CPU" seconds (CPU = user + system, which the other jobs of a
 # shared machine disturb less than the wall time).

@@ -299,3 +299,47 @@ fn every_generator_kind_agrees_with_brute_force() {
         assert!(hits > 100, "{kind:?}: only {hits} hits");
     }
 }
+
+/// Ambient-occlusion-like rays from scattered points of a scan, short and in every direction:
+/// packets of them part ways after a few nodes, so most subtrees are walked by one lane alone.
+/// Every kernel's packets must answer as the reference over all triangles.
+#[test]
+fn scattered_occlusion_packets_agree_with_brute_force() {
+    let mesh = common::generated(reducem_gen::Kind::Scan, 6000);
+    let (_, file) = converted(&mesh, &BuildParams::default(), "scattered-occlusion.rdm");
+    let (min, max) = (file.header().bounds_min, file.header().bounds_max);
+    let diagonal = (0..3)
+        .map(|a| (max[a] - min[a]).powi(2))
+        .sum::<f32>()
+        .sqrt();
+    let mut rng = SplitMix64::new(23);
+    let rays: Vec<Ray> = (0..1600)
+        .map(|_| Ray {
+            origin: *rng.pick(&mesh.positions),
+            direction: [0; 3].map(|_| rng.range(-1.0, 1.0)),
+            tmin: 1e-4 * diagonal,
+            tmax: rng.range(0.01, 0.2) * diagonal,
+        })
+        .collect();
+    let expected: Vec<bool> = rays
+        .iter()
+        .map(|ray| brute_force(&file, ray).is_some())
+        .collect();
+    let occluded = expected.iter().filter(|&&o| o).count();
+    assert!(
+        occluded > 200 && rays.len() - occluded > 200,
+        "{occluded} of {} occluded: the test is too weak",
+        rays.len()
+    );
+    for kernel in Kernel::supported() {
+        let options = TraceOptions {
+            packets: true,
+            kernel,
+            ..TraceOptions::default()
+        };
+        let answers = Tracer::new(&file, options).occluded_batch(&rays);
+        for ((ray, answer), expected) in rays.iter().zip(answers).zip(&expected) {
+            assert_eq!(answer, *expected, "{kernel}: occlusion of {ray:?}");
+        }
+    }
+}

@@ -23,7 +23,9 @@
 //! corrupt file whose boxes do not bound their strips (on a valid file the closest-hit rule
 //! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
 //! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children in
-//! slot order, unsorted, which costs fewer instructions than either sorted order.
+//! slot order, unsorted, which costs fewer instructions than either sorted order; and a subtree
+//! that only one lane of an occlusion packet enters is walked by that lane alone (the single-ray
+//! walk), where one clip tests all four children.
 
 use arrayvec::ArrayVec;
 use wide::f32x8;
@@ -34,7 +36,9 @@ use super::kernel::{dispatch, LeafLanes, LeafStrip, TraceKernel, Walk};
 use super::lanes::{LaneRays, Lanes, PACKET_WIDTH};
 use super::prepared::min_not_nan_x8;
 use super::ray::Ray;
-use super::top::{for_each_bit, order_keys, DeferStack, NodeGridLanes, RayWalk, TraceNode};
+use super::top::{
+    for_each_bit, order_keys, trace_nodes, DeferStack, Deferred, NodeGridLanes, RayWalk, TraceNode,
+};
 use super::Tracer;
 use crate::format::reader::TopNodes;
 use crate::format::{INTERNAL_CHILD, TOP_WIDTH};
@@ -43,6 +47,11 @@ use crate::format::{INTERNAL_CHILD, TOP_WIDTH};
 /// fewer the packet's node tests serve too few lanes to pay for themselves, and its rays are
 /// traced alone.
 const MIN_PACKET_LANES: usize = 6;
+
+/// Most lanes of an occlusion packet that walk a subtree each alone rather than together: a
+/// packet's node test costs a clip per child for all its lanes, a single ray's one clip of all
+/// four children.
+const MAX_SOLO_LANES: usize = 1;
 
 /// A child deferred for some lanes of the packet.
 #[derive(Clone, Copy, Default)]
@@ -317,7 +326,19 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     };
     let mut visits = tracer.file().node_visits();
     loop {
-        if current.mask != 0 {
+        if ANY_HIT && current.mask.count_ones() as usize <= MAX_SOLO_LANES {
+            let found = occlude_alone::<N, C, P>(
+                tracer,
+                (nodes, decoder),
+                (lanes, prepared),
+                &current,
+                closest,
+            );
+            if found != 0 {
+                finished |= found;
+                limit = bounds(closest, finished);
+            }
+        } else if current.mask != 0 {
             if current.kind == INTERNAL_CHILD {
                 let Some(left) = visits.checked_sub(1) else {
                     return;
@@ -360,6 +381,34 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
             }
         }
     }
+}
+
+/// Each lane of `entry` walks its subtree (or leaf) alone with the single-ray walk; returns the
+/// lanes that found an occluder. Occlusion answers do not depend on the order of the visits,
+/// so a lane may leave the packet anywhere.
+#[inline(always)]
+fn occlude_alone<N: TraceNode, C: TraceKernel, P: LaneRays>(
+    tracer: &Tracer,
+    nodes: (&[N], &N::Decoder),
+    (lanes, prepared): (&Lanes, &mut P),
+    entry: &PacketDeferred,
+    closest: &mut [Closest; PACKET_WIDTH],
+) -> u32 {
+    let (t_near, t_far) = (entry.t_near.to_array(), entry.t_far.to_array());
+    let mut found = 0;
+    for_each_bit(entry.mask, |lane| {
+        let start = Deferred {
+            child: entry.child,
+            kind: entry.kind,
+            t_near: t_near[lane],
+            t_far: t_far[lane],
+        };
+        let query = tracer.query(prepared.ray(lanes, lane), true);
+        if trace_nodes::<N, C>(tracer.file(), nodes, &query, start, &mut closest[lane]) {
+            found |= 1 << lane;
+        }
+    });
+    found
 }
 
 /// Each active lane traverses the leaf's strips alone, strip after strip, so that each strip is

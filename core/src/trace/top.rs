@@ -205,23 +205,30 @@ fn trace_ray<K: TraceKernel>(
     closest: &mut Closest,
 ) -> bool {
     match file.top_nodes() {
-        TopNodes::F32(nodes) => trace_nodes::<_, K>(file, nodes, &(), query, closest),
+        TopNodes::F32(nodes) => {
+            let root = Deferred::root(query.ray);
+            trace_nodes::<_, K>(file, (nodes, &()), query, root, closest)
+        }
         TopNodes::Grid(nodes, grid) => {
-            trace_nodes::<_, K>(file, nodes, &NodeGridLanes::new(&grid), query, closest)
+            let (root, decoder) = (Deferred::root(query.ray), NodeGridLanes::new(&grid));
+            trace_nodes::<_, K>(file, (nodes, &decoder), query, root, closest)
         }
     }
 }
 
-fn trace_nodes<N: TraceNode, K: TraceKernel>(
+/// The walk of the subtree (or leaf) `start`, entered over its interval; true when
+/// `query.any_hit` found a hit. Packets hand it the lanes they no longer serve together.
+#[inline(always)]
+pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel>(
     file: &ReducemFile,
-    nodes: &[N],
-    decoder: &N::Decoder,
+    (nodes, decoder): (&[N], &N::Decoder),
     query: &StripQuery,
+    start: Deferred,
     closest: &mut Closest,
 ) -> bool {
     let ray = WideRay::new(query.ray);
     let mut stack = DeferStack::default();
-    let mut current = Deferred::root(query.ray);
+    let mut current = start;
     let targets = Targets::new(file, nodes);
     let mut visits = file.node_visits();
     loop {
