@@ -19,6 +19,7 @@
 #[cfg(target_arch = "x86_64")]
 mod avx2;
 mod detect;
+pub(crate) mod distance_bounds;
 mod portable;
 pub(super) mod prefetch;
 
