@@ -49,7 +49,8 @@ pub struct ClosestPointSearch<'f> {
     file: &'f ReducemFile,
     kernel: Kernel,
     pending: BinaryHeap<Reverse<Pending>>,
-    spans: Vec<Span<'f>>,
+    spans: Vec<Span>,
+    views: Vec<StripView<'f>>,
 }
 
 /// A query point, and in f64 for the bounds.
@@ -95,6 +96,7 @@ impl<'f> ClosestPointSearch<'f> {
             kernel,
             pending: BinaryHeap::new(),
             spans: Vec::new(),
+            views: Vec::new(),
         }
     }
 
@@ -194,12 +196,13 @@ impl<'f> ClosestPointSearch<'f> {
 }
 
 /// Windows of one strip that a leaf's search tests together: a block with its box's bound, or
-/// a whole strip without block boxes with its leaf's.
+/// a whole strip without block boxes with its leaf's. Small, for the sort: the strip's view is
+/// `view` in the search's views.
 #[derive(Clone, Copy)]
-struct Span<'f> {
+struct Span {
     bound: f64,
-    view: StripView<'f>,
     strip: u32,
+    view: u32,
     windows: (usize, usize),
 }
 
@@ -215,9 +218,12 @@ impl<'f> ClosestPointSearch<'f> {
         best: &mut Best,
     ) {
         self.spans.clear();
+        self.views.clear();
         for strip in first..first.saturating_add(count) {
             let view = self.file.strip(strip as usize);
-            push_spans(&mut self.spans, view, strip, leaf_bound, query);
+            let at = (strip, self.views.len() as u32);
+            push_spans(&mut self.spans, &view, at, leaf_bound, query, best.limit);
+            self.views.push(view);
         }
         self.spans
             .sort_unstable_by(|a, b| a.bound.total_cmp(&b.bound));
@@ -226,51 +232,59 @@ impl<'f> ClosestPointSearch<'f> {
             if span.bound > best.limit {
                 break;
             }
+            let view = &self.views[span.view as usize];
             // The one branch on the vertex encoding, per span.
-            match span.view.vertices {
-                StripVertices::F32(vertices) => search_windows(vertices, span, query, kernel, best),
+            match view.vertices {
+                StripVertices::F32(vertices) => {
+                    search_windows(vertices, view, span, query, kernel, best)
+                }
                 StripVertices::Grid(vertices) => {
-                    search_windows(vertices, span, query, kernel, best)
+                    search_windows(vertices, view, span, query, kernel, best)
                 }
             }
         }
     }
 }
 
-/// The spans of strip `strip`: one per block box when it stores them, else the whole strip at
-/// its leaf's bound.
-fn push_spans<'f>(
-    spans: &mut Vec<Span<'f>>,
-    view: StripView<'f>,
-    strip: u32,
+/// The spans of strip `strip` (view `view`) that may beat `limit`: one per block box when it
+/// stores them, else the whole strip at its leaf's bound.
+fn push_spans(
+    spans: &mut Vec<Span>,
+    strip_view: &StripView,
+    (strip, view): (u32, u32),
     leaf_bound: f64,
     query: &Query,
+    limit: f64,
 ) {
-    let windows = view.window_count();
-    let frame = match view.boxes.is_empty() {
+    let windows = strip_view.window_count();
+    let boxes = &strip_view.boxes;
+    let frame = match boxes.is_empty() {
         true => None,
-        false => view.boxes.frame(view.vertices.point(0)),
+        false => boxes.frame(strip_view.vertices.point(0)),
     };
     let Some(frame) = frame else {
         spans.push(Span {
             bound: leaf_bound,
-            view,
             strip,
+            view,
             windows: (0, windows),
         });
         return;
     };
-    for block in 0..view.boxes.count() {
-        let Some((min, max)) = view.boxes.decode(&frame, block) else {
+    for block in 0..boxes.count() {
+        let Some((min, max)) = boxes.decode(&frame, block) else {
             break;
         };
+        let bound = box_bound(&query.wide, &min, &max);
         let first = block * BOX_WINDOWS;
-        spans.push(Span {
-            bound: box_bound(&query.wide, &min, &max),
-            view,
-            strip,
-            windows: (first, (first + BOX_WINDOWS).min(windows)),
-        });
+        if bound <= limit {
+            spans.push(Span {
+                bound,
+                strip,
+                view,
+                windows: (first, (first + BOX_WINDOWS).min(windows)),
+            });
+        }
     }
 }
 
@@ -278,6 +292,7 @@ fn push_spans<'f>(
 /// time: its references and vertices read once, its windows' box bounds computed together.
 fn search_windows<V: VertexAccess>(
     vertices: V,
+    view: &StripView,
     span: &Span,
     query: &Query,
     kernel: Kernel,
@@ -286,7 +301,7 @@ fn search_windows<V: VertexAccess>(
     let (first, end) = span.windows;
     for block in (first..end).step_by(BOX_WINDOWS) {
         let used = (end - block).min(BOX_WINDOWS);
-        let references: [u8; BOX_WINDOWS + 2] = span.view.references.read_block(block);
+        let references: [u8; BOX_WINDOWS + 2] = view.references.read_block(block);
         let corners: BlockCorners =
             vertices.gather::<0, 1, 2, { BOX_WINDOWS + 2 }>(&references, used + 2);
         let bounds = window_bounds(kernel, &query.wide, &corners);
