@@ -9,7 +9,7 @@
 
 #![allow(unsafe_code)]
 
-use super::{detect, Kernel, BLOCK};
+use super::{Kernel, BLOCK};
 use crate::format::TOP_WIDTH;
 
 /// The factor that lowers a box's squared distance below its f64 rounding: a subtraction, three
@@ -33,7 +33,7 @@ pub(crate) fn child_bounds(
     match kernel {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the CPU runs AVX2, just checked.
-        Kernel::Avx2 if detect::avx2() => unsafe { child_bounds_avx2(query, min, max) },
+        Kernel::Avx2 if super::detect::avx2() => unsafe { child_bounds_avx2(query, min, max) },
         _ => child_lanes(query, min, max),
     }
 }
@@ -48,7 +48,7 @@ pub(crate) fn window_bounds(
     match kernel {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: the CPU runs AVX2, just checked.
-        Kernel::Avx2 if detect::avx2() => unsafe { window_bounds_avx2(query, corners) },
+        Kernel::Avx2 if super::detect::avx2() => unsafe { window_bounds_avx2(query, corners) },
         _ => window_lanes(query, corners),
     }
 }
