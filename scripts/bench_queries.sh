@@ -122,7 +122,8 @@ np.save(out, distances.astype(np.float32))
 print(setup, query)
 EOF
 
-points=$WORK/points$POINTS.bin
+# Named by mesh too: the points of one scan are not on the surface of another.
+points=$WORK/points$TRIANGLES-$POINTS.bin
 [[ -f $points ]] || (cd "$WORK" && "$PYTHON" points.py "$(basename "$decoded")" "$POINTS" "$(basename "$points")")
 
 engines=()

@@ -14,7 +14,8 @@ use reducem::decode;
 use reducem::format::reader::{ReducemFile, Validation};
 use reducem::format::SectionKind;
 use reducem::geometry::Point;
-use reducem::query::{closest_points, ClosestPoint, FaceIds};
+use reducem::query::{closest_points, ClosestPoint, ClosestPointSearch, FaceIds};
+use reducem::trace::kernel::Kernel;
 use reducem_gen::Kind;
 
 type Vector = [f64; 3];
@@ -247,6 +248,47 @@ fn grid_files_answer_on_their_quantized_triangles() {
         let (_, file) = converted(&mesh, &params, &name);
         let triangles: Vec<[Point; 3]> = decode::triangles(&file).collect();
         let points = query_points(&triangles, 160, 12);
+        assert_file_exact(&name, &file, &points, f32::INFINITY);
+    }
+}
+
+/// A batch large enough to be answered in spatial order equals the same points searched one
+/// at a time in input order, with every kernel, bit for bit; and agrees with the brute force.
+#[test]
+fn every_kernel_and_the_spatial_order_answer_as_one_point_at_a_time() {
+    for (kind, grid_bits) in [(Kind::Scan, None), (Kind::Cad, Some(12))] {
+        let params = BuildParams {
+            grid_bits,
+            grid_nodes: grid_bits.is_some(),
+            ..BuildParams::default()
+        };
+        let mesh = generated(kind, 3_000);
+        let name = format!("closest-order-{}.rdm", kind.name());
+        let (_, file) = converted(&mesh, &params, &name);
+        let triangles: Vec<[Point; 3]> = decode::triangles(&file).collect();
+        let points = query_points(&triangles, 6_000, 13);
+        let batch = closest_points(&file, &points, f32::INFINITY);
+        for kernel in Kernel::supported() {
+            let mut search = ClosestPointSearch::with_kernel(&file, kernel);
+            for (k, point) in points.iter().enumerate() {
+                let alone = search.closest(point, f32::INFINITY);
+                let bits = |a: Option<ClosestPoint>| {
+                    a.map(|a| {
+                        (
+                            a.distance.to_bits(),
+                            a.point.map(f32::to_bits),
+                            a.strip,
+                            a.window,
+                        )
+                    })
+                };
+                assert_eq!(bits(alone), bits(batch[k]), "{name} {kernel}: point {k}");
+                assert_eq!(
+                    alone.map(|a| (a.u.to_bits(), a.v.to_bits())),
+                    batch[k].map(|a| (a.u.to_bits(), a.v.to_bits()))
+                );
+            }
+        }
         assert_file_exact(&name, &file, &points, f32::INFINITY);
     }
 }

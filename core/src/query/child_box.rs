@@ -4,12 +4,24 @@
 use crate::format::grid::NodeGrid;
 use crate::format::{GridNode, NodeRecord, TopNode, TOP_WIDTH};
 use crate::geometry::Point;
+use crate::trace::kernel::distance_bounds::LaneBoxes;
 
 /// A top-level node record's child boxes as f32 `(min, max)`.
 pub(crate) trait ChildBox: NodeRecord {
     /// What decoding a box takes besides the node.
     type Grid;
     fn child_box(&self, slot: usize, grid: &Self::Grid) -> (Point, Point);
+
+    /// Every slot's box at once, by axis and slot (`[axis][slot]`): minima, maxima. Slots that
+    /// hold no child decode as whatever their planes store.
+    fn child_boxes(&self, grid: &Self::Grid) -> (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>) {
+        let boxes: [(Point, Point); TOP_WIDTH] =
+            std::array::from_fn(|slot| self.child_box(slot, grid));
+        (
+            std::array::from_fn(|axis| boxes.map(|(min, _)| min[axis])),
+            std::array::from_fn(|axis| boxes.map(|(_, max)| max[axis])),
+        )
+    }
 }
 
 impl ChildBox for TopNode {
@@ -17,6 +29,11 @@ impl ChildBox for TopNode {
 
     fn child_box(&self, slot: usize, _: &()) -> (Point, Point) {
         self.slot_box(slot)
+    }
+
+    /// The record stores its boxes by axis and slot already.
+    fn child_boxes(&self, _: &()) -> (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>) {
+        (self.min, self.max)
     }
 }
 

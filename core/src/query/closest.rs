@@ -1,11 +1,12 @@
 //! The closest point of the surface to a query point: a best-first walk over the top-level
 //! hierarchy (nodes and leaves in a heap ordered by the squared distance from the point to
-//! their boxes), then the blocks of a leaf's strips nearest first (by their block boxes, or the
+//! their boxes, a node's nearest child entered without it), then the blocks of a leaf's strips nearest first (by their block boxes, or the
 //! leaf's box for a strip without them), and in a block entered each window whose own box may
-//! beat the best tested exactly ([`closest_on_triangle`]).
+//! beat the best tested exactly ([`closest_on_triangle`]). Box bounds of a node's children and
+//! of a block's windows are computed together by the kernel in `distance_bounds`.
 //!
 //! Exactness: a box's bound is computed in f64 and then lowered by a relative margin larger
-//! than its rounding error ([`BOUND_SHRINK`]), so it is never above the true distance from the
+//! than its rounding error (`BOUND_SHRINK`), so it is never above the true distance from the
 //! point to the box, hence to any triangle in it: the walk skips a box only when every triangle
 //! in it is truly farther than the best distance found. Boxes are those the file stores (node
 //! boxes decoded from the node grid, block boxes from their codes); both bound their decoded
@@ -23,13 +24,11 @@ use super::triangle_distance::{closest_on_triangle, TrianglePoint};
 use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{TopSlot, INTERNAL_CHILD, TOP_WIDTH};
+use crate::format::{TopSlot, INTERNAL_CHILD};
 use crate::geometry::Point;
 use crate::strip_windows::window_corners;
-
-/// The factor that lowers a box's squared distance below its f64 rounding: a subtraction, three
-/// squares and two sums, each rounded by at most 2^-53 relative, stay within 2^-50.
-const BOUND_SHRINK: f64 = 1.0 - 1.0 / (1u64 << 48) as f64;
+use crate::trace::kernel::distance_bounds::{box_bound, child_bounds, window_bounds, BlockCorners};
+use crate::trace::kernel::Kernel;
 
 /// The closest point of the surface to a query point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -49,8 +48,10 @@ pub struct ClosestPoint {
 /// Searches one file for closest points, keeping its heap between queries (one per thread).
 pub struct ClosestPointSearch<'f> {
     file: &'f ReducemFile,
+    kernel: Kernel,
     pending: BinaryHeap<Reverse<Pending>>,
-    spans: Vec<Span<'f>>,
+    spans: Vec<Span>,
+    views: Vec<StripView<'f>>,
 }
 
 /// A query point, and in f64 for the bounds.
@@ -83,11 +84,20 @@ impl Best {
 }
 
 impl<'f> ClosestPointSearch<'f> {
+    /// A search with the fastest kernel this CPU runs.
     pub fn new(file: &'f ReducemFile) -> ClosestPointSearch<'f> {
+        ClosestPointSearch::with_kernel(file, Kernel::detect())
+    }
+
+    /// A search whose box bounds run on `kernel` (every kernel gives the same answers); a
+    /// kernel this CPU lacks runs as the portable one.
+    pub fn with_kernel(file: &'f ReducemFile, kernel: Kernel) -> ClosestPointSearch<'f> {
         ClosestPointSearch {
             file,
+            kernel,
             pending: BinaryHeap::new(),
             spans: Vec::new(),
+            views: Vec::new(),
         }
     }
 
@@ -116,15 +126,24 @@ impl<'f> ClosestPointSearch<'f> {
         })
     }
 
+    /// Best-first over the top level, except that a node's nearest child that may beat `best`
+    /// is entered at once rather than through the heap: that child would most often be popped
+    /// next anyway, and the answer does not depend on the order (see the module's notes).
     fn walk<N: ChildBox>(&mut self, nodes: &[N], grid: &N::Grid, point: &Point, best: &mut Best) {
         let query = Query {
             point: *point,
             wide: point.map(f64::from),
         };
         self.pending.clear();
-        self.pending.push(Reverse((0, 0, INTERNAL_CHILD)));
-        while let Some(Reverse((bound, child, kind))) = self.pending.pop() {
-            let bound = f64::from_bits(bound);
+        let mut next = Some((0.0, (0, INTERNAL_CHILD)));
+        loop {
+            let (bound, (child, kind)) = match next.take() {
+                Some(entered) => entered,
+                None => match self.pending.pop() {
+                    Some(Reverse((bound, child, kind))) => (f64::from_bits(bound), (child, kind)),
+                    None => break,
+                },
+            };
             if bound > best.limit {
                 break;
             }
@@ -132,33 +151,59 @@ impl<'f> ClosestPointSearch<'f> {
                 self.search_leaf((child, kind), bound, &query, best);
                 continue;
             }
-            let Some(node) = self.file.top_node(nodes, child as usize) else {
-                continue;
-            };
-            for slot in 0..TOP_WIDTH {
-                let link = match node.slot(slot) {
-                    TopSlot::Internal(index) => (index, INTERNAL_CHILD),
-                    TopSlot::Leaf { first, count } => (first, count),
-                    TopSlot::Empty | TopSlot::Invalid(_) => continue,
-                };
-                let (min, max) = node.child_box(slot, grid);
-                let bound = box_bound(&query.wide, &min, &max);
-                if bound <= best.limit {
-                    self.pending
-                        .push(Reverse((bound.to_bits(), link.0, link.1)));
-                }
+            if let Some(node) = self.file.top_node(nodes, child as usize) {
+                next = self.push_children(node, grid, &query, best.limit);
             }
         }
+    }
+
+    /// Pushes the children of `node` whose bound does not exceed `limit`, but for the nearest,
+    /// returned with its bound.
+    fn push_children<N: ChildBox>(
+        &mut self,
+        node: &N,
+        grid: &N::Grid,
+        query: &Query,
+        limit: f64,
+    ) -> Option<(f64, (u32, u32))> {
+        let (min, max) = node.child_boxes(grid);
+        let bounds = child_bounds(self.kernel, &query.wide, &min, &max);
+        let mut nearest: Option<(f64, (u32, u32))> = None;
+        for (slot, &bound) in bounds.iter().enumerate() {
+            let link = match node.slot(slot) {
+                TopSlot::Internal(index) => (index, INTERNAL_CHILD),
+                TopSlot::Leaf { first, count } => (first, count),
+                TopSlot::Empty | TopSlot::Invalid(_) => continue,
+            };
+            if bound > limit {
+                continue;
+            }
+            let candidate = (bound, link);
+            match nearest {
+                Some((nearest_bound, _)) if nearest_bound <= bound => self.defer(candidate),
+                Some(entered) => {
+                    self.defer(entered);
+                    nearest = Some(candidate);
+                }
+                None => nearest = Some(candidate),
+            }
+        }
+        nearest
+    }
+
+    fn defer(&mut self, (bound, (child, kind)): (f64, (u32, u32))) {
+        self.pending.push(Reverse((bound.to_bits(), child, kind)));
     }
 }
 
 /// Windows of one strip that a leaf's search tests together: a block with its box's bound, or
-/// a whole strip without block boxes with its leaf's.
+/// a whole strip without block boxes with its leaf's. Small, for the sort: the strip's view is
+/// `view` in the search's views.
 #[derive(Clone, Copy)]
-struct Span<'f> {
+struct Span {
     bound: f64,
-    view: StripView<'f>,
     strip: u32,
+    view: u32,
     windows: (usize, usize),
 }
 
@@ -174,111 +219,112 @@ impl<'f> ClosestPointSearch<'f> {
         best: &mut Best,
     ) {
         self.spans.clear();
+        self.views.clear();
         for strip in first..first.saturating_add(count) {
             let view = self.file.strip(strip as usize);
-            push_spans(&mut self.spans, view, strip, leaf_bound, query);
+            let at = (strip, self.views.len() as u32);
+            push_spans(&mut self.spans, &view, at, leaf_bound, query, best.limit);
+            self.views.push(view);
         }
         self.spans
             .sort_unstable_by(|a, b| a.bound.total_cmp(&b.bound));
+        let kernel = self.kernel;
         for span in &self.spans {
             if span.bound > best.limit {
                 break;
             }
+            let view = &self.views[span.view as usize];
             // The one branch on the vertex encoding, per span.
-            match span.view.vertices {
-                StripVertices::F32(vertices) => search_windows(vertices, span, query, best),
-                StripVertices::Grid(vertices) => search_windows(vertices, span, query, best),
+            match view.vertices {
+                StripVertices::F32(vertices) => {
+                    search_windows(vertices, view, span, query, kernel, best)
+                }
+                StripVertices::Grid(vertices) => {
+                    search_windows(vertices, view, span, query, kernel, best)
+                }
             }
         }
     }
 }
 
-/// The spans of strip `strip`: one per block box when it stores them, else the whole strip at
-/// its leaf's bound.
-fn push_spans<'f>(
-    spans: &mut Vec<Span<'f>>,
-    view: StripView<'f>,
-    strip: u32,
+/// The spans of strip `strip` (view `view`) that may beat `limit`: one per block box when it
+/// stores them, else the whole strip at its leaf's bound.
+fn push_spans(
+    spans: &mut Vec<Span>,
+    strip_view: &StripView,
+    (strip, view): (u32, u32),
     leaf_bound: f64,
     query: &Query,
+    limit: f64,
 ) {
-    let windows = view.window_count();
-    let frame = match view.boxes.is_empty() {
+    let windows = strip_view.window_count();
+    let boxes = &strip_view.boxes;
+    let frame = match boxes.is_empty() {
         true => None,
-        false => view.boxes.frame(view.vertices.point(0)),
+        false => boxes.frame(strip_view.vertices.point(0)),
     };
     let Some(frame) = frame else {
         spans.push(Span {
             bound: leaf_bound,
-            view,
             strip,
+            view,
             windows: (0, windows),
         });
         return;
     };
-    for block in 0..view.boxes.count() {
-        let Some((min, max)) = view.boxes.decode(&frame, block) else {
+    for block in 0..boxes.count() {
+        let Some((min, max)) = boxes.decode(&frame, block) else {
             break;
         };
+        let bound = box_bound(&query.wide, &min, &max);
         let first = block * BOX_WINDOWS;
-        spans.push(Span {
-            bound: box_bound(&query.wide, &min, &max),
-            view,
-            strip,
-            windows: (first, (first + BOX_WINDOWS).min(windows)),
-        });
+        if bound <= limit {
+            spans.push(Span {
+                bound,
+                strip,
+                view,
+                windows: (first, (first + BOX_WINDOWS).min(windows)),
+            });
+        }
     }
 }
 
-/// Tests the span's windows whose own box may beat `best` exactly.
-fn search_windows<V: VertexAccess>(vertices: V, span: &Span, query: &Query, best: &mut Best) {
-    let mut references = [0u8; 3];
-    for window in span.windows.0..span.windows.1 {
-        span.view.references.read_into(window, &mut references);
-        let Some(corners) = window_corners(references, window) else {
-            continue;
-        };
-        let corners = corners.map(|r| vertices.point(r as usize));
-        if triangle_bound(&query.wide, &corners) <= best.limit {
+/// Tests the span's windows whose own box may beat `best` exactly, a block of windows at a
+/// time: its references and vertices read once, its windows' box bounds computed together.
+fn search_windows<V: VertexAccess>(
+    vertices: V,
+    view: &StripView,
+    span: &Span,
+    query: &Query,
+    kernel: Kernel,
+    best: &mut Best,
+) {
+    let (first, end) = span.windows;
+    for block in (first..end).step_by(BOX_WINDOWS) {
+        let used = (end - block).min(BOX_WINDOWS);
+        let references: [u8; BOX_WINDOWS + 2] = view.references.read_block(block);
+        let corners: BlockCorners =
+            vertices.gather::<0, 1, 2, { BOX_WINDOWS + 2 }>(&references, used + 2);
+        let bounds = window_bounds(kernel, &query.wide, &corners);
+        for (lane, &bound) in bounds.iter().enumerate().take(used) {
+            if bound > best.limit {
+                continue;
+            }
+            let window = block + lane;
+            let stored = [references[lane], references[lane + 1], references[lane + 2]];
+            let Some(corners) = window_corners(stored, window) else {
+                continue;
+            };
+            let corners = corners.map(|r| vertices.point(r as usize));
             let found = closest_on_triangle(&query.point, &corners);
             best.offer(span.strip, window as u16, found);
         }
     }
 }
 
-/// [`box_bound`] of the triangle's own box: a few comparisons that spare the exact test of
-/// most triangles of a block the search enters.
-fn triangle_bound(query: &[f64; 3], [a, b, c]: &[Point; 3]) -> f64 {
-    let min = std::array::from_fn(|axis| a[axis].min(b[axis]).min(c[axis]));
-    let max = std::array::from_fn(|axis| a[axis].max(b[axis]).max(c[axis]));
-    box_bound(query, &min, &max)
-}
-
-/// A lower bound of the squared distance from `query` to the box `min..max`, never above the
-/// true one ([`BOUND_SHRINK`]). A NaN plane (only in a corrupt box) counts as no gap.
-fn box_bound(query: &[f64; 3], min: &Point, max: &Point) -> f64 {
-    let gap = |axis: usize| {
-        let below = f64::from(min[axis]) - query[axis];
-        let above = query[axis] - f64::from(max[axis]);
-        below.max(above).max(0.0)
-    };
-    let squared = (0..3).map(|axis| gap(axis) * gap(axis)).sum::<f64>();
-    squared * BOUND_SHRINK
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn box_bounds_are_zero_inside_and_below_the_distance_outside() {
-        let (min, max) = ([0.0, 0.0, 0.0], [1.0, 2.0, 3.0]);
-        assert_eq!(box_bound(&[0.5, 1.0, 1.0], &min, &max), 0.0);
-        let bound = box_bound(&[4.0, -4.0, 3.0], &min, &max);
-        assert!(bound < 25.0 && bound > 25.0 * (1.0 - 1e-14));
-        let nan = [f32::NAN; 3];
-        assert_eq!(box_bound(&[9.0, 9.0, 9.0], &nan, &nan), 0.0);
-    }
 
     #[test]
     fn ties_go_to_the_smallest_strip_and_window() {

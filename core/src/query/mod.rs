@@ -12,10 +12,9 @@ pub mod closest;
 mod crossing_walk;
 pub mod crossings;
 pub mod occupancy;
+mod point_order;
 pub mod signed;
 pub mod triangle_distance;
-
-use rayon::prelude::*;
 
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
@@ -55,17 +54,16 @@ impl FaceIds {
     }
 }
 
-/// [`ClosestPointSearch::closest`] for every point, in parallel (rayon's current pool).
+/// [`ClosestPointSearch::closest`] for every point, in parallel (rayon's current pool), in a
+/// spatial order ([`point_order`]).
 pub fn closest_points(
     file: &ReducemFile,
     points: &[Point],
     max_distance: f32,
 ) -> Vec<Option<ClosestPoint>> {
-    points
-        .par_iter()
-        .map_init(
-            || ClosestPointSearch::new(file),
-            |search, point| search.closest(point, max_distance),
-        )
-        .collect()
+    point_order::answer_in_spatial_order(
+        points,
+        || ClosestPointSearch::new(file),
+        |search, point| search.closest(point, max_distance),
+    )
 }

@@ -1,10 +1,9 @@
 //! Signed distance: the closest point ([`super::closest`]) with the sign of inside/outside
 //! ([`super::occupancy`]), negative inside.
 
-use rayon::prelude::*;
-
 use super::closest::{ClosestPoint, ClosestPointSearch};
 use super::occupancy::{inside_rays, point_inside};
+use super::point_order::answer_in_spatial_order;
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
 
@@ -31,7 +30,8 @@ impl SignedClosest {
 }
 
 /// The closest point within `max_distance` of every point and whether it is inside (one ray on a
-/// closed file, else the majority of `samples`), in parallel (rayon's current pool).
+/// closed file, else the majority of `samples`), in parallel (rayon's current pool), in a spatial
+/// order.
 pub fn signed_closest_points(
     file: &ReducemFile,
     points: &[Point],
@@ -39,16 +39,16 @@ pub fn signed_closest_points(
     samples: u32,
 ) -> SignedClosest {
     let rays = inside_rays(file, samples);
-    let (closest, inside) = points
-        .par_iter()
-        .map_init(
-            || ClosestPointSearch::new(file),
-            |search, point| {
-                let found = search.closest(point, max_distance);
-                (found, point_inside(file, point, rays))
-            },
-        )
-        .unzip();
+    let (closest, inside) = answer_in_spatial_order(
+        points,
+        || ClosestPointSearch::new(file),
+        |search, point| {
+            let found = search.closest(point, max_distance);
+            (found, point_inside(file, point, rays))
+        },
+    )
+    .into_iter()
+    .unzip();
     SignedClosest {
         closest,
         inside,

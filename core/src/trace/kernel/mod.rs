@@ -20,6 +20,7 @@
 mod avx2;
 pub(crate) mod crossing_blocks;
 mod detect;
+pub(crate) mod distance_bounds;
 mod portable;
 pub(super) mod prefetch;
 

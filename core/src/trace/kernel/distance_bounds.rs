@@ -1,0 +1,273 @@
+//! Lower bounds of the squared distance from a point to several boxes at once, for the
+//! closest-point walk: the child boxes of a top-level node, and the boxes of the windows of a
+//! strip block. Every lane runs the same f64 operations in the same order whichever kernel runs
+//! (AVX2 only widens the lanes; no fused multiply-add), so the bounds are bit-identical across
+//! kernels and architectures.
+//!
+//! Exactness: a bound is computed in f64 and then lowered by [`BOUND_SHRINK`], so it is never
+//! above the true distance from the point to the box, hence to any triangle in it.
+
+#![allow(unsafe_code)]
+
+use super::{Kernel, BLOCK};
+use crate::format::TOP_WIDTH;
+
+/// The factor that lowers a box's squared distance below its f64 rounding: a subtraction, three
+/// squares and two sums, each rounded by at most 2^-53 relative, stay within 2^-50.
+pub(crate) const BOUND_SHRINK: f64 = 1.0 - 1.0 / (1u64 << 48) as f64;
+
+/// Boxes by axis and lane: `[axis][lane]`.
+pub(crate) type LaneBoxes<const N: usize> = [[f32; N]; 3];
+
+/// The vertices of a block of [`BLOCK`] windows by axis (`[axis][vertex]`), window `k` having
+/// vertices `k`, `k + 1` and `k + 2`.
+pub(crate) type BlockCorners = [[f32; BLOCK + 2]; 3];
+
+/// [`box_bound`] of each child box of a top-level node.
+pub(crate) fn child_bounds(
+    kernel: Kernel,
+    query: &[f64; 3],
+    min: &LaneBoxes<TOP_WIDTH>,
+    max: &LaneBoxes<TOP_WIDTH>,
+) -> [f64; TOP_WIDTH] {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the CPU runs AVX2, just checked.
+        Kernel::Avx2 if super::detect::avx2() => unsafe { child_bounds_avx2(query, min, max) },
+        _ => child_lanes(query, min, max),
+    }
+}
+
+/// [`box_bound`] of the box of each window of a block (its corners' minima and maxima), the
+/// bound the search tests before a window's exact distance.
+pub(crate) fn window_bounds(
+    kernel: Kernel,
+    query: &[f64; 3],
+    corners: &BlockCorners,
+) -> [f64; BLOCK] {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the CPU runs AVX2, just checked.
+        Kernel::Avx2 if super::detect::avx2() => unsafe { window_bounds_avx2(query, corners) },
+        _ => window_lanes(query, corners),
+    }
+}
+
+/// A lower bound of the squared distance from `query` to the box `min..max`, never above the
+/// true one. A NaN plane (only in a corrupt box) counts as no gap.
+pub(crate) fn box_bound(query: &[f64; 3], min: &[f32; 3], max: &[f32; 3]) -> f64 {
+    let gaps: [f64; 3] = std::array::from_fn(|axis| {
+        let below = f64::from(min[axis]) - query[axis];
+        let above = query[axis] - f64::from(max[axis]);
+        gap(below, above)
+    });
+    squared_bound(gaps)
+}
+
+/// The gap on one axis from the signed distances below the box's minimum and above its
+/// maximum: comparisons that vectorize (`f64::max` does not), and a NaN side counts as none.
+#[inline(always)]
+fn gap(below: f64, above: f64) -> f64 {
+    let below = if below > 0.0 { below } else { 0.0 };
+    let above = if above > 0.0 { above } else { 0.0 };
+    if below > above {
+        below
+    } else {
+        above
+    }
+}
+
+#[inline(always)]
+fn squared_bound([x, y, z]: [f64; 3]) -> f64 {
+    (x * x + y * y + z * z) * BOUND_SHRINK
+}
+
+#[inline(always)]
+fn child_lanes(
+    query: &[f64; 3],
+    min: &LaneBoxes<TOP_WIDTH>,
+    max: &LaneBoxes<TOP_WIDTH>,
+) -> [f64; TOP_WIDTH] {
+    let gaps = |lane: usize| -> [f64; 3] {
+        std::array::from_fn(|axis| {
+            let below = f64::from(min[axis][lane]) - query[axis];
+            let above = query[axis] - f64::from(max[axis][lane]);
+            gap(below, above)
+        })
+    };
+    std::array::from_fn(|lane| squared_bound(gaps(lane)))
+}
+
+/// Each vertex's offset from the query once, then per window the smallest and largest of its
+/// three corners' offsets: the same values as offsetting the window box's planes, since rounding
+/// is monotonic.
+#[inline(always)]
+fn window_lanes(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
+    let offsets: [[f64; BLOCK + 2]; 3] =
+        std::array::from_fn(|axis| corners[axis].map(|x| f64::from(x) - query[axis]));
+    let lesser = |a: f64, b: f64| if a < b { a } else { b };
+    let greater = |a: f64, b: f64| if a > b { a } else { b };
+    let gaps: [[f64; BLOCK]; 3] = std::array::from_fn(|axis| {
+        let o = &offsets[axis];
+        std::array::from_fn(|lane| {
+            let low = lesser(lesser(o[lane], o[lane + 1]), o[lane + 2]);
+            let high = greater(greater(o[lane], o[lane + 1]), o[lane + 2]);
+            gap(low, -high)
+        })
+    });
+    std::array::from_fn(|lane| squared_bound([gaps[0][lane], gaps[1][lane], gaps[2][lane]]))
+}
+
+/// [`child_lanes`] in AVX2: the four slots in one register, the same operations lane by lane
+/// (`max_pd(a, b)` is `if a > b { a } else { b }`, `min_pd` likewise with `<`).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn child_bounds_avx2(
+    query: &[f64; 3],
+    min: &LaneBoxes<TOP_WIDTH>,
+    max: &LaneBoxes<TOP_WIDTH>,
+) -> [f64; TOP_WIDTH] {
+    use std::arch::x86_64::*;
+    let gaps: [__m256d; 3] = std::array::from_fn(|axis| {
+        let q = _mm256_set1_pd(query[axis]);
+        // SAFETY: each row holds four f32, the width of the load.
+        let (low, high) = unsafe {
+            (
+                _mm_loadu_ps(min[axis].as_ptr()),
+                _mm_loadu_ps(max[axis].as_ptr()),
+            )
+        };
+        let below = _mm256_sub_pd(_mm256_cvtps_pd(low), q);
+        let above = _mm256_sub_pd(q, _mm256_cvtps_pd(high));
+        gap_avx2(below, above)
+    });
+    squared_bound_avx2(gaps)
+}
+
+/// [`window_lanes`] in AVX2: windows 0-3 and 4-7 in a register each, a corner's offsets read
+/// as the vertices shifted by 0, 1 and 2 positions.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn window_bounds_avx2(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
+    use std::arch::x86_64::*;
+    let half = |first: usize| {
+        let gaps: [__m256d; 3] = std::array::from_fn(|axis| {
+            let q = _mm256_set1_pd(query[axis]);
+            let offset = |shift: usize| {
+                let row = &corners[axis][first + shift..first + shift + 4];
+                // SAFETY: the slice holds four f32, the width of the load.
+                let vertices = unsafe { _mm_loadu_ps(row.as_ptr()) };
+                _mm256_sub_pd(_mm256_cvtps_pd(vertices), q)
+            };
+            let (a, b, c) = (offset(0), offset(1), offset(2));
+            let low = _mm256_min_pd(_mm256_min_pd(a, b), c);
+            let high = _mm256_max_pd(_mm256_max_pd(a, b), c);
+            gap_avx2(low, _mm256_xor_pd(high, _mm256_set1_pd(-0.0)))
+        });
+        squared_bound_avx2(gaps)
+    };
+    let (low, high) = (half(0), half(4));
+    std::array::from_fn(|lane| if lane < 4 { low[lane] } else { high[lane - 4] })
+}
+
+/// [`gap`] lane by lane.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn gap_avx2(
+    below: std::arch::x86_64::__m256d,
+    above: std::arch::x86_64::__m256d,
+) -> std::arch::x86_64::__m256d {
+    use std::arch::x86_64::*;
+    let zero = _mm256_setzero_pd();
+    _mm256_max_pd(_mm256_max_pd(below, zero), _mm256_max_pd(above, zero))
+}
+
+/// [`squared_bound`] lane by lane.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn squared_bound_avx2([x, y, z]: [std::arch::x86_64::__m256d; 3]) -> [f64; 4] {
+    use std::arch::x86_64::*;
+    let sum = _mm256_add_pd(
+        _mm256_add_pd(_mm256_mul_pd(x, x), _mm256_mul_pd(y, y)),
+        _mm256_mul_pd(z, z),
+    );
+    let bound = _mm256_mul_pd(sum, _mm256_set1_pd(BOUND_SHRINK));
+    let mut lanes = [0.0; 4];
+    // SAFETY: `lanes` holds four f64, the width of the store.
+    unsafe { _mm256_storeu_pd(lanes.as_mut_ptr(), bound) };
+    lanes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_bounds_are_zero_inside_and_below_the_distance_outside() {
+        let (min, max) = ([0.0, 0.0, 0.0], [1.0, 2.0, 3.0]);
+        assert_eq!(box_bound(&[0.5, 1.0, 1.0], &min, &max), 0.0);
+        let bound = box_bound(&[4.0, -4.0, 3.0], &min, &max);
+        assert!(bound < 25.0 && bound > 25.0 * (1.0 - 1e-14));
+        let nan = [f32::NAN; 3];
+        assert_eq!(box_bound(&[9.0, 9.0, 9.0], &nan, &nan), 0.0);
+        assert_eq!(
+            box_bound(&[9.0, 0.0, 0.0], &nan, &[1.0, 0.0, 0.0]),
+            64.0 * BOUND_SHRINK
+        );
+    }
+
+    /// Lane values from a small generator, with NaN planes and inverted boxes among them.
+    fn value(seed: &mut u64) -> f32 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        match *seed >> 60 {
+            0 => f32::NAN,
+            _ => ((*seed >> 33) as i32 % 2000) as f32 / 7.0 - 140.0,
+        }
+    }
+
+    #[test]
+    fn every_kernel_bounds_each_lane_as_the_single_box_rule() {
+        let mut seed = 5;
+        for _ in 0..500 {
+            let query = [0; 3].map(|_| f64::from(value(&mut seed)) * 1.3);
+            let min: LaneBoxes<TOP_WIDTH> =
+                [[0.0; TOP_WIDTH]; 3].map(|a| a.map(|_| value(&mut seed)));
+            let max: LaneBoxes<TOP_WIDTH> =
+                [[0.0; TOP_WIDTH]; 3].map(|a| a.map(|_| value(&mut seed)));
+            let corners: BlockCorners = [[0.0; BLOCK + 2]; 3].map(|a| a.map(|_| value(&mut seed)));
+            let children = child_bounds(Kernel::Sse2, &query, &min, &max);
+            let windows = window_bounds(Kernel::Sse2, &query, &corners);
+            for (slot, bound) in children.iter().enumerate() {
+                let expected = box_bound(&query, &min.map(|a| a[slot]), &max.map(|a| a[slot]));
+                assert_eq!(bound.to_bits(), expected.to_bits());
+            }
+            for (lane, bound) in windows.iter().enumerate() {
+                let coordinates = |axis: usize| &corners[axis][lane..lane + 3];
+                if (0..3).any(|axis| coordinates(axis).iter().any(|x| x.is_nan())) {
+                    continue;
+                }
+                let low = std::array::from_fn(|axis| {
+                    coordinates(axis)
+                        .iter()
+                        .copied()
+                        .fold(f32::INFINITY, f32::min)
+                });
+                let high = std::array::from_fn(|axis| {
+                    coordinates(axis)
+                        .iter()
+                        .copied()
+                        .fold(f32::NEG_INFINITY, f32::max)
+                });
+                assert_eq!(bound.to_bits(), box_bound(&query, &low, &high).to_bits());
+            }
+            for kernel in Kernel::supported() {
+                let same =
+                    |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+                assert!(same(&child_bounds(kernel, &query, &min, &max), &children));
+                assert!(same(&window_bounds(kernel, &query, &corners), &windows));
+            }
+        }
+    }
+}
