@@ -8,7 +8,8 @@ use std::fs;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use gltf::json::validation::{Error as ValidationError, Validate};
+use gltf::json::mesh::Semantic;
+use gltf::json::validation::{Checked, Error as ValidationError, Validate};
 use gltf::json::{Path as JsonPath, Root};
 
 use super::{defect, json_defect};
@@ -192,6 +193,7 @@ fn check_extensions(path: &Path, root: &Root, json_offset: u64) -> Result<(), In
 /// The `gltf` crate's validation, less what the reader handles itself: required extensions
 /// (checked above) and the POSITION accessor's `min`/`max`, which are not used.
 fn validate(path: &Path, root: &Root, json_offset: u64) -> Result<(), InputError> {
+    check_position_accessors(path, root, json_offset)?;
     let mut first: Option<(String, ValidationError)> = None;
     root.validate(root, JsonPath::new, &mut |where_, error| {
         let where_ = where_().to_string();
@@ -209,6 +211,26 @@ fn validate(path: &Path, root: &Root, json_offset: u64) -> Result<(), InputError
             Err(json_defect(path, "JSON", 0, json_offset, message))
         }
     }
+}
+
+/// The crate's validation indexes the accessors by each POSITION attribute unchecked (a panic
+/// on a forged index), so those indices are checked first.
+fn check_position_accessors(path: &Path, root: &Root, json_offset: u64) -> Result<(), InputError> {
+    let position = Checked::Valid(Semantic::Positions);
+    for (index, mesh) in root.meshes.iter().enumerate() {
+        let accessors = mesh
+            .primitives
+            .iter()
+            .filter_map(|p| p.attributes.get(&position));
+        if let Some(accessor) = accessors
+            .map(|a| a.value())
+            .find(|&a| a >= root.accessors.len())
+        {
+            let message = format!("POSITION accessor {accessor} does not exist");
+            return Err(json_defect(path, "mesh", index, json_offset, message));
+        }
+    }
+    Ok(())
 }
 
 fn load_buffer(
