@@ -62,7 +62,7 @@ pub(super) fn decode(compressed: &Compressed, encoded: &[u8]) -> Result<Vec<u8>,
         })?;
     let decoded = match compressed.mode.as_str() {
         "ATTRIBUTES" => decode_attributes(encoded, count, stride)?,
-        "TRIANGLES" if count % 3 != 0 => {
+        "TRIANGLES" if !count.is_multiple_of(3) => {
             return Err(format!(
                 "TRIANGLES mode with {count} indices, not a multiple of 3"
             ))
@@ -81,7 +81,7 @@ pub(super) fn decode(compressed: &Compressed, encoded: &[u8]) -> Result<Vec<u8>,
 }
 
 fn decode_attributes(encoded: &[u8], count: usize, stride: usize) -> Result<Vec<u8>, String> {
-    if stride == 0 || stride % 4 != 0 || stride > MAX_VERTEX_STRIDE {
+    if stride == 0 || !stride.is_multiple_of(4) || stride > MAX_VERTEX_STRIDE {
         return Err(format!(
             "ATTRIBUTES stride {stride}: must be 4 to 256, a multiple of 4"
         ));

@@ -395,7 +395,7 @@ impl<'a> Builder<'a> {
                 .windows(3)
                 .enumerate()
                 .map(|(i, w)| {
-                    if i % 2 == 0 {
+                    if i.is_multiple_of(2) {
                         [w[0], w[1], w[2]]
                     } else {
                         [w[0], w[2], w[1]]
