@@ -7,8 +7,8 @@
 #        scripts/bench_pipeline.sh --formats [TRIANGLES [RUNS]]   (default: 10000000 3)
 # Needs about 60 bytes of free disk per triangle under $BENCH_DIR (default /tmp/reducem-pipeline).
 #
-# --formats converts the same `scan` mesh as binary PLY, binary STL and zstd-compressed PLY
-# RUNS times each and prints the medians of the total time and of the chunk stage (the one that
+# --formats converts the same `scan` mesh as binary PLY, binary STL, float GLB, quantized GLB
+# (KHR_mesh_quantization) and zstd-compressed PLY RUNS times each and prints the medians of the total time and of the chunk stage (the one that
 # reads the input), the chunk stage against PLY's, and the largest peak RSS.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,8 +20,12 @@ if [ "${1:-}" = "--formats" ]; then
   cargo build --release -p pipeline --bin pipeline -q
   ./target/release/pipeline gen scan --triangles "$n" -o "$work/formats-$n.ply" 2>/dev/null
   ./target/release/pipeline gen scan --triangles "$n" -o "$work/formats-$n.stl" 2>/dev/null
+  ./target/release/pipeline gen scan --triangles "$n" -o "$work/formats-$n.glb" 2>/dev/null
+  ./target/release/pipeline gen scan --triangles "$n" -o "$work/formats-$n-quantized.glb" \
+    --quantized 2>/dev/null
   zstd -q -f -3 "$work/formats-$n.ply" -o "$work/formats-$n.ply.zst"
-  for input in "$work/formats-$n.ply" "$work/formats-$n.stl" "$work/formats-$n.ply.zst"; do
+  for input in "$work/formats-$n.ply" "$work/formats-$n.stl" "$work/formats-$n.glb" \
+    "$work/formats-$n-quantized.glb" "$work/formats-$n.ply.zst"; do
     for run in $(seq "$runs"); do
       rm -rf "$work/formats.work" "$work/formats.rdm"
       printf '[input]\npath = "%s"\n[output]\npath = "%s"\n[work]\ndir = "%s"\n' \
@@ -37,7 +41,8 @@ for line in open(sys.argv[1]):
       echo "$(basename "$input") $total $chunk $rss_kb $(stat -c %s "$input")"
     done
   done > "$work/formats-$n.txt"
-  rm -rf "$work/formats.work" "$work/formats.rdm" "$work/formats-$n".ply* "$work/formats-$n.stl"
+  rm -rf "$work/formats.work" "$work/formats.rdm" "$work/formats-$n".ply* "$work/formats-$n.stl" \
+    "$work/formats-$n"*.glb
   python3 - "$n" "$work/formats-$n.txt" <<'PY'
 import statistics, sys
 n, results = sys.argv[1:]

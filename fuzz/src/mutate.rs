@@ -85,6 +85,38 @@ pub const STL_DICTIONARY: &[&str] = &[
     "1.0000000596046447753906250001",
 ];
 
+/// Tokens for glTF JSON: the keys and values that steer the reader, and GLB chunk words.
+pub const GLTF_DICTIONARY: &[&str] = &[
+    "\"mode\":5,",
+    "\"mode\":6,",
+    "\"mode\":1,",
+    "\"componentType\":5120,",
+    "\"componentType\":5123,",
+    "\"componentType\":5125,",
+    "\"normalized\":true,",
+    "\"byteStride\":4,",
+    "\"byteStride\":255,",
+    "\"byteOffset\":4294967295,",
+    "\"count\":1000000000,",
+    "\"type\":\"VEC4\",",
+    "\"children\":[0],",
+    "\"scale\":[-1,1,1],",
+    "\"matrix\":[0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0],",
+    "\"sparse\":{\"count\":1,\"indices\":{\"bufferView\":0,\"componentType\":5121},\"values\":{\"bufferView\":0}},",
+    "\"extensionsRequired\":[\"KHR_draco_mesh_compression\"],",
+    "\"extensions\":{\"EXT_meshopt_compression\":{\"buffer\":0,\"byteLength\":8,\"byteStride\":4,\"count\":3,\"mode\":\"TRIANGLES\"}},",
+    "data:application/octet-stream;base64,",
+    "JSON",
+    "BIN\u{0}",
+    "glTF",
+    "\u{2}\u{0}\u{0}\u{0}",
+    "\u{ff}\u{ff}\u{ff}\u{ff}",
+    "0",
+    "-1",
+    "1e39",
+    "null",
+];
+
 /// Tokens for OBJ statements, references and numbers.
 pub const OBJ_DICTIONARY: &[&str] = &[
     "v ",

@@ -7,6 +7,8 @@
 //! * `obj`: an accepted mesh converts, opens, decodes and traces the same way.
 //! * `stl`: binary, ASCII and gzip/zstd-compressed STL through the table of formats; an
 //!   accepted mesh converts, opens, decodes and traces the same way.
+//! * `gltf`: GLB and `.gltf` JSON (data-URI buffers) through the table of formats, with
+//!   normals and colours asked for and not; an accepted mesh converts, opens, decodes and traces.
 //! * `reducem`: an opened file decodes to its header's triangle count and traces single rays
 //!   and packets to the same hits (corrupt bounds may lose hits, never cause a panic).
 //! * `rays`: a ray file `query` accepts traces on a fixed closed model with packets equal to
@@ -26,13 +28,14 @@ use reducem::trace::ray_file::parse_rays;
 use reducem::trace::watertight::{intersect_triangle, RaySpace};
 use reducem::trace::{Hit, Ray, TraceOptions, Tracer};
 
-use crate::mutate::{Structure, OBJ_DICTIONARY, PLY_DICTIONARY, STL_DICTIONARY};
+use crate::mutate::{Structure, GLTF_DICTIONARY, OBJ_DICTIONARY, PLY_DICTIONARY, STL_DICTIONARY};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Target {
     Ply,
     Obj,
     Stl,
+    Gltf,
     Reducem,
     Rays,
 }
@@ -51,10 +54,11 @@ const MAX_CONVERTED_TRIANGLES: usize = 20_000;
 const STREAM_WINDOW_BYTES: usize = 64;
 
 impl Target {
-    pub const ALL: [Target; 5] = [
+    pub const ALL: [Target; 6] = [
         Target::Ply,
         Target::Obj,
         Target::Stl,
+        Target::Gltf,
         Target::Reducem,
         Target::Rays,
     ];
@@ -64,6 +68,7 @@ impl Target {
             Target::Ply => "ply",
             Target::Obj => "obj",
             Target::Stl => "stl",
+            Target::Gltf => "gltf",
             Target::Reducem => "reducem",
             Target::Rays => "rays",
         }
@@ -79,6 +84,8 @@ impl Target {
             Target::Ply => "ply",
             Target::Obj => "obj",
             Target::Stl => "stl",
+            // GLB is recognised by its magic, JSON by this extension.
+            Target::Gltf => "gltf",
             Target::Reducem => "rdm",
             Target::Rays => "rays",
         }
@@ -89,6 +96,7 @@ impl Target {
             Target::Ply => Structure::Text(PLY_DICTIONARY),
             Target::Obj => Structure::Text(OBJ_DICTIONARY),
             Target::Stl => Structure::Text(STL_DICTIONARY),
+            Target::Gltf => Structure::Text(GLTF_DICTIONARY),
             Target::Reducem => Structure::Reducem,
             Target::Rays => Structure::Rays,
         }
@@ -128,7 +136,7 @@ impl Workspace {
                     .map(|mesh| self.convert_and_trace(&weld_identical_positions(mesh)))
                     .is_ok()
             }
-            Target::Stl => {
+            Target::Stl | Target::Gltf => {
                 let _ = read_mesh_with(&path, ALL_ATTRIBUTES);
                 read_mesh(&path)
                     .map(|mesh| self.convert_and_trace(&mesh))

@@ -15,6 +15,7 @@
 //! the rule is documented on each kind's module.
 
 mod cad;
+mod glb;
 mod isosurface;
 mod marching_cubes;
 mod noise;
@@ -34,6 +35,7 @@ use std::path::Path;
 
 use anyhow::Result;
 
+pub use glb::GlbFlavour;
 pub use perturb::perturbed_copies;
 pub use source::GeneratedSource;
 pub use stl::StlFlavour;
@@ -176,18 +178,20 @@ pub enum OutputFormat {
     /// Binary little-endian PLY.
     Ply,
     Stl(StlFlavour),
+    Glb(GlbFlavour),
 }
 
 impl OutputFormat {
-    /// Binary STL for a `.stl` name (any case), PLY otherwise.
+    /// Binary STL for a `.stl` name, float GLB for a `.glb` one (any case), PLY otherwise.
     pub fn for_path(path: &Path) -> OutputFormat {
-        let is_stl = path
+        let extension = path
             .extension()
-            .is_some_and(|extension| extension.eq_ignore_ascii_case("stl"));
-        if is_stl {
-            OutputFormat::Stl(StlFlavour::Binary)
-        } else {
-            OutputFormat::Ply
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match extension.as_deref() {
+            Some("stl") => OutputFormat::Stl(StlFlavour::Binary),
+            Some("glb") => OutputFormat::Glb(GlbFlavour::Float),
+            _ => OutputFormat::Ply,
         }
     }
 }
@@ -218,6 +222,7 @@ pub fn generate_as(
             ply::write(&*generator, &target)
         }
         OutputFormat::Stl(flavour) => stl::write(&*generator, flavour, out, &comment),
+        OutputFormat::Glb(flavour) => glb::write(&*generator, flavour, out, &comment),
     }
 }
 

@@ -1,7 +1,7 @@
 //! The `pipeline` command: converts meshes to ReduceM files (`run`, `status`, `clean`) and
 //! generates synthetic meshes (`gen`). Exit codes are a contract with cron jobs and are listed in README.md.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
@@ -125,7 +125,7 @@ enum Command {
         /// sphere 20; isosurface 96).
         #[arg(long)]
         triangles: u64,
-        /// The file to write: binary PLY, or binary STL for a .stl name.
+        /// The file to write: binary PLY, binary STL for a .stl name, GLB for a .glb name.
         #[arg(short, long)]
         output: PathBuf,
         /// Seed of the generator: the same seed gives the same mesh.
@@ -134,7 +134,32 @@ enum Command {
         /// With a .stl output: ASCII STL instead of binary.
         #[arg(long)]
         ascii: bool,
+        /// With a .glb output: positions quantized to unsigned shorts (KHR_mesh_quantization)
+        /// instead of floats.
+        #[arg(long)]
+        quantized: bool,
     },
+}
+
+/// The format `pipeline gen` writes `output` in: by its extension, `--ascii` for STL and
+/// `--quantized` for GLB.
+fn gen_output_format(
+    output: &Path,
+    ascii: bool,
+    quantized: bool,
+) -> anyhow::Result<gen::OutputFormat> {
+    use gen::OutputFormat::{Glb, Stl};
+    Ok(
+        match (gen::OutputFormat::for_path(output), ascii, quantized) {
+            (Stl(_), true, false) => Stl(gen::StlFlavour::Ascii),
+            (Glb(_), false, true) => Glb(gen::GlbFlavour::Quantized),
+            (_, true, _) => anyhow::bail!(exit::UsageError("--ascii needs a .stl output".into())),
+            (_, _, true) => {
+                anyhow::bail!(exit::UsageError("--quantized needs a .glb output".into()))
+            }
+            (format, false, false) => format,
+        },
+    )
 }
 
 /// `pipeline gen`'s KIND: the generator's kinds, each with its description in `--help` (the
@@ -270,16 +295,13 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             output,
             seed,
             ascii,
+            quantized,
         } => {
             reducem_core::signals::install_for_tool()?;
             if let Some(message) = config::too_few_triangles(kind, triangles) {
                 anyhow::bail!(exit::UsageError(format!("--triangles {message}")));
             }
-            let format = match (gen::OutputFormat::for_path(&output), ascii) {
-                (gen::OutputFormat::Stl(_), true) => gen::OutputFormat::Stl(gen::StlFlavour::Ascii),
-                (_, true) => anyhow::bail!(exit::UsageError("--ascii needs a .stl output".into())),
-                (format, false) => format,
-            };
+            let format = gen_output_format(&output, ascii, quantized)?;
             let summary = gen::generate_as(kind, triangles, seed, &output, format)?;
             eprintln!(
                 "pipeline: wrote {} ({} vertices, {} triangles)",

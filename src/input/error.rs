@@ -161,4 +161,7 @@ pub enum InputErrorKind {
     },
     #[error("OBJ: {0}")]
     Obj(String),
+    /// A glTF defect; the location names the accessor, bufferView, node or mesh.
+    #[error("glTF: {0}")]
+    Gltf(Box<str>),
 }

@@ -1,7 +1,7 @@
 //! The table of mesh formats: how each is recognised, read and opened for the chunker.
 //!
-//! A file is recognised by its content first (PLY's `ply` line, an STL whose facet count
-//! matches its size or whose text starts with `solid`), then by its extension, so a misnamed
+//! A file is recognised by its content first (PLY's `ply` line, GLB's `glTF` magic, an STL
+//! whose facet count matches its size or whose text starts with `solid`), then by its extension, so a misnamed
 //! file still reads and an extension never overrides what the bytes say. gzip and zstd
 //! compression is recognised by magic bytes, below the format, whatever the name says.
 //! `pipeline`, the Python `convert` (through `pipeline`) and `reducem` all come through here.
@@ -14,7 +14,9 @@ use super::compressed::{self, Compression, Decompressed};
 use super::error::{InputError, InputErrorKind, Location};
 use super::ply::io_error;
 use super::source::WindowedPly;
-use super::{obj, stl, weld_identical_positions, AttributeRequest, MeshSource, PlyFile, PlyStream};
+use super::{
+    gltf, obj, stl, weld_identical_positions, AttributeRequest, MeshSource, PlyFile, PlyStream,
+};
 use crate::mesh::Mesh;
 pub use reducem_core::format::model::UpAxis;
 
@@ -46,7 +48,7 @@ pub trait MeshFormat: Sync {
 }
 
 /// Every format reducem reads, in detection order.
-pub static FORMATS: [&dyn MeshFormat; 3] = [&Ply, &Stl, &Obj];
+pub static FORMATS: [&dyn MeshFormat; 4] = [&Ply, &Gltf, &Stl, &Obj];
 
 /// A recognised input: its format and the compression around it.
 #[derive(Clone, Copy)]
@@ -280,5 +282,44 @@ impl MeshFormat for Stl {
     fn read_mesh(&self, path: &Path, request: AttributeRequest) -> Result<Mesh, InputError> {
         stl::check_attributes(path, request)?;
         stl::read_stl(path)
+    }
+}
+
+struct Gltf;
+
+impl MeshFormat for Gltf {
+    fn name(&self) -> &'static str {
+        "glTF 2.0 / GLB"
+    }
+
+    fn extensions(&self) -> &'static [&'static str] {
+        &["gltf", "glb"]
+    }
+
+    /// GLB by its magic; `.gltf` JSON only by its extension.
+    fn detect(&self, head: &[u8], _length: Option<u64>) -> bool {
+        gltf::is_glb(head)
+    }
+
+    fn default_up(&self) -> UpAxis {
+        UpAxis::Y
+    }
+
+    fn check_attributes(&self, path: &Path, request: AttributeRequest) -> Result<(), InputError> {
+        gltf::check_attributes(path, request)
+    }
+
+    fn read_mesh(&self, path: &Path, request: AttributeRequest) -> Result<Mesh, InputError> {
+        gltf::read_gltf(path, request)
+    }
+
+    /// The reader checks the attributes as it goes, so the file is read once.
+    fn open(
+        &self,
+        path: &Path,
+        request: AttributeRequest,
+        _window_bytes: usize,
+    ) -> Result<Box<dyn MeshSource>, InputError> {
+        Ok(Box::new(self.read_mesh(path, request)?))
     }
 }

@@ -1,5 +1,5 @@
-//! Mesh input: PLY (binary little/big endian and ASCII), OBJ and STL (binary and ASCII), plain
-//! or compressed with gzip or zstd, triangulated and welded.
+//! Mesh input: PLY (binary little/big endian and ASCII), OBJ, STL (binary and ASCII) and glTF
+//! 2.0 (`.gltf`, `.glb`), plain or compressed with gzip or zstd, triangulated and welded.
 //!
 //! [`formats`] holds the table of formats, which recognises a file and opens it as a
 //! [`MeshSource`] for the chunker; [`read_mesh`] is the one-call entry point. [`PlyFile`] is exposed separately so callers
@@ -12,6 +12,7 @@
 mod compressed;
 mod error;
 pub mod formats;
+mod gltf;
 mod obj;
 mod obj_survey;
 mod ply;
