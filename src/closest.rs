@@ -12,6 +12,7 @@ use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::output::Destination;
 use reducem::query::{closest_points, signed_closest_points, ClosestPoint, FaceIds};
+use reducem::trace::Kernel;
 
 /// Bytes of one point of a point file: f32 x, y, z.
 const POINT_BYTES: usize = 12;
@@ -112,11 +113,12 @@ pub(crate) fn in_pool<T: Send>(
 }
 
 /// The points of `points` and the file at `file`, read and opened side by side, the file told
-/// how many queries come.
+/// how many queries come; a `REDUCEM_KERNEL` this CPU cannot run is refused first.
 pub(crate) fn points_and_file(
     points: &Path,
     file: &Path,
 ) -> anyhow::Result<(Vec<Point>, ReducemFile)> {
+    Kernel::from_env()?;
     let (points, file) = rayon::join(|| read_points(points), || ReducemFile::open(file));
     let (points, file) = (points?, file?);
     file.advise_batch(points.len());

@@ -8,8 +8,9 @@ use anyhow::Context;
 
 use reducem::format::reader::ReducemFile;
 use reducem::output::Destination;
-use reducem::query::{all_hits, count_crossings, AllHits, FaceIds};
+use reducem::query::{all_hits_on, count_crossings_on, AllHits, FaceIds};
 use reducem::trace::ray_file::{InvalidRays, RayFile};
+use reducem::trace::Kernel;
 
 /// What `query` answers about every crossing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -27,6 +28,7 @@ pub fn run(
     mode: Crossings,
     invalid_rays: InvalidRays,
 ) -> anyhow::Result<()> {
+    let kernel = Kernel::from_env()?;
     let (rays, file) = rayon::join(
         || RayFile::open(rays_path, invalid_rays),
         || ReducemFile::open(path),
@@ -36,12 +38,12 @@ pub fn run(
     let started = Instant::now();
     let (bytes, crossings) = match mode {
         Crossings::Count => {
-            let counts = count_crossings(&file, rays.records());
+            let counts = count_crossings_on(&file, rays.records(), kernel);
             let total = counts.iter().map(|&n| u64::from(n)).sum::<u64>();
             (counts.iter().flat_map(|n| n.to_le_bytes()).collect(), total)
         }
         Crossings::All => {
-            let hits = all_hits(&file, rays.records(), &FaceIds::of(&file));
+            let hits = all_hits_on(&file, rays.records(), &FaceIds::of(&file), kernel);
             (encode_all(&hits), hits.hits.len() as u64)
         }
     };

@@ -704,6 +704,38 @@ fn corrupt_files_fail_the_commands_with_exit_65() {
     }
 }
 
+/// A `REDUCEM_KERNEL` naming no kernel this CPU runs is a usage error for every point and
+/// crossing query, as for tracing: nothing is answered on a kernel nobody asked for.
+#[test]
+fn an_unknown_forced_kernel_is_refused_by_every_query_command() {
+    let (path, _) = converted(&icosphere(1), &BuildParams::default(), "kernel-refused.rdm");
+    let model = path.to_str().unwrap();
+    let rays = write_rays(
+        "kernel-refused.rays",
+        &rays_at([0.0; 3], &[[1.0, 0.2, 0.1]]),
+    );
+    let points = write_points("kernel-refused.points", &[[0.1, 0.0, 0.0]]);
+    let (rays, points) = (rays.to_str().unwrap(), points.to_str().unwrap());
+    for args in [
+        vec!["query", model, "--rays", rays, "--count", "-o"],
+        vec!["query", model, "--rays", rays, "--all", "-o"],
+        vec!["inside", model, "--points", points, "-o"],
+        vec!["closest", model, "--points", points, "--signed", "-o"],
+    ] {
+        let out = temp_path("kernel-refused.out");
+        let run = std::process::Command::new(env!("CARGO_BIN_EXE_reducem"))
+            .env("REDUCEM_KERNEL", "avx9")
+            .args(&args)
+            .arg(&out)
+            .output()
+            .expect("run reducem");
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(64), "{args:?}: {stderr}");
+        assert!(stderr.contains("REDUCEM_KERNEL=avx9"), "{stderr}");
+        assert!(!out.exists(), "{args:?}: no answers written");
+    }
+}
+
 fn inspect_json(path: &Path) -> serde_json::Value {
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_reducem"))
         .args(["inspect", "--json"])

@@ -1,13 +1,14 @@
 //! Closest-point queries of numpy points `(..., 3)`: validated (finite components), computed in
-//! f32 from float64 as Open3D does, answered by the core's closest-point search straight into
-//! the flat buffers that become the returned arrays.
+//! f32 from float64 as Open3D does, answered by the core's closest-point search in its spatial
+//! order and written once into the flat buffers that become the returned arrays.
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 use reducem_core::format::reader::ReducemFile;
+use reducem_core::geometry::Point;
 use reducem_core::query::occupancy::point_inside;
-use reducem_core::query::ClosestPointSearch;
+use reducem_core::query::{closest_points as closest_in_spatial_order, signed_closest_points};
 use reducem_core::trace::unit_normal;
 
 use crate::primitive_ids::{PrimitiveIds, NO_PRIMITIVE};
@@ -62,6 +63,7 @@ pub fn closest_points(
     points: Components<'_>,
 ) -> ClosestAnswers {
     let count = points.points();
+    let found = closest_in_spatial_order(file, &gathered(points), f32::INFINITY);
     let mut answers = ClosestAnswers {
         distances: vec![0.0; count],
         points: vec![0.0; 3 * count],
@@ -77,30 +79,26 @@ pub fn closest_points(
         .zip(answers.uvs.par_chunks_mut(2 * CHUNK))
         .zip(answers.normals.par_chunks_mut(3 * CHUNK))
         .enumerate()
-        .for_each_init(
-            || ClosestPointSearch::new(file),
-            |search, (chunk, ((((distances, at), id), uv), normal))| {
-                for (k, distance) in distances.iter_mut().enumerate() {
-                    let query = points.point(chunk * CHUNK + k);
-                    let Some(found) = search.closest(&query, f32::INFINITY) else {
-                        *distance = f32::INFINITY;
-                        at[3 * k..3 * k + 3].fill(f32::NAN);
-                        id[k] = NO_PRIMITIVE;
-                        uv[2 * k..2 * k + 2].fill(f32::NAN);
-                        continue;
-                    };
-                    *distance = found.distance;
-                    at[3 * k..3 * k + 3].copy_from_slice(&found.point);
-                    id[k] = ids.id(file, found.strip, found.window);
-                    uv[2 * k..2 * k + 2].copy_from_slice(&[found.u, found.v]);
-                    let corners = file
-                        .strip(found.strip as usize)
-                        .window_points(found.window as usize);
-                    normal[3 * k..3 * k + 3]
-                        .copy_from_slice(&corners.map_or([0.0; 3], |c| unit_normal(&c)));
-                }
-            },
-        );
+        .for_each(|(chunk, ((((distances, at), id), uv), normal))| {
+            for (k, distance) in distances.iter_mut().enumerate() {
+                let Some(found) = found[chunk * CHUNK + k] else {
+                    *distance = f32::INFINITY;
+                    at[3 * k..3 * k + 3].fill(f32::NAN);
+                    id[k] = NO_PRIMITIVE;
+                    uv[2 * k..2 * k + 2].fill(f32::NAN);
+                    continue;
+                };
+                *distance = found.distance;
+                at[3 * k..3 * k + 3].copy_from_slice(&found.point);
+                id[k] = ids.id(file, found.strip, found.window);
+                uv[2 * k..2 * k + 2].copy_from_slice(&[found.u, found.v]);
+                let corners = file
+                    .strip(found.strip as usize)
+                    .window_points(found.window as usize);
+                normal[3 * k..3 * k + 3]
+                    .copy_from_slice(&corners.map_or([0.0; 3], |c| unit_normal(&c)));
+            }
+        });
     answers
 }
 
@@ -115,20 +113,16 @@ pub fn occupancy(file: &ReducemFile, points: Components<'_>, rays: u32) -> Vec<f
 
 /// The distance from each point to the surface, negative inside (decided by `rays` rays).
 pub fn signed_distances(file: &ReducemFile, points: Components<'_>, rays: u32) -> Vec<f32> {
+    let signed = signed_closest_points(file, &gathered(points), f32::INFINITY, rays);
+    (0..points.points())
+        .map(|i| signed.signed_distance(i))
+        .collect()
+}
+
+/// The points of `points`, for the core's queries that answer them in a spatial order.
+fn gathered(points: Components<'_>) -> Vec<Point> {
     (0..points.points())
         .into_par_iter()
-        .map_init(
-            || ClosestPointSearch::new(file),
-            |search, i| {
-                let point = points.point(i);
-                let Some(found) = search.closest(&point, f32::INFINITY) else {
-                    return f32::INFINITY;
-                };
-                match point_inside(file, &point, rays) {
-                    true => -found.distance,
-                    false => found.distance,
-                }
-            },
-        )
+        .map(|i| points.point(i))
         .collect()
 }

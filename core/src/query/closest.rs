@@ -84,9 +84,9 @@ impl Best {
 }
 
 impl<'f> ClosestPointSearch<'f> {
-    /// A search with the fastest kernel this CPU runs.
+    /// A search on [`Kernel::configured`].
     pub fn new(file: &'f ReducemFile) -> ClosestPointSearch<'f> {
-        ClosestPointSearch::with_kernel(file, Kernel::detect())
+        ClosestPointSearch::with_kernel(file, Kernel::configured())
     }
 
     /// A search whose box bounds run on `kernel` (every kernel gives the same answers); a

@@ -18,8 +18,6 @@
 //! nothing. The f32 edge functions are used when none is zero: rounding keeps their signs or
 //! makes them zero, so they decide as the exact ones would.
 
-use std::sync::OnceLock;
-
 use rayon::prelude::*;
 
 use super::crossing_walk::CrossingWalk;
@@ -56,17 +54,9 @@ pub struct AllHits {
 /// Rays per rayon task of [`all_hits`]: each task fills one hit list, not one per ray.
 const RAYS_PER_TASK: usize = 1024;
 
-/// The kernel the crossing queries run on when none is given: `REDUCEM_KERNEL`'s when it
-/// names one this CPU runs (the commands refuse any other before querying), else the fastest.
-/// Answers do not depend on it.
-pub fn default_kernel() -> Kernel {
-    static KERNEL: OnceLock<Kernel> = OnceLock::new();
-    *KERNEL.get_or_init(|| Kernel::from_env().unwrap_or_else(|_| Kernel::detect()))
-}
-
 /// The number of crossings of every ray in `[tmin, tmax]`, in parallel (rayon's current pool).
 pub fn count_crossings(file: &ReducemFile, rays: &[Ray]) -> Vec<u32> {
-    count_crossings_on(file, rays, default_kernel())
+    count_crossings_on(file, rays, Kernel::configured())
 }
 
 /// [`count_crossings`] on `kernel`.
@@ -82,7 +72,7 @@ pub fn count_crossings_on(file: &ReducemFile, rays: &[Ray], kernel: Kernel) -> V
 
 /// Every crossing of every ray in `[tmin, tmax]`, in parallel (rayon's current pool).
 pub fn all_hits(file: &ReducemFile, rays: &[Ray], face_ids: &FaceIds) -> AllHits {
-    all_hits_on(file, rays, face_ids, default_kernel())
+    all_hits_on(file, rays, face_ids, Kernel::configured())
 }
 
 /// [`all_hits`] on `kernel`.
@@ -121,7 +111,7 @@ pub fn all_hits_on(
 /// The crossings of one ray, `t` ascending, ties by face id.
 pub fn ray_hits(file: &ReducemFile, ray: &Ray, face_ids: &FaceIds) -> Vec<RayHit> {
     let mut hits = Vec::new();
-    push_ray_hits(file, ray, face_ids, default_kernel(), &mut hits);
+    push_ray_hits(file, ray, face_ids, Kernel::configured(), &mut hits);
     hits
 }
 
@@ -152,7 +142,7 @@ fn push_ray_hits(
 /// lazily opened file a corrupt node or strip reached is skipped and kept for
 /// [`ReducemFile::defect`], as in tracing.
 pub fn for_each_crossing(file: &ReducemFile, ray: &Ray, each: impl FnMut(u32, u16, TriangleHit)) {
-    for_each_crossing_on(file, ray, default_kernel(), each)
+    for_each_crossing_on(file, ray, Kernel::configured(), each)
 }
 
 /// [`for_each_crossing`] on `kernel`: the kernel finds the windows that may cross in its lanes,

@@ -20,7 +20,9 @@ use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
 use crate::triangle_index::TriangleIndex;
 pub use closest::{ClosestPoint, ClosestPointSearch};
-pub use crossings::{all_hits, count_crossings, AllHits, RayHit, NO_FACE};
+pub use crossings::{
+    all_hits, all_hits_on, count_crossings, count_crossings_on, AllHits, RayHit, NO_FACE,
+};
 pub use occupancy::{occupancy, Occupancy};
 pub use signed::{signed_closest_points, SignedClosest};
 

@@ -72,6 +72,14 @@ impl Kernel {
         }
     }
 
+    /// The kernel of queries that cannot fail on a bad `REDUCEM_KERNEL`: [`Kernel::from_env`]'s
+    /// when it names one this CPU runs, else the fastest; read once. The commands refuse a bad
+    /// name before querying, and answers do not depend on the kernel.
+    pub fn configured() -> Kernel {
+        static KERNEL: std::sync::OnceLock<Kernel> = std::sync::OnceLock::new();
+        *KERNEL.get_or_init(|| Kernel::from_env().unwrap_or_else(|_| Kernel::detect()))
+    }
+
     /// The kernel called `name` (`sse2`, `avx2`), if this CPU runs it.
     pub fn by_name(name: &str) -> Result<Kernel, KernelError> {
         let kernel = Kernel::ALL
