@@ -136,6 +136,14 @@ impl SharedPositions {
         }
     }
 
+    /// The set of every position.
+    pub fn everything() -> SharedPositions {
+        SharedPositions {
+            bits: vec![u64::MAX],
+            mask: 63,
+        }
+    }
+
     pub fn insert(&mut self, key: &PositionKey) {
         let bucket = self.bucket(key);
         self.bits[(bucket / 64) as usize] |= 1 << (bucket % 64);

@@ -174,6 +174,49 @@ fn closed_open_and_nonmanifold_meshes_count_as_a_brute_force_in_any_number_of_ch
     let _ = fs::remove_dir_all(&dir);
 }
 
+/// `mesh` with unshared vertices, each corner's copy moved by a few ulps and given a normal:
+/// a tolerance weld joins the copies again.
+fn write_jittered_ply_with_normals(mesh: &Mesh, path: &Path) {
+    let mut text = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\n\
+         property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+         element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        mesh.triangles.len() * 3,
+        mesh.triangles.len()
+    );
+    for (index, t) in mesh.triangles.iter().enumerate() {
+        for (corner, &v) in t.iter().enumerate() {
+            let jitter = ((index + corner) % 5) as u32;
+            let p = mesh.positions[v as usize].map(|c| f32::from_bits(c.to_bits() + jitter));
+            text += &format!("{:?} {:?} {:?} 0 0 1\n", p[0], p[1], p[2]);
+        }
+    }
+    for index in 0..mesh.triangles.len() {
+        let first = index * 3;
+        text += &format!("3 {} {} {}\n", first, first + 1, first + 2);
+    }
+    fs::write(path, text).expect("write ply");
+}
+
+#[test]
+fn a_tolerance_weld_with_normals_closes_a_split_sphere_in_many_chunks() {
+    let dir = temp_dir("snapped");
+    let base = dir.join("base.ply");
+    generate(Kind::Sphere, 2_000, 5, &base).expect("generate");
+    let input = dir.join("split.ply");
+    write_jittered_ply_with_normals(&read_mesh(&base).expect("read"), &input);
+    let keys = "\n[vertices]\nweld_tolerance = 1e-5\n\n[attributes]\nnormals = \"oct16\"\n";
+    for max_triangles in [1_000_000, 40] {
+        let file = staged(&dir, &input, max_triangles, keys);
+        assert_eq!(
+            file.closedness(),
+            Some(Closedness::default()),
+            "{max_triangles}"
+        );
+    }
+    let _ = fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn grid_files_in_many_chunks_count_as_in_one() {
     let dir = temp_dir("grid");

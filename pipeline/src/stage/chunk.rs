@@ -137,7 +137,12 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     )?;
     let bounds = partition.bounds;
     let grid = job.config.build_params().grid(&bounds);
-    let shared = border_edges::shared_positions(&*source, &partition, &marks, grid.as_ref())?;
+    // A tolerance weld with attributes moves vertices onto others' positions, which the
+    // position pass does not see; every position is then taken as shared.
+    let shared = match job.config.vertices.weld_tolerance > 0.0 && request.any() {
+        true => SharedPositions::everything(),
+        false => border_edges::shared_positions(&*source, &partition, &marks, grid.as_ref())?,
+    };
     // Every vertex's cell (2 bytes a vertex, 1 GB for a billion triangles) is no longer needed.
     drop((partition, marks));
     let triangles: u64 = triangles_per_chunk.iter().sum();
