@@ -19,9 +19,10 @@ use crate::stripify::adjacency::is_dropped;
 /// A position by its bits, ordered lexicographically.
 pub type PositionKey = [u32; 3];
 
-/// One use of an edge: its ends in key order, and whether the triangle runs it from the first
-/// to the second.
-type EdgeUse = (PositionKey, PositionKey, bool);
+/// One use of an edge: its ends as the smallest vertex of their position, in index order, and
+/// whether the triangle runs it from the first to the second (12 bytes, where positions would
+/// take 28).
+type EdgeUse = (u32, u32, bool);
 
 /// The edge counts of `mesh`'s stored triangles.
 pub fn count_edges(mesh: &Mesh) -> Closedness {
@@ -54,32 +55,53 @@ pub fn count_chunk_edges(
     mesh: &Mesh,
     shared: impl Fn(&PositionKey) -> bool,
 ) -> (Closedness, Vec<BorderEdge>) {
-    let mut uses: Vec<EdgeUse> = mesh
-        .triangles
-        .par_iter()
-        .filter(|triangle| !is_dropped(mesh, triangle))
-        .flat_map_iter(|triangle| {
-            let keys = mesh.triangle_points(triangle).map(|p| p.map(f32::to_bits));
-            (0..3).map(move |i| edge_use(keys[i], keys[(i + 1) % 3]))
-        })
-        .collect();
+    let key = |vertex: u32| mesh.positions[vertex as usize].map(f32::to_bits);
+    let same_position = first_vertex_of_position(mesh);
+    let mut uses: Vec<EdgeUse> = Vec::with_capacity(mesh.triangles.len() * 3);
+    for triangle in mesh.triangles.iter().filter(|t| !is_dropped(mesh, t)) {
+        let corners = triangle.map(|v| same_position[v as usize]);
+        uses.extend((0..3).map(|i| edge_use(corners[i], corners[(i + 1) % 3])));
+    }
     uses.par_sort_unstable();
     let mut counts = Closedness::default();
     let mut border = Vec::new();
     for group in uses.chunk_by(|a, b| (a.0, a.1) == (b.0, b.1)) {
         let forward = group.iter().filter(|u| u.2).count() as u32;
-        let edge = BorderEdge {
-            first: group[0].0,
-            second: group[0].1,
-            forward,
-            backward: group.len() as u32 - forward,
-        };
-        match shared(&edge.first) && shared(&edge.second) {
-            true => border.push(edge),
-            false => tally(&mut counts, edge.forward, edge.backward),
+        let backward = group.len() as u32 - forward;
+        let (low, high) = (key(group[0].0), key(group[0].1));
+        match shared(&low) && shared(&high) {
+            true if low < high => border.push(BorderEdge {
+                first: low,
+                second: high,
+                forward,
+                backward,
+            }),
+            true => border.push(BorderEdge {
+                first: high,
+                second: low,
+                forward: backward,
+                backward: forward,
+            }),
+            false => tally(&mut counts, forward, backward),
         }
     }
+    border.sort_unstable();
     (counts, border)
+}
+
+/// For each vertex, the smallest vertex at bit-identical coordinates: edges are edges of
+/// positions, and a chunk may keep two vertices on one position apart (different attributes).
+fn first_vertex_of_position(mesh: &Mesh) -> Vec<u32> {
+    let key = |vertex: u32| mesh.positions[vertex as usize].map(f32::to_bits);
+    let mut order: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+    order.par_sort_by_key(|&vertex| (key(vertex), vertex));
+    let mut first = vec![0u32; mesh.positions.len()];
+    for group in order.chunk_by(|&a, &b| key(a) == key(b)) {
+        group
+            .iter()
+            .for_each(|&vertex| first[vertex as usize] = group[0]);
+    }
+    first
 }
 
 /// The counts of the edges in `sorted` (every chunk's border edges, in key order), each edge's
@@ -104,7 +126,7 @@ fn tally(counts: &mut Closedness, forward: impl Into<u64>, backward: impl Into<u
     }
 }
 
-fn edge_use(from: PositionKey, to: PositionKey) -> EdgeUse {
+fn edge_use(from: u32, to: u32) -> EdgeUse {
     match from < to {
         true => (from, to, true),
         false => (to, from, false),
