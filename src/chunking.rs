@@ -166,6 +166,13 @@ pub fn partition(source: &dyn MeshSource, max_triangles: u64) -> Result<Partitio
     })
 }
 
+impl Partition {
+    /// The cell of `point` on the partition's grid.
+    pub fn cell_of(&self, point: &Point) -> u16 {
+        CellGrid::new(&self.bounds).cell(point)
+    }
+}
+
 /// One more pass handing every triangle, in input order, to `sink(chunk, face_id, triangle)`.
 pub fn distribute(
     source: &dyn MeshSource,
@@ -275,6 +282,13 @@ impl ChunkPlan {
 
     pub fn chunk_count(&self) -> usize {
         self.chunk_count as usize
+    }
+
+    /// The one chunk that holds every triangle of `cell`; `None` when the cell is dealt out
+    /// over several.
+    pub fn home_chunk(&self, cell: u16) -> Option<u32> {
+        let cell = cell as usize;
+        (!self.oversized[cell]).then_some(self.first_chunk[cell])
     }
 
     /// The chunk of the `ordinal`-th triangle (in input order) of `cell`.

@@ -2,6 +2,7 @@
 //! (`main.rs`) and the Python package (`python/`) both run jobs through [`run::run`] and
 //! [`convert::convert`].
 
+pub mod border_edges;
 pub mod checksum;
 pub mod chunk_io;
 pub mod config;

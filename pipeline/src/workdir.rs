@@ -65,3 +65,8 @@ pub fn mesh_chunk(index: usize) -> String {
 pub fn strip_chunk(index: usize) -> String {
     format!("strips/chunk-{index:06}.strips")
 }
+
+/// Relative path of the border edges of chunk `index` (`crate::border_edges`).
+pub fn border_edges(index: usize) -> String {
+    format!("chunks/border-{index:06}.edges")
+}

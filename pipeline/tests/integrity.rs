@@ -69,6 +69,7 @@ fn a_changed_work_file_of_each_kind_is_named_stale_and_rebuilt_to_the_same_bytes
     let cases = [
         ("chunks/plan.json", "chunk", "every chunk"),
         ("chunks/chunk-000001.mesh.zst", "chunk", "every chunk"),
+        ("chunks/border-000001.edges", "chunk", "every chunk"),
         (
             "strips/chunk-000002.strips",
             "strip/chunk-000002",
@@ -158,6 +159,39 @@ fn a_file_failing_its_final_verification_leaves_the_earlier_output_and_the_stage
     run_ok(&config, &[]);
     assert!(fs::read(&output).unwrap() == reference);
     let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_border_edge_file_damaged_after_hashing_fails_the_merge_and_counts_nothing() {
+    let dir = temp_dir("edges");
+    let config = job(&dir, "");
+    run_ok(&config, &[]);
+    let output = dir.join("out.rdm");
+    let reference = fs::read(&output).expect("output");
+    let work = dir.join("job.work");
+    let edges = work.join("chunks/border-000002.edges");
+    flip_middle_byte(&edges);
+    damage_beyond_the_checksums(&work, "chunks/border-000002.edges");
+    forget_unit(&work, "merge");
+    let failed = run(&config, &[]);
+    let message = stderr(&failed);
+    assert_eq!(failed.status.code(), Some(70), "{message}");
+    assert!(
+        message.contains("border-000002.edges: border edges damaged (the edges' checksum"),
+        "{message}"
+    );
+    assert!(fs::read(&output).unwrap() == reference);
+    assert!(status(&config).contains("merge                pending: never run"));
+    let _ = fs::remove_dir_all(&dir);
+}
+
+/// Removes `unit` from the manifest, as if it had never run.
+fn forget_unit(work: &Path, unit: &str) {
+    let manifest_path = work.join("manifest.json");
+    let mut manifest: serde_json::Value =
+        serde_json::from_slice(&fs::read(&manifest_path).unwrap()).unwrap();
+    manifest["units"].as_object_mut().unwrap().remove(unit);
+    fs::write(&manifest_path, serde_json::to_vec(&manifest).unwrap()).unwrap();
 }
 
 /// Binary PLY of a 70 × 50 height field with a normal and a colour per vertex.

@@ -13,6 +13,11 @@
 //! runs once per pass (twice over the positions, twice over the triangles) and computes each
 //! chunk's vertices on demand: no input file is written.
 //!
+//! Each chunk also counts the edges it holds every use of and writes the others, its border
+//! edges, for the merge stage to add up (`crate::border_edges`): spilling marks the vertices
+//! of chunks other than their cell's (1 bit a vertex), and one more pass over the positions
+//! turns the marks into a set of shared positions (2 to 4 bits a vertex).
+//!
 //! With `[attributes] face_ids`, each spilled triangle carries its global input face id (16
 //! bytes instead of 12) and the chunk mesh keeps them; with normals or colours, each chunk
 //! reads them for its own vertices beside their positions.
@@ -23,16 +28,20 @@ use std::path::Path;
 
 use anyhow::Context;
 use reducem::chunking::{self, MeshSource, Partition};
+use reducem::closedness::{count_chunk_edges, PositionKey, SharedPositions};
+use reducem::format::grid::Grid;
 use reducem::geometry::Aabb;
 use reducem::input::{InputError, InputErrorKind, Location, WeldStats};
+use reducem::quantize::quantize_mesh;
 use serde::{Deserialize, Serialize};
 
+use crate::border_edges::{self, EdgeCounts, VertexMarks};
 use crate::checksum::Checksum;
 use crate::chunk_io;
 use crate::fingerprint::Fingerprint;
 use crate::input::ResolvedInput;
 use crate::stage::{for_each_unit, fresh_output, write_json, Job, Stamped};
-use crate::workdir::mesh_chunk;
+use crate::workdir::{border_edges as border_file, mesh_chunk};
 
 pub const UNIT: &str = "chunk";
 const PLAN: &str = "chunks/plan.json";
@@ -45,6 +54,10 @@ pub struct Chunked {
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
     pub weld: WeldStats,
+    /// Edge counts over the edges whose every use lies in one chunk.
+    pub inner_edges: EdgeCounts,
+    /// Border edges written over all chunks, each chunk's uses of an edge once.
+    pub border_edges: u64,
 }
 
 impl Chunked {
@@ -73,7 +86,11 @@ pub fn fingerprint(job: &Job, input: &ResolvedInput) -> Fingerprint {
         .with("attributes.face_ids", attributes.face_ids)
         .with("attributes.normals", attributes.normals.name())
         .with("attributes.colors", attributes.colors)
+        .with("chunk.border_edges", BORDER_EDGES_VERSION)
 }
+
+/// Version of the chunk stage's edge outputs (the border-edge files and the plan's counts).
+const BORDER_EDGES_VERSION: u32 = 1;
 
 /// The recorded result, if the stage is fresh.
 pub fn fresh_result(job: &Job, fingerprint: &Fingerprint) -> Option<Chunked> {
@@ -109,10 +126,25 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
     )?;
     let partition = chunking::partition(&*source, job.config.chunk.max_triangles)?;
     let face_ids = job.config.attributes.face_ids;
-    let triangles_per_chunk = spill(job, &*source, &partition, face_ids, input.name())?;
-    // Every vertex's cell (2 bytes a vertex, 1 GB for a billion triangles) is no longer needed.
+    let mut marks = VertexMarks::new(source.vertex_count());
+    let triangles_per_chunk = spill(
+        job,
+        &*source,
+        &partition,
+        &mut marks,
+        face_ids,
+        input.name(),
+    )?;
     let bounds = partition.bounds;
-    drop(partition);
+    let grid = job.config.build_params().grid(&bounds);
+    // A tolerance weld with attributes moves vertices onto others' positions, which the
+    // position pass does not see; every position is then taken as shared.
+    let shared = match job.config.vertices.weld_tolerance > 0.0 && request.any() {
+        true => SharedPositions::everything(),
+        false => border_edges::shared_positions(&*source, &partition, &marks, grid.as_ref())?,
+    };
+    // Every vertex's cell (2 bytes a vertex, 1 GB for a billion triangles) is no longer needed.
+    drop((partition, marks));
     let triangles: u64 = triangles_per_chunk.iter().sum();
     if triangles == 0 {
         return Err(NoTriangles(input.name().to_path_buf()).into());
@@ -129,28 +161,65 @@ pub fn run(job: &Job, input: &ResolvedInput) -> anyhow::Result<Chunked> {
         .progress
         .stage(UNIT, triangles_per_chunk.len() as u64, "chunks");
     let chunks: Vec<usize> = (0..triangles_per_chunk.len()).collect();
-    let written = std::sync::Mutex::new(Vec::with_capacity(chunks.len()));
+    let written = std::sync::Mutex::new(ChunkOutputs::default());
     for_each_unit(&chunks, |chunk| {
-        let output = write_chunk(job, &*source, chunk, face_ids)?;
+        let edges = EdgeContext {
+            shared: &shared,
+            grid: grid.as_ref(),
+        };
+        let output = write_chunk(job, &*source, chunk, face_ids, &edges)?;
         written
             .lock()
             .unwrap_or_else(|p| p.into_inner())
-            .push(output);
+            .add(output);
         progress.advance(1);
         Ok(())
     })?;
-    let mut outputs = written.into_inner().unwrap_or_else(|p| p.into_inner());
+    let written = written.into_inner().unwrap_or_else(|p| p.into_inner());
+    let mut outputs = written.files;
     let chunked = Chunked {
         digest: fingerprint.digest(),
         triangles_per_chunk,
         bounds_min: bounds.min,
         bounds_max: bounds.max,
         weld,
+        inner_edges: written.inner_edges,
+        border_edges: written.border_edges,
     };
     outputs.push(write_json(job, PLAN, &chunked)?);
     job.complete(UNIT, &fingerprint, &outputs)?;
     progress.finish(&format!(", {} chunks", chunked.chunk_count()));
     Ok(chunked)
+}
+
+/// What the chunks wrote: their files, and their edge counts summed.
+#[derive(Default)]
+struct ChunkOutputs {
+    files: Vec<(String, Checksum)>,
+    inner_edges: EdgeCounts,
+    border_edges: u64,
+}
+
+impl ChunkOutputs {
+    fn add(&mut self, chunk: WrittenChunk) {
+        self.files.extend(chunk.files);
+        self.inner_edges.add(chunk.inner_edges);
+        self.border_edges += chunk.border_edges;
+    }
+}
+
+/// What one chunk wrote.
+struct WrittenChunk {
+    files: [(String, Checksum); 2],
+    inner_edges: reducem::format::model::Closedness,
+    border_edges: u64,
+}
+
+/// What a chunk needs to tell its border edges: the shared positions, and the model grid its
+/// vertices will be stored on.
+struct EdgeContext<'a> {
+    shared: &'a SharedPositions,
+    grid: Option<&'a Grid>,
 }
 
 /// The input holds no triangle: there is nothing to convert (bad input, not an empty file).
@@ -179,6 +248,7 @@ fn spill(
     job: &Job,
     source: &dyn MeshSource,
     partition: &Partition,
+    marks: &mut VertexMarks,
     face_ids: bool,
     input: &Path,
 ) -> anyhow::Result<Vec<u64>> {
@@ -196,6 +266,7 @@ fn spill(
     let mut face_beyond_u32 = None;
     chunking::distribute(source, partition, &mut |chunk, face, triangle| {
         counts[chunk as usize] += 1;
+        marks.note(partition, chunk, triangle);
         if first_error.is_some() {
             return;
         }
@@ -231,13 +302,14 @@ fn spill(
     Ok(counts)
 }
 
-/// Turns one spill file into a mesh chunk and removes the spill; the chunk's name and checksum.
+/// Turns one spill file into a mesh chunk and its border edges, and removes the spill.
 fn write_chunk(
     job: &Job,
     source: &dyn MeshSource,
     chunk: usize,
     face_ids: bool,
-) -> anyhow::Result<(String, Checksum)> {
+    edges: &EdgeContext,
+) -> anyhow::Result<WrittenChunk> {
     let spill = spill_path(job, chunk);
     let mut bytes = Vec::new();
     File::open(&spill)
@@ -255,9 +327,21 @@ fn write_chunk(
         chunking::vertices_of(source, distinct)
     })?;
     let mesh = reducem::input::weld_identical_positions(mesh);
-    let written = job.write_output(&mesh_chunk(chunk), |mut out| {
+    let mesh_file = job.write_output(&mesh_chunk(chunk), |mut out| {
         chunk_io::write_mesh(&mut out, &mesh)
     })?;
+    let shared = |key: &PositionKey| edges.shared.contains(key);
+    // Counted as stored: on the grid, snapping can join or part edges.
+    let (inner_edges, border) = match edges.grid {
+        Some(grid) => count_chunk_edges(&quantize_mesh(&mesh, grid).mesh, shared),
+        None => count_chunk_edges(&mesh, shared),
+    };
+    let edge_file =
+        job.write_output(&border_file(chunk), |out| border_edges::write(out, &border))?;
     fs::remove_file(&spill).with_context(|| format!("removing {}", spill.display()))?;
-    Ok(written)
+    Ok(WrittenChunk {
+        files: [mesh_file, edge_file],
+        inner_edges,
+        border_edges: border.len() as u64,
+    })
 }

@@ -1,7 +1,8 @@
 //! Stage *merge*: gathers every chunk's strip summary (strip, node and data sizes, bounds and
 //! statistics) into one table, and fixes where each chunk's strip blocks will sit in the final
-//! strip-data section. Reads only the 128-byte chunk headers. It also carries what the chunk
-//! stage measured (the weld) and the model grid to the write stage.
+//! strip-data section. Reads only the chunk headers, and the chunks' border edges, which it
+//! pairs over the whole model for the edge counts (`crate::border_edges`). It also carries what
+//! the chunk stage measured (the weld) and the model grid to the write stage.
 
 use anyhow::Context;
 use reducem::conversion::ChunkStats;
@@ -10,6 +11,7 @@ use reducem::geometry::Aabb;
 use reducem::input::WeldStats;
 use serde::{Deserialize, Serialize};
 
+use crate::border_edges::{self, EdgeCounts};
 use crate::chunk_io::StripChunk;
 use crate::fingerprint::Fingerprint;
 use crate::stage::chunk::Chunked;
@@ -38,6 +40,8 @@ pub struct Merged {
     /// The grid every chunk's vertices were snapped to, if any.
     pub grid: Option<Grid>,
     pub weld: WeldStats,
+    /// The whole model's edge counts.
+    pub edges: EdgeCounts,
 }
 
 impl Merged {
@@ -62,10 +66,11 @@ impl Merged {
     }
 }
 
-/// Version of the merge table's JSON: 2 names the counts of each chunk. A table of an older
+/// Version of the merge table's JSON: 2 names the counts of each chunk, 3 adds the model's
+/// edge counts. A table of an older
 /// version does not parse, so its fingerprint differs and the stage reruns (it reads only the
 /// chunk headers).
-const TABLE_VERSION: u32 = 2;
+const TABLE_VERSION: u32 = 3;
 
 pub fn fingerprint(strip_digest: &str) -> Fingerprint {
     Fingerprint::new()
@@ -109,11 +114,18 @@ pub fn run(job: &Job, chunked: &Chunked, strip_digest: &str) -> anyhow::Result<M
         });
         progress.advance(1);
     }
+    let mut edges = chunked.inner_edges;
+    edges.add(border_edges::count_all(
+        &job.work,
+        chunk_count,
+        chunked.border_edges,
+    )?);
     let merged = Merged {
         digest: fingerprint.digest(),
         chunks,
         grid: job.config.build_params().grid(&chunked.bounds()),
         weld: chunked.weld,
+        edges,
     };
     let written = write_json(job, TABLE, &merged)?;
     job.complete(UNIT, &fingerprint, &[written])?;

@@ -7,25 +7,22 @@ use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use reducem::closedness::count_edges;
 use reducem::conversion::layout::{rebase_records, DataWords};
 use reducem::format::attribute_sections::AttributeVisit;
 use reducem::format::grid::NodeGrid;
-use reducem::format::model::Closedness;
 use reducem::format::reader::{ReducemFile, Validation};
 use reducem::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource};
 use reducem::format::SectionKind;
-use reducem::quantize::quantize_mesh;
 use reducem::toplevel::relocate;
 
 use crate::checksum::{checksum_file, Checksum};
-use crate::chunk_io::{read_mesh, StripChunk};
+use crate::chunk_io::StripChunk;
 use crate::fingerprint::Fingerprint;
 use crate::manifest::Freshness;
 use crate::stage::hierarchy::{node, Hierarchy, Step};
 use crate::stage::merge::Merged;
 use crate::stage::Job;
-use crate::workdir::{mesh_chunk, strip_chunk};
+use crate::workdir::strip_chunk;
 
 pub const UNIT: &str = "write";
 
@@ -39,21 +36,6 @@ pub fn fingerprint(job: &Job, hierarchy: &Hierarchy) -> Fingerprint {
         .with("strip.grid_nodes", job.config.strip.grid_nodes)
         .with("input.up", job.config.input.up_axis().name())
         .with("output.path", output_path(job).display())
-}
-
-/// The edge counts of a model converted as one chunk, from its mesh chunk as stored (on the
-/// grid when quantized); `None` (unknown) for several chunks, whose border edges no stage
-/// matches yet.
-fn single_chunk_edges(job: &Job, merged: &Merged) -> anyhow::Result<Option<Closedness>> {
-    if merged.chunks.len() != 1 {
-        return Ok(None);
-    }
-    let path = job.work.file(&mesh_chunk(0));
-    let mesh = read_mesh(&path).with_context(|| format!("reading {}", path.display()))?;
-    Ok(Some(match merged.grid {
-        Some(grid) => count_edges(&quantize_mesh(&mesh, &grid).mesh),
-        None => count_edges(&mesh),
-    }))
 }
 
 pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<()> {
@@ -80,7 +62,7 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         grid_nodes: job.config.strip.grid_nodes,
         weld: merged.weld,
         attributes: job.config.build_params().attributes,
-        closedness: single_chunk_edges(job, merged)?,
+        closedness: Some(merged.edges.into()),
         up: Some(job.config.input.up_axis()),
     };
     let mut source = Spliced::new(job, merged, hierarchy, info.node_grid()?)?;
