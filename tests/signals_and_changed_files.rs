@@ -55,9 +55,17 @@ fn temporaries(dir: &Path) -> Vec<PathBuf> {
         .collect()
 }
 
-/// Waits until the query writes its temporary hit file (it has mapped its inputs by then).
-fn wait_for_temporary(child: &mut Child, dir: &Path) {
-    while temporaries(dir).is_empty() {
+/// Waits until the query has opened `model` and created its temporary hit file. The model is
+/// looked for in the process's mappings first: the empty temporary that checks the output's
+/// directory is gone before the model is opened, so a temporary seen after the mapping is the
+/// hit file.
+fn wait_for_temporary(child: &mut Child, dir: &Path, model: &Path) {
+    let model = model.canonicalize().expect("model");
+    let maps = format!("/proc/{}/maps", child.id());
+    let mapped = || {
+        std::fs::read_to_string(&maps).is_ok_and(|text| text.contains(model.to_str().unwrap()))
+    };
+    while !(mapped() && !temporaries(dir).is_empty()) {
         assert!(child.try_wait().expect("poll").is_none(), "ended early");
         std::thread::sleep(Duration::from_millis(1));
     }
@@ -69,7 +77,7 @@ fn sigint_during_a_query_removes_its_temporary_hit_file() {
     let (model, rays) = model_and_rays("sigint-query", 2_000_000);
     let dir = model.parent().unwrap();
     let mut child = query(&model, &rays, &dir.join("hits.bin"));
-    wait_for_temporary(&mut child, dir);
+    wait_for_temporary(&mut child, dir, &model);
     let sent = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status()
@@ -87,7 +95,7 @@ fn a_model_truncated_during_a_query_ends_it_with_74_naming_the_file() {
     let (model, rays) = model_and_rays("truncated-query", 2_000_000);
     let dir = model.parent().unwrap();
     let mut child = query(&model, &rays, &dir.join("hits.bin"));
-    wait_for_temporary(&mut child, dir);
+    wait_for_temporary(&mut child, dir, &model);
     std::fs::OpenOptions::new()
         .write(true)
         .open(&model)
