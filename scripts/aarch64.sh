@@ -3,7 +3,8 @@
 # needed): the reducem-core tests, then a generated mesh converted and queried by the ARM
 # binaries, every output compared byte for byte with the x86-64 binaries' own.
 #
-# Needs the Debian packages gcc-aarch64-linux-gnu, libc6-dev-arm64-cross and qemu-user, and
+# Needs the Debian packages gcc-aarch64-linux-gnu, g++-aarch64-linux-gnu (meshopt is C++),
+# libc6-dev-arm64-cross and qemu-user, and
 # `rustup target add aarch64-unknown-linux-gnu` (.ci/run installs them). The linker and runner
 # are set here, in the environment, rather than in a .cargo/config.toml that every build of
 # the repository would pick up.
@@ -16,6 +17,7 @@ target=aarch64-unknown-linux-gnu
 export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc
 export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="qemu-aarch64 -L /usr/aarch64-linux-gnu"
 export CC_aarch64_unknown_linux_gnu=aarch64-linux-gnu-gcc
+export CXX_aarch64_unknown_linux_gnu=aarch64-linux-gnu-g++
 arm() { qemu-aarch64 -L /usr/aarch64-linux-gnu "$@"; }
 
 # The truncated-mapping test runs itself again as a child process, which qemu-user cannot start

@@ -94,7 +94,7 @@ pub fn count_chunk_edges(
 fn first_vertex_of_position(mesh: &Mesh) -> Vec<u32> {
     let key = |vertex: u32| mesh.positions[vertex as usize].map(f32::to_bits);
     let mut order: Vec<u32> = (0..mesh.positions.len() as u32).collect();
-    order.par_sort_by_key(|&vertex| (key(vertex), vertex));
+    order.par_sort_unstable_by_key(|&vertex| (key(vertex), vertex));
     let mut first = vec![0u32; mesh.positions.len()];
     for group in order.chunk_by(|&a, &b| key(a) == key(b)) {
         group
