@@ -1,5 +1,6 @@
-//! The child boxes of both top-level node records, decoded alike for the walks that bound
-//! their distance to a point or their overlap with a ray.
+//! The child boxes of both top-level node records, decoded alike for the closest-point walk,
+//! which bounds their distance to a point (the crossing walk reads boxes as stored:
+//! `crossing_walk::NodeBoxes`).
 
 use crate::format::grid::NodeGrid;
 use crate::format::{GridNode, NodeRecord, TopNode, TOP_WIDTH};
