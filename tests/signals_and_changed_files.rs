@@ -62,10 +62,9 @@ fn temporaries(dir: &Path) -> Vec<PathBuf> {
 fn wait_for_temporary(child: &mut Child, dir: &Path, model: &Path) {
     let model = model.canonicalize().expect("model");
     let maps = format!("/proc/{}/maps", child.id());
-    let mapped = || {
-        std::fs::read_to_string(&maps).is_ok_and(|text| text.contains(model.to_str().unwrap()))
-    };
-    while !(mapped() && !temporaries(dir).is_empty()) {
+    let mapped =
+        || std::fs::read_to_string(&maps).is_ok_and(|text| text.contains(model.to_str().unwrap()));
+    while !mapped() || temporaries(dir).is_empty() {
         assert!(child.try_wait().expect("poll").is_none(), "ended early");
         std::thread::sleep(Duration::from_millis(1));
     }
