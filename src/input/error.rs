@@ -165,3 +165,25 @@ pub enum InputErrorKind {
     #[error("glTF: {0}")]
     Gltf(Box<str>),
 }
+
+impl InputErrorKind {
+    /// What is wrong with `value` as coordinate `axis` (0, 1, 2) of a position: not finite, or
+    /// beyond the supported range; `None` when it is fine.
+    pub fn of_coordinate(axis: usize, value: f32) -> Option<InputErrorKind> {
+        let axis = ['x', 'y', 'z'][axis];
+        let value_wide = f64::from(value);
+        if !value.is_finite() {
+            Some(InputErrorKind::NonFiniteCoordinate {
+                axis,
+                value: value_wide,
+            })
+        } else if value.abs() > crate::geometry::MAX_COORDINATE {
+            Some(InputErrorKind::CoordinateOutOfRange {
+                axis,
+                value: value_wide,
+            })
+        } else {
+            None
+        }
+    }
+}

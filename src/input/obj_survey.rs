@@ -450,19 +450,9 @@ fn check_vertex(
     if let Some(defect) = check_floats(fields, 3, "vertex position") {
         return Some(defect);
     }
-    for (axis, &Field { column, token }) in ['x', 'y', 'z'].iter().zip(fields) {
+    for (axis, &Field { column, token }) in fields.iter().enumerate().take(3) {
         let value: f32 = token.parse().ok()?;
-        let kind = if !value.is_finite() {
-            InputErrorKind::NonFiniteCoordinate {
-                axis: *axis,
-                value: value.into(),
-            }
-        } else if value.abs() > crate::geometry::MAX_COORDINATE {
-            InputErrorKind::CoordinateOutOfRange {
-                axis: *axis,
-                value: value.into(),
-            }
-        } else {
+        let Some(kind) = InputErrorKind::of_coordinate(axis, value) else {
             continue;
         };
         return Some((Some(column), kind));

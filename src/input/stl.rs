@@ -20,7 +20,7 @@ use std::path::Path;
 use super::error::{InputError, InputErrorKind, Location};
 use super::ply::io_error;
 use super::AttributeRequest;
-use crate::geometry::{Point, MAX_COORDINATE};
+use crate::geometry::Point;
 use crate::mesh::Mesh;
 
 const HEADER_BYTES: u64 = 80;
@@ -150,21 +150,10 @@ fn checked_coordinate(
     value: f32,
     location: impl FnOnce() -> Location,
 ) -> Result<f32, InputError> {
-    let axis = ['x', 'y', 'z'][axis];
-    let kind = if !value.is_finite() {
-        InputErrorKind::NonFiniteCoordinate {
-            axis,
-            value: value.into(),
-        }
-    } else if value.abs() > MAX_COORDINATE {
-        InputErrorKind::CoordinateOutOfRange {
-            axis,
-            value: value.into(),
-        }
-    } else {
-        return Ok(value);
-    };
-    Err(InputError::new(path, location(), kind))
+    match InputErrorKind::of_coordinate(axis, value) {
+        None => Ok(value),
+        Some(kind) => Err(InputError::new(path, location(), kind)),
+    }
 }
 
 /// Hashes the 12 position bytes with two multiply-rotate rounds: the default SipHash costs

@@ -37,7 +37,6 @@ use self::container::Container;
 use self::transform::Transform;
 use super::error::{InputError, InputErrorKind, Location};
 use super::{weld_identical_positions, AttributeRequest};
-use crate::geometry::MAX_COORDINATE;
 use crate::mesh::Mesh;
 
 pub(crate) use container::is_glb;
@@ -263,18 +262,7 @@ impl<'a> Builder<'a> {
         for (vertex, point) in positions.numbers.chunks_exact(3).enumerate() {
             let point = instance.transform.point([point[0], point[1], point[2]]);
             for (axis, &value) in point.iter().enumerate() {
-                let axis = ['x', 'y', 'z'][axis];
-                let kind = if !value.is_finite() {
-                    InputErrorKind::NonFiniteCoordinate {
-                        axis,
-                        value: value.into(),
-                    }
-                } else if value.abs() > MAX_COORDINATE {
-                    InputErrorKind::CoordinateOutOfRange {
-                        axis,
-                        value: value.into(),
-                    }
-                } else {
+                let Some(kind) = InputErrorKind::of_coordinate(axis, value) else {
                     continue;
                 };
                 let location = element_location("accessor", accessor, positions.byte_of(vertex));
