@@ -5,29 +5,9 @@
 mod common;
 
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use common::pipeline;
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pipeline-formats-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
-}
-
-fn convert(input: &Path, output: &Path) -> (Option<i32>, String) {
-    let result = pipeline(&[
-        "convert",
-        input.to_str().unwrap(),
-        "-o",
-        output.to_str().unwrap(),
-        "--log-format",
-        "plain",
-    ]);
-    let stderr = String::from_utf8_lossy(&result.stderr).into_owned();
-    (result.status.code(), stderr)
-}
+use common::{assert_broken_inputs_exit_65, convert, temp_dir};
 
 fn gzip(bytes: &[u8]) -> Vec<u8> {
     let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
@@ -56,7 +36,7 @@ fn stl_of(ply: &Path) -> Vec<u8> {
 
 #[test]
 fn compressed_inputs_convert_to_the_bytes_of_their_plain_content() {
-    let dir = temp_dir("compressed");
+    let dir = temp_dir("formats", "compressed");
     let ply = dir.join("mesh.ply");
     reducem_gen::generate(reducem_gen::Kind::Scan, 3000, 2, &ply).unwrap();
     let stl = dir.join("mesh.stl");
@@ -88,7 +68,7 @@ fn compressed_inputs_convert_to_the_bytes_of_their_plain_content() {
 
 #[test]
 fn broken_stl_and_compressed_files_exit_65_naming_file_and_place() {
-    let dir = temp_dir("broken");
+    let dir = temp_dir("formats", "broken");
     let ply = dir.join("mesh.ply");
     reducem_gen::generate(reducem_gen::Kind::Sphere, 500, 1, &ply).unwrap();
     let stl = stl_of(&ply);
@@ -116,12 +96,6 @@ fn broken_stl_and_compressed_files_exit_65_naming_file_and_place() {
             "bad.stl.zst: element 'facet' #0 at byte 75 (line 6)",
         ),
     ];
-    for (name, bytes, expected) in cases {
-        let input = dir.join(name);
-        std::fs::write(&input, bytes).unwrap();
-        let (code, stderr) = convert(&input, &dir.join("out.rdm"));
-        assert_eq!(code, Some(65), "{name}: {stderr}");
-        assert!(stderr.contains(expected), "{name}: {stderr}");
-    }
+    assert_broken_inputs_exit_65(&dir, cases.into());
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -3,16 +3,9 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use common::pipeline;
-
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pipeline-gltf-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    dir
-}
+use common::{assert_broken_inputs_exit_65, convert, pipeline, temp_dir};
 
 fn run(args: &[&str]) -> (Option<i32>, String) {
     let result = pipeline(args);
@@ -22,20 +15,9 @@ fn run(args: &[&str]) -> (Option<i32>, String) {
     )
 }
 
-fn convert(input: &Path, output: &Path) -> (Option<i32>, String) {
-    run(&[
-        "convert",
-        input.to_str().unwrap(),
-        "-o",
-        output.to_str().unwrap(),
-        "--log-format",
-        "plain",
-    ])
-}
-
 #[test]
 fn a_generated_glb_converts_to_the_bytes_of_the_same_ply() {
-    let dir = temp_dir("same");
+    let dir = temp_dir("gltf", "same");
     let gen = |name: &str, extra: &[&str]| {
         let path = dir.join(name);
         let mut args = vec![
@@ -83,7 +65,7 @@ fn a_generated_glb_converts_to_the_bytes_of_the_same_ply() {
 
 #[test]
 fn broken_glb_files_exit_65_naming_file_and_place() {
-    let dir = temp_dir("broken");
+    let dir = temp_dir("gltf", "broken");
     let glb = dir.join("mesh.glb");
     let (code, stderr) = run(&[
         "gen",
@@ -126,13 +108,6 @@ fn broken_glb_files_exit_65_naming_file_and_place() {
             "not supported, decompress with gltf-transform or gltfpack",
         ),
     ];
-    for (name, bytes, expected) in cases {
-        let input = dir.join(name);
-        std::fs::write(&input, bytes).unwrap();
-        let (code, stderr) = convert(&input, &dir.join("out.rdm"));
-        assert_eq!(code, Some(65), "{name}: {stderr}");
-        assert!(stderr.contains(expected), "{name}: {stderr}");
-        assert!(stderr.contains(name), "{name}: {stderr}");
-    }
+    assert_broken_inputs_exit_65(&dir, cases.into());
     std::fs::remove_dir_all(&dir).unwrap();
 }
