@@ -9,10 +9,9 @@ use std::process::Command;
 
 use common::temp_path;
 use glam::Vec3;
-use reducem::conversion::{encode_chunk, write_file, BuildParams, ChunkLayout};
+use reducem::conversion::{encode_chunk, write_chunk_counted, BuildParams};
 use reducem::format::model::UpAxis;
 use reducem::format::reader::ReducemFile;
-use reducem::format::writer::FileInfo;
 use reducem::mesh::Mesh;
 use reducem::render::camera::{placement, Camera};
 use reducem::render::scene::Scene;
@@ -67,22 +66,9 @@ fn turned_to_y_up(mesh: &Mesh) -> Mesh {
 /// `mesh` converted to the temporary file `name`, its model record storing `up`.
 fn converted_with_up(mesh: &Mesh, up: UpAxis, name: &str) -> PathBuf {
     let params = BuildParams::default();
-    let chunk = encode_chunk(mesh, &params);
-    let layout = ChunkLayout::new(&chunk.strips, &params.top_level).expect("layout");
-    let info = FileInfo {
-        stats: chunk.stats,
-        leaf_windows: params.leaf_windows,
-        max_strip_length: params.stripify.max_length,
-        bounds: layout.bounds,
-        grid: chunk.grid,
-        grid_nodes: params.grid_nodes,
-        weld: Default::default(),
-        attributes: params.attributes,
-        closedness: None,
-        up: Some(up),
-    };
     let path = temp_path(name);
-    write_file(&path, &info, &layout.top, &chunk.strips).expect("write");
+    write_chunk_counted(&encode_chunk(mesh, &params), &params, None, Some(up), &path)
+        .expect("write");
     path
 }
 

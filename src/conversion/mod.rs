@@ -16,7 +16,7 @@ use crate::closedness::count_edges;
 use crate::format::attributes::AttributeSet;
 use crate::format::counts::WeldStats;
 use crate::format::grid::{Grid, MAX_GRID_BITS};
-use crate::format::model::Closedness;
+use crate::format::model::{Closedness, UpAxis};
 use crate::format::writer::{FileInfo, WriteError};
 use crate::geometry::Aabb;
 use crate::mesh::Mesh;
@@ -283,7 +283,7 @@ pub fn convert_mesh(
         });
     }
     let chunk = encode_chunk(mesh, params);
-    write_chunk_counted(&chunk, params, Some(stored_edges(mesh, params)), out)
+    write_chunk_counted(&chunk, params, Some(stored_edges(mesh, params)), None, out)
 }
 
 /// The edge counts of `mesh` as stored: on the grid when vertices are quantized, since snapping
@@ -301,14 +301,15 @@ pub fn write_chunk(
     params: &BuildParams,
     out: &Path,
 ) -> Result<ChunkStats, WriteError> {
-    write_chunk_counted(chunk, params, None, out)
+    write_chunk_counted(chunk, params, None, None, out)
 }
 
-/// [`write_chunk`] with the whole model's edge counts when known.
+/// [`write_chunk`] with the whole model's edge counts and its up axis, when known.
 pub fn write_chunk_counted(
     chunk: &EncodedChunk,
     params: &BuildParams,
     closedness: Option<Closedness>,
+    up: Option<UpAxis>,
     out: &Path,
 ) -> Result<ChunkStats, WriteError> {
     let layout =
@@ -326,7 +327,7 @@ pub fn write_chunk_counted(
         weld: WeldStats::default(),
         attributes: params.attributes,
         closedness,
-        up: None,
+        up,
     };
     write_layout(out, &info, &layout, &chunk.strips)?;
     Ok(chunk.stats)
