@@ -28,6 +28,7 @@ mod section;
 mod strip_record;
 mod top_node;
 mod vertex_encoding;
+mod wide_node;
 
 pub use defect::Defect;
 pub use grid_node::*;
@@ -38,6 +39,7 @@ pub use section::*;
 pub use strip_record::*;
 pub use top_node::*;
 pub use vertex_encoding::*;
+pub use wide_node::*;
 
 /// First eight bytes of every ReduceM file.
 pub const MAGIC: [u8; 8] = *b"REDUCEM\0";
