@@ -18,9 +18,9 @@ use super::counts::{ChunkStats, WeldStats};
 use super::grid::{Grid, NodeGrid};
 use super::model::{Closedness, ModelRecord, UpAxis, MODEL_OFFSET};
 use super::{
-    align_up, GridNode, Header, PrecisionRecord, SectionEntry, SectionKind, TopNode,
-    VertexEncoding, ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, PRECISION_OFFSET,
-    SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR, VERSION_MINOR,
+    align_up, Header, PrecisionRecord, SectionEntry, SectionKind, TopNode, VertexEncoding,
+    WideChild, WideNode, ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC,
+    PRECISION_OFFSET, SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR, VERSION_MINOR,
 };
 use crate::atomic::write_atomically;
 use crate::geometry::Aabb;
@@ -52,6 +52,9 @@ impl FileInfo {
     /// finest power-of-two grid of 2^16 points over the bounds ([`lossless_node_grid`]);
     /// otherwise, or when no finite grid covers the bounds, `None` (f32 [`TopNode`]s).
     pub fn node_grid(&self) -> io::Result<Option<NodeGrid>> {
+        if self.grid.is_some() || !self.grid_nodes {
+            return Ok(None);
+        }
         let Some(grid) = self.grid else {
             return Ok(self
                 .grid_nodes
@@ -86,22 +89,28 @@ fn lossless_node_grid(bounds: &Aabb) -> Option<NodeGrid> {
     Some(NodeGrid { shift: 0, ..node })
 }
 
-/// Writes top-level nodes (of the f32 wide tree) in the file's record: as they are, or as
-/// [`GridNode`]s rounded outward to `node_grid`.
+/// Writes top-level nodes (of the f32 wide tree) as [`WideNode`]s.
 pub fn write_nodes(
     out: &mut dyn Write,
     nodes: &[TopNode],
-    node_grid: Option<&NodeGrid>,
+    _node_grid: Option<&NodeGrid>,
 ) -> io::Result<()> {
-    let Some(grid) = node_grid else {
-        return out.write_all(bytemuck::cast_slice(nodes));
-    };
     let compact = nodes
         .iter()
         .enumerate()
         .map(|(index, node)| {
-            GridNode::encode(node, grid).map_err(|detail| {
-                let detail = format!("top-level node {index}: {detail} in a grid node");
+            let children: Vec<WideChild> = (0..node.occupied())
+                .map(|slot| {
+                    let (min, max) = node.slot_box(slot);
+                    WideChild {
+                        min,
+                        max,
+                        slot: node.slot(slot),
+                    }
+                })
+                .collect();
+            WideNode::encode(&children).map_err(|detail| {
+                let detail = format!("top-level node {index}: {detail} in a wide node");
                 io::Error::new(io::ErrorKind::InvalidData, detail)
             })
         })
