@@ -38,7 +38,7 @@ use super::prepared::min_not_nan_x8;
 use super::ray::Ray;
 use super::top::{
     for_each_bit, order_keys, trace_nodes, DeferStack, Deferred, NodeGridLanes, RayWalk, TraceNode,
-    GROUP_WIDTH, MAX_WIDTH,
+    GROUP_WIDTH, MAX_GROUPS, MAX_WIDTH,
 };
 use super::Tracer;
 use crate::format::reader::TopNodes;
@@ -212,13 +212,14 @@ impl Lanes {
     ) -> Option<PacketDeferred> {
         let occupied = node.occupied_mask().trailing_ones() as usize;
         let groups = occupied.div_ceil(GROUP_WIDTH);
+        let boxes = node.group_boxes::<C>(decoder);
         if ANY_HIT {
             // Slot order is known before clipping: the slots are clipped last to first and
             // each child entered goes straight onto the stack, the first one too. Unrolled by
             // hand: as a loop over the slots it stayed one, with the slot in a register.
             let bounds = (active, limit);
             for group in (0..groups).rev() {
-                let planes = C::planes(self, &node.boxes(decoder, group));
+                let planes = C::planes(self, &boxes[group % MAX_GROUPS]);
                 let clipped = (node, &planes, targets);
                 let first = group * GROUP_WIDTH;
                 self.defer_child::<N, C>(clipped, first + 3, occupied, bounds, stack);
@@ -234,8 +235,8 @@ impl Lanes {
         let mut slots = [0; MAX_WIDTH];
         let mut keys = [0.0; MAX_WIDTH];
         for group in 0..groups {
-            let boxes = node.boxes(decoder, group);
-            let planes = C::planes(self, &boxes);
+            let boxes = &boxes[group % MAX_GROUPS];
+            let planes = C::planes(self, boxes);
             let clipped = (node, &planes, targets);
             let before = entered.len();
             for slot in group * GROUP_WIDTH..occupied.min((group + 1) * GROUP_WIDTH) {

@@ -20,7 +20,7 @@ use wide::{f32x4, u32x4};
 
 use super::closest::Closest;
 use super::kernel::prefetch::Targets;
-use super::kernel::{ChildBoxes, TraceKernel, Walk};
+use super::kernel::{ChildBoxes, TraceKernel, Walk, WideClip};
 use super::prepared::{PreparedRay, WideRay};
 use super::strip::StripQuery;
 use crate::format::grid::NodeGrid;
@@ -46,12 +46,42 @@ pub trait TraceNode: NodeRecord {
     fn link(&self, slot: usize) -> (u32, u32);
     /// Bit `i` set when slot `i` is occupied.
     fn occupied_mask(&self) -> u32;
+
+    /// Every group's boxes, decoded on the kernel's lanes; groups past [`TraceNode::GROUPS`]
+    /// repeat the last.
+    #[inline(always)]
+    fn group_boxes<K: TraceKernel>(&self, decoder: &Self::Decoder) -> [ChildBoxes; MAX_GROUPS] {
+        std::array::from_fn(|group| self.boxes(decoder, group.min(Self::GROUPS - 1)))
+    }
+
+    /// The ray's interval in each child box within `[t_near, t_far]` and the mask of the boxes
+    /// it enters: the groups' boxes clipped one after the other.
+    #[inline(always)]
+    fn clip_children<K: TraceKernel>(
+        &self,
+        decoder: &Self::Decoder,
+        (_, ray): (&PreparedRay, &WideRay),
+        (t_near, t_far): (f32, f32),
+    ) -> WideClip {
+        let mut clip: WideClip = Default::default();
+        for group in 0..Self::GROUPS {
+            let (min, max) = self.boxes(decoder, group);
+            let (near, far, mask) = ray.clip_boxes(&min, &max, t_near, t_far);
+            let lanes = group * GROUP_WIDTH..(group + 1) * GROUP_WIDTH;
+            clip.0[lanes.clone()].copy_from_slice(&near.to_array());
+            clip.1[lanes].copy_from_slice(&far.to_array());
+            clip.2 |= mask << (group * GROUP_WIDTH);
+        }
+        clip
+    }
 }
 
 /// Slots clipped together: a group of a node's children.
 pub const GROUP_WIDTH: usize = 4;
 /// Slots of the widest node record.
 pub const MAX_WIDTH: usize = WIDE_WIDTH;
+/// Groups of the widest node record.
+pub const MAX_GROUPS: usize = MAX_WIDTH / GROUP_WIDTH;
 const _: () = assert!(TOP_WIDTH == GROUP_WIDTH && MAX_WIDTH % GROUP_WIDTH == 0);
 
 impl TraceNode for TopNode {
@@ -145,6 +175,22 @@ impl TraceNode for WideNode {
     #[inline(always)]
     fn link(&self, slot: usize) -> (u32, u32) {
         unpack_link(self.link[slot])
+    }
+
+    #[inline(always)]
+    fn group_boxes<K: TraceKernel>(&self, _: &()) -> [ChildBoxes; MAX_GROUPS] {
+        K::decode_wide(self)
+    }
+
+    /// All eight at once on the kernel's widest lanes.
+    #[inline(always)]
+    fn clip_children<K: TraceKernel>(
+        &self,
+        _: &(),
+        (ray, wide): (&PreparedRay, &WideRay),
+        interval: (f32, f32),
+    ) -> WideClip {
+        K::clip_wide(ray, wide, self, interval)
     }
 
     #[inline(always)]
@@ -291,7 +337,7 @@ pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel>(
             visits = left;
             let node = file.top_node(nodes, current.child as usize);
             let entered = node.and_then(|n| {
-                enter_children(&targets, &ray, n, decoder, query, closest, &mut stack)
+                enter_children::<N, K>(&targets, &ray, n, decoder, query, closest, &mut stack)
             });
             if let Some(nearest) = entered {
                 current = nearest;
@@ -320,7 +366,7 @@ pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel>(
 /// does not depend on the order, since the culling bound stays `tmax` until the first hit ends
 /// the traversal.
 #[inline(always)]
-fn enter_children<N: TraceNode>(
+fn enter_children<N: TraceNode, K: TraceKernel>(
     targets: &Targets<N>,
     ray: &WideRay,
     node: &N,
@@ -329,18 +375,9 @@ fn enter_children<N: TraceNode>(
     closest: &Closest,
     stack: &mut DeferStack<Deferred>,
 ) -> Option<Deferred> {
-    let mut near = [0.0; MAX_WIDTH];
-    let mut far = [0.0; MAX_WIDTH];
-    let mut mask = 0;
-    for group in 0..N::GROUPS {
-        let (min, max) = node.boxes(decoder, group);
-        let (group_near, group_far, entered) =
-            ray.clip_boxes(&min, &max, query.ray.tmin, closest.reach);
-        let lanes = group * GROUP_WIDTH..(group + 1) * GROUP_WIDTH;
-        near[lanes.clone()].copy_from_slice(&group_near.to_array());
-        far[lanes].copy_from_slice(&group_far.to_array());
-        mask |= entered << (group * GROUP_WIDTH);
-    }
+    let rays = (query.ray, ray);
+    let (near, far, mut mask) =
+        node.clip_children::<K>(decoder, rays, (query.ray.tmin, closest.reach));
     if !N::EMPTY_BOXES_MISS {
         mask &= node.occupied_mask();
     }
@@ -360,7 +397,7 @@ fn enter_children<N: TraceNode>(
     let keys = if query.any_hit {
         near
     } else {
-        node_order_keys(node, decoder, &ray.negative)
+        node_order_keys::<N, K>(node, decoder, &ray.negative)
     };
     let mut entered = [(0.0, Deferred::default()); MAX_WIDTH];
     let mut count = 0;
@@ -376,16 +413,16 @@ fn enter_children<N: TraceNode>(
 
 /// [`order_keys`] of every slot of `node`.
 #[inline(always)]
-pub fn node_order_keys<N: TraceNode>(
+fn node_order_keys<N: TraceNode, K: TraceKernel>(
     node: &N,
     decoder: &N::Decoder,
     negative: &[bool; 3],
 ) -> [f32; MAX_WIDTH] {
+    let boxes = node.group_boxes::<K>(decoder);
     let mut keys = [0.0; MAX_WIDTH];
-    for group in 0..N::GROUPS {
-        let (min, max) = node.boxes(decoder, group);
+    for (group, (min, max)) in boxes.iter().enumerate().take(N::GROUPS) {
         let lanes = group * GROUP_WIDTH..(group + 1) * GROUP_WIDTH;
-        keys[lanes].copy_from_slice(&order_keys(&min, &max, negative));
+        keys[lanes].copy_from_slice(&order_keys(min, max, negative));
     }
     keys
 }

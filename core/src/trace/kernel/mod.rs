@@ -28,14 +28,14 @@ use std::fmt;
 
 use super::closest::Closest;
 use super::lanes::{LaneRays, Lanes, PACKET_WIDTH};
-use super::prepared::PreparedRay;
+use super::prepared::{PreparedRay, WideRay};
 use super::ray::Ray;
 use super::watertight::RaySpace;
 use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_WINDOWS};
 use crate::format::reader::StripView;
 use crate::format::references::References;
 use crate::format::vertices::VertexAccess;
-use crate::format::TOP_WIDTH;
+use crate::format::{WideNode, TOP_WIDTH, WIDE_WIDTH};
 use wide::f32x8;
 
 /// A tracer kernel.
@@ -161,6 +161,10 @@ pub(super) const BOX_GROUP: usize = 4;
 /// Child boxes of a top-level node, axis by axis (`[axis][slot]`): minima, maxima.
 pub(super) type ChildBoxes = ([[f32; TOP_WIDTH]; 3], [[f32; TOP_WIDTH]; 3]);
 
+/// A ray clipped against the child boxes of a node: per slot its entry and exit distances, and
+/// the mask of the slots whose interval is not empty.
+pub(super) type WideClip = ([f32; WIDE_WIDTH], [f32; WIDE_WIDTH], u32);
+
 /// What a kernel computes for a block of windows with candidate lanes (see
 /// [`crate::trace::watertight::candidate_lanes`]): the candidates (never 0) and every lane's
 /// ray-space corners `[corner]` and edge weights `[corner]`, each lane holding what the scalar
@@ -273,6 +277,20 @@ pub(super) trait TraceKernel {
 
     /// The lanes where `a <= b` (false where either is NaN), as a bit mask.
     fn lanes_at_most(a: f32x8, b: f32x8) -> u32;
+
+    /// `node`'s child boxes as [`WideNode::decode`] decodes them, in two groups of four.
+    fn decode_wide(node: &WideNode) -> [ChildBoxes; 2];
+
+    /// The ray's interval in each of `node`'s eight child boxes within `interval`, each
+    /// box decoded as [`WideNode::decode`] decodes it and clipped as [`WideRay::clip_boxes`]
+    /// clips it (the same operations per lane), and the mask of the boxes entered. `wide` is
+    /// `ray` in four lanes.
+    fn clip_wide(
+        ray: &PreparedRay,
+        wide: &WideRay,
+        node: &WideNode,
+        interval: (f32, f32),
+    ) -> WideClip;
 
     /// What the kernel makes of the packet's lanes once for
     /// [`TraceKernel::trace_strip_together`].

@@ -4,19 +4,21 @@
 use wide::{f32x4, f32x8};
 
 use super::{
-    BlockEdges, ChildBoxes, EnteredBoxes, LeafLanes, LeafStrip, TraceKernel, Walk, BLOCK, BOX_GROUP,
+    BlockEdges, ChildBoxes, EnteredBoxes, LeafLanes, LeafStrip, TraceKernel, Walk, WideClip, BLOCK,
+    BOX_GROUP,
 };
 use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
 use crate::format::references::References;
 use crate::format::vertices::VertexAccess;
-use crate::format::TOP_WIDTH;
+use crate::format::{WideNode, TOP_WIDTH};
 use crate::trace::closest::Closest;
 use crate::trace::lanes::{prepare, Lanes, PACKET_WIDTH};
 use crate::trace::prepared::{
     max_not_nan, max_not_nan_x4, max_not_nan_x8, min_not_nan, min_not_nan_x4, min_not_nan_x8,
-    PreparedRay, FAR_INFLATION,
+    PreparedRay, WideRay, FAR_INFLATION,
 };
 use crate::trace::ray::Ray;
+use crate::trace::top::TraceNode;
 use crate::trace::watertight::{candidate_lanes, edge_lanes, RaySpace};
 
 /// The portable kernel.
@@ -153,6 +155,30 @@ impl TraceKernel for Portable {
             far = min_not_nan_x8(far, exit);
         }
         (near, far, near.simd_le(far).to_bitmask())
+    }
+
+    #[inline(always)]
+    fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
+        [0, 1].map(|group| node.boxes(&(), group))
+    }
+
+    /// Two groups of four boxes, each decoded and clipped as the single-ray walk does.
+    #[inline(always)]
+    fn clip_wide(
+        _ray: &PreparedRay,
+        wide: &WideRay,
+        node: &WideNode,
+        (t_near, t_far): (f32, f32),
+    ) -> WideClip {
+        let mut clip: WideClip = Default::default();
+        for group in 0..2 {
+            let (min, max) = node.boxes(&(), group);
+            let (near, far, mask) = wide.clip_boxes(&min, &max, t_near, t_far);
+            clip.0[group * TOP_WIDTH..][..TOP_WIDTH].copy_from_slice(&near.to_array());
+            clip.1[group * TOP_WIDTH..][..TOP_WIDTH].copy_from_slice(&far.to_array());
+            clip.2 |= mask << (group * TOP_WIDTH);
+        }
+        clip
     }
 
     #[inline(always)]

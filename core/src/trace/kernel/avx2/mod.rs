@@ -1,7 +1,7 @@
 //! The AVX2 kernel (x86-64 with AVX2 and BMI2): strip blocks ([`blocks`]), the packets' box
 //! tests ([`packets`]), short strips tested for all of a packet's rays at once
-//! ([`packet_strips`]), the packet's rays prepared in registers ([`setup`]), and what they
-//! share ([`simd`]).
+//! ([`packet_strips`]), the packet's rays prepared in registers ([`setup`]), a ray against all
+//! eight children of a format 4 node ([`wide_nodes`]), and what they share ([`simd`]).
 //!
 //! `wide` picks its instructions when the crate is compiled, so it stays SSE2 inside a function
 //! compiled for AVX2; this kernel therefore uses `std::arch` itself. Its functions are
@@ -16,16 +16,20 @@ mod packet_strips;
 mod packets;
 mod setup;
 mod simd;
+mod wide_nodes;
 
 use wide::f32x8;
 
-use super::{BlockEdges, ChildBoxes, EnteredBoxes, LeafLanes, LeafStrip, TraceKernel, Walk, BLOCK};
+use super::{
+    BlockEdges, ChildBoxes, EnteredBoxes, LeafLanes, LeafStrip, TraceKernel, Walk, WideClip, BLOCK,
+};
 use crate::format::block_boxes::{BlockBoxes, BoxFrame};
 use crate::format::references::References;
 use crate::format::vertices::VertexAccess;
+use crate::format::WideNode;
 use crate::trace::closest::Closest;
 use crate::trace::lanes::{Lanes, PACKET_WIDTH};
-use crate::trace::prepared::PreparedRay;
+use crate::trace::prepared::{PreparedRay, WideRay};
 use crate::trace::ray::Ray;
 use crate::trace::watertight::RaySpace;
 
@@ -121,6 +125,23 @@ impl TraceKernel for Avx2 {
     ) -> (f32x8, f32x8, u32) {
         // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
         unsafe { packets::clip_slot(lanes, planes, slot, t_far) }
+    }
+
+    #[inline(always)]
+    fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { wide_nodes::decode_wide(node) }
+    }
+
+    #[inline(always)]
+    fn clip_wide(
+        ray: &PreparedRay,
+        _wide: &WideRay,
+        node: &WideNode,
+        interval: (f32, f32),
+    ) -> WideClip {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { wide_nodes::clip_wide(ray, node, interval) }
     }
 
     #[inline(always)]

@@ -1,0 +1,156 @@
+//! The eight child boxes of a format 4 node in 256-bit lanes: each plane's eight codes widened
+//! to f32 and decoded at once, for packets; and a single ray clipped against all eight.
+
+use std::arch::x86_64::*;
+
+use crate::format::WideNode;
+use crate::trace::kernel::{ChildBoxes, WideClip};
+use crate::trace::prepared::{PreparedRay, FAR_INFLATION};
+
+/// Codes `q` of one plane of eight children decoded: `origin + (q as f32) * scale` per lane,
+/// the exact conversion, the exact product and one rounded sum, as [`WideNode::decode`].
+#[target_feature(enable = "avx2,bmi2")]
+fn decode_plane(codes: &[u8; 8], origin: __m256, scale: __m256) -> __m256 {
+    let codes = _mm_set_epi64x(0, i64::from_le_bytes(*codes));
+    let codes = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(codes));
+    _mm256_add_ps(origin, _mm256_mul_ps(codes, scale))
+}
+
+/// [`TraceKernel::decode_wide`](crate::trace::kernel::TraceKernel::decode_wide).
+#[target_feature(enable = "avx2,bmi2")]
+pub(super) fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
+    let mut planes = [[[[0.0f32; 4]; 3]; 2]; 2];
+    for axis in 0..3 {
+        let origin = _mm256_set1_ps(node.origin[axis]);
+        let scale = _mm256_set1_ps(node.scale(axis));
+        for (side, codes) in [&node.min[axis], &node.max[axis]].into_iter().enumerate() {
+            let lanes: [f32; 8] = bytemuck::cast(decode_plane(codes, origin, scale));
+            planes[0][side][axis] = [lanes[0], lanes[1], lanes[2], lanes[3]];
+            planes[1][side][axis] = [lanes[4], lanes[5], lanes[6], lanes[7]];
+        }
+    }
+    planes.map(|[min, max]| (min, max))
+}
+
+/// [`TraceKernel::clip_wide`](crate::trace::kernel::TraceKernel::clip_wide): per lane the
+/// portable kernel's operations in its order (decode: the exact u8 → f32 conversion, the exact
+/// product, one rounded sum; clip: `WideRay::clip_boxes`), so the same bits.
+#[target_feature(enable = "avx2,bmi2")]
+pub(super) fn clip_wide(
+    ray: &PreparedRay,
+    node: &WideNode,
+    (t_near, t_far): (f32, f32),
+) -> WideClip {
+    let mut near = _mm256_set1_ps(t_near);
+    let mut far = _mm256_set1_ps(t_far);
+    for axis in 0..3 {
+        let (entry_codes, exit_codes) = match ray.negative[axis] {
+            true => (&node.max[axis], &node.min[axis]),
+            false => (&node.min[axis], &node.max[axis]),
+        };
+        let origin = _mm256_set1_ps(node.origin[axis]);
+        let scale = _mm256_set1_ps(node.scale(axis));
+        let decode = |codes: &[u8; 8]| decode_plane(codes, origin, scale);
+        let ray_origin = _mm256_set1_ps(ray.origin[axis]);
+        let entry = _mm256_mul_ps(
+            _mm256_sub_ps(decode(entry_codes), ray_origin),
+            _mm256_set1_ps(ray.entry_reciprocal[axis]),
+        );
+        let exit = _mm256_mul_ps(
+            _mm256_mul_ps(
+                _mm256_sub_ps(decode(exit_codes), ray_origin),
+                _mm256_set1_ps(ray.exit_reciprocal[axis]),
+            ),
+            _mm256_set1_ps(FAR_INFLATION),
+        );
+        // MAXPS and MINPS return their second operand unless the first is beyond it: the
+        // portable kernel's `max_not_nan` and `min_not_nan`, NaN included.
+        near = _mm256_max_ps(entry, near);
+        far = _mm256_min_ps(exit, far);
+    }
+    let entered = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+    let (mut near_lanes, mut far_lanes) = ([0.0; 8], [0.0; 8]);
+    // SAFETY: each array is 32 bytes; unaligned stores.
+    unsafe {
+        _mm256_storeu_ps(near_lanes.as_mut_ptr(), near);
+        _mm256_storeu_ps(far_lanes.as_mut_ptr(), far);
+    }
+    (near_lanes, far_lanes, entered)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trace::kernel::portable::Portable;
+    use crate::trace::kernel::TraceKernel;
+    use crate::trace::prepared::WideRay;
+    use crate::trace::ray::Ray;
+
+    /// A xorshift generator.
+    struct Bits(u64);
+
+    impl Bits {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            self.0
+        }
+
+        fn pick<T: Copy>(&mut self, values: &[T]) -> T {
+            values[(self.next() % values.len() as u64) as usize]
+        }
+
+        fn coordinate(&mut self) -> f32 {
+            let unit = (self.next() >> 40) as f32 / (1u64 << 24) as f32;
+            (unit - 0.5) * self.pick(&[1.0, 1.0e3, 1.0e-3, 3.0e38])
+        }
+    }
+
+    #[test]
+    fn eight_lanes_decode_and_clip_as_the_portable_groups_of_four() {
+        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("bmi2")) {
+            return;
+        }
+        let mut bits = Bits(0x243f_6a88_85a3_08d3);
+        for _ in 0..100_000 {
+            let mut node = WideNode::EMPTY;
+            for axis in 0..3 {
+                node.origin[axis] = bits.coordinate();
+                node.exponent[axis] = bits.pick(&[1, 100, 120, 127, 140, 254]);
+                for slot in 0..8 {
+                    node.min[axis][slot] = bits.next() as u8;
+                    node.max[axis][slot] = bits.next() as u8;
+                }
+            }
+            let ray = Ray {
+                origin: [0; 3].map(|_| bits.coordinate()),
+                direction: [0; 3].map(|_| bits.pick(&[0.0, -0.0, 1.0, -0.5, 1e-30, 3.0])),
+                tmin: bits.pick(&[0.0, 1.0]),
+                tmax: bits.pick(&[f32::INFINITY, 10.0]),
+            };
+            let prepared = PreparedRay::new(&ray);
+            let wide = WideRay::new(&prepared);
+            let interval = (prepared.tmin, prepared.tmax);
+            let portable = Portable::clip_wide(&prepared, &wide, &node, interval);
+            // SAFETY: the CPU has AVX2 and BMI2, checked above.
+            let avx2 = unsafe { clip_wide(&prepared, &node, interval) };
+            let as_bits = |c: WideClip| (c.0.map(f32::to_bits), c.1.map(f32::to_bits), c.2);
+            assert_eq!(as_bits(avx2), as_bits(portable), "{node:?} {ray:?}");
+            let boxes_bits = |boxes: [ChildBoxes; 2]| {
+                boxes.map(|(min, max)| {
+                    (
+                        min.map(|a| a.map(f32::to_bits)),
+                        max.map(|a| a.map(f32::to_bits)),
+                    )
+                })
+            };
+            // SAFETY: as above.
+            let decoded = unsafe { decode_wide(&node) };
+            assert_eq!(
+                boxes_bits(decoded),
+                boxes_bits(Portable::decode_wide(&node))
+            );
+        }
+    }
+}
