@@ -82,7 +82,7 @@ pub const GROUP_WIDTH: usize = 4;
 pub const MAX_WIDTH: usize = WIDE_WIDTH;
 /// Groups of the widest node record.
 pub const MAX_GROUPS: usize = MAX_WIDTH / GROUP_WIDTH;
-const _: () = assert!(TOP_WIDTH == GROUP_WIDTH && MAX_WIDTH % GROUP_WIDTH == 0);
+const _: () = assert!(TOP_WIDTH == GROUP_WIDTH && MAX_WIDTH.is_multiple_of(GROUP_WIDTH));
 
 impl TraceNode for TopNode {
     type Decoder = ();

@@ -20,8 +20,8 @@ fn decode_plane(codes: &[u8; 8], origin: __m256, scale: __m256) -> __m256 {
 #[target_feature(enable = "avx2,bmi2")]
 pub(super) fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
     let mut planes = [[[[0.0f32; 4]; 3]; 2]; 2];
-    for axis in 0..3 {
-        let origin = _mm256_set1_ps(node.origin[axis]);
+    for (axis, &origin) in node.origin.iter().enumerate() {
+        let origin = _mm256_set1_ps(origin);
         let scale = _mm256_set1_ps(node.scale(axis));
         for (side, codes) in [&node.min[axis], &node.max[axis]].into_iter().enumerate() {
             let lanes: [f32; 8] = bytemuck::cast(decode_plane(codes, origin, scale));
