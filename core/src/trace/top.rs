@@ -19,6 +19,7 @@ use arrayvec::ArrayVec;
 use wide::{f32x4, u32x4};
 
 use super::closest::Closest;
+use super::kernel::codes::widen_codes;
 use super::kernel::prefetch::Targets;
 use super::kernel::{ChildBoxes, TraceKernel, Walk, WideClip};
 use super::prepared::{PreparedRay, WideRay};
@@ -160,13 +161,11 @@ impl TraceNode for WideNode {
     /// rounded sum, so each lane is the scalar expression's value bit for bit.
     #[inline(always)]
     fn boxes(&self, _: &(), group: usize) -> ChildBoxes {
-        let first = group * GROUP_WIDTH;
         let decode = |q: &[[u8; WIDE_WIDTH]; 3]| {
             [0, 1, 2].map(|axis| {
-                let codes: [u8; GROUP_WIDTH] = std::array::from_fn(|lane| q[axis][first + lane]);
+                let codes = widen_codes(&q[axis])[group % MAX_GROUPS];
                 let origin = f32x4::splat(self.origin[axis]);
-                (origin + f32x4::from(codes.map(f32::from)) * f32x4::splat(self.scale(axis)))
-                    .to_array()
+                (origin + codes * f32x4::splat(self.scale(axis))).to_array()
             })
         };
         (decode(&self.min), decode(&self.max))

@@ -18,6 +18,7 @@
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+pub(crate) mod codes;
 pub(crate) mod crossing_blocks;
 mod detect;
 pub(crate) mod distance_bounds;

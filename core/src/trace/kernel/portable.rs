@@ -3,6 +3,7 @@
 
 use wide::{f32x4, f32x8};
 
+use super::codes::widen_codes;
 use super::{
     BlockEdges, ChildBoxes, EnteredBoxes, LeafLanes, LeafStrip, TraceKernel, Walk, WideClip, BLOCK,
     BOX_GROUP,
@@ -159,7 +160,17 @@ impl TraceKernel for Portable {
 
     #[inline(always)]
     fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
-        [0, 1].map(|group| node.boxes(&(), group))
+        let mut boxes = [([[0.0; TOP_WIDTH]; 3], [[0.0; TOP_WIDTH]; 3]); 2];
+        for (axis, &origin) in node.origin.iter().enumerate() {
+            let (origin, scale) = (f32x4::splat(origin), f32x4::splat(node.scale(axis)));
+            let [min_low, min_high] = widen_codes(&node.min[axis]);
+            let [max_low, max_high] = widen_codes(&node.max[axis]);
+            boxes[0].0[axis] = (origin + min_low * scale).to_array();
+            boxes[1].0[axis] = (origin + min_high * scale).to_array();
+            boxes[0].1[axis] = (origin + max_low * scale).to_array();
+            boxes[1].1[axis] = (origin + max_high * scale).to_array();
+        }
+        boxes
     }
 
     /// Two groups of four boxes, each decoded and clipped as the single-ray walk does.
