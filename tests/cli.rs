@@ -143,17 +143,13 @@ fn inspect_json_reports_the_grid_and_the_position_error() {
     let output = reducem(&["inspect", lossless.to_str().unwrap(), "--json"]);
     let stats: serde_json::Value = serde_json::from_slice(&output.stdout).expect("one JSON object");
     assert_eq!(stats["vertex_encoding"], "f32");
-    assert_eq!(stats["format_version"], "3.1");
-    assert_eq!(stats["top_node_bytes"], 128);
+    assert_eq!(stats["format_version"], "4.0");
+    assert_eq!(stats["top_node_bytes"], 96);
     assert_eq!(stats["grid_bits"], 0);
     assert_eq!(stats["position_error_max"], 0.0);
 
-    let grid_nodes = temp_path("cli-inspect-f32-grid-nodes.rdm");
-    let params = BuildParams {
-        grid_nodes: true,
-        ..BuildParams::default()
-    };
-    convert_mesh(&mesh, &params, &grid_nodes).expect("convert");
+    // Lossless grid nodes are no longer written: a 3.1 file of them.
+    let grid_nodes = common::fixture_path("tests/fixtures", "torus-grid-nodes-format-3.1.rdm");
     let output = reducem(&["inspect", grid_nodes.to_str().unwrap(), "--json"]);
     let stats: serde_json::Value = serde_json::from_slice(&output.stdout).expect("one JSON object");
     assert_eq!(stats["vertex_encoding"], "f32");

@@ -3,23 +3,34 @@
 
 mod common;
 
-use common::{temp_path, torus};
+use std::mem::offset_of;
+
+use common::{fixture_bytes, temp_path, torus};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::decode;
 use reducem::format::reader::{FormatError, ReducemFile};
-use reducem::format::{Defect, PrecisionRecord, SectionKind, HEADER_PAGE, PRECISION_OFFSET};
+use reducem::format::{
+    Defect, PrecisionRecord, SectionKind, WideNode, HEADER_PAGE, PRECISION_OFFSET,
+};
 
 fn valid_file_bytes(name: &str) -> Vec<u8> {
     file_bytes(name, &BuildParams::default())
 }
 
-/// A lossless torus with 64-byte grid top-level nodes (format 2.4).
-fn grid_node_file_bytes(name: &str) -> Vec<u8> {
-    let params = BuildParams {
-        grid_nodes: true,
-        ..BuildParams::default()
-    };
-    file_bytes(name, &params)
+/// The torus with 128-byte f32 top-level nodes, as a 3.1 writer wrote it.
+fn f32_node_fixture() -> Vec<u8> {
+    fixture_bytes("tests/fixtures", "torus-format-3.1.rdm")
+}
+
+/// The lossless torus with 64-byte grid top-level nodes (`vertex_encoding` 4), as a 3.1 writer
+/// wrote it.
+fn grid_node_fixture() -> Vec<u8> {
+    fixture_bytes("tests/fixtures", "torus-grid-nodes-format-3.1.rdm")
+}
+
+/// The torus on a 16-bit grid with 64-byte grid top-level nodes, as a 3.1 writer wrote it.
+fn grid_fixture() -> Vec<u8> {
+    fixture_bytes("tests/fixtures", "torus-grid-format-3.1.rdm")
 }
 
 /// A torus with vertices on a 16-bit grid.
@@ -139,7 +150,7 @@ fn header_errors_name_the_byte() {
     );
 }
 
-/// Byte offsets within a 128-byte top-level node (see `docs/FORMAT.md`).
+/// Byte offsets within a 128-byte top-level node of formats 2 and 3 (see `docs/FORMAT.md`).
 const NODE_BYTES: usize = 128;
 const MIN_FIELD: usize = 0;
 const CHILD_FIELD: usize = 96;
@@ -186,7 +197,7 @@ fn rejection_kind(name: &str, bytes: &[u8]) -> Option<Defect> {
 #[test]
 fn crafted_node_links_are_rejected_naming_node_and_byte() {
     const INTERNAL: u32 = 1 << 31;
-    let bytes = valid_file_bytes("crafted-nodes-source.rdm");
+    let bytes = f32_node_fixture();
     let (node, slot) = find_slot(&bytes, |kind| kind == INTERNAL);
     let child_field = CHILD_FIELD + 4 * slot;
     let named = |message: &str, at: usize| {
@@ -254,7 +265,7 @@ fn crafted_node_links_are_rejected_naming_node_and_byte() {
 #[test]
 fn crafted_leaves_and_empty_slots_are_rejected() {
     const INTERNAL: u32 = 1 << 31;
-    let bytes = valid_file_bytes("crafted-leaves-source.rdm");
+    let bytes = f32_node_fixture();
     let strips = u64::from_le_bytes(bytes[40..48].try_into().unwrap()) as u32;
 
     // A leaf running past the strip records.
@@ -521,7 +532,7 @@ fn crafted_grid_blocks_are_rejected_naming_strip_and_byte() {
     assert!(message.contains("past the section end"), "{message}");
 }
 
-/// Byte offsets within a 64-byte grid top-level node (see `docs/FORMAT.md`).
+/// Byte offsets within a 64-byte grid top-level node of formats 2 and 3 (see `docs/FORMAT.md`).
 const GRID_NODE_BYTES: usize = 64;
 const GRID_MAX_FIELD: usize = 24;
 const GRID_LINK_FIELD: usize = 48;
@@ -538,7 +549,7 @@ fn grid_link(bytes: &[u8], node: usize, slot: usize) -> u32 {
 
 #[test]
 fn crafted_grid_nodes_are_rejected_naming_node_and_byte() {
-    let bytes = grid_file_bytes("crafted-grid-nodes-source.rdm");
+    let bytes = grid_fixture();
     let nodes = section_range(&bytes, SectionKind::TopNodes).1 / GRID_NODE_BYTES;
     let slots = || (0..nodes).flat_map(|node| (0..4).map(move |slot| (node, slot)));
     let with_link = |node: usize, slot: usize, link: u32| {
@@ -614,10 +625,10 @@ fn crafted_grid_nodes_are_rejected_naming_node_and_byte() {
 
 /// A 2.2 reader rejects packed references through `vertex_encoding` 3 (unknown to it); this
 /// reader rejects that encoding in a file claiming 2.2, the unpacked grid encodings 1 and 2 in
-/// a 3.0 file, and a node shift on an encoding without grid nodes.
+/// a 3.0 file, and a node shift on an encoding without grid nodes (all in 3.1 files).
 #[test]
 fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
-    let bytes = grid_file_bytes("grid-nodes-version-source.rdm");
+    let bytes = grid_fixture();
     assert_eq!(&bytes[8..12], &[3, 0, 1, 0]);
     assert_eq!(&bytes[20..24], &3u32.to_le_bytes());
     let message = open_error("grid-nodes-2.2.rdm", &claiming_version(&bytes, 2, 2));
@@ -640,7 +651,7 @@ fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
         message.contains("at byte 212") && message.contains("node grid"),
         "{message}"
     );
-    let lossless = valid_file_bytes("node-shift-f32-source.rdm");
+    let lossless = f32_node_fixture();
     let shifted = with_precision(&lossless, |r| r.node_shift = 1);
     let message = open_error("node-shift-f32.rdm", &shifted);
     assert!(
@@ -649,12 +660,12 @@ fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
     );
 }
 
-/// A lossless file with grid nodes (vertex encoding 4) keeps its node grid in the precision
+/// A lossless 3.1 file with grid nodes (vertex encoding 4) keeps its node grid in the precision
 /// record's grid fields: a vertex grid, a shift, a cell that is not a power of two or a claim
 /// of an older minor are each rejected, naming the byte.
 #[test]
 fn lossless_grid_nodes_need_format_2_4_and_a_well_formed_node_grid() {
-    let bytes = grid_node_file_bytes("lossless-grid-nodes-source.rdm");
+    let bytes = grid_node_fixture();
     assert_eq!(&bytes[8..12], &[3, 0, 1, 0]);
     assert_eq!(&bytes[20..24], &4u32.to_le_bytes());
     let message = open_error(
@@ -688,5 +699,245 @@ fn lossless_grid_nodes_need_format_2_4_and_a_well_formed_node_grid() {
             message.contains(&format!("at byte {byte}")) && message.contains(expected),
             "{name}: {message}"
         );
+    }
+}
+
+const WIDE_NODE_BYTES: usize = size_of::<WideNode>();
+const WIDE_INTERNAL: u32 = 15 << 28;
+
+/// A format 4 file's nodes, decoded from `bytes`.
+fn wide_nodes(bytes: &[u8]) -> Vec<WideNode> {
+    let (offset, len) = section_range(bytes, SectionKind::TopNodes);
+    bytes[offset..offset + len]
+        .chunks_exact(WIDE_NODE_BYTES)
+        .map(bytemuck::pod_read_unaligned)
+        .collect()
+}
+
+/// The file offset of byte `field` of wide node `node`.
+fn wide_node_at(bytes: &[u8], node: usize, field: usize) -> usize {
+    section_offset(bytes, SectionKind::TopNodes) + node * WIDE_NODE_BYTES + field
+}
+
+fn link_field(slot: usize) -> usize {
+    offset_of!(WideNode, link) + 4 * slot
+}
+
+/// A copy of `bytes` with `new` written at byte `field` of wide node `node`; returns it and
+/// the file offset written.
+fn with_wide_bytes(bytes: &[u8], node: usize, field: usize, new: &[u8]) -> (Vec<u8>, usize) {
+    let at = wide_node_at(bytes, node, field);
+    let mut changed = bytes.to_vec();
+    changed[at..at + new.len()].copy_from_slice(new);
+    (changed, at)
+}
+
+/// Opens `bytes` expecting a top_nodes defect of `kind` at `node` and file offset `at` whose
+/// message contains `expected`.
+fn assert_node_defect(
+    name: &str,
+    bytes: &[u8],
+    node: usize,
+    at: usize,
+    kind: Defect,
+    expected: &str,
+) {
+    let message = rejection(name, bytes);
+    assert!(
+        message.contains("top_nodes")
+            && message.contains(&format!("node {node}:"))
+            && message.contains(&format!("at byte {at}"))
+            && message.contains(expected),
+        "{name}: {message}"
+    );
+    assert_eq!(rejection_kind(name, bytes), Some(kind), "{name}");
+}
+
+#[test]
+fn crafted_wide_node_links_are_rejected_naming_node_and_byte() {
+    let bytes = valid_file_bytes("crafted-wide-links-source.rdm");
+    assert_eq!(&bytes[8..10], &4u16.to_le_bytes());
+    let nodes = wide_nodes(&bytes);
+    assert!(nodes.len() >= 2, "a root with node children");
+    let strips = u64::from_le_bytes(bytes[40..48].try_into().unwrap()) as u32;
+    let link = |node: usize, slot: usize, word: u32| {
+        with_wide_bytes(&bytes, node, link_field(slot), &word.to_le_bytes())
+    };
+    let last = nodes.len() - 1;
+
+    // A child at its own node would loop forever; one before it, too.
+    let (self_loop, at) = link(0, 0, WIDE_INTERNAL);
+    assert_node_defect(
+        "wide-loop.rdm",
+        &self_loop,
+        0,
+        at,
+        Defect::OutOfRange,
+        "child 0 outside 1..",
+    );
+    let (backwards, at) = link(last, 0, WIDE_INTERNAL);
+    let expected = format!("child 0 outside {}..{}", last + 1, nodes.len());
+    assert_node_defect(
+        "wide-back.rdm",
+        &backwards,
+        last,
+        at,
+        Defect::OutOfRange,
+        &expected,
+    );
+
+    // A child beyond the node array.
+    let (far, at) = link(0, 1, WIDE_INTERNAL | nodes.len() as u32);
+    let expected = format!("child {} outside 1..{}", nodes.len(), nodes.len());
+    assert_node_defect("wide-far.rdm", &far, 0, at, Defect::OutOfRange, &expected);
+
+    // A leaf of 14 strips running past the strip records.
+    let (long_leaf, at) = link(last, 0, 14 << 28 | (strips - 1));
+    let expected = format!("strips {}..{} outside 0..{strips}", strips - 1, strips + 13);
+    assert_node_defect(
+        "wide-long-leaf.rdm",
+        &long_leaf,
+        last,
+        at,
+        Defect::OutOfRange,
+        &expected,
+    );
+
+    // Tag 0 with an index: neither empty nor a link.
+    let (untagged, at) = link(0, 0, 5);
+    assert_node_defect(
+        "wide-untagged.rdm",
+        &untagged,
+        0,
+        at,
+        Defect::BadEncoding,
+        "kind 0x5 is neither internal nor a strip count",
+    );
+
+    // Two slots with the same child: a DAG.
+    let (parent, slot, sibling) = (0..nodes.len())
+        .find_map(|n| {
+            let internal: Vec<usize> = (0..8).filter(|&s| nodes[n].link[s] >> 28 == 15).collect();
+            (internal.len() >= 2).then(|| (n, internal[1], nodes[n].link[internal[0]]))
+        })
+        .expect("a node with two internal children");
+    let (shared, at) = link(parent, slot, sibling);
+    assert_node_defect(
+        "wide-shared.rdm",
+        &shared,
+        parent,
+        at,
+        Defect::BadTree,
+        "second parent",
+    );
+}
+
+#[test]
+fn crafted_wide_node_slots_and_frames_are_rejected_naming_node_and_byte() {
+    let bytes = valid_file_bytes("crafted-wide-slots-source.rdm");
+    let nodes = wide_nodes(&bytes);
+    let occupied = |node: &WideNode| node.link.iter().take_while(|&&l| l != 0).count();
+
+    // An occupied slot after an empty one: slot 1 of the root emptied, slot 2 left as it was.
+    assert!(occupied(&nodes[0]) >= 3, "{:?}", nodes[0]);
+    let mut gap = bytes.clone();
+    for field in [offset_of!(WideNode, min), offset_of!(WideNode, max)] {
+        for axis in 0..3 {
+            gap[wide_node_at(&bytes, 0, field + 8 * axis + 1)] = 0;
+        }
+    }
+    let (gap, _) = with_wide_bytes(&gap, 0, link_field(1), &0u32.to_le_bytes());
+    let at = wide_node_at(&bytes, 0, link_field(2));
+    let expected = "slot 2 follows an empty slot but is not the exact empty slot (all zero bytes)";
+    assert_node_defect("wide-gap.rdm", &gap, 0, at, Defect::BadEncoding, expected);
+
+    // An empty slot with a plane that is not zero.
+    let (node, slot) = (0..nodes.len())
+        .find_map(|n| (occupied(&nodes[n]) < 8).then(|| (n, occupied(&nodes[n]))))
+        .expect("a node with an empty slot");
+    let max_x = offset_of!(WideNode, max) + slot;
+    let (boxed_empty, _) = with_wide_bytes(&bytes, node, max_x, &[1]);
+    let at = wide_node_at(&bytes, node, link_field(slot));
+    let expected = format!("slot {slot} follows an empty slot but is not the exact empty slot");
+    assert_node_defect(
+        "wide-boxed-empty.rdm",
+        &boxed_empty,
+        node,
+        at,
+        Defect::BadEncoding,
+        &expected,
+    );
+
+    // An inverted box, named at its minimum's byte.
+    let min_y = offset_of!(WideNode, min) + 8 + 1;
+    let max_y = offset_of!(WideNode, max) + 8 + 1;
+    let (inverted, at) = with_wide_bytes(&bytes, 0, min_y, &[2]);
+    let (inverted, _) = with_wide_bytes(&inverted, 0, max_y, &[1]);
+    let expected = "slot 1: box minimum above its maximum on axis 1";
+    assert_node_defect(
+        "wide-inverted.rdm",
+        &inverted,
+        0,
+        at,
+        Defect::BadBounds,
+        expected,
+    );
+
+    // Scale exponents outside 1..=254: 0 is subnormal, 255 infinite.
+    let last = nodes.len() - 1;
+    for exponent in [0u8, 255] {
+        let field = offset_of!(WideNode, exponent) + 2;
+        let (scaled, at) = with_wide_bytes(&bytes, last, field, &[exponent]);
+        let expected = format!("scale exponent {exponent} on axis 2 outside 1..=254");
+        assert_node_defect(
+            "wide-exponent.rdm",
+            &scaled,
+            last,
+            at,
+            Defect::BadEncoding,
+            &expected,
+        );
+    }
+
+    // An origin that is not finite.
+    for origin in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        let field = offset_of!(WideNode, origin) + 4;
+        let (moved, at) = with_wide_bytes(&bytes, 0, field, &origin.to_le_bytes());
+        let expected = format!("origin {origin} on axis 1 is not finite");
+        assert_node_defect(
+            "wide-origin.rdm",
+            &moved,
+            0,
+            at,
+            Defect::BadEncoding,
+            &expected,
+        );
+    }
+
+    // The reserved byte.
+    let (reserved, at) = with_wide_bytes(&bytes, last, offset_of!(WideNode, reserved), &[1]);
+    assert_node_defect(
+        "wide-reserved.rdm",
+        &reserved,
+        last,
+        at,
+        Defect::BadEncoding,
+        "reserved byte 1 is not 0",
+    );
+}
+
+/// A 4.0 file whose header claims 3.1 has its 96-byte nodes read as 128-byte `TopNode`s: the
+/// opener rejects it (the node section is no whole number of 128-byte nodes, or the misread
+/// nodes fail validation), naming the node section, and never panics or reads out of bounds.
+#[test]
+fn a_4_0_file_claimed_as_3_1_is_rejected() {
+    for (name, bytes) in [
+        ("f32", valid_file_bytes("claimed-3.1-source.rdm")),
+        ("grid", grid_file_bytes("claimed-3.1-grid-source.rdm")),
+    ] {
+        assert_eq!(&bytes[8..12], &[4, 0, 0, 0], "{name}");
+        let claimed = claiming_version(&bytes, 3, 1);
+        let message = open_error(&format!("claimed-3.1-{name}.rdm"), &claimed);
+        assert!(message.contains("top_nodes"), "{name}: {message}");
     }
 }

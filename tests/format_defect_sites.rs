@@ -5,12 +5,12 @@ mod common;
 
 use std::mem::{offset_of, size_of};
 
-use common::{temp_path, torus};
+use common::{fixture_bytes, temp_path, torus};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::reader::{FormatError, ReducemFile};
 use reducem::format::{
     Defect, FilePart, Header, PrecisionRecord, SectionEntry, SectionKind, StripRecord, TopNode,
-    HEADER_CHECKSUMMED_BYTES, PRECISION_OFFSET,
+    WideNode, HEADER_CHECKSUMMED_BYTES, PRECISION_OFFSET,
 };
 
 fn file_bytes(name: &str, params: &BuildParams) -> Vec<u8> {
@@ -192,20 +192,29 @@ fn section_table_defect_is_reported_at_its_entry() {
     assert_eq!(defect_site("cut.rdm", cut), site(Defect::Truncated));
 }
 
+/// A link of tag 0 with an index (neither empty nor a link) in a format 4 node, and a kind
+/// with the internal bit and a count in a format 3.1 one.
 #[test]
 fn top_node_defect_is_reported_at_its_slot() {
-    let bytes = file_bytes("site-node.rdm", &BuildParams::default());
-    let at = section_offset(&bytes, SectionKind::TopNodes) + offset_of!(TopNode, kind);
-    let mut changed = bytes.clone();
-    changed[at..at + 4].copy_from_slice(&0x8000_0001u32.to_le_bytes());
-    assert_eq!(
-        defect_site("node.rdm", &changed),
-        (
-            FilePart::Section(SectionKind::TopNodes),
-            at as u64,
-            Defect::BadEncoding
-        )
-    );
+    let wide = file_bytes("site-node.rdm", &BuildParams::default());
+    let old = fixture_bytes("tests/fixtures", "torus-format-3.1.rdm");
+    for (name, bytes, field, word) in [
+        ("node-4.0.rdm", wide, offset_of!(WideNode, link), 5u32),
+        ("node-3.1.rdm", old, offset_of!(TopNode, kind), 0x8000_0001),
+    ] {
+        let at = section_offset(&bytes, SectionKind::TopNodes) + field;
+        let mut changed = bytes.clone();
+        changed[at..at + 4].copy_from_slice(&word.to_le_bytes());
+        assert_eq!(
+            defect_site(name, &changed),
+            (
+                FilePart::Section(SectionKind::TopNodes),
+                at as u64,
+                Defect::BadEncoding
+            ),
+            "{name}"
+        );
+    }
 }
 
 #[test]

@@ -8,13 +8,14 @@
 
 mod common;
 
+use std::mem::{offset_of, size_of};
 use std::path::PathBuf;
 
-use common::{hit_bits, temp_path, torus, tracer_variants};
+use common::{fixture_bytes, hit_bits, temp_path, torus, tracer_variants};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::reader::TopNodes;
 use reducem::format::reader::{ReducemFile, Validation, EAGER_VALIDATION_BYTES};
-use reducem::format::{NodeRecord, SectionKind, TopSlot};
+use reducem::format::{NodeRecord, SectionKind, TopSlot, WideNode, WIDE_WIDTH};
 use reducem::trace::ray_file::encode_rays;
 use reducem::trace::{unit_normal, Hit, Ray};
 
@@ -37,11 +38,9 @@ fn grid_params() -> BuildParams {
     }
 }
 
-fn grid_node_params() -> BuildParams {
-    BuildParams {
-        grid_nodes: true,
-        ..BuildParams::default()
-    }
+/// A committed 3.1 torus (see `tests/fixtures/`): the older node layouts.
+fn fixture(name: &str) -> Vec<u8> {
+    fixture_bytes("tests/fixtures", name)
 }
 
 fn section_range(bytes: &[u8], kind: SectionKind) -> std::ops::Range<usize> {
@@ -109,9 +108,18 @@ fn leaf_of(file: &ReducemFile, strip: usize) -> std::ops::Range<usize> {
 /// The rays whose segments pass well clear of every vertex box of `strip`'s leaf: traversal
 /// never enters that leaf for them, so they never view `strip`.
 fn rays_clear_of(file: &ReducemFile, rays: &[Ray], strip: usize) -> Vec<Ray> {
+    rays_clear_of_strips(file, rays, leaf_of(file, strip))
+}
+
+/// The rays whose segments pass well clear of every vertex box of `strips`.
+fn rays_clear_of_strips(
+    file: &ReducemFile,
+    rays: &[Ray],
+    strips: impl IntoIterator<Item = usize>,
+) -> Vec<Ray> {
     let margin = f64::from(scale(file)) * 0.02;
     let (mut min, mut max) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    for s in leaf_of(file, strip) {
+    for s in strips {
         for point in file.strip(s).vertices.iter() {
             for axis in 0..3 {
                 min[axis] = min[axis].min(f64::from(point[axis]) - margin);
@@ -229,6 +237,86 @@ fn a_strip_corrupt_file_opens_and_fails_only_when_a_ray_reaches_the_strip() {
     }
 }
 
+/// `bytes` with `new` written at byte `field` of format 4 node `node`.
+fn with_node_bytes(bytes: &[u8], node: usize, field: usize, new: &[u8]) -> Vec<u8> {
+    let at =
+        section_range(bytes, SectionKind::TopNodes).start + node * size_of::<WideNode>() + field;
+    let mut corrupt = bytes.to_vec();
+    corrupt[at..at + new.len()].copy_from_slice(new);
+    corrupt
+}
+
+/// A format 4 file with a crafted node (its reserved byte set, or a link of tag 0 with an
+/// index) opens lazily, answers the rays that do not enter that node exactly as the intact file
+/// does, and reports the defect a full validation reports once a ray enters it.
+#[test]
+fn a_node_corrupt_file_opens_and_fails_only_when_a_ray_reaches_the_node() {
+    let bytes = converted_bytes((24, 12), &BuildParams::default(), "lazy-node.rdm");
+    let intact = ReducemFile::open_with(&written("lazy-node-intact.rdm", &bytes), Validation::Full)
+        .expect("intact");
+    let TopNodes::Wide(nodes) = intact.top_nodes() else {
+        panic!("a format 4 file has wide nodes");
+    };
+    // The last node in depth-first preorder has no node children: only leaves.
+    let last = nodes.len() - 1;
+    assert!(last > 0, "a root with node children");
+    let strips: Vec<usize> = (0..WIDE_WIDTH)
+        .flat_map(|slot| match nodes[last].slot(slot) {
+            TopSlot::Leaf { first, count } => first as usize..(first + count) as usize,
+            TopSlot::Empty => 0..0,
+            other => panic!("{other:?} in the last node"),
+        })
+        .collect();
+    let rays = rays_at_strips(&intact);
+    let elsewhere = rays_clear_of_strips(&intact, &rays, strips.iter().copied());
+    assert!(elsewhere.len() > rays.len() / 2, "{}", elsewhere.len());
+    let crafted = [
+        ("reserved", offset_of!(WideNode, reserved), vec![1]),
+        (
+            "link",
+            offset_of!(WideNode, link),
+            5u32.to_le_bytes().to_vec(),
+        ),
+    ];
+    for (name, field, value) in crafted {
+        let path = written(
+            &format!("lazy-node-{name}.rdm"),
+            &with_node_bytes(&bytes, last, field, &value),
+        );
+        let full = ReducemFile::open_with(&path, Validation::Full)
+            .err()
+            .expect("full validation rejects the node");
+        let full_error = full.to_string();
+        assert!(
+            full_error.contains(&format!("node {last}:")),
+            "{full_error}"
+        );
+
+        let lazy = ReducemFile::open_with(&path, Validation::Lazy).expect("opens lazily");
+        assert_eq!(
+            answers(&lazy, &elsewhere),
+            answers(&intact, &elsewhere),
+            "{name}"
+        );
+        assert!(lazy.defect().is_none(), "{name}: no ray entered the node");
+
+        let at_node = &rays[strips[0]..strips[0] + 1];
+        for (variant, tracer) in tracer_variants(&lazy) {
+            tracer.intersect_chunk(at_node);
+            let defect = lazy
+                .defect()
+                .unwrap_or_else(|| panic!("{name} {variant}: entered"));
+            assert_eq!(defect.to_string(), full_error, "{name} {variant}");
+            assert_eq!(defect.defect(), full.defect(), "{name} {variant}");
+        }
+        assert_eq!(
+            lazy.validate_all().err().map(|e| e.to_string()),
+            Some(full_error),
+            "{name}"
+        );
+    }
+}
+
 fn reducem(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_reducem"))
         .args(args)
@@ -333,12 +421,19 @@ fn corruptions(bytes: &[u8], step: usize) -> impl Iterator<Item = Vec<u8>> + '_ 
 
 #[test]
 fn lazy_and_full_validation_agree_on_every_corruption() {
-    for (name, params) in [
-        ("f32", BuildParams::default()),
-        ("grid", grid_params()),
-        ("grid-nodes", grid_node_params()),
+    for (name, bytes) in [
+        (
+            "f32",
+            converted_bytes((24, 12), &BuildParams::default(), "lazy-agree-f32.rdm"),
+        ),
+        (
+            "grid",
+            converted_bytes((24, 12), &grid_params(), "lazy-agree-grid.rdm"),
+        ),
+        ("f32-nodes-3.1", fixture("torus-format-3.1.rdm")),
+        ("grid-nodes-3.1", fixture("torus-grid-nodes-format-3.1.rdm")),
+        ("grid-3.1", fixture("torus-grid-format-3.1.rdm")),
     ] {
-        let bytes = converted_bytes((24, 12), &params, &format!("lazy-agree-{name}.rdm"));
         let intact = ReducemFile::open_with(&written("lazy-agree.rdm", &bytes), Validation::Full)
             .expect("intact");
         let rays = rays_at_strips(&intact);

@@ -246,67 +246,98 @@ fn a_tolerance_weld_reconnects_a_perturbed_mesh_into_long_strips() {
     assert!(length > 10.0, "average strip length {length}");
 }
 
-/// Every box of a grid file's 64-byte nodes, decoded, holds every vertex of the strips below
-/// it, at 8 bits (node grid = model grid) and 24 bits (node grid 2^8 model cells): the outward
-/// rounding is conservative on both sides of the node grid's shift.
+/// Every box of a format 4 file's 96-byte nodes, decoded, holds every vertex of the strips
+/// below it, in lossless files and grid files at 8 and 24 bits: the outward rounding to 8-bit
+/// planes is conservative.
 #[test]
-fn grid_node_boxes_hold_their_strips() {
+fn wide_node_boxes_hold_their_strips() {
     use reducem::format::reader::TopNodes;
-    use reducem::format::{GridNode, NodeRecord, TopSlot};
     let mesh = generated(reducem_gen::Kind::Scan, 20_000);
-    for bits in [8, 24] {
-        let file = convert_on_grid(&mesh, &grid_params(bits, 4), &format!("nodes-{bits}.rdm"));
-        let TopNodes::Grid(nodes, grid) = file.top_nodes() else {
-            panic!("a grid file has grid nodes");
+    let lossless = BuildParams {
+        leaf_windows: 4,
+        ..BuildParams::default()
+    };
+    for (name, params) in [
+        ("f32", lossless),
+        ("8", grid_params(8, 4)),
+        ("24", grid_params(24, 4)),
+    ] {
+        let file = convert_on_grid(&mesh, &params, &format!("wide-nodes-{name}.rdm"));
+        let TopNodes::Wide(nodes) = file.top_nodes() else {
+            panic!("{name}: a format 4 file has wide nodes");
         };
-        assert!(grid.shift >= bits.saturating_sub(16) && grid.shift <= bits.saturating_sub(15));
-        assert_eq!(
-            file.section_bytes(reducem::format::SectionKind::TopNodes)
-                .len(),
-            std::mem::size_of_val(nodes)
-        );
-        // (node, decoded min, decoded max) of each slot to check, from the root's children.
-        let decode = |node: &GridNode, slot: usize| {
-            let min = [0, 1, 2].map(|a| grid.decode_axis(node.min[a][slot], a));
-            let max = [0, 1, 2].map(|a| grid.decode_axis(node.max[a][slot], a));
-            (min, max)
-        };
-        let inside = |p: &Point, (min, max): &(Point, Point)| {
-            (0..3).all(|a| min[a] <= p[a] && p[a] <= max[a])
-        };
-        let mut pending = vec![0usize];
-        let mut strips = 0;
-        while let Some(index) = pending.pop() {
-            let node = &nodes[index];
-            for slot in 0..node.occupied() {
-                let bounds = decode(node, slot);
-                match node.slot(slot) {
-                    TopSlot::Internal(child) => {
-                        let child_node = &nodes[child as usize];
-                        for s in 0..child_node.occupied() {
-                            let (min, max) = decode(child_node, s);
-                            assert!(inside(&min, &bounds) && inside(&max, &bounds));
-                        }
-                        pending.push(child as usize);
-                    }
-                    TopSlot::Leaf { first, count } => {
-                        for strip in first..first + count {
-                            let view = file.strip(strip as usize);
-                            for v in 0..view.vertices.len() {
-                                assert!(inside(&view.vertices.point(v), &bounds), "bits {bits}");
-                            }
-                            strips += 1;
-                        }
-                    }
-                    other => panic!("{other:?}"),
-                }
-            }
-        }
-        assert_eq!(strips, file.strip_count());
+        assert!(nodes.len() > 1, "{name}");
+        assert_boxes_hold_strips(&file, nodes, |node, slot| node.slot_box(slot));
     }
 }
 
-/// `bytes` (a format 3.0 grid file, opened as `file`) rewritten as format 2.2 wrote it: u32
+/// Every box of a 3.1 grid file's 64-byte nodes, decoded on the node grid, holds every vertex
+/// of the strips below it.
+#[test]
+fn grid_node_boxes_of_format_3_hold_their_strips() {
+    use reducem::format::reader::TopNodes;
+    let path = fixture_path("tests/fixtures", "torus-grid-format-3.1.rdm");
+    let file = ReducemFile::open(&path).expect("open the 3.1 fixture");
+    let TopNodes::Grid(nodes, grid) = file.top_nodes() else {
+        panic!("a 3.1 grid file has grid nodes");
+    };
+    assert!(nodes.len() > 1);
+    assert_boxes_hold_strips(&file, nodes, |node, slot| {
+        let min = [0, 1, 2].map(|a| grid.decode_axis(node.min[a][slot], a));
+        let max = [0, 1, 2].map(|a| grid.decode_axis(node.max[a][slot], a));
+        (min, max)
+    });
+}
+
+/// Every occupied slot's box, `decode`d, holds every vertex of every strip below it (a child's
+/// box need not lie inside its parent's: each is rounded outward in its own node's frame), and
+/// the leaves hold every strip once.
+fn assert_boxes_hold_strips<N: reducem::format::NodeRecord>(
+    file: &ReducemFile,
+    nodes: &[N],
+    decode: impl Fn(&N, usize) -> (Point, Point),
+) {
+    let inside =
+        |p: &Point, (min, max): &(Point, Point)| (0..3).all(|a| min[a] <= p[a] && p[a] <= max[a]);
+    for (index, node) in nodes.iter().enumerate() {
+        for slot in 0..node.occupied() {
+            let bounds = decode(node, slot);
+            for strip in strips_below(nodes, node.slot(slot)) {
+                let view = file.strip(strip);
+                for v in 0..view.vertices.len() {
+                    let point = view.vertices.point(v);
+                    assert!(
+                        inside(&point, &bounds),
+                        "node {index} slot {slot} {bounds:?}: strip {strip} {point:?}"
+                    );
+                }
+            }
+        }
+    }
+    let mut all = strips_below(nodes, reducem::format::TopSlot::Internal(0));
+    all.sort_unstable();
+    assert_eq!(all, (0..file.strip_count()).collect::<Vec<_>>());
+}
+
+/// The strips of the leaves below `slot`.
+fn strips_below<N: reducem::format::NodeRecord>(
+    nodes: &[N],
+    slot: reducem::format::TopSlot,
+) -> Vec<usize> {
+    use reducem::format::TopSlot;
+    match slot {
+        TopSlot::Internal(child) => {
+            let node = &nodes[child as usize];
+            (0..node.occupied())
+                .flat_map(|s| strips_below(nodes, node.slot(s)))
+                .collect()
+        }
+        TopSlot::Leaf { first, count } => (first as usize..(first + count) as usize).collect(),
+        other => panic!("{other:?}"),
+    }
+}
+
+/// `bytes` (a format 3.x grid file, opened as `file`) rewritten as format 2.2 wrote it: u32
 /// axis words, one byte per reference, no block boxes, `vertex_encoding` 2, the blocks, records
 /// and checksums laid out anew.
 fn with_byte_references(bytes: &[u8], file: &ReducemFile) -> Vec<u8> {
@@ -359,15 +390,13 @@ fn with_byte_references(bytes: &[u8], file: &ReducemFile) -> Vec<u8> {
 }
 
 /// Older formats stay readable: a 2.2 grid file (u32 axis words, 1-byte references, no block
-/// boxes) decodes and traces exactly as the 3.0 file (both packed, with boxes) of the same mesh,
-/// which is smaller.
+/// boxes) decodes and traces exactly as the 3.1 file (packed, with boxes, the same grid nodes)
+/// it was rewritten from.
 #[test]
 fn format_2_2_grid_files_with_byte_references_read_the_same() {
-    let mesh = generated(reducem_gen::Kind::Scan, 20_000);
-    let path = temp_path("packed-references.rdm");
-    convert_mesh(&mesh, &grid_params(20, 4), &path).expect("convert");
-    let packed = std::fs::read(&path).expect("read back");
-    let new = ReducemFile::open(&path).expect("open 3.0");
+    let path = fixture_path("tests/fixtures", "torus-grid-format-3.1.rdm");
+    let packed = std::fs::read(&path).expect("read the 3.1 fixture");
+    let new = ReducemFile::open(&path).expect("open 3.1");
     let bytes = with_byte_references(&packed, &new);
     let old_path = temp_path("byte-references.rdm");
     std::fs::write(&old_path, &bytes).expect("write");
@@ -389,7 +418,7 @@ fn format_2_2_grid_files_with_byte_references_read_the_same() {
         canonical_sorted(decode::triangles(&old)),
         canonical_sorted(decode::triangles(&new))
     );
-    let targets = vertex_and_edge_targets(&mesh);
+    let targets = vertex_and_edge_targets(&torus(24, 12));
     let origin = [0.5, 0.5, 5.0];
     let rays: Vec<Ray> = targets.iter().map(|&t| ray_towards(origin, t)).collect();
     let trace = |file: &ReducemFile| {

@@ -12,8 +12,8 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use common::{
-    converted, generated, icosphere, open_with_long_strips, open_with_long_strips_on_grid,
-    temp_path, torus, SplitMix64,
+    converted, fixture_path, generated, icosphere, open_with_long_strips,
+    open_with_long_strips_on_grid, temp_path, torus, SplitMix64,
 };
 use reducem::conversion::BuildParams;
 use reducem::decode;
@@ -758,14 +758,21 @@ fn inspect_reports_closedness_and_3_0_files_read_as_unknown() {
         "crossings-inspect.rdm",
     );
     let stats = inspect_json(&path);
-    assert_eq!(stats["format_version"], "3.1");
+    assert_eq!(stats["format_version"], "4.0");
     assert_eq!(stats["closed"], true);
     assert_eq!(stats["boundary_edges"], 0);
     assert_eq!(stats["nonmanifold_edges"], 0);
     assert_eq!(stats["up"], serde_json::Value::Null);
 
-    // The same file as a 3.0 writer left it: minor 0, zeros where the model record is.
-    let mut bytes = std::fs::read(&path).expect("read");
+    // A torus as a 3.1 writer wrote it, and as a 3.0 writer would have: minor 0, zeros where
+    // the model record is.
+    let fixture = fixture_path("tests/fixtures", "torus-format-3.1.rdm");
+    let stats = inspect_json(&fixture);
+    assert_eq!(stats["format_version"], "3.1");
+    assert_eq!(stats["closed"], true);
+    assert_eq!(stats["boundary_edges"], 0);
+    assert_eq!(stats["nonmanifold_edges"], 0);
+    let mut bytes = std::fs::read(&fixture).expect("read");
     bytes[10..12].copy_from_slice(&0u16.to_le_bytes());
     bytes[480..512].fill(0);
     let checksum = xxhash_rust::xxh3::xxh3_64(&bytes[..200]);

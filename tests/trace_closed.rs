@@ -4,12 +4,13 @@
 mod common;
 
 use common::*;
-use reducem::conversion::{convert_mesh, BuildParams};
+use reducem::conversion::{convert_mesh, BuildParams, PIPELINE_MAX_STRIP_LENGTH};
+use reducem::decode;
 use reducem::format::reader::ReducemFile;
-use reducem::format::SectionKind;
 use reducem::geometry::Point;
+use reducem::input::read_mesh;
 use reducem::mesh::Mesh;
-use reducem::trace::{TraceOptions, Tracer};
+use reducem::trace::{Ray, TraceOptions, Tracer};
 
 /// Interior points of a mesh that is a sphere of `radius` around `center`.
 fn interior_points(center: Point, radius: f32) -> Vec<Point> {
@@ -157,43 +158,97 @@ fn rays_from_inside_the_generated_sphere_never_escape() {
     check_sphere(&tiny, [0.0; 3], 1e-3, "gen-sphere-tiny");
 }
 
-/// A lossless file's grid nodes (format 2.4) and f32 nodes hold the same tree with boxes
-/// rounded outward: every ray gets bit-identical hits and occlusion answers from both, far from
-/// the origin too (where the node grid's cell is far coarser than the coordinates' ulp).
+/// 3000 rays between random points of the box ±5 around `offset`.
+fn rays_around(offset: f32) -> Vec<Ray> {
+    let mut rng = SplitMix64::new(17);
+    (0..3000)
+        .map(|_| {
+            let mut point = || [0, 1, 2].map(|_| rng.range(-5.0, 5.0) + offset);
+            let (origin, target) = (point(), point());
+            ray_towards(origin, target)
+        })
+        .collect()
+}
+
+/// Each ray's closest hit as its distance's bits and its triangle's, and its occlusion answer.
+type TriangleHits = Vec<(Option<(u32, [[u32; 3]; 3])>, bool)>;
+
+fn triangle_hits(file: &ReducemFile, tracer: &Tracer, rays: &[Ray]) -> TriangleHits {
+    let hits = tracer.intersect_batch(rays);
+    let occluded = tracer.occluded_batch(rays);
+    hits.iter()
+        .map(|hit| hit.map(|h| (h.t.to_bits(), canonical(hit_triangle(file, &h)))))
+        .zip(occluded)
+        .collect()
+}
+
+/// Each ray's closest hit, every field's bits, and its occlusion answer.
+fn all_bits(tracer: &Tracer, rays: &[Ray]) -> Vec<(Option<[u32; 8]>, bool)> {
+    let hits = tracer.intersect_batch(rays);
+    hits.iter()
+        .map(hit_bits)
+        .zip(tracer.occluded_batch(rays))
+        .collect()
+}
+
+/// A 3.1 file's top-level nodes (128-byte f32 ones, or 64-byte grid ones in a lossless file)
+/// and the 96-byte wide nodes of its mesh converted now (with the 3.1 pipeline's strip length,
+/// so the strips are the same) hold the same strips with boxes rounded outward: every ray gets
+/// the same hit, bit for bit, and the same occlusion answer, in every tracer configuration.
 #[test]
-fn grid_nodes_and_f32_nodes_give_bit_identical_hits() {
-    for (offset, name) in [(0.0, "near"), (1e5, "far")] {
-        let mut mesh = torus(40, 18);
-        for p in &mut mesh.positions {
-            *p = p.map(|c| c + offset);
+fn format_3_1_nodes_and_wide_nodes_give_bit_identical_hits() {
+    let rays = rays_around(0.0);
+    let mesh = read_mesh(&fixture_path("tests/fixtures", "torus-24-12.ply")).expect("ply");
+    let mut params = BuildParams::default();
+    params.stripify.max_length = PIPELINE_MAX_STRIP_LENGTH;
+    let (_, new) = converted(&mesh, &params, "wide-torus.rdm");
+    assert_eq!(new.header().version_major, 4);
+    for name in ["torus-format-3.1.rdm", "torus-grid-nodes-format-3.1.rdm"] {
+        let old = ReducemFile::open(&fixture_path("tests/fixtures", name)).expect("open");
+        assert_eq!(old.header().version_major, 3, "{name}");
+        assert_eq!(
+            decode::triangles(&new).collect::<Vec<_>>(),
+            decode::triangles(&old).collect::<Vec<_>>(),
+            "{name}: the same strips"
+        );
+        let expected = all_bits(&Tracer::new(&old, TraceOptions::default()), &rays);
+        assert!(expected.iter().filter(|(_, o)| *o).count() > 500, "{name}");
+        for (variant, tracer) in tracer_variants(&old).iter().chain(&tracer_variants(&new)) {
+            let hits = all_bits(tracer, &rays);
+            let differing: Vec<_> = (0..rays.len())
+                .filter(|&i| hits[i] != expected[i])
+                .map(|i| (i, hits[i], expected[i]))
+                .collect();
+            assert!(differing.is_empty(), "{name} {variant}: {differing:?}");
         }
-        let open = |grid_nodes: bool| {
-            let path = temp_path(&format!("nodes-{name}-{grid_nodes}.rdm"));
-            let params = BuildParams {
-                grid_nodes,
-                ..BuildParams::default()
-            };
-            convert_mesh(&mesh, &params, &path).expect("convert");
-            ReducemFile::open(&path).expect("open")
-        };
-        let (grid_nodes, f32_nodes) = (open(true), open(false));
-        let node_bytes = |file: &ReducemFile| file.section_bytes(SectionKind::TopNodes).len();
-        assert_eq!(2 * node_bytes(&grid_nodes), node_bytes(&f32_nodes));
-        let mut rng = SplitMix64::new(17);
-        let rays: Vec<_> = (0..3000)
-            .map(|_| {
-                let mut point = || [0, 1, 2].map(|_| rng.range(-5.0, 5.0) + offset);
-                let (origin, target) = (point(), point());
-                ray_towards(origin, target)
-            })
-            .collect();
-        let trace = |file: &ReducemFile| {
-            let tracer = Tracer::new(file, TraceOptions::default());
-            let hits: Vec<_> = tracer.intersect_batch(&rays).iter().map(hit_bits).collect();
-            (hits, tracer.occluded_batch(&rays))
-        };
-        let (a, b) = (trace(&grid_nodes), trace(&f32_nodes));
-        assert!(a.1.iter().filter(|&&o| o).count() > 500, "{name}");
-        assert_eq!(a, b, "{name}");
+    }
+}
+
+/// Far from the origin, where an 8-bit plane is far coarser than the coordinates' ulp, a
+/// format 4 file's hits are the brute-force reference's: the same distance and triangle.
+#[test]
+fn wide_nodes_far_from_the_origin_give_the_reference_hits() {
+    let offset = 1e5;
+    let mut mesh = torus(40, 18);
+    for p in &mut mesh.positions {
+        *p = p.map(|c| c + offset);
+    }
+    let (_, file) = converted(&mesh, &BuildParams::default(), "wide-far.rdm");
+    assert_eq!(file.header().version_major, 4);
+    let rays = rays_around(offset);
+    let expected: Vec<_> = rays
+        .iter()
+        .map(|ray| brute_force(&file, ray).map(|(t, triangle)| (t.to_bits(), canonical(triangle))))
+        .collect();
+    assert!(expected.iter().filter(|hit| hit.is_some()).count() > 500);
+    for (variant, tracer) in tracer_variants(&file) {
+        let hits = triangle_hits(&file, &tracer, &rays);
+        let closest: Vec<_> = hits.iter().map(|(hit, _)| *hit).collect();
+        assert_eq!(closest, expected, "{variant}");
+        let occluded = hits.iter().map(|(_, o)| *o);
+        assert!(
+            occluded.zip(&expected).all(|(o, hit)| o == hit.is_some()),
+            "{variant}"
+        );
     }
 }

@@ -2,8 +2,9 @@
 //! by hand (ReduceM files, ray files, binary PLY in both byte orders). The text seeds (ASCII
 //! PLY, OBJ) are written by hand in `fuzz/corpus/`. Regenerate after a format change with
 //! `cargo run -p reducem-fuzz --release -- seed fuzz/corpus`; the seeds of older formats
-//! (`reducem/*-format-2.x.rdm`, written by the writers of those versions) are kept by hand, so
-//! that the reader of every version this one reads stays fuzzed.
+//! (`reducem/*-format-2.x.rdm` and `reducem/*-format-3.1.rdm`, written by the writers of those
+//! versions) are kept by hand, so that the reader of every version this one reads stays fuzzed
+//! and the tests of the older read paths have files to read.
 
 use std::path::Path;
 

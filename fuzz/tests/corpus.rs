@@ -59,11 +59,11 @@ fn subnormal_direction_components_are_traced() {
     assert_eq!(workspace.run(Target::Rays, &bytes), Outcome::Accepted);
 }
 
-/// Format 2 files are read as before: each kept 2.x seed gives the hits and occlusion answers,
-/// bit for bit, of the same mesh converted now (format 3, with block boxes and packed
-/// references; the strips and their order are the same, only their blocks' layout differs).
+/// Format 2 and 3 files are read as before: each kept 2.x and 3.1 seed gives the hits and
+/// occlusion answers, bit for bit, of the same mesh converted now (format 4, with 8-wide
+/// compressed nodes; the strips and their order are the same, only blocks and nodes differ).
 #[test]
-fn format_2_seeds_trace_as_their_mesh_converted_as_format_3() {
+fn format_2_and_3_seeds_trace_as_their_mesh_converted_as_format_4() {
     use reducem::conversion::{convert_mesh, BuildParams};
     use reducem::format::reader::ReducemFile;
     use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
@@ -72,32 +72,34 @@ fn format_2_seeds_trace_as_their_mesh_converted_as_format_3() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("corpus/reducem");
     let scratch = std::env::temp_dir().join(format!("reducem-fuzz-v2-{}", std::process::id()));
     std::fs::create_dir_all(&scratch).expect("scratch");
+    let leaf_of_one = BuildParams {
+        leaf_windows: 1,
+        ..BuildParams::default()
+    };
+    let grid = BuildParams {
+        grid_bits: Some(12),
+        ..BuildParams::default()
+    };
     let seeds = [
-        ("sphere-format-2.1.rdm", 2, BuildParams::default()),
-        (
-            "leaf1-format-2.1.rdm",
-            1,
-            BuildParams {
-                leaf_windows: 1,
-                ..BuildParams::default()
-            },
-        ),
+        ("sphere-format-2.1.rdm", 2, 2, BuildParams::default()),
+        ("leaf1-format-2.1.rdm", 2, 1, leaf_of_one.clone()),
+        // Lossless grid nodes are no longer written: the same strips come with wide nodes.
         (
             "sphere-grid-nodes-format-2.4.rdm",
             2,
-            BuildParams {
-                grid_nodes: true,
-                ..BuildParams::default()
-            },
-        ),
-        (
-            "grid-format-2.3.rdm",
             2,
-            BuildParams {
-                grid_bits: Some(12),
-                ..BuildParams::default()
-            },
+            BuildParams::default(),
         ),
+        ("grid-format-2.3.rdm", 2, 2, grid.clone()),
+        ("sphere-format-3.1.rdm", 3, 2, BuildParams::default()),
+        ("leaf1-format-3.1.rdm", 3, 1, leaf_of_one),
+        (
+            "sphere-grid-nodes-format-3.1.rdm",
+            3,
+            2,
+            BuildParams::default(),
+        ),
+        ("grid-format-3.1.rdm", 3, 2, grid),
     ];
     // Rays from around the unit sphere towards points inside it, and from inside outwards.
     let rays: Vec<Ray> = (0..400)
@@ -127,13 +129,13 @@ fn format_2_seeds_trace_as_their_mesh_converted_as_format_3() {
             }
         })
         .collect();
-    for (name, levels, params) in seeds {
-        let old = ReducemFile::open(&root.join(name)).expect("open the 2.x seed");
-        assert_eq!(old.header().version_major, 2, "{name}");
+    for (name, major, levels, params) in seeds {
+        let old = ReducemFile::open(&root.join(name)).expect("open the old seed");
+        assert_eq!(old.header().version_major, major, "{name}");
         let converted = scratch.join(name);
         convert_mesh(&octahedron_sphere(levels), &params, &converted).expect("convert");
-        let new = ReducemFile::open(&converted).expect("open the 3.0 file");
-        assert_eq!(new.header().version_major, 3, "{name}");
+        let new = ReducemFile::open(&converted).expect("open the 4.0 file");
+        assert_eq!(new.header().version_major, 4, "{name}");
         assert!(new.strip_records().iter().any(|r| r.reference_count > 10));
         for kernel in Kernel::supported() {
             let options = TraceOptions {

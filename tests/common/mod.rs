@@ -31,6 +31,18 @@ pub fn temp_path(name: &str) -> PathBuf {
     dir.join(name)
 }
 
+/// A committed file of an older format, written by that version's writer: `tests/fixtures/`
+/// (tori) or the fuzz corpus's `fuzz/corpus/reducem/` (spheres), as `dir/name`.
+pub fn fixture_path(dir: &str, name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(dir).join(name)
+}
+
+/// The bytes of [`fixture_path`].
+pub fn fixture_bytes(dir: &str, name: &str) -> Vec<u8> {
+    let path = fixture_path(dir, name);
+    std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
 /// A generated mesh, through a PLY file of the calling test's own (tests run in parallel in one
 /// process, and two writers of one path would share its temporary).
 pub fn generated(kind: Kind, triangles: u64) -> Mesh {
