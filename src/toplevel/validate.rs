@@ -72,7 +72,7 @@ impl ValidateWalk<'_> {
         for slot in 0..occupied {
             let (min, max) = node.slot_box(slot);
             let slot_box = Aabb { min, max };
-            if (0..3).any(|axis| !(min[axis] <= max[axis])) {
+            if (0..3).any(|axis| node.min[axis][slot] > node.max[axis][slot]) {
                 return Err(format!("node {index} slot {slot} has an inverted box"));
             }
             if parent_box.is_some_and(|parent| !parent.contains_box(&slot_box)) {
