@@ -6,7 +6,9 @@ use serde::Serialize;
 
 use crate::format::attributes::AttributeSection;
 use crate::format::reader::{ReducemFile, TopNodes};
-use crate::format::{GridNode, SectionKind, TopNode, VertexEncoding, HEADER_PAGE};
+use crate::format::{
+    GridNode, SectionKind, TopNode, VertexEncoding, WideNode, HEADER_PAGE, TOP_WIDTH, WIDE_WIDTH,
+};
 use crate::geometry::distance;
 
 /// What `reducem inspect --json` prints. Field names are a contract with other tools.
@@ -21,10 +23,12 @@ pub struct FileStats {
     pub stored_vertices: u64,
     /// Stored copies that exist only to encode the strip hierarchies.
     pub hierarchy_vertices: u64,
-    /// Top-level nodes (4-wide).
+    /// Top-level nodes.
     pub top_nodes: u64,
-    /// Bytes per top-level node: 128 for f32 boxes, 64 for grid nodes (grid files, and
-    /// lossless files since format 2.4).
+    /// Child slots per top-level node: 8 since format 4, 4 before.
+    pub top_node_width: u64,
+    /// Bytes per top-level node: 96 since format 4; before, 128 for f32 boxes and 64 for grid
+    /// nodes (grid files, and lossless files since format 2.4).
     pub top_node_bytes: u64,
     /// Windows per leaf of the strips' kd-trees (`[strip] leaf_windows`).
     pub leaf_windows: u32,
@@ -117,9 +121,14 @@ pub fn file_stats(file: &ReducemFile) -> FileStats {
         stored_vertices: header.stored_vertex_count,
         hierarchy_vertices: header.hierarchy_vertex_count,
         top_nodes: file.top_nodes().len() as u64,
+        top_node_width: match file.top_nodes() {
+            TopNodes::F32(_) | TopNodes::Grid(..) => TOP_WIDTH as u64,
+            TopNodes::Wide(_) => WIDE_WIDTH as u64,
+        },
         top_node_bytes: match file.top_nodes() {
             TopNodes::F32(_) => size_of::<TopNode>() as u64,
             TopNodes::Grid(..) => size_of::<GridNode>() as u64,
+            TopNodes::Wide(_) => size_of::<WideNode>() as u64,
         },
         leaf_windows: header.leaf_windows,
         leaf_triangles: header.leaf_windows,

@@ -626,9 +626,7 @@ fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<(
     );
     println!(
         "  top level          {} nodes of {} children, {} bytes each",
-        stats.top_nodes,
-        reducem::format::TOP_WIDTH,
-        stats.top_node_bytes
+        stats.top_nodes, stats.top_node_width, stats.top_node_bytes
     );
     println!(
         "  vertices stored as {}",

@@ -291,7 +291,7 @@ fn attributes_leave_geometry_and_hits_unchanged() {
     );
     for file in [&plain, &with] {
         let header = file.header();
-        assert_eq!((header.version_major, header.version_minor), (3, 1));
+        assert_eq!((header.version_major, header.version_minor), (4, 0));
     }
     let strip_data = reducem::format::SectionKind::StripData;
     assert_eq!(

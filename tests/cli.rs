@@ -119,9 +119,10 @@ fn inspect_json_reports_the_grid_and_the_position_error() {
         .zip(&quantized.positions)
         .map(|(p, q)| distance(p, q))
         .fold(0.0, f64::max);
-    assert_eq!(stats["format_version"], "3.1");
+    assert_eq!(stats["format_version"], "4.0");
     assert_eq!(stats["vertex_encoding"], "grid");
-    assert_eq!(stats["top_node_bytes"], 64);
+    assert_eq!(stats["top_node_bytes"], 96);
+    assert_eq!(stats["top_node_width"], 8);
     assert_eq!(stats["grid_bits"], 16);
     assert_eq!(
         stats["grid_cell"].as_f64().map(|c| c as f32),

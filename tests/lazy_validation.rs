@@ -14,7 +14,7 @@ use common::{hit_bits, temp_path, torus, tracer_variants};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::reader::TopNodes;
 use reducem::format::reader::{ReducemFile, Validation, EAGER_VALIDATION_BYTES};
-use reducem::format::{NodeRecord, SectionKind, TopSlot, TOP_WIDTH};
+use reducem::format::{NodeRecord, SectionKind, TopSlot};
 use reducem::trace::ray_file::encode_rays;
 use reducem::trace::{unit_normal, Hit, Ray};
 
@@ -89,7 +89,7 @@ fn rays_at_strips(file: &ReducemFile) -> Vec<Ray> {
 fn leaf_of(file: &ReducemFile, strip: usize) -> std::ops::Range<usize> {
     fn find<N: NodeRecord>(nodes: &[N], strip: usize) -> Option<std::ops::Range<usize>> {
         nodes.iter().find_map(|node| {
-            (0..TOP_WIDTH).find_map(|slot| match node.slot(slot) {
+            (0..N::WIDTH).find_map(|slot| match node.slot(slot) {
                 TopSlot::Leaf { first, count } => {
                     let leaf = first as usize..(first + count) as usize;
                     leaf.contains(&strip).then_some(leaf)
@@ -101,6 +101,7 @@ fn leaf_of(file: &ReducemFile, strip: usize) -> std::ops::Range<usize> {
     match file.top_nodes() {
         TopNodes::F32(nodes) => find(nodes, strip),
         TopNodes::Grid(nodes, _) => find(nodes, strip),
+        TopNodes::Wide(nodes) => find(nodes, strip),
     }
     .expect("every strip is in a leaf")
 }

@@ -46,10 +46,11 @@ pub const MAGIC: [u8; 8] = *b"REDUCEM\0";
 /// Incremented on any incompatible layout change; readers reject majors they do not know.
 /// Version 2 replaced version 1's binary top-level nodes (32 bytes) with 4-wide ones
 /// ([`TopNode`]); version 3 added per-block boxes to strip blocks ([`block_boxes`]) and packs
-/// the references of every vertex encoding. Writers write version 3.
-pub const VERSION_MAJOR: u16 = 3;
+/// the references of every vertex encoding; version 4 replaced the top-level nodes with 8-wide
+/// compressed ones ([`WideNode`]). Writers write version 4.
+pub const VERSION_MAJOR: u16 = 4;
 /// Incremented on compatible additions; readers accept any minor of a major they read.
-pub const VERSION_MINOR: u16 = model::MODEL_MINOR;
+pub const VERSION_MINOR: u16 = 0;
 /// The oldest major this reader reads (version 2 files are read as before).
 pub const OLDEST_READ_MAJOR: u16 = 2;
 /// Version 2's minors: minor 1 added the [`PrecisionRecord`] and the grid vertex encoding,

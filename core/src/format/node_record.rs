@@ -6,12 +6,14 @@ use bytemuck::Pod;
 use wide::i32x4;
 
 use super::{
-    GridNode, TopNode, TopSlot, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS, GRID_LINK_INTERNAL,
-    INTERNAL_CHILD, TOP_WIDTH,
+    GridNode, TopNode, TopSlot, WideNode, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS,
+    GRID_LINK_INTERNAL, INTERNAL_CHILD, TOP_WIDTH, WIDE_WIDTH,
 };
 
 /// validates and traversal follows.
 pub trait NodeRecord: Pod {
+    /// Child slots of the record.
+    const WIDTH: usize;
     /// Byte offset of slot 0's link (child or first strip) within the record, for errors.
     const CHILD_FIELD: u64;
     /// Byte offset of slot 0's kind (or whole link), for errors.
@@ -28,7 +30,7 @@ pub trait NodeRecord: Pod {
 
     /// Occupied slots: those before the first empty one.
     fn occupied(&self) -> usize {
-        (0..TOP_WIDTH)
+        (0..Self::WIDTH)
             .take_while(|&slot| self.slot(slot) != TopSlot::Empty)
             .count()
     }
@@ -36,6 +38,12 @@ pub trait NodeRecord: Pod {
     /// The first axis on which occupied `slot`'s box has `min > max`, with the byte offset of
     /// that `min` in the record; `None` when the box is well formed (or the record admits any).
     fn inverted_axis(&self, slot: usize) -> Option<(usize, u64)>;
+
+    /// What is wrong with the fields the node's slots share, if anything, with the byte offset
+    /// of the field in the record.
+    fn frame_defect(&self) -> Option<(u64, String)> {
+        None
+    }
 
     /// Whether node `index` passes the checks that need no other node, all slots at once in
     /// plain comparisons: occupied slots first (at least one unless `limits.empty_root`), each
@@ -60,6 +68,7 @@ pub struct NodeLimits {
 }
 
 impl NodeRecord for TopNode {
+    const WIDTH: usize = TOP_WIDTH;
     const CHILD_FIELD: u64 = offset_of!(TopNode, child) as u64;
     const KIND_FIELD: u64 = offset_of!(TopNode, kind) as u64;
     const EMPTY_SLOT: &'static str = "min +inf, max -inf, child 0, kind 0";
@@ -139,16 +148,35 @@ impl LinkBounds {
     }
 }
 
+impl LinkBounds {
+    /// [`LinkBounds::passes`] of four one-word links (tag and index, as [`GridNode`] packs
+    /// them).
+    #[inline(always)]
+    fn pass_words(&self, words: [u32; 4]) -> u32 {
+        let tags = i32x4::new(words.map(|word| (word >> GRID_LINK_INDEX_BITS) as i32));
+        let internal = tags.simd_eq(i32x4::splat(GRID_LINK_INTERNAL as i32));
+        let leaf = !tags.simd_eq(i32x4::ZERO) & !internal;
+        let first = words.map(|word| word & GRID_LINK_INDEX);
+        self.passes(first, internal, leaf, tags)
+    }
+}
+
 /// `value` with its sign bit flipped: unsigned order as signed order.
 #[inline(always)]
 fn flip_sign(value: u32) -> i32 {
     (value ^ 1 << 31) as i32
 }
 
-/// Bit `slot` set where `test(slot)` holds, over a node's slots.
+/// Bit `slot` set where `test(slot)` holds, over a 4-wide node's slots.
 #[inline(always)]
 fn lanes(test: impl Fn(usize) -> bool) -> u32 {
-    (0..TOP_WIDTH).fold(0, |bits, slot| bits | (test(slot) as u32) << slot)
+    lanes_of(TOP_WIDTH, test)
+}
+
+/// Bit `slot` set where `test(slot)` holds, over `width` slots.
+#[inline(always)]
+fn lanes_of(width: usize, test: impl Fn(usize) -> bool) -> u32 {
+    (0..width).fold(0, |bits, slot| bits | (test(slot) as u32) << slot)
 }
 
 /// [`NodeRecord::passes_alone`] from bit masks over the slots: `occupied` ones form a prefix
@@ -156,7 +184,17 @@ fn lanes(test: impl Fn(usize) -> bool) -> u32 {
 /// are `exactly_empty`.
 #[inline(always)]
 fn slots_pass(occupied: u32, links: u32, exactly_empty: u32, empty_root: bool) -> bool {
-    let all = (1 << TOP_WIDTH) - 1;
+    slots_of_width_pass(TOP_WIDTH, (occupied, links, exactly_empty), empty_root)
+}
+
+/// [`slots_pass`] over `width` slots.
+#[inline(always)]
+fn slots_of_width_pass(
+    width: usize,
+    (occupied, links, exactly_empty): (u32, u32, u32),
+    empty_root: bool,
+) -> bool {
+    let all = (1 << width) - 1;
     (occupied & (occupied + 1) == 0)
         & ((occupied != 0) | empty_root)
         & (links & occupied == occupied)
@@ -164,6 +202,7 @@ fn slots_pass(occupied: u32, links: u32, exactly_empty: u32, empty_root: bool) -
 }
 
 impl NodeRecord for GridNode {
+    const WIDTH: usize = TOP_WIDTH;
     const CHILD_FIELD: u64 = offset_of!(GridNode, link) as u64;
     const KIND_FIELD: u64 = offset_of!(GridNode, link) as u64;
     const EMPTY_SLOT: &'static str = "all zero bytes";
@@ -208,18 +247,89 @@ impl NodeRecord for GridNode {
                 inverted[lane] |= min[lane] > max[lane];
             }
         }
-        let tags = i32x4::new(self.link.map(|word| (word >> GRID_LINK_INDEX_BITS) as i32));
-        let internal = tags.simd_eq(i32x4::splat(GRID_LINK_INTERNAL as i32));
-        let leaf = !tags.simd_eq(i32x4::ZERO) & !internal;
-        let first = self.link.map(|word| word & GRID_LINK_INDEX);
-        let links = LinkBounds::new(index, limits).passes(first, internal, leaf, tags)
-            & !lanes(|slot| inverted[slot]);
+        let links =
+            LinkBounds::new(index, limits).pass_words(self.link) & !lanes(|slot| inverted[slot]);
         slots_pass(
             lanes(|slot| self.link[slot] != 0),
             links,
             lanes(|slot| (differ[slot] == 0) & (self.link[slot] == 0)),
             limits.empty_root,
         )
+    }
+}
+
+impl NodeRecord for WideNode {
+    const WIDTH: usize = WIDE_WIDTH;
+    const CHILD_FIELD: u64 = offset_of!(WideNode, link) as u64;
+    const KIND_FIELD: u64 = offset_of!(WideNode, link) as u64;
+    const EMPTY_SLOT: &'static str = "all zero bytes";
+
+    fn slot(&self, slot: usize) -> TopSlot {
+        WideNode::slot(self, slot)
+    }
+
+    fn is_exactly_empty(&self, slot: usize) -> bool {
+        (0..3).all(|axis| self.min[axis][slot] == 0 && self.max[axis][slot] == 0)
+            && self.link[slot] == 0
+    }
+
+    /// As [`GridNode`]'s: no writer rounds outward to an inverted box.
+    fn inverted_axis(&self, slot: usize) -> Option<(usize, u64)> {
+        (0..3)
+            .find(|&axis| self.min[axis][slot] > self.max[axis][slot])
+            .map(|axis| {
+                let lane = axis * WIDE_WIDTH + slot;
+                (axis, (offset_of!(WideNode, min) + lane) as u64)
+            })
+    }
+
+    /// A finite origin and exponents in 1..=254 decode every code to a finite value or an
+    /// infinity of the right sign (never NaN); the reserved byte is zero.
+    fn frame_defect(&self) -> Option<(u64, String)> {
+        if let Some(axis) = (0..3).find(|&axis| !self.origin[axis].is_finite()) {
+            let field = offset_of!(WideNode, origin) + axis * size_of::<f32>();
+            let detail = format!("origin {} on axis {axis} is not finite", self.origin[axis]);
+            return Some((field as u64, detail));
+        }
+        if let Some(axis) = (0..3).find(|&axis| !(1..=254).contains(&self.exponent[axis])) {
+            let field = offset_of!(WideNode, exponent) + axis;
+            let detail = format!(
+                "scale exponent {} on axis {axis} outside 1..=254",
+                self.exponent[axis]
+            );
+            return Some((field as u64, detail));
+        }
+        (self.reserved != 0).then(|| {
+            let detail = format!("reserved byte {} is not 0", self.reserved);
+            (offset_of!(WideNode, reserved) as u64, detail)
+        })
+    }
+
+    #[inline]
+    fn passes_alone(&self, index: usize, limits: NodeLimits) -> bool {
+        let frame = self.origin.iter().all(|c| c.is_finite())
+            & self.exponent.iter().all(|e| (1..=254).contains(e))
+            & (self.reserved == 0);
+        let mut differ = [0u8; WIDE_WIDTH];
+        let mut inverted = [false; WIDE_WIDTH];
+        for (min, max) in self.min.iter().zip(&self.max) {
+            for lane in 0..WIDE_WIDTH {
+                differ[lane] |= min[lane] | max[lane];
+                inverted[lane] |= min[lane] > max[lane];
+            }
+        }
+        let bounds = LinkBounds::new(index, limits);
+        let [low, high]: [[u32; 4]; 2] = bytemuck::cast(self.link);
+        let links = (bounds.pass_words(low) | bounds.pass_words(high) << 4)
+            & !lanes_of(WIDE_WIDTH, |slot| inverted[slot]);
+        let slots = (
+            lanes_of(WIDE_WIDTH, |slot| self.link[slot] != 0),
+            links,
+            lanes_of(WIDE_WIDTH, |slot| {
+                (differ[slot] == 0) & (self.link[slot] == 0)
+            }),
+        );
+        frame & slots_of_width_pass(WIDE_WIDTH, slots, limits.empty_root)
     }
 }
 
@@ -232,10 +342,10 @@ mod tests {
     /// a node alone), as a verdict.
     fn passes_slot_by_slot<N: NodeRecord>(node: &N, index: usize, limits: NodeLimits) -> bool {
         let occupied = node.occupied();
-        if occupied == 0 && !limits.empty_root {
+        if node.frame_defect().is_some() || (occupied == 0 && !limits.empty_root) {
             return false;
         }
-        (0..TOP_WIDTH).all(|slot| {
+        (0..N::WIDTH).all(|slot| {
             if slot >= occupied {
                 return node.is_exactly_empty(slot);
             }
@@ -384,6 +494,44 @@ mod tests {
                     1 => node.link[slot] = picker.pick(&[0, u32::MAX, GRID_LINK_INDEX]),
                     2 => node.min[axis][slot] = picker.pick(&bounds),
                     _ => node.max[axis][slot] = picker.pick(&bounds),
+                }
+            }
+            verdicts.compare(&node, &mut picker);
+        }
+        verdicts.assert_both_seen();
+    }
+
+    #[test]
+    fn wide_nodes_pass_alone_exactly_when_every_slot_passes() {
+        let mut picker = Picker(0x6a09_e667_f3bc_c909);
+        let tags = [0, 1, 3, 14, GRID_LINK_INTERNAL];
+        let bounds = [0, 1, 2, u8::MAX];
+        let mut verdicts = Verdicts::default();
+        for _ in 0..200_000 {
+            let mut node = WideNode::EMPTY;
+            let occupied = picker.pick(&[0, 1, 2, 4, 7, 8]);
+            for slot in 0..occupied {
+                let tag = picker.pick(&[1, 3, GRID_LINK_INTERNAL]);
+                node.link[slot] = tag << GRID_LINK_INDEX_BITS | picker.pick(&LINKS);
+                for axis in 0..3 {
+                    node.min[axis][slot] = 1;
+                    node.max[axis][slot] = 2;
+                }
+            }
+            for _ in 0..picker.pick(&[0, 1, 2]) {
+                let slot = picker.pick(&[0, 1, 3, 4, 6, 7]);
+                let axis = picker.pick(&[0, 1, 2]);
+                match picker.pick(&[0, 1, 2, 3, 4, 5, 6]) {
+                    0 => {
+                        let tag = picker.pick(&tags);
+                        node.link[slot] = tag << GRID_LINK_INDEX_BITS | picker.pick(&LINKS);
+                    }
+                    1 => node.link[slot] = picker.pick(&[0, u32::MAX, GRID_LINK_INDEX]),
+                    2 => node.min[axis][slot] = picker.pick(&bounds),
+                    3 => node.max[axis][slot] = picker.pick(&bounds),
+                    4 => node.exponent[axis] = picker.pick(&[0, 1, 127, 254, 255]),
+                    5 => node.origin[axis] = picker.pick(&[0.0, f32::INFINITY, f32::NAN]),
+                    _ => node.reserved = picker.pick(&[0, 0, 1]),
                 }
             }
             verdicts.compare(&node, &mut picker);

@@ -39,7 +39,7 @@ use super::references::{packed_bytes, packed_width, References, MIN_PACKED_BYTES
 use super::vertices::StripVertices;
 use super::{
     axis_bytes, Defect, FilePart, GridNode, Header, PrecisionRecord, SectionKind, StripRecord,
-    TopNode, F32_VERTEX_BYTES,
+    TopNode, WideNode, F32_VERTEX_BYTES,
 };
 use crate::geometry::Point;
 use attributes::AttributeSections;
@@ -108,8 +108,8 @@ pub struct ReducemFile {
     header: Header,
     precision: PrecisionRecord,
     layout: VertexLayout,
-    /// The grid of [`GridNode`] boxes; `None` for f32 [`TopNode`]s.
-    node_grid: Option<NodeGrid>,
+    /// The record of the top-level nodes.
+    nodes: NodeLayout,
     sections: [Range<usize>; 3],
     attributes: AttributeSections,
     /// The model record (since 3.1).
@@ -119,11 +119,23 @@ pub struct ReducemFile {
     parts: PartTable,
 }
 
-/// The top-level nodes of a file, in the record its vertex encoding implies.
+/// The record of a file's top-level nodes: by its version and vertex encoding.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NodeLayout {
+    /// [`TopNode`]s (format 2 and 3, f32 nodes).
+    F32,
+    /// [`GridNode`]s on this node grid (format 2 and 3, grid nodes).
+    Grid(NodeGrid),
+    /// [`WideNode`]s (format 4).
+    Wide,
+}
+
+/// The top-level nodes of a file, in the record its version and vertex encoding imply.
 #[derive(Clone, Copy, Debug)]
 pub enum TopNodes<'a> {
     F32(&'a [TopNode]),
     Grid(&'a [GridNode], NodeGrid),
+    Wide(&'a [WideNode]),
 }
 
 impl TopNodes<'_> {
@@ -131,6 +143,7 @@ impl TopNodes<'_> {
         match self {
             TopNodes::F32(nodes) => nodes.len(),
             TopNodes::Grid(nodes, _) => nodes.len(),
+            TopNodes::Wide(nodes) => nodes.len(),
         }
     }
 
@@ -377,9 +390,10 @@ impl ReducemFile {
 
     pub fn top_nodes(&self) -> TopNodes<'_> {
         let bytes = self.section_bytes(SectionKind::TopNodes);
-        match self.node_grid {
-            None => TopNodes::F32(bytemuck::cast_slice(bytes)),
-            Some(grid) => TopNodes::Grid(bytemuck::cast_slice(bytes), grid),
+        match self.nodes {
+            NodeLayout::F32 => TopNodes::F32(bytemuck::cast_slice(bytes)),
+            NodeLayout::Grid(grid) => TopNodes::Grid(bytemuck::cast_slice(bytes), grid),
+            NodeLayout::Wide => TopNodes::Wide(bytemuck::cast_slice(bytes)),
         }
     }
 
@@ -405,10 +419,7 @@ impl ReducemFile {
     /// place after its validation, and stops.
     #[inline(always)]
     pub fn node_visits(&self) -> usize {
-        match self.top_nodes() {
-            TopNodes::F32(nodes) => nodes.len(),
-            TopNodes::Grid(nodes, _) => nodes.len(),
-        }
+        self.top_nodes().len()
     }
 
     /// The strip at file position `index` (`index < strip_count()`).

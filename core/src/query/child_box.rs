@@ -1,9 +1,9 @@
-//! The child boxes of both top-level node records, decoded alike for the closest-point walk,
+//! The child boxes of every top-level node record, decoded alike for the closest-point walk,
 //! which bounds their distance to a point (the crossing walk reads boxes as stored:
 //! `crossing_walk::NodeBoxes`).
 
 use crate::format::grid::NodeGrid;
-use crate::format::{GridNode, NodeRecord, TopNode, TOP_WIDTH};
+use crate::format::{GridNode, NodeRecord, TopNode, WideNode, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::trace::kernel::distance_bounds::LaneBoxes;
 
@@ -13,11 +13,15 @@ pub(crate) trait ChildBox: NodeRecord {
     type Grid;
     fn child_box(&self, slot: usize, grid: &Self::Grid) -> (Point, Point);
 
-    /// Every slot's box at once, by axis and slot (`[axis][slot]`): minima, maxima. Slots that
-    /// hold no child decode as whatever their planes store.
-    fn child_boxes(&self, grid: &Self::Grid) -> (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>) {
+    /// The boxes of slots `4 group .. 4 group + 4` at once, by axis and slot (`[axis][slot]`):
+    /// minima, maxima. Slots that hold no child decode as whatever their planes store.
+    fn child_boxes(
+        &self,
+        grid: &Self::Grid,
+        group: usize,
+    ) -> (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>) {
         let boxes: [(Point, Point); TOP_WIDTH] =
-            std::array::from_fn(|slot| self.child_box(slot, grid));
+            std::array::from_fn(|lane| self.child_box(group * TOP_WIDTH + lane, grid));
         (
             std::array::from_fn(|axis| boxes.map(|(min, _)| min[axis])),
             std::array::from_fn(|axis| boxes.map(|(_, max)| max[axis])),
@@ -33,7 +37,7 @@ impl ChildBox for TopNode {
     }
 
     /// The record stores its boxes by axis and slot already.
-    fn child_boxes(&self, _: &()) -> (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>) {
+    fn child_boxes(&self, _: &(), _group: usize) -> (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>) {
         (self.min, self.max)
     }
 }
@@ -48,5 +52,14 @@ impl ChildBox for GridNode {
             std::array::from_fn(|axis| grid.decode_axis(q[axis][slot], axis))
         };
         (decode(&self.min), decode(&self.max))
+    }
+}
+
+impl ChildBox for WideNode {
+    type Grid = ();
+
+    /// Through [`WideNode::decode`], the expression the writer rounded the boxes outward with.
+    fn child_box(&self, slot: usize, _: &()) -> (Point, Point) {
+        self.slot_box(slot)
     }
 }

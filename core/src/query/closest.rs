@@ -24,7 +24,7 @@ use super::triangle_distance::{closest_on_triangle, TrianglePoint};
 use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{TopSlot, INTERNAL_CHILD};
+use crate::format::{TopSlot, INTERNAL_CHILD, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::strip_windows::window_corners;
 use crate::trace::kernel::distance_bounds::{box_bound, child_bounds, window_bounds, BlockCorners};
@@ -114,6 +114,7 @@ impl<'f> ClosestPointSearch<'f> {
         match self.file.top_nodes() {
             TopNodes::F32(nodes) => self.walk(nodes, &(), point, &mut best),
             TopNodes::Grid(nodes, grid) => self.walk(nodes, &grid, point, &mut best),
+            TopNodes::Wide(nodes) => self.walk(nodes, &(), point, &mut best),
         }
         let (strip, window, found) = best.found?;
         Some(ClosestPoint {
@@ -166,26 +167,31 @@ impl<'f> ClosestPointSearch<'f> {
         query: &Query,
         limit: f64,
     ) -> Option<(f64, (u32, u32))> {
-        let (min, max) = node.child_boxes(grid);
-        let bounds = child_bounds(self.kernel, &query.wide, &min, &max);
         let mut nearest: Option<(f64, (u32, u32))> = None;
-        for (slot, &bound) in bounds.iter().enumerate() {
-            let link = match node.slot(slot) {
-                TopSlot::Internal(index) => (index, INTERNAL_CHILD),
-                TopSlot::Leaf { first, count } => (first, count),
-                TopSlot::Empty | TopSlot::Invalid(_) => continue,
-            };
-            if bound > limit {
-                continue;
+        for group in 0..N::WIDTH / TOP_WIDTH {
+            if node.slot(group * TOP_WIDTH) == TopSlot::Empty {
+                break;
             }
-            let candidate = (bound, link);
-            match nearest {
-                Some((nearest_bound, _)) if nearest_bound <= bound => self.defer(candidate),
-                Some(entered) => {
-                    self.defer(entered);
-                    nearest = Some(candidate);
+            let (min, max) = node.child_boxes(grid, group);
+            let bounds = child_bounds(self.kernel, &query.wide, &min, &max);
+            for (lane, &bound) in bounds.iter().enumerate() {
+                let link = match node.slot(group * TOP_WIDTH + lane) {
+                    TopSlot::Internal(index) => (index, INTERNAL_CHILD),
+                    TopSlot::Leaf { first, count } => (first, count),
+                    TopSlot::Empty | TopSlot::Invalid(_) => continue,
+                };
+                if bound > limit {
+                    continue;
                 }
-                None => nearest = Some(candidate),
+                let candidate = (bound, link);
+                match nearest {
+                    Some((nearest_bound, _)) if nearest_bound <= bound => self.defer(candidate),
+                    Some(entered) => {
+                        self.defer(entered);
+                        nearest = Some(candidate);
+                    }
+                    None => nearest = Some(candidate),
+                }
             }
         }
         nearest

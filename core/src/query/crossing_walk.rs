@@ -18,7 +18,7 @@ use crate::format::block_boxes::{BoxFrame, BOX_WINDOWS, CODE_BIAS, MAX_CODE};
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, TOP_WIDTH};
+use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, WideNode, TOP_WIDTH, WIDE_WIDTH};
 use crate::geometry::Point;
 use crate::trace::kernel::crossing_blocks::{for_each_candidate, StripBlocks, MASK_BLOCKS};
 use crate::trace::kernel::Kernel;
@@ -83,6 +83,7 @@ impl CrossingWalk {
         match file.top_nodes() {
             TopNodes::F32(nodes) => self.nodes(file, nodes, &(), each),
             TopNodes::Grid(nodes, grid) => self.nodes(file, nodes, &grid, each),
+            TopNodes::Wide(nodes) => self.nodes(file, nodes, &(), each),
         }
     }
 
@@ -108,7 +109,10 @@ impl CrossingWalk {
             let Some(node) = file.top_node(nodes, index as usize) else {
                 continue;
             };
-            let mut entered = self.entered(&node.boxes(grid));
+            let mut entered = 0;
+            for group in 0..N::WIDTH / TOP_WIDTH {
+                entered |= self.entered(&node.boxes(grid, group)) << (group * TOP_WIDTH);
+            }
             while entered != 0 {
                 let slot = entered.trailing_zeros() as usize;
                 entered &= entered - 1;
@@ -283,19 +287,20 @@ impl NodeStack {
     }
 }
 
-/// A top-level node record's four child boxes axis by axis, as f32, whatever its layout: the
-/// walk's one view of the nodes.
+/// A top-level node record's child boxes four at a time, axis by axis, as f32, whatever its
+/// layout: the walk's one view of the nodes.
 trait NodeBoxes: NodeRecord {
     /// What decoding the boxes takes besides the node.
     type Grid;
-    fn boxes(&self, grid: &Self::Grid) -> FourBoxes;
+    /// The boxes of slots `4 group .. 4 group + 4`.
+    fn boxes(&self, grid: &Self::Grid, group: usize) -> FourBoxes;
 }
 
 impl NodeBoxes for TopNode {
     type Grid = ();
 
     #[inline(always)]
-    fn boxes(&self, _: &()) -> FourBoxes {
+    fn boxes(&self, _: &(), _group: usize) -> FourBoxes {
         (self.min, self.max)
     }
 }
@@ -306,9 +311,24 @@ impl NodeBoxes for GridNode {
     /// Through [`NodeGrid::decode_axis`], the expression the writer rounded the boxes outward
     /// with.
     #[inline(always)]
-    fn boxes(&self, grid: &NodeGrid) -> FourBoxes {
+    fn boxes(&self, grid: &NodeGrid, _group: usize) -> FourBoxes {
         let decode = |q: &[[u16; TOP_WIDTH]; 3]| {
             std::array::from_fn(|axis| q[axis].map(|q| grid.decode_axis(q, axis)))
+        };
+        (decode(&self.min), decode(&self.max))
+    }
+}
+
+impl NodeBoxes for WideNode {
+    type Grid = ();
+
+    /// Through [`WideNode::decode`], the expression the writer rounded the boxes outward with.
+    #[inline(always)]
+    fn boxes(&self, _: &(), group: usize) -> FourBoxes {
+        let decode = |q: &[[u8; WIDE_WIDTH]; 3]| {
+            std::array::from_fn(|axis| {
+                std::array::from_fn(|lane| self.decode(axis, q[axis][group * TOP_WIDTH + lane]))
+            })
         };
         (decode(&self.min), decode(&self.max))
     }

@@ -38,10 +38,11 @@ use super::prepared::min_not_nan_x8;
 use super::ray::Ray;
 use super::top::{
     for_each_bit, order_keys, trace_nodes, DeferStack, Deferred, NodeGridLanes, RayWalk, TraceNode,
+    GROUP_WIDTH, MAX_WIDTH,
 };
 use super::Tracer;
 use crate::format::reader::TopNodes;
-use crate::format::{INTERNAL_CHILD, TOP_WIDTH};
+use crate::format::INTERNAL_CHILD;
 
 /// Fewest rays sharing the first ray's direction signs for a packet to be traced as one: with
 /// fewer the packet's node tests serve too few lanes to pay for themselves, and its rays are
@@ -149,9 +150,9 @@ fn trace_lanes<C: TraceKernel, P: LaneRays>(
 
 /// The packet walk's steps at a node.
 impl Lanes {
-    /// Child `slot` of `node` (whose box planes are `planes`) if some `active` lane enters it
-    /// within `limit`. A method always inlined, not a closure of `enter_children`: the
-    /// compiler once kept such a closure out of line, and the kernel's slot test with it.
+    /// Child `slot` of `node` (whose group's box planes are `planes`) if some `active` lane
+    /// enters it within `limit`. A method always inlined, not a closure of `enter_children`:
+    /// the compiler once kept such a closure out of line, and the kernel's slot test with it.
     #[inline(always)]
     fn clip_child<N: TraceNode, C: TraceKernel>(
         &self,
@@ -159,7 +160,7 @@ impl Lanes {
         slot: usize,
         (active, limit): (u32, f32x8),
     ) -> Option<PacketDeferred> {
-        let (t_near, t_far, mask) = C::clip_slot(self, planes, slot, limit);
+        let (t_near, t_far, mask) = C::clip_slot(self, planes, slot % GROUP_WIDTH, limit);
         let mask = mask & active;
         if mask == 0 {
             return None;
@@ -209,40 +210,50 @@ impl Lanes {
         limit: f32x8,
         stack: &mut DeferStack<PacketDeferred>,
     ) -> Option<PacketDeferred> {
-        let boxes = node.boxes(decoder);
-        let planes = C::planes(self, &boxes);
         let occupied = node.occupied_mask().trailing_ones() as usize;
-        let clipped = (node, &planes, targets);
+        let groups = occupied.div_ceil(GROUP_WIDTH);
         if ANY_HIT {
             // Slot order is known before clipping: the slots are clipped last to first and
             // each child entered goes straight onto the stack, the first one too. Unrolled by
             // hand: as a loop over the slots it stayed one, with the slot in a register.
             let bounds = (active, limit);
-            self.defer_child::<N, C>(clipped, 3, occupied, bounds, stack);
-            self.defer_child::<N, C>(clipped, 2, occupied, bounds, stack);
-            self.defer_child::<N, C>(clipped, 1, occupied, bounds, stack);
-            self.defer_child::<N, C>(clipped, 0, occupied, bounds, stack);
+            for group in (0..groups).rev() {
+                let planes = C::planes(self, &node.boxes(decoder, group));
+                let clipped = (node, &planes, targets);
+                let first = group * GROUP_WIDTH;
+                self.defer_child::<N, C>(clipped, first + 3, occupied, bounds, stack);
+                self.defer_child::<N, C>(clipped, first + 2, occupied, bounds, stack);
+                self.defer_child::<N, C>(clipped, first + 1, occupied, bounds, stack);
+                self.defer_child::<N, C>(clipped, first, occupied, bounds, stack);
+            }
             return None;
         }
-        // Not an array of defaults: zeroing four 96-byte entries per node costs more than the
+        // Not an array of defaults: zeroing eight 96-byte entries per node costs more than the
         // pushes.
-        let mut entered = ArrayVec::<PacketDeferred, TOP_WIDTH>::new();
-        let mut slots = [0; TOP_WIDTH];
-        for slot in 0..TOP_WIDTH {
-            if slot >= occupied {
-                break;
+        let mut entered = ArrayVec::<PacketDeferred, MAX_WIDTH>::new();
+        let mut slots = [0; MAX_WIDTH];
+        let mut keys = [0.0; MAX_WIDTH];
+        for group in 0..groups {
+            let boxes = node.boxes(decoder, group);
+            let planes = C::planes(self, &boxes);
+            let clipped = (node, &planes, targets);
+            let before = entered.len();
+            for slot in group * GROUP_WIDTH..occupied.min((group + 1) * GROUP_WIDTH) {
+                if let Some(child) = self.clip_child::<N, C>(clipped, slot, (active, limit)) {
+                    slots[entered.len()] = slot;
+                    entered.push(child);
+                }
             }
-            if let Some(child) = self.clip_child::<N, C>(clipped, slot, (active, limit)) {
-                slots[entered.len()] = slot;
-                entered.push(child);
+            if entered.len() > before {
+                let group_keys = order_keys(&boxes.0, &boxes.1, &self.negative());
+                keys[group * GROUP_WIDTH..(group + 1) * GROUP_WIDTH].copy_from_slice(&group_keys);
             }
         }
         // The entries' indices are sorted, not the entries.
-        let mut order = [0, 1, 2, 3];
+        let mut order = [0, 1, 2, 3, 4, 5, 6, 7];
         let order = &mut order[..entered.len()];
         if order.len() > 1 {
-            let keys = order_keys(&boxes.0, &boxes.1, &self.negative());
-            sort_by_keys(order, &slots.map(|slot| keys[slot % TOP_WIDTH]));
+            sort_by_keys(order, &slots.map(|slot| keys[slot % MAX_WIDTH]));
         }
         for &index in order.iter().skip(1).rev() {
             stack.push(entered[index]);
@@ -251,15 +262,15 @@ impl Lanes {
     }
 }
 
-/// Insertion sort of the indices of the at most four children entered (in slot order) by
+/// Insertion sort of the indices of the at most eight children entered (in slot order) by
 /// their keys; stable, so equal keys keep slot order, as [`super::top::sort_by_key`] orders
 /// the children a single ray enters. The keys are never NaN ([`order_keys`]), so this order of
 /// the children any lane entered, restricted to those a lane entered, is that lane's order
 /// alone.
 #[inline(always)]
-fn sort_by_keys(indices: &mut [usize], keys: &[f32; TOP_WIDTH]) {
+fn sort_by_keys(indices: &mut [usize], keys: &[f32; MAX_WIDTH]) {
     // The remainder spares the bounds checks.
-    let key = |index: usize| keys[index % TOP_WIDTH];
+    let key = |index: usize| keys[index % MAX_WIDTH];
     for i in 1..indices.len() {
         let mut j = i;
         while j > 0 && key(indices[j]) < key(indices[j - 1]) {
@@ -298,6 +309,9 @@ fn traverse_file<C: TraceKernel, P: LaneRays, const ANY_HIT: bool>(
             let decoder = NodeGridLanes::new(&grid);
             let nodes = (nodes, &decoder);
             traverse_nodes::<_, C, P, ANY_HIT>(tracer, nodes, packet, packet_mask, closest)
+        }
+        TopNodes::Wide(nodes) => {
+            traverse_nodes::<_, C, P, ANY_HIT>(tracer, (nodes, &()), packet, packet_mask, closest)
         }
     }
 }

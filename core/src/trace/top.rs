@@ -1,9 +1,9 @@
 //! Single-ray traversal of the global hierarchy over strips (paper 3.2, first level).
 //!
-//! Depth-first over the mapped node array ([`TopNode`]s, or [`GridNode`]s decoded to the same
-//! f32 boxes, see [`TraceNode`]; traversal is generic over the two and monomorphized, so the
-//! f32 path is what it was without the grid one). At a node the ray is clipped against all four
-//! child boxes at once ([`WideRay::clip_boxes`], SIMD); of the children it enters, the first in
+//! Depth-first over the mapped node array (format 4's [`WideNode`]s, or format 3's
+//! [`TopNode`]s and [`GridNode`]s, each decoded to f32 boxes, see [`TraceNode`]; traversal is
+//! generic over the records and monomorphized). At a node the ray is clipped against its child
+//! boxes four at a time ([`WideRay::clip_boxes`], SIMD); of the children it enters, the first in
 //! visiting order is entered at once and the others deferred on a stack with their entry
 //! distance, so that each is dropped if a nearer hit is found meanwhile. The visiting order is
 //! near to far: along the octant's diagonal for closest-hit queries (the same for every ray of
@@ -26,31 +26,40 @@ use super::strip::StripQuery;
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, TopNodes};
 use crate::format::{
-    GridNode, NodeRecord, TopNode, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS, GRID_LINK_INTERNAL,
-    INTERNAL_CHILD, TOP_WIDTH,
+    GridNode, NodeRecord, TopNode, WideNode, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS,
+    GRID_LINK_INTERNAL, INTERNAL_CHILD, TOP_WIDTH, WIDE_WIDTH,
 };
 
-/// A top-level node record as traversal sees it: four f32 child boxes and `(child, kind)`
-/// links as [`TopNode`] stores them.
+/// A top-level node record as traversal sees it: its child boxes in groups of four as f32, and
+/// `(child, kind)` links as [`TopNode`] stores them.
 pub trait TraceNode: NodeRecord {
     /// What decoding the boxes takes besides the node.
     type Decoder: Copy;
     /// Whether every ray misses an empty slot's box, so that the box test alone skips it.
     const EMPTY_BOXES_MISS: bool;
+    /// Groups of four slots: a walk clips a node's children four at a time.
+    const GROUPS: usize = Self::WIDTH / GROUP_WIDTH;
 
-    fn boxes(&self, decoder: &Self::Decoder) -> ChildBoxes;
+    /// The boxes of slots `4 group .. 4 group + 4`.
+    fn boxes(&self, decoder: &Self::Decoder, group: usize) -> ChildBoxes;
     /// `(child, kind)` of an occupied slot, as in [`TopNode`].
     fn link(&self, slot: usize) -> (u32, u32);
     /// Bit `i` set when slot `i` is occupied.
     fn occupied_mask(&self) -> u32;
 }
 
+/// Slots clipped together: a group of a node's children.
+pub const GROUP_WIDTH: usize = 4;
+/// Slots of the widest node record.
+pub const MAX_WIDTH: usize = WIDE_WIDTH;
+const _: () = assert!(TOP_WIDTH == GROUP_WIDTH && MAX_WIDTH % GROUP_WIDTH == 0);
+
 impl TraceNode for TopNode {
     type Decoder = ();
     const EMPTY_BOXES_MISS: bool = true;
 
     #[inline(always)]
-    fn boxes(&self, _: &()) -> ChildBoxes {
+    fn boxes(&self, _: &(), _group: usize) -> ChildBoxes {
         (self.min, self.max)
     }
 
@@ -95,21 +104,14 @@ impl TraceNode for GridNode {
     const EMPTY_BOXES_MISS: bool = false;
 
     #[inline(always)]
-    fn boxes(&self, grid: &NodeGridLanes) -> ChildBoxes {
+    fn boxes(&self, grid: &NodeGridLanes, _group: usize) -> ChildBoxes {
         let decode = |q: &[[u16; TOP_WIDTH]; 3]| [0, 1, 2].map(|axis| grid.decode(&q[axis], axis));
         (decode(&self.min), decode(&self.max))
     }
 
     #[inline(always)]
     fn link(&self, slot: usize) -> (u32, u32) {
-        let link = self.link[slot];
-        let tag = link >> GRID_LINK_INDEX_BITS;
-        let kind = if tag == GRID_LINK_INTERNAL {
-            INTERNAL_CHILD
-        } else {
-            tag
-        };
-        (link & GRID_LINK_INDEX, kind)
+        unpack_link(self.link[slot])
     }
 
     /// One SIMD compare of the four links, cheaper than a scalar fold.
@@ -117,6 +119,52 @@ impl TraceNode for GridNode {
     fn occupied_mask(&self) -> u32 {
         u32x4::from(self.link).simd_ne(u32x4::ZERO).to_bitmask()
     }
+}
+
+impl TraceNode for WideNode {
+    type Decoder = ();
+    /// An empty slot is all zeros, like [`GridNode`]'s.
+    const EMPTY_BOXES_MISS: bool = false;
+
+    /// [`WideNode::decode`] lanewise: an exact u8 → f32 conversion, the exact product and one
+    /// rounded sum, so each lane is the scalar expression's value bit for bit.
+    #[inline(always)]
+    fn boxes(&self, _: &(), group: usize) -> ChildBoxes {
+        let first = group * GROUP_WIDTH;
+        let decode = |q: &[[u8; WIDE_WIDTH]; 3]| {
+            [0, 1, 2].map(|axis| {
+                let codes: [u8; GROUP_WIDTH] = std::array::from_fn(|lane| q[axis][first + lane]);
+                let origin = f32x4::splat(self.origin[axis]);
+                (origin + f32x4::from(codes.map(f32::from)) * f32x4::splat(self.scale(axis)))
+                    .to_array()
+            })
+        };
+        (decode(&self.min), decode(&self.max))
+    }
+
+    #[inline(always)]
+    fn link(&self, slot: usize) -> (u32, u32) {
+        unpack_link(self.link[slot])
+    }
+
+    #[inline(always)]
+    fn occupied_mask(&self) -> u32 {
+        let [low, high]: [[u32; GROUP_WIDTH]; 2] = bytemuck::cast(self.link);
+        let occupied = |words: [u32; GROUP_WIDTH]| u32x4::from(words).simd_ne(u32x4::ZERO);
+        occupied(low).to_bitmask() | occupied(high).to_bitmask() << GROUP_WIDTH
+    }
+}
+
+/// A one-word link ([`GridNode`]'s and [`WideNode`]'s) as `(child, kind)`.
+#[inline(always)]
+fn unpack_link(link: u32) -> (u32, u32) {
+    let tag = link >> GRID_LINK_INDEX_BITS;
+    let kind = if tag == GRID_LINK_INTERNAL {
+        INTERNAL_CHILD
+    } else {
+        tag
+    };
+    (link & GRID_LINK_INDEX, kind)
 }
 
 /// A deferred child: its link and kind as the node's slot holds them, and the ray's interval in
@@ -143,11 +191,11 @@ impl Deferred {
     }
 }
 
-/// Deferred entries kept inline. A traversal defers at most three children per level, and
-/// real trees are a few dozen levels deep at most; the reader admits
+/// Deferred entries kept inline. A traversal defers at most seven children per level, and
+/// real trees are a dozen or two levels deep at most; the reader admits
 /// [`MAX_TOP_DEPTH`](crate::format::MAX_TOP_DEPTH) levels, whose worst case spills to the heap
 /// rather than making every ray carry a stack of hundreds of entries.
-const INLINE_DEFERRED: usize = 32;
+const INLINE_DEFERRED: usize = 64;
 
 /// The stack of deferred children: inline (never zeroed: an `ArrayVec` leaves unused entries
 /// uninitialized, which saved a 512-byte memset per ray), then spilled to the heap.
@@ -213,6 +261,10 @@ fn trace_ray<K: TraceKernel>(
             let (root, decoder) = (Deferred::root(query.ray), NodeGridLanes::new(&grid));
             trace_nodes::<_, K>(file, (nodes, &decoder), query, root, closest)
         }
+        TopNodes::Wide(nodes) => {
+            let root = Deferred::root(query.ray);
+            trace_nodes::<_, K>(file, (nodes, &()), query, root, closest)
+        }
     }
 }
 
@@ -277,12 +329,21 @@ fn enter_children<N: TraceNode>(
     closest: &Closest,
     stack: &mut DeferStack<Deferred>,
 ) -> Option<Deferred> {
-    let (min, max) = node.boxes(decoder);
-    let (near, far, mut mask) = ray.clip_boxes(&min, &max, query.ray.tmin, closest.reach);
+    let mut near = [0.0; MAX_WIDTH];
+    let mut far = [0.0; MAX_WIDTH];
+    let mut mask = 0;
+    for group in 0..N::GROUPS {
+        let (min, max) = node.boxes(decoder, group);
+        let (group_near, group_far, entered) =
+            ray.clip_boxes(&min, &max, query.ray.tmin, closest.reach);
+        let lanes = group * GROUP_WIDTH..(group + 1) * GROUP_WIDTH;
+        near[lanes.clone()].copy_from_slice(&group_near.to_array());
+        far[lanes].copy_from_slice(&group_far.to_array());
+        mask |= entered << (group * GROUP_WIDTH);
+    }
     if !N::EMPTY_BOXES_MISS {
         mask &= node.occupied_mask();
     }
-    let (near, far) = (near.to_array(), far.to_array());
     let entry = |slot: usize| {
         let (child, kind) = node.link(slot);
         targets.child((child, kind));
@@ -299,9 +360,9 @@ fn enter_children<N: TraceNode>(
     let keys = if query.any_hit {
         near
     } else {
-        order_keys(&min, &max, &ray.negative)
+        node_order_keys(node, decoder, &ray.negative)
     };
-    let mut entered = [(0.0, Deferred::default()); TOP_WIDTH];
+    let mut entered = [(0.0, Deferred::default()); MAX_WIDTH];
     let mut count = 0;
     for_each_bit(mask, |slot| {
         entered[count] = (keys[slot], entry(slot));
@@ -311,6 +372,22 @@ fn enter_children<N: TraceNode>(
     sort_by_key(entered);
     entered.iter().skip(1).rev().for_each(|e| stack.push(e.1));
     entered.first().map(|e| e.1)
+}
+
+/// [`order_keys`] of every slot of `node`.
+#[inline(always)]
+pub fn node_order_keys<N: TraceNode>(
+    node: &N,
+    decoder: &N::Decoder,
+    negative: &[bool; 3],
+) -> [f32; MAX_WIDTH] {
+    let mut keys = [0.0; MAX_WIDTH];
+    for group in 0..N::GROUPS {
+        let (min, max) = node.boxes(decoder, group);
+        let lanes = group * GROUP_WIDTH..(group + 1) * GROUP_WIDTH;
+        keys[lanes].copy_from_slice(&order_keys(&min, &max, negative));
+    }
+    keys
 }
 
 /// The order in which a node's children are visited, as sort keys: each box's centre (doubled)
@@ -349,7 +426,7 @@ pub fn for_each_bit(mut mask: u32, mut f: impl FnMut(usize)) {
     }
 }
 
-/// Insertion sort of the at most four children entered by their [`order_keys`]; stable, so
+/// Insertion sort of the at most eight children entered by their [`order_keys`]; stable, so
 /// equal keys keep slot order.
 #[inline(always)]
 pub fn sort_by_key<T: Copy>(entries: &mut [(f32, T)]) {

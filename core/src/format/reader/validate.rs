@@ -17,11 +17,11 @@ use rayon::prelude::*;
 
 use super::super::{
     Defect, FilePart, GridNode, NodeLimits, NodeRecord, SectionKind, StripRecord, TopNode,
-    HEADER_PAGE,
+    WideNode, HEADER_PAGE,
 };
 use super::lazy::{LazyChecks, Passed};
 use super::{
-    section_slot, FormatError, PartTable, ReducemFile, StripView, Validation,
+    section_slot, FormatError, NodeLayout, PartTable, ReducemFile, StripView, Validation,
     EAGER_VALIDATION_BYTES,
 };
 use crate::mapping::{map_file, map_range};
@@ -52,8 +52,8 @@ pub(super) fn open(
     };
     let header = checker.header()?;
     let precision = checker.precision(&header)?;
-    let (layout, node_grid) = checker.layout(&header, &precision)?;
-    let sections = checker.sections(&header, node_bytes(node_grid.is_some()))?;
+    let (layout, nodes) = checker.layout(&header, &precision)?;
+    let sections = checker.sections(&header, node_bytes(&nodes))?;
     let core_end = sections[section_slot(SectionKind::StripData)].end as u64;
     let attributes = super::attributes::read_record(checker.head, &header, core_end, file_len)
         .map_err(|(offset, defect, detail)| {
@@ -75,8 +75,11 @@ pub(super) fn open(
         Validation::Full => LazyChecks::new(Passed::all(), Passed::all()),
         Validation::Lazy => {
             let node_section = &sections[section_slot(SectionKind::TopNodes)];
-            let nodes = node_section.len() as u64 / node_bytes(node_grid.is_some());
-            LazyChecks::new(Passed::none_of(header.strip_count), Passed::none_of(nodes))
+            let node_count = node_section.len() as u64 / node_bytes(&nodes);
+            LazyChecks::new(
+                Passed::none_of(header.strip_count),
+                Passed::none_of(node_count),
+            )
         }
     };
     let opened = ReducemFile {
@@ -86,7 +89,7 @@ pub(super) fn open(
         header,
         precision,
         layout,
-        node_grid,
+        nodes,
         sections,
         attributes,
         model,
@@ -114,9 +117,10 @@ pub(super) fn validate_all(opened: &ReducemFile) -> Result<(), FormatError> {
 /// Validates node `index` of a lazily opened file alone ([`TreeCheck::check`] without the
 /// bookkeeping across nodes).
 pub(super) fn check_node(opened: &ReducemFile, index: usize) -> Result<(), FormatError> {
-    match opened.node_grid {
-        None => check_node_of::<TopNode>(opened, index),
-        Some(_) => check_node_of::<GridNode>(opened, index),
+    match opened.nodes {
+        NodeLayout::F32 => check_node_of::<TopNode>(opened, index),
+        NodeLayout::Grid(_) => check_node_of::<GridNode>(opened, index),
+        NodeLayout::Wide => check_node_of::<WideNode>(opened, index),
     }
 }
 
@@ -300,9 +304,10 @@ impl Windows<'_> {
     /// exactly one parent, before it in the array, so traversal terminates and indexes nothing
     /// out of bounds.
     fn validate_nodes(&self) -> Result<(), FormatError> {
-        match self.opened.node_grid {
-            None => self.validate_nodes_of::<TopNode>(),
-            Some(_) => self.validate_nodes_of::<GridNode>(),
+        match self.opened.nodes {
+            NodeLayout::F32 => self.validate_nodes_of::<TopNode>(),
+            NodeLayout::Grid(_) => self.validate_nodes_of::<GridNode>(),
+            NodeLayout::Wide => self.validate_nodes_of::<WideNode>(),
         }
     }
 

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use super::strips::RECORD_BYTES;
 use crate::format::grid::{Grid, NodeGrid, MAX_GRID_BITS};
-use crate::format::reader::{FormatError, VertexLayout};
+use crate::format::reader::{FormatError, NodeLayout, VertexLayout};
 use crate::format::{
     Defect, FilePart, Header, PrecisionRecord, SectionEntry, SectionKind, VertexEncoding,
     ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, OLDEST_READ_MAJOR,
@@ -124,10 +124,66 @@ impl Checker<'_> {
         Ok(record)
     }
 
+    /// The vertex layout and the node record the header and precision record describe,
+    /// checked: see [`Checker::vertex_layout`]; format 4 has [`WideNode`](crate::format::WideNode)s
+    /// with f32 or packed grid vertices and no node grid.
+    pub(super) fn layout(
+        &self,
+        header: &Header,
+        precision: &PrecisionRecord,
+    ) -> Result<(VertexLayout, NodeLayout), FormatError> {
+        let wide = header.version_major >= 4;
+        if wide {
+            self.check_format_4_encoding(header, precision)?;
+        }
+        let (vertices, node_grid) = self.vertex_layout(header, precision)?;
+        let nodes = match (wide, node_grid) {
+            (true, _) => NodeLayout::Wide,
+            (false, Some(grid)) => NodeLayout::Grid(grid),
+            (false, None) => NodeLayout::F32,
+        };
+        Ok((vertices, nodes))
+    }
+
+    /// Format 4 stores vertices as f32 or as a packed grid, and its nodes need no node grid.
+    fn check_format_4_encoding(
+        &self,
+        header: &Header,
+        precision: &PrecisionRecord,
+    ) -> Result<(), FormatError> {
+        let encoding = VertexEncoding::from_u32(header.vertex_encoding);
+        if !matches!(
+            encoding,
+            Some(VertexEncoding::F32 | VertexEncoding::GridPackedReferences)
+        ) {
+            let detail = format!(
+                "vertex encoding {} is not part of format 4",
+                header.vertex_encoding
+            );
+            return Err(self.invalid(
+                FilePart::Header,
+                offset_of!(Header, vertex_encoding) as u64,
+                Defect::BadEncoding,
+                detail,
+            ));
+        }
+        if precision.node_shift != 0 {
+            let detail = format!("node shift {} in format 4", precision.node_shift);
+            return Err(self.invalid(
+                FilePart::Header,
+                (PRECISION_OFFSET + offset_of!(PrecisionRecord, node_shift)) as u64,
+                Defect::Contradiction,
+                detail,
+            ));
+        }
+        Ok(())
+    }
+
     /// The vertex layout the header and precision record describe, checked: a grid has 1 to 24
     /// bits, a power-of-two cell and finite corners, so that every grid point decodes to a
-    /// finite position; f32 vertices have no grid.
-    pub(super) fn layout(
+    /// finite position; f32 vertices have no grid. With it the grid of format 2 and 3's grid
+    /// nodes, if the encoding has them.
+    fn vertex_layout(
         &self,
         header: &Header,
         precision: &PrecisionRecord,

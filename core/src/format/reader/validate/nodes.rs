@@ -4,16 +4,17 @@ use std::mem::size_of;
 
 #[cfg(doc)]
 use super::{check_node, Windows};
-use crate::format::reader::{FormatError, ReducemFile};
+use crate::format::reader::{FormatError, NodeLayout, ReducemFile};
 use crate::format::{
-    Defect, FilePart, GridNode, NodeRecord, SectionKind, TopNode, TopSlot, MAX_TOP_DEPTH, TOP_WIDTH,
+    Defect, FilePart, GridNode, NodeRecord, SectionKind, TopNode, TopSlot, WideNode, MAX_TOP_DEPTH,
 };
 
-/// Bytes of one top-level node record: [`GridNode`] with a node grid, else [`TopNode`].
-pub(super) fn node_bytes(grid_nodes: bool) -> u64 {
-    match grid_nodes {
-        true => size_of::<GridNode>() as u64,
-        false => size_of::<TopNode>() as u64,
+/// Bytes of one top-level node record of `nodes`.
+pub(super) fn node_bytes(nodes: &NodeLayout) -> u64 {
+    match nodes {
+        NodeLayout::F32 => size_of::<TopNode>() as u64,
+        NodeLayout::Grid(_) => size_of::<GridNode>() as u64,
+        NodeLayout::Wide => size_of::<WideNode>() as u64,
     }
 }
 
@@ -67,6 +68,9 @@ impl TreeCheck<'_> {
         if self.depth.get(index) == Some(&u8::MAX) {
             return Err(self.fail(index, 0, Defect::BadTree, "has no parent".into()));
         }
+        if let Some((field, detail)) = node.frame_defect() {
+            return Err(self.fail(index, field, Defect::BadEncoding, detail));
+        }
         let occupied = node.occupied();
         let empty_model = index == 0 && self.opened.header.strip_count == 0;
         if occupied == 0 && !empty_model {
@@ -77,7 +81,7 @@ impl TreeCheck<'_> {
                 "has no children".into(),
             ));
         }
-        for slot in 0..TOP_WIDTH {
+        for slot in 0..N::WIDTH {
             self.check_slot(index, node, slot, slot >= occupied)?;
         }
         Ok(())
