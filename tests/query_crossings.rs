@@ -758,7 +758,7 @@ fn inspect_reports_closedness_and_3_0_files_read_as_unknown() {
         "crossings-inspect.rdm",
     );
     let stats = inspect_json(&path);
-    assert_eq!(stats["format_version"], "3.1");
+    assert_eq!(stats["format_version"], "4.0");
     assert_eq!(stats["closed"], true);
     assert_eq!(stats["boundary_edges"], 0);
     assert_eq!(stats["nonmanifold_edges"], 0);

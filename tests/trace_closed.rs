@@ -6,7 +6,6 @@ mod common;
 use common::*;
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::reader::ReducemFile;
-use reducem::format::SectionKind;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;
 use reducem::trace::{TraceOptions, Tracer};
@@ -155,45 +154,4 @@ fn rays_from_inside_the_generated_sphere_never_escape() {
     check_sphere(&offset, [1e5; 3], 1.0, "gen-sphere-offset");
     let tiny = transformed(&sphere, |x| x * 1e-3);
     check_sphere(&tiny, [0.0; 3], 1e-3, "gen-sphere-tiny");
-}
-
-/// A lossless file's grid nodes (format 2.4) and f32 nodes hold the same tree with boxes
-/// rounded outward: every ray gets bit-identical hits and occlusion answers from both, far from
-/// the origin too (where the node grid's cell is far coarser than the coordinates' ulp).
-#[test]
-fn grid_nodes_and_f32_nodes_give_bit_identical_hits() {
-    for (offset, name) in [(0.0, "near"), (1e5, "far")] {
-        let mut mesh = torus(40, 18);
-        for p in &mut mesh.positions {
-            *p = p.map(|c| c + offset);
-        }
-        let open = |grid_nodes: bool| {
-            let path = temp_path(&format!("nodes-{name}-{grid_nodes}.rdm"));
-            let params = BuildParams {
-                grid_nodes,
-                ..BuildParams::default()
-            };
-            convert_mesh(&mesh, &params, &path).expect("convert");
-            ReducemFile::open(&path).expect("open")
-        };
-        let (grid_nodes, f32_nodes) = (open(true), open(false));
-        let node_bytes = |file: &ReducemFile| file.section_bytes(SectionKind::TopNodes).len();
-        assert_eq!(2 * node_bytes(&grid_nodes), node_bytes(&f32_nodes));
-        let mut rng = SplitMix64::new(17);
-        let rays: Vec<_> = (0..3000)
-            .map(|_| {
-                let mut point = || [0, 1, 2].map(|_| rng.range(-5.0, 5.0) + offset);
-                let (origin, target) = (point(), point());
-                ray_towards(origin, target)
-            })
-            .collect();
-        let trace = |file: &ReducemFile| {
-            let tracer = Tracer::new(file, TraceOptions::default());
-            let hits: Vec<_> = tracer.intersect_batch(&rays).iter().map(hit_bits).collect();
-            (hits, tracer.occluded_batch(&rays))
-        };
-        let (a, b) = (trace(&grid_nodes), trace(&f32_nodes));
-        assert!(a.1.iter().filter(|&&o| o).count() > 500, "{name}");
-        assert_eq!(a, b, "{name}");
-    }
 }
