@@ -155,6 +155,17 @@ fn inspect_json_reports_the_grid_and_the_position_error() {
     assert_eq!(stats["vertex_encoding"], "f32");
     assert_eq!(stats["format_version"], "3.1");
     assert_eq!(stats["top_node_bytes"], 64);
+
+    let grid_nodes = temp_path("cli-inspect-f32-grid-nodes.rdm");
+    let params = BuildParams {
+        grid_nodes: true,
+        ..BuildParams::default()
+    };
+    convert_mesh(&mesh, &params, &grid_nodes).expect("convert");
+    // Format 4 has one node record for every encoding: the option is accepted and changes
+    // nothing.
+    let read = |path: &std::path::Path| std::fs::read(path).expect("read");
+    assert!(read(&grid_nodes) == read(&lossless));
 }
 
 #[test]

@@ -326,7 +326,7 @@ fn reducem(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn query_fails_on_reaching_a_corrupt_strip_and_inspect_verify_finds_it() {
-    let bytes = converted_bytes((200, 150), &BuildParams::default(), "lazy-large.rdm");
+    let bytes = converted_bytes((240, 150), &BuildParams::default(), "lazy-large.rdm");
     assert!(bytes.len() as u64 > EAGER_VALIDATION_BYTES, "opened lazily");
     let intact = ReducemFile::open(&written("lazy-large-intact.rdm", &bytes)).expect("intact");
     let rays = rays_at_strips(&intact);

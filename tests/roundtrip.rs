@@ -16,7 +16,7 @@ fn assert_round_trip(name: &str, mesh: &Mesh, params: &BuildParams) {
             .unwrap_or_else(|e| panic!("{name}: strip {i}: {e}"));
     }
     let bounds = strip_bounds(&chunk.strips);
-    let top = toplevel::build(&bounds, &params.top_level);
+    let top = toplevel::build(&bounds, &params.top_level).expect("top level");
     top.validate(&bounds)
         .unwrap_or_else(|e| panic!("{name}: top level: {e}"));
 

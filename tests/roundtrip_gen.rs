@@ -22,6 +22,7 @@ fn round_trip(kind: Kind, triangles: u64, params: &BuildParams) {
     }
     let bounds = strip_bounds(&chunk.strips);
     toplevel::build(&bounds, &params.top_level)
+        .expect("top level")
         .validate(&bounds)
         .unwrap_or_else(|e| panic!("{name}: top level: {e}"));
 

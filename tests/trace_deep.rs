@@ -7,13 +7,14 @@ mod common;
 use common::*;
 use reducem::conversion::{encode_chunk, strip_bounds, BuildParams, EncodedChunk};
 use reducem::format::reader::ReducemFile;
-use reducem::format::{TopNode, INTERNAL_CHILD, MAX_TOP_DEPTH};
+use reducem::format::{TopSlot, WideChild, WideNode, MAX_TOP_DEPTH, MAX_WIDE_LEAF_STRIPS};
 use reducem::geometry::Aabb;
 use reducem::stripify::StripifyParams;
 use reducem::toplevel::TopLevel;
 use reducem::trace::{TraceOptions, Tracer};
 
-/// One triangle per strip, so there are more strips than levels.
+/// One triangle per strip, so there are more strips than levels, and few enough for the last
+/// node's leaves.
 fn single_triangle_strips() -> EncodedChunk {
     let params = BuildParams {
         stripify: StripifyParams {
@@ -22,33 +23,46 @@ fn single_triangle_strips() -> EncodedChunk {
         },
         ..BuildParams::default()
     };
-    encode_chunk(&torus(24, 12), &params)
+    encode_chunk(&torus(12, 6), &params)
 }
 
 /// A chain of `levels + 1` nodes: node `i` holds leaf strip `i` and, for `i < levels`, node
-/// `i + 1`; the last node holds the remaining strips. Each internal box is a little larger than
-/// the leaf box beside it, so a ray from outside enters the internal child first and defers the
-/// leaf: one more deferred entry per level.
+/// `i + 1`; the last node holds the remaining strips in leaves of at most 14. Each internal box
+/// is a little larger than the leaf box beside it, so a ray from outside enters the internal
+/// child first and defers the leaf: one more deferred entry per level.
 fn chain(levels: usize, bounds: &[Aabb]) -> TopLevel {
     let all = bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b));
     let grown = |margin: f32| Aabb {
         min: all.min.map(|x| x - margin),
         max: all.max.map(|x| x + margin),
     };
+    let child = |bounds: Aabb, slot| WideChild {
+        min: bounds.min,
+        max: bounds.max,
+        slot,
+    };
     let nodes = (0..=levels)
         .map(|i| {
-            let mut node = TopNode::EMPTY;
-            let count = if i == levels {
-                bounds.len() - levels
-            } else {
-                1
-            };
-            node.set(0, &all.min, &all.max, i as u32, count as u32);
-            if i < levels {
+            let children = if i < levels {
                 let inner = grown(0.01 * (levels - i) as f32);
-                node.set(1, &inner.min, &inner.max, i as u32 + 1, INTERNAL_CHILD);
-            }
-            node
+                let leaf = TopSlot::Leaf {
+                    first: i as u32,
+                    count: 1,
+                };
+                vec![
+                    child(all, leaf),
+                    child(inner, TopSlot::Internal(i as u32 + 1)),
+                ]
+            } else {
+                (levels as u32..bounds.len() as u32)
+                    .step_by(MAX_WIDE_LEAF_STRIPS as usize)
+                    .map(|first| {
+                        let count = MAX_WIDE_LEAF_STRIPS.min(bounds.len() as u32 - first);
+                        child(all, TopSlot::Leaf { first, count })
+                    })
+                    .collect()
+            };
+            WideNode::encode(&children).expect("the last node's leaves fit its slots")
         })
         .collect();
     TopLevel {

@@ -1,24 +1,38 @@
 //! Packets visit a node's children in the order single rays do, lane by lane, even on a file
 //! whose boxes do not bound their strips (where the order decides which hits are culled) and
-//! whose boxes have infinite bounds (whose visiting keys, sums of bounds, are NaN): the packet
-//! walk sorts the children any lane entered, and each lane must see the order it would sort
-//! its own children in.
+//! whose boxes reach far past the model on some axes: the packet walk sorts the children any
+//! lane entered, and each lane must see the order it would sort its own children in.
 
 mod common;
 
 use common::*;
 use reducem::conversion::{encode_chunk, strip_bounds, BuildParams};
 use reducem::format::reader::ReducemFile;
-use reducem::format::{TopNode, INTERNAL_CHILD, TOP_WIDTH};
+use reducem::format::{TopSlot, WideChild, WideNode, TOP_WIDTH};
 use reducem::geometry::Aabb;
 use reducem::toplevel::TopLevel;
 use reducem::trace::{Ray, TraceOptions, Tracer};
 
 /// Leaf groups: the strips in `TOP_WIDTH * TOP_WIDTH` consecutive runs.
 const GROUPS: usize = TOP_WIDTH * TOP_WIDTH;
+/// A distorted box's bound far past the model.
+const FAR: f32 = 1.0e30;
 
-/// `bounds` distorted at random: shrunk or moved off its strips, or given infinite bounds on
-/// some axes (a NaN key, or an infinite one), or left as it is.
+/// The node of `children`, boxes and links in slot order.
+fn node(children: &[(Aabb, TopSlot)]) -> WideNode {
+    let children: Vec<WideChild> = children
+        .iter()
+        .map(|&(bounds, slot)| WideChild {
+            min: bounds.min,
+            max: bounds.max,
+            slot,
+        })
+        .collect();
+    WideNode::encode(&children).expect("finite boxes and small links encode")
+}
+
+/// `bounds` distorted at random: shrunk or moved off its strips, or given far bounds on some
+/// axes (format 4 boxes are finite), or left as it is.
 fn distorted(bounds: Aabb, rng: &mut SplitMix64) -> Aabb {
     let mut min = bounds.min;
     let mut max = bounds.max;
@@ -35,10 +49,10 @@ fn distorted(bounds: Aabb, rng: &mut SplitMix64) -> Aabb {
         1 | 2 => {
             for axis in 0..3 {
                 if rng.unit() < 0.5 {
-                    min[axis] = f32::NEG_INFINITY;
+                    min[axis] = -FAR;
                 }
                 if rng.unit() < 0.5 {
-                    max[axis] = f32::INFINITY;
+                    max[axis] = FAR;
                 }
             }
         }
@@ -58,29 +72,27 @@ fn distorted_tree(bounds: &[Aabb], seed: u64) -> TopLevel {
     };
     let union =
         |range: std::ops::Range<usize>| bounds[range].iter().fold(Aabb::EMPTY, |a, b| a.union(b));
-    let mut root = TopNode::EMPTY;
+    let mut root = Vec::new();
     let mut inner = Vec::new();
     for i in 0..TOP_WIDTH {
-        let mut node = TopNode::EMPTY;
+        let mut leaves = Vec::new();
         for slot in 0..TOP_WIDTH {
             let group = i * TOP_WIDTH + slot;
             let range = group_range(group);
             let leaf = distorted(union(range.clone()), &mut rng);
-            node.set(
-                slot,
-                &leaf.min,
-                &leaf.max,
-                range.start as u32,
-                range.len() as u32,
-            );
+            let link = TopSlot::Leaf {
+                first: range.start as u32,
+                count: range.len() as u32,
+            };
+            leaves.push((leaf, link));
         }
         let all = union(group_range(i * TOP_WIDTH).start..group_range(i * TOP_WIDTH + 3).end);
         let boxed = distorted(all, &mut rng);
-        root.set(i, &boxed.min, &boxed.max, 1 + i as u32, INTERNAL_CHILD);
-        inner.push(node);
+        root.push((boxed, TopSlot::Internal(1 + i as u32)));
+        inner.push(node(&leaves));
     }
     TopLevel {
-        nodes: std::iter::once(root).chain(inner).collect(),
+        nodes: std::iter::once(node(&root)).chain(inner).collect(),
         strip_order: (0..bounds.len() as u32).collect(),
     }
 }

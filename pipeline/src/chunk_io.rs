@@ -12,14 +12,16 @@ use bytemuck::{Pod, Zeroable};
 use reducem::conversion::ChunkStats;
 use reducem::format::attribute_sections::{AttributeVisit, StripAttributes};
 use reducem::format::attributes::OctCode;
-use reducem::format::{StripRecord, TopNode};
+use reducem::format::{StripRecord, WideNode};
 use reducem::geometry::{Aabb, Displacement, Point};
 use reducem::mesh::Mesh;
 use reducem::strip_encoding::EncodedStrip;
 
 /// Mesh chunks with attributes (version 2: a flags word after the counts).
 const MESH_MAGIC: [u8; 8] = *b"RDMMESH2";
-const STRIP_MAGIC: [u8; 8] = *b"RDMSTRP2";
+/// Strip chunks with 8-wide nodes (version 3; version 2 held 4-wide f32 nodes). The strip
+/// stage's fingerprint names it, so work directories of other versions redo their chunks.
+pub const STRIP_MAGIC: [u8; 8] = *b"RDMSTRP3";
 /// zstd level: chunks are written once and read once, so speed matters more than ratio.
 const ZSTD_LEVEL: i32 = 1;
 /// Bytes before the arrays: magic, vertex count, triangle count, flags.
@@ -115,8 +117,8 @@ pub fn read_mesh(path: &Path) -> io::Result<Mesh> {
     })
 }
 
-/// Header of a strip chunk. 160 bytes, followed by `node_count` [`TopNode`]s (chunk-local
-/// links), `strip_count` [`StripRecord`]s (chunk-local data words), `data_bytes` strip blocks,
+/// Header of a strip chunk. 160 bytes, followed by `node_count` [`WideNode`]s (96 bytes each,
+/// chunk-local links), `strip_count` [`StripRecord`]s (chunk-local data words), `data_bytes` strip blocks,
 /// then the strips' attributes in file order: `face_id_count` u32 face ids (one per window),
 /// `normal_count` octahedral codes (2 × i16 per stored vertex) and `color_count` RGBA8 colours.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -199,7 +201,7 @@ impl StripChunkHeader {
     }
 
     fn records_offset(&self) -> u64 {
-        self.nodes_offset() + self.node_count * std::mem::size_of::<TopNode>() as u64
+        self.nodes_offset() + self.node_count * std::mem::size_of::<WideNode>() as u64
     }
 
     fn data_offset(&self) -> u64 {
@@ -219,7 +221,7 @@ impl StripChunkHeader {
 pub fn write_strips(
     out: &mut impl Write,
     header: &StripChunkHeader,
-    nodes: &[TopNode],
+    nodes: &[WideNode],
     records: &[StripRecord],
     strips: &[&EncodedStrip],
 ) -> io::Result<()> {
@@ -259,8 +261,14 @@ impl StripChunk {
         Ok(StripChunk { file, header })
     }
 
-    pub fn nodes(&mut self) -> io::Result<Vec<TopNode>> {
+    pub fn nodes(&mut self) -> io::Result<Vec<WideNode>> {
         self.read_records(self.header.nodes_offset(), self.header.node_count as usize)
+    }
+
+    /// The chunk's root node (every chunk has one, [`WideNode::EMPTY`] without strips).
+    pub fn root(&mut self) -> io::Result<WideNode> {
+        let root = self.read_records(self.header.nodes_offset(), 1)?;
+        Ok(root[0])
     }
 
     pub fn records(&mut self) -> io::Result<Vec<StripRecord>> {
@@ -335,4 +343,41 @@ fn take<'a, T>(items: &mut &'a [T], count: usize) -> io::Result<&'a [T]> {
     let (first, rest) = items.split_at(count);
     *items = rest;
     Ok(first)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use reducem::toplevel::{build, TopLevelParams};
+
+    /// The nodes of a strip chunk come back as written, 96 bytes each, and a chunk cut short
+    /// by one byte is refused.
+    #[test]
+    fn strip_chunk_nodes_round_trip() {
+        let bounds: Vec<Aabb> = (0..300)
+            .map(|i| {
+                let at = [i as f32 * 0.5, (i % 7) as f32, (i % 11) as f32 * 0.25];
+                Aabb {
+                    min: at,
+                    max: at.map(|c| c + 0.75),
+                }
+            })
+            .collect();
+        let nodes = build(&bounds, &TopLevelParams::default()).unwrap().nodes;
+        assert!(nodes.len() > 1);
+        let header = StripChunkHeader::new(&ChunkStats::default(), &bounds[0], nodes.len(), &[]);
+        let dir = std::env::temp_dir().join(format!("strip-chunk-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("chunk.strips");
+        let mut bytes = Vec::new();
+        write_strips(&mut bytes, &header, &nodes, &[], &[]).unwrap();
+        assert_eq!(bytes.len(), 160 + 96 * nodes.len());
+        std::fs::write(&path, &bytes).unwrap();
+        let mut chunk = StripChunk::open(&path).unwrap();
+        assert_eq!(chunk.nodes().unwrap(), nodes);
+        assert_eq!(chunk.root().unwrap(), nodes[0]);
+        std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
+        assert!(StripChunk::open(&path).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

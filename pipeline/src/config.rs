@@ -125,9 +125,9 @@ pub struct StripConfig {
     #[serde(alias = "leaf_triangles")]
     pub leaf_windows: Option<usize>,
     pub sah_bins: usize,
-    /// Lossless files: store the top-level nodes as 64-byte grid nodes (format 2.4) instead of
-    /// 128-byte f32 records: 1 to 2 bytes less per triangle, about 12% slower AO rays (each
-    /// box is decoded). Grid files always have grid nodes.
+    /// No effect since format 4, whose compressed 8-wide nodes serve every vertex encoding
+    /// (it asked format 2.4 to 3 writers for 64-byte grid nodes in lossless files); still
+    /// accepted so that older configurations run.
     pub grid_nodes: bool,
 }
 

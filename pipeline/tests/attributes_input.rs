@@ -442,6 +442,6 @@ fn convert_flags_store_the_attributes_they_name() {
     );
     let without = convert("without.rdm", &[]);
     assert!(!without.attributes().any());
-    assert_eq!(without.header().version_major, 3);
+    assert_eq!(without.header().version_major, 4);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -6,7 +6,6 @@ use std::path::Path;
 
 use super::layout::{strip_records, ChunkLayout, DataWords};
 use crate::format::attribute_sections::AttributeVisit;
-use crate::format::grid::NodeGrid;
 use crate::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource, WriteError};
 use crate::format::{SectionKind, StripRecord};
 use crate::strip_encoding::EncodedStrip;
@@ -43,9 +42,6 @@ fn write_sections(
 ) -> Result<(), WriteError> {
     let mut source = InMemory {
         top,
-        node_grid: info
-            .node_grid()
-            .map_err(|source| write_error(path, source))?,
         strips,
         records,
     };
@@ -62,7 +58,6 @@ fn write_error(path: &Path, source: io::Error) -> WriteError {
 /// The sections of a model converted in memory.
 struct InMemory<'a> {
     top: &'a TopLevel,
-    node_grid: Option<NodeGrid>,
     strips: &'a [EncodedStrip],
     records: &'a [StripRecord],
 }
@@ -74,7 +69,7 @@ impl SectionSource for InMemory<'_> {
 
     fn write_section(&mut self, kind: SectionKind, out: &mut dyn Write) -> io::Result<()> {
         match kind {
-            SectionKind::TopNodes => write_nodes(out, &self.top.nodes, self.node_grid.as_ref()),
+            SectionKind::TopNodes => write_nodes(out, &self.top.nodes),
             SectionKind::StripRecords => out.write_all(bytemuck::cast_slice(self.records)),
             SectionKind::StripData => self
                 .top

@@ -24,10 +24,11 @@ pub struct ChunkLayout {
 }
 
 impl ChunkLayout {
-    /// Builds the top level over `strips` and lays their blocks out in its leaf order.
+    /// Builds the top level over `strips` and lays their blocks out in its leaf order. A node
+    /// no record holds ([`toplevel::NodeError`], an internal error) fails as `Other`.
     pub fn new(strips: &[EncodedStrip], params: &TopLevelParams) -> io::Result<ChunkLayout> {
         let bounds = strip_bounds(strips);
-        let top = toplevel::build(&bounds, params);
+        let top = toplevel::build(&bounds, params).map_err(io::Error::other)?;
         let mut words = DataWords::default();
         let records = strip_records(&top.strip_order, strips, &mut words)?;
         Ok(ChunkLayout {
@@ -38,7 +39,6 @@ impl ChunkLayout {
         })
     }
 
-    /// The strips' blocks in file order.
     /// The chunk's strips in file order.
     pub fn strips<'a>(
         &'a self,

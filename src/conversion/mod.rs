@@ -62,9 +62,10 @@ pub struct BuildParams {
     /// Bits per axis of the model grid vertices are snapped to; `None` stores f32 copies
     /// (lossless, the default).
     pub grid_bits: Option<u32>,
-    /// Store a lossless file's top-level nodes as 64-byte grid nodes instead of 128-byte f32
-    /// records (see [`crate::format::VertexEncoding::F32GridNodes`]): fewer bytes, slower AO
-    /// rays (docs/BENCHMARKS.md, "Grid top-level nodes"). Grid files always have grid nodes.
+    /// No effect since format 4, whose 8-wide nodes are compressed for every vertex encoding
+    /// (format 2.4's lossless files with grid nodes, [`crate::format::VertexEncoding::F32GridNodes`],
+    /// are no longer written); kept so that `[strip] grid_nodes` of older configurations is
+    /// still accepted.
     pub grid_nodes: bool,
     /// Which attributes the file stores besides positions (none by default).
     pub attributes: AttributeSet,
@@ -323,7 +324,6 @@ pub fn write_chunk_counted(
         max_strip_length: params.stripify.max_length,
         bounds: layout.bounds,
         grid: chunk.grid,
-        grid_nodes: params.grid_nodes,
         weld: WeldStats::default(),
         attributes: params.attributes,
         closedness,

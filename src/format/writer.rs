@@ -15,12 +15,12 @@ use super::attributes::{
     AttributeRecord, AttributeSection, AttributeSet, ATTRIBUTE_RECORD_OFFSET, GROUP_STRIPS,
 };
 use super::counts::{ChunkStats, WeldStats};
-use super::grid::{Grid, NodeGrid};
+use super::grid::Grid;
 use super::model::{Closedness, ModelRecord, UpAxis, MODEL_OFFSET};
 use super::{
-    align_up, Header, PrecisionRecord, SectionEntry, SectionKind, TopNode, VertexEncoding,
-    WideChild, WideNode, ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC,
-    PRECISION_OFFSET, SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR, VERSION_MINOR,
+    align_up, Header, PrecisionRecord, SectionEntry, SectionKind, VertexEncoding, WideNode,
+    ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, PRECISION_OFFSET, SECTION_ALIGN,
+    SECTION_COUNT, VERSION_MAJOR, VERSION_MINOR,
 };
 use crate::atomic::write_atomically;
 use crate::geometry::Aabb;
@@ -34,9 +34,6 @@ pub struct FileInfo {
     pub bounds: Aabb,
     /// The grid the vertices were snapped to; `None` for lossless f32 vertices.
     pub grid: Option<Grid>,
-    /// Store a lossless file's top-level nodes as 64-byte grid nodes (format 2.4) instead of
-    /// 128-byte f32 [`TopNode`]s; grid files always have grid nodes.
-    pub grid_nodes: bool,
     pub weld: WeldStats,
     /// The attributes stored besides positions (format 2.5 when any).
     pub attributes: AttributeSet,
@@ -47,75 +44,18 @@ pub struct FileInfo {
 }
 
 impl FileInfo {
-    /// The grid of the top-level node boxes: for grid vertices, the finest node grid over the
-    /// (decoded) bounds, which hold every strip box; for lossless files with `grid_nodes`, the
-    /// finest power-of-two grid of 2^16 points over the bounds ([`lossless_node_grid`]);
-    /// otherwise, or when no finite grid covers the bounds, `None` (f32 [`TopNode`]s).
-    pub fn node_grid(&self) -> io::Result<Option<NodeGrid>> {
-        if self.grid.is_some() || !self.grid_nodes {
-            return Ok(None);
+    /// Lossless (0) or packed grid vertices (3); the top-level nodes are [`WideNode`]s in both.
+    fn vertex_encoding(&self) -> VertexEncoding {
+        match self.grid {
+            Some(_) => VertexEncoding::GridPackedReferences,
+            None => VertexEncoding::F32,
         }
-        let Some(grid) = self.grid else {
-            return Ok(self
-                .grid_nodes
-                .then(|| lossless_node_grid(&self.bounds))
-                .flatten());
-        };
-        NodeGrid::over(&grid, &self.bounds)
-            .map(Some)
-            .ok_or_else(|| {
-                let detail = format!("no finite node grid of {grid:?} covers {:?}", self.bounds);
-                io::Error::new(io::ErrorKind::InvalidData, detail)
-            })
-    }
-
-    fn vertex_encoding(&self) -> io::Result<VertexEncoding> {
-        Ok(match (self.grid, self.node_grid()?) {
-            (Some(_), _) => VertexEncoding::GridPackedReferences,
-            (None, Some(_)) => VertexEncoding::F32GridNodes,
-            (None, None) => VertexEncoding::F32,
-        })
     }
 }
 
-/// The node grid of a lossless file: that of a 16-bit model grid over `bounds`, recorded with
-/// shift 0 (the precision record holds its own origin and cell). `None` for an empty model or
-/// when no finite grid covers the bounds (coordinates near `f32::MAX`).
-fn lossless_node_grid(bounds: &Aabb) -> Option<NodeGrid> {
-    if bounds.is_empty() {
-        return None;
-    }
-    let node = NodeGrid::over(&Grid::over(bounds, u16::BITS), bounds)?;
-    Some(NodeGrid { shift: 0, ..node })
-}
-
-/// Writes top-level nodes (of the f32 wide tree) as [`WideNode`]s.
-pub fn write_nodes(
-    out: &mut dyn Write,
-    nodes: &[TopNode],
-    _node_grid: Option<&NodeGrid>,
-) -> io::Result<()> {
-    let compact = nodes
-        .iter()
-        .enumerate()
-        .map(|(index, node)| {
-            let children: Vec<WideChild> = (0..node.occupied())
-                .map(|slot| {
-                    let (min, max) = node.slot_box(slot);
-                    WideChild {
-                        min,
-                        max,
-                        slot: node.slot(slot),
-                    }
-                })
-                .collect();
-            WideNode::encode(&children).map_err(|detail| {
-                let detail = format!("top-level node {index}: {detail} in a wide node");
-                io::Error::new(io::ErrorKind::InvalidData, detail)
-            })
-        })
-        .collect::<io::Result<Vec<_>>>()?;
-    out.write_all(bytemuck::cast_slice(&compact))
+/// Writes top-level nodes in the file's record.
+pub fn write_nodes(out: &mut dyn Write, nodes: &[WideNode]) -> io::Result<()> {
+    out.write_all(bytemuck::cast_slice(nodes))
 }
 
 /// A failed write, naming the file.
@@ -160,11 +100,11 @@ fn write_sections(
         *entry = out.section(kind as u32, |w| source.write_section(kind, w))?;
     }
     let attribute_record = write_attribute_sections(&mut out, info, source)?;
-    let header = header(info, source.strip_count(), entries)?;
+    let header = header(info, source.strip_count(), entries);
     file.seek(SeekFrom::Start(0))?;
     file.write_all(bytemuck::bytes_of(&header))?;
     file.seek(SeekFrom::Start(PRECISION_OFFSET as u64))?;
-    file.write_all(bytemuck::bytes_of(&precision(info)?))?;
+    file.write_all(bytemuck::bytes_of(&precision(info)))?;
     file.seek(SeekFrom::Start(ATTRIBUTE_RECORD_OFFSET as u64))?;
     file.write_all(bytemuck::bytes_of(&attribute_record))?;
     file.seek(SeekFrom::Start(MODEL_OFFSET as u64))?;
@@ -200,23 +140,16 @@ fn write_attribute_sections<W: Write>(
     Ok(record.sealed())
 }
 
-fn precision(info: &FileInfo) -> io::Result<PrecisionRecord> {
-    let node_grid = info.node_grid()?;
-    let (grid_bits, node_shift, grid_origin, grid_cell) = match (info.grid, node_grid) {
-        (Some(grid), node) => (
-            grid.bits,
-            node.map_or(0, |n| n.shift),
-            grid.origin,
-            grid.cell,
-        ),
-        (None, Some(node)) => (0, 0, node.origin, node.cell),
-        (None, None) => (0, 0, [0.0; 3], 0.0),
+fn precision(info: &FileInfo) -> PrecisionRecord {
+    // No node grid since format 4: each wide node has its own frame, so `node_shift` is 0.
+    let (grid_bits, grid_origin, grid_cell) = match info.grid {
+        Some(grid) => (grid.bits, grid.origin, grid.cell),
+        None => (0, [0.0; 3], 0.0),
     };
     let error = &info.stats.quantization;
     let weld = &info.weld.displacement;
-    Ok(PrecisionRecord {
+    PrecisionRecord {
         grid_bits,
-        node_shift,
         grid_origin,
         grid_cell,
         error_max: error.max,
@@ -227,18 +160,14 @@ fn precision(info: &FileInfo) -> io::Result<PrecisionRecord> {
         weld_displacement_rms: weld.rms(),
         ..PrecisionRecord::default()
     }
-    .sealed())
+    .sealed()
 }
 
-fn header(
-    info: &FileInfo,
-    strip_count: u64,
-    sections: [SectionEntry; SECTION_COUNT],
-) -> io::Result<Header> {
-    let encoding = info.vertex_encoding()?;
+fn header(info: &FileInfo, strip_count: u64, sections: [SectionEntry; SECTION_COUNT]) -> Header {
+    let encoding = info.vertex_encoding();
     let mut header = Header {
         magic: MAGIC,
-        // Format 3: block boxes in every strip block, whatever the encoding.
+        // Format 4: block boxes in every strip block and wide nodes, whatever the encoding.
         version_major: VERSION_MAJOR,
         version_minor: VERSION_MINOR,
         endian_marker: ENDIAN_MARKER,
@@ -259,7 +188,7 @@ fn header(
     };
     header.header_checksum =
         xxhash_rust::xxh3::xxh3_64(&bytemuck::bytes_of(&header)[..HEADER_CHECKSUMMED_BYTES]);
-    Ok(header)
+    header
 }
 
 /// Sequential writer that aligns sections and hashes them as they pass.

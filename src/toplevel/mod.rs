@@ -2,20 +2,18 @@
 //! contain the strip hierarchies").
 //!
 //! Built in two steps: a binned-SAH binary bounding volume hierarchy over strip bounds, then
-//! collapsed into 4-wide nodes ([`TopNode`]). A wide node rooted at a binary node takes its two
-//! children as slots and may open internal slots (replace one by its two children) up to four;
-//! which ones each wide node opens is chosen bottom-up by dynamic programming so that the wide
-//! nodes' total surface area, the SAH's expected number of node visits, is least (as in Ylitie
-//! et al. 2017, with the binary tree's leaves kept). Unlike a greedy top-down collapse (open the
-//! largest child until four), this fills the nodes near the leaves, where most of them are
-//! (docs/BENCHMARKS.md, "Top-level nodes"). Opening a slot
-//! in place keeps the leaves in the binary tree's order, so the strip numbering is the binary
-//! tree's.
+//! collapsed into 8-wide compressed nodes ([`WideNode`]). Each wide node is rooted at a binary
+//! internal node and takes as slots a cut of its subtree of at most eight binary nodes; the
+//! cuts are chosen by Ylitie et al. 2017's dynamic programme, which gives each binary node the
+//! least cost of covering its subtree with 1 to 8 slots, combined from its children's costs
+//! bottom-up in O(nodes × 8²), so that the wide nodes' total surface area, the SAH's expected
+//! number of node visits, is least. The binary tree's leaves stay leaves (as the paper's, with
+//! a traversal cost per node and none per leaf choice), and the cut keeps them in the binary
+//! tree's order, so the strip numbering is the binary tree's.
 //!
-//! Deviation from the paper: binary BVH → 4-wide for SIMD box tests and fewer bytes. A ray
-//! tests four boxes with one set of vector operations per node fetch, and the top level takes
-//! one 128-byte node per about 2.4 leaves instead of two 32-byte nodes per leaf
-//! (docs/BENCHMARKS.md, "Top-level nodes").
+//! Deviation from the paper: binary BVH → 8-wide for SIMD box tests and fewer bytes. A ray
+//! tests eight boxes with one set of vector operations per node fetch, and the top level takes
+//! one 96-byte node per about six leaves instead of two 32-byte nodes per leaf.
 //!
 //! Nodes are emitted depth-first (a node's first internal child right after it) and the strips
 //! are renumbered in leaf order, so the strips of a subtree are contiguous in the strip-data
@@ -33,7 +31,7 @@ mod sah;
 mod splice;
 mod validate;
 
-use crate::format::TopNode;
+use crate::format::{TopSlot, WideNode, WIDE_WIDTH};
 use crate::geometry::Aabb;
 use collapse::Collapse;
 use emit::{emit, NodeArray};
@@ -66,30 +64,51 @@ impl Default for TopLevelParams {
 /// The built hierarchy: nodes in file order and, for each file strip position, the input strip.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TopLevel {
-    pub nodes: Vec<TopNode>,
+    pub nodes: Vec<WideNode>,
     pub strip_order: Vec<u32>,
 }
 
+/// A wide node that no record can hold: a box that is not finite, or an index beyond a link's
+/// 28 bits. Finite strip bounds and fewer than 2^28 nodes and strips never give one.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("top-level node {index}: {detail}")]
+pub struct NodeError {
+    pub index: u32,
+    pub detail: String,
+}
+
 /// Builds the hierarchy over `bounds` (one box per strip).
-pub fn build(bounds: &[Aabb], params: &TopLevelParams) -> TopLevel {
+pub fn build(bounds: &[Aabb], params: &TopLevelParams) -> Result<TopLevel, NodeError> {
     let (binary, strip_order) = build_binary(bounds, params);
-    let mut nodes = NodeArray(Vec::with_capacity(binary.len() / 3 + 1));
+    let mut nodes = NodeArray(Vec::with_capacity(binary.len() / 6 + 1));
     if binary.is_empty() {
-        nodes.0.push(TopNode::EMPTY);
+        nodes.0.push(WideNode::EMPTY);
     } else {
-        emit(&Collapse::new(&binary), 0, &mut nodes);
+        emit(&Collapse::new(&binary), 0, &mut nodes)?;
     }
-    TopLevel {
+    Ok(TopLevel {
         nodes: nodes.0,
         strip_order,
-    }
+    })
+}
+
+/// The decoded box of a hierarchy's root: what an upper node's slot over it must hold
+/// ([`Subtree::bounds`]).
+pub fn root_bounds(root: &WideNode) -> Aabb {
+    emit::decoded_bounds(root)
+}
+
+/// Occupied slots of `node`: those before the first empty one.
+fn occupied(node: &WideNode) -> usize {
+    (0..WIDE_WIDTH)
+        .take_while(|&slot| node.slot(slot) != TopSlot::Empty)
+        .count()
 }
 
 #[cfg(test)]
 mod tests {
-    use super::sah::BinaryKind;
+    use super::sah::{BinaryKind, BinaryNode};
     use super::*;
-    use crate::format::TopSlot;
 
     /// Boxes on a jittered grid, deterministic.
     fn boxes(count: usize) -> Vec<Aabb> {
@@ -106,12 +125,17 @@ mod tests {
             .collect()
     }
 
+    fn count_binary(tree: &[BinaryNode], leaves: bool) -> usize {
+        let is_leaf = |n: &&BinaryNode| matches!(n.kind, BinaryKind::Leaf { .. });
+        tree.iter().filter(|n| is_leaf(n) == leaves).count()
+    }
+
     #[test]
     fn wide_tree_is_valid_and_keeps_the_binary_leaf_order() {
-        for count in [0, 1, 2, 3, 5, 64, 1000] {
+        for count in [0, 1, 2, 3, 5, 9, 64, 1000] {
             let bounds = boxes(count);
             let params = TopLevelParams::default();
-            let top = build(&bounds, &params);
+            let top = build(&bounds, &params).unwrap();
             top.validate(&bounds).unwrap();
             assert_eq!(top.strip_order, build_binary(&bounds, &params).1);
         }
@@ -119,40 +143,105 @@ mod tests {
 
     #[test]
     fn collapsing_fills_nodes() {
-        let bounds = boxes(1000);
-        let params = TopLevelParams::default();
-        let binary_internal = build_binary(&bounds, &params)
-            .0
-            .iter()
-            .filter(|n| matches!(n.kind, BinaryKind::Internal { .. }))
-            .count();
-        let top = build(&bounds, &params);
-        // Every wide node absorbs at least one binary internal node, most three.
-        assert!(top.nodes.len() * 2 < binary_internal, "{}", top.nodes.len());
+        for count in [1000, 10_000] {
+            let bounds = boxes(count);
+            let params = TopLevelParams::default();
+            let binary = build_binary(&bounds, &params).0;
+            let (leaves, internal) = (count_binary(&binary, true), count_binary(&binary, false));
+            let top = build(&bounds, &params).unwrap();
+            // Each wide node absorbs at most seven binary internal nodes.
+            assert!(top.nodes.len() * 7 >= internal, "{}", top.nodes.len());
+            // The least-area cut of these trees takes one node per about 4.9 binary leaves (the
+            // fewest nodes any cut has is one per 5.7, at a larger area).
+            assert!(
+                top.nodes.len() * 9 <= leaves * 2,
+                "{} {leaves}",
+                top.nodes.len()
+            );
+        }
+    }
+
+    /// The least total area of wide nodes under binary node `index` found by trying every
+    /// frontier of at most eight slots, given the least totals of the nodes below it.
+    fn exhaustive_cost(tree: &[BinaryNode], costs: &[f64], frontier: &mut Vec<usize>) -> f64 {
+        let mut best: f64 = frontier.iter().map(|&n| costs[n]).sum();
+        if frontier.len() == WIDE_WIDTH {
+            return best;
+        }
+        for i in 0..frontier.len() {
+            if let BinaryKind::Internal { left, right } = tree[frontier[i]].kind {
+                let opened = frontier[i];
+                frontier.splice(i..=i, [left, right]);
+                best = best.min(exhaustive_cost(tree, costs, frontier));
+                frontier.splice(i..i + 2, [opened]);
+            }
+        }
+        best
+    }
+
+    /// The total surface area of the wide nodes the collapse emits under binary node `index`.
+    fn emitted_cost(collapse: &Collapse, index: usize) -> f64 {
+        let below: f64 = collapse
+            .slots(index)
+            .into_iter()
+            .filter(|&slot| matches!(collapse.tree[slot].kind, BinaryKind::Internal { .. }))
+            .map(|slot| emitted_cost(collapse, slot))
+            .sum();
+        collapse.tree[index].bounds.surface_area() + below
+    }
+
+    #[test]
+    fn dynamic_programme_finds_the_exhaustive_optimum_and_emits_it() {
+        for (count, max_leaf_strips) in [(9, 1), (17, 1), (23, 2), (40, 1), (40, 4)] {
+            let params = TopLevelParams {
+                max_leaf_strips,
+                ..TopLevelParams::default()
+            };
+            let tree = build_binary(&boxes(count), &params).0;
+            let collapse = Collapse::new(&tree);
+            let mut costs = vec![0.0; tree.len()];
+            for index in (0..tree.len()).rev() {
+                if let BinaryKind::Internal { left, right } = tree[index].kind {
+                    let children = exhaustive_cost(&tree, &costs, &mut vec![left, right]);
+                    costs[index] = tree[index].bounds.surface_area() + children;
+                }
+            }
+            let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.max(b);
+            assert!(
+                close(collapse.cost(0), costs[0]),
+                "{count}: {} {}",
+                collapse.cost(0),
+                costs[0]
+            );
+            assert!(close(emitted_cost(&collapse, 0), costs[0]), "{count}");
+        }
     }
 
     #[test]
     fn empty_and_single_strip_roots() {
         assert_eq!(
-            build(&[], &TopLevelParams::default()).nodes,
-            [TopNode::EMPTY]
+            build(&[], &TopLevelParams::default()).unwrap().nodes,
+            [WideNode::EMPTY]
         );
-        let one = build(&boxes(1), &TopLevelParams::default());
+        let one = build(&boxes(1), &TopLevelParams::default()).unwrap();
         assert_eq!(one.nodes.len(), 1);
         assert_eq!(one.nodes[0].slot(0), TopSlot::Leaf { first: 0, count: 1 });
-        assert_eq!(one.nodes[0].occupied(), 1);
+        assert_eq!(occupied(&one.nodes[0]), 1);
     }
 
     #[test]
     fn validate_rejects_broken_trees() {
         let bounds = boxes(200);
-        let top = build(&bounds, &TopLevelParams::default());
+        let top = build(&bounds, &TopLevelParams::default()).unwrap();
         let mut loose = top.clone();
-        loose.nodes[0].min[0][0] = 1e9;
+        loose.nodes[0].max[0][0] = 0;
         assert!(loose.validate(&bounds).is_err());
         let mut unpacked = top.clone();
-        unpacked.nodes[1].kind[0] = 0;
+        unpacked.nodes[1].link[0] = 0;
         assert!(unpacked.validate(&bounds).is_err());
+        let mut far = top.clone();
+        far.nodes[0].exponent[2] = 255;
+        assert!(far.validate(&bounds).is_err());
         let mut duplicated = top;
         duplicated.strip_order[1] = duplicated.strip_order[0];
         assert!(duplicated.validate(&bounds).is_err());
@@ -166,20 +255,20 @@ mod tests {
         let chunks: Vec<&[Aabb]> = all.chunks(100).collect();
         let built: Vec<TopLevel> = chunks
             .iter()
-            .map(|c| build(c, &TopLevelParams::default()))
+            .map(|c| build(c, &TopLevelParams::default()).unwrap())
             .collect();
         let subtrees: Vec<Subtree> = built
             .iter()
             .zip(&chunks)
             .map(|(top, c)| Subtree {
-                bounds: c.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
+                bounds: root_bounds(&top.nodes[0]),
                 node_count: top.nodes.len() as u32,
                 strip_count: c.len() as u32,
             })
             .collect();
         let mut spliced = TopLevel::default();
         let mut spliced_bounds = Vec::new();
-        for item in splice(&subtrees, &TopLevelParams::default()) {
+        for item in splice(&subtrees, &TopLevelParams::default()).unwrap() {
             match item {
                 SpliceItem::Node(node) => spliced.nodes.push(node),
                 SpliceItem::Subtree {
@@ -190,12 +279,11 @@ mod tests {
                     assert_eq!(node_base as usize, spliced.nodes.len());
                     assert_eq!(strip_base as usize, spliced.strip_order.len());
                     let chunk = &built[index];
-                    spliced.nodes.extend(
-                        chunk
+                    for node in &chunk.nodes {
+                        spliced
                             .nodes
-                            .iter()
-                            .map(|n| relocate(n, node_base, strip_base)),
-                    );
+                            .push(relocate(node, node_base, strip_base).unwrap());
+                    }
                     for &s in &chunk.strip_order {
                         spliced.strip_order.push(spliced_bounds.len() as u32);
                         spliced_bounds.push(chunks[index][s as usize]);
@@ -204,9 +292,37 @@ mod tests {
             }
         }
         spliced.validate(&spliced_bounds).unwrap();
-        // Nine chunks fit under three upper nodes at most.
+        // Nine chunks need two upper nodes of eight slots.
         let upper = spliced.nodes.len() - built.iter().map(|t| t.nodes.len()).sum::<usize>();
-        assert!((1..=4).contains(&upper), "{upper}");
+        assert_eq!(upper, 2);
+    }
+
+    #[test]
+    fn relocation_beyond_a_link_is_an_error() {
+        let child = |slot| crate::format::WideChild {
+            min: [0.0; 3],
+            max: [1.0; 3],
+            slot,
+        };
+        let node = WideNode::encode(&[
+            child(TopSlot::Leaf { first: 3, count: 2 }),
+            child(TopSlot::Internal(2)),
+        ])
+        .unwrap();
+        let limit = crate::format::GRID_LINK_INDEX;
+        let moved = relocate(&node, limit - 2, limit - 3).unwrap();
+        assert_eq!(
+            moved.slot(0),
+            TopSlot::Leaf {
+                first: limit,
+                count: 2
+            }
+        );
+        assert_eq!(moved.slot(1), TopSlot::Internal(limit));
+        assert_eq!(moved.slot(2), TopSlot::Empty);
+        assert!(relocate(&node, limit - 1, 0).is_err());
+        assert!(relocate(&node, 0, limit - 2).is_err());
+        assert!(relocate(&node, u32::MAX, 0).is_err());
     }
 
     #[test]
@@ -221,7 +337,7 @@ mod tests {
             ..subtree
         };
         assert_eq!(
-            splice(&[empty, subtree], &TopLevelParams::default()),
+            splice(&[empty, subtree], &TopLevelParams::default()).unwrap(),
             [SpliceItem::Subtree {
                 index: 1,
                 node_base: 0,
@@ -229,8 +345,8 @@ mod tests {
             }]
         );
         assert_eq!(
-            splice(&[empty], &TopLevelParams::default()),
-            [SpliceItem::Node(TopNode::EMPTY)]
+            splice(&[empty], &TopLevelParams::default()).unwrap(),
+            [SpliceItem::Node(WideNode::EMPTY)]
         );
     }
 }

@@ -3,14 +3,15 @@
 use super::collapse::Collapse;
 use super::emit::{emit, WideOut};
 use super::sah::build_binary;
-use super::TopLevelParams;
-use crate::format::{TopNode, INTERNAL_CHILD};
+use super::{NodeError, TopLevelParams};
+use crate::format::{TopSlot, WideNode};
 use crate::geometry::Aabb;
 
 /// One chunk's finished hierarchy, as the splice sees it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Subtree {
-    /// The union of the chunk's strip bounds: the box of the upper slot pointing at its root.
+    /// The decoded box of the chunk's root ([`root_bounds`](super::root_bounds)): the box of
+    /// the upper slot pointing at it, which must hold the root's decoded boxes.
     pub bounds: Aabb,
     pub node_count: u32,
     pub strip_count: u32,
@@ -20,7 +21,7 @@ pub struct Subtree {
 /// chunk subtree whose nodes and strips are renumbered from the given bases.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SpliceItem {
-    Node(TopNode),
+    Node(WideNode),
     Subtree {
         index: usize,
         node_base: u32,
@@ -36,7 +37,7 @@ pub enum SpliceItem {
 /// hierarchy is built like the per-chunk ones with one chunk per leaf and collapsed the same
 /// way, except that a leaf becomes an internal slot pointing at the chunk's root. A single chunk
 /// needs no upper node: its root is the file's. Chunks without strips are left out.
-pub fn splice(subtrees: &[Subtree], params: &TopLevelParams) -> Vec<SpliceItem> {
+pub fn splice(subtrees: &[Subtree], params: &TopLevelParams) -> Result<Vec<SpliceItem>, NodeError> {
     let used: Vec<usize> = (0..subtrees.len())
         .filter(|&i| subtrees[i].strip_count > 0)
         .collect();
@@ -54,15 +55,15 @@ pub fn splice(subtrees: &[Subtree], params: &TopLevelParams) -> Vec<SpliceItem> 
         next_strip: 0,
     };
     match upper.len() {
-        0 => out.items.push(SpliceItem::Node(TopNode::EMPTY)),
+        0 => out.items.push(SpliceItem::Node(WideNode::EMPTY)),
         1 => {
-            out.leaf(0, 1);
+            out.leaf(0, 1, &bounds[0]);
         }
         _ => {
-            emit(&Collapse::new(&upper), 0, &mut out);
+            emit(&Collapse::new(&upper), 0, &mut out)?;
         }
     }
-    out.items
+    Ok(out.items)
 }
 
 /// The splice's item list; an upper leaf is one chunk, placed whole.
@@ -77,16 +78,16 @@ struct SpliceOut<'a> {
 
 impl WideOut for SpliceOut<'_> {
     fn open(&mut self) -> (u32, usize) {
-        self.items.push(SpliceItem::Node(TopNode::EMPTY));
+        self.items.push(SpliceItem::Node(WideNode::EMPTY));
         self.next_node += 1;
         (self.next_node - 1, self.items.len() - 1)
     }
 
-    fn complete(&mut self, handle: usize, node: TopNode) {
+    fn complete(&mut self, handle: usize, node: WideNode) {
         self.items[handle] = SpliceItem::Node(node);
     }
 
-    fn leaf(&mut self, first: u32, _count: u32) -> (u32, u32) {
+    fn leaf(&mut self, first: u32, _count: u32, bounds: &Aabb) -> (TopSlot, Aabb) {
         let index = self.chunk_order[first as usize];
         let root = self.next_node;
         self.items.push(SpliceItem::Subtree {
@@ -96,6 +97,6 @@ impl WideOut for SpliceOut<'_> {
         });
         self.next_node += self.subtrees[index].node_count;
         self.next_strip += self.subtrees[index].strip_count;
-        (root, INTERNAL_CHILD)
+        (TopSlot::Internal(root), *bounds)
     }
 }

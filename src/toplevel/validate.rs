@@ -1,13 +1,15 @@
 //! Structural checks of a built hierarchy: what the tests hold every build to.
 
+use super::occupied;
 use super::TopLevel;
-use crate::format::{TopSlot, MAX_TOP_DEPTH, TOP_WIDTH};
+use crate::format::{TopSlot, WideNode, MAX_TOP_DEPTH, WIDE_WIDTH};
 use crate::geometry::Aabb;
 
 impl TopLevel {
-    /// Checks the structure: nodes in preorder within [`MAX_TOP_DEPTH`], occupied slots first
-    /// and empty ones exact, every strip in exactly one leaf with leaves in strip order, every
-    /// slot's box containing its child's slot boxes or its strips' bounds.
+    /// Checks the structure: nodes in preorder within [`MAX_TOP_DEPTH`], frames in range,
+    /// occupied slots first and empty ones all zero, every strip in exactly one leaf with leaves
+    /// in strip order, every slot's decoded box containing its child's decoded slot boxes or its
+    /// strips' bounds.
     pub fn validate(&self, bounds: &[Aabb]) -> Result<(), String> {
         let mut walk = ValidateWalk {
             top: self,
@@ -60,13 +62,19 @@ impl ValidateWalk<'_> {
             return Err(format!("node {index} is out of preorder or too deep"));
         }
         self.visited += 1;
-        let occupied = node.occupied();
-        if let Some(slot) = (occupied..TOP_WIDTH).find(|&slot| !node.is_exactly_empty(slot)) {
+        if node.reserved != 0 || node.exponent.iter().any(|e| !(1..=254).contains(e)) {
+            return Err(format!("node {index} has a frame out of range"));
+        }
+        let occupied = occupied(node);
+        if let Some(slot) = (occupied..WIDE_WIDTH).find(|&slot| !is_zero(node, slot)) {
             return Err(format!("node {index} slot {slot} is not exactly empty"));
         }
         for slot in 0..occupied {
             let (min, max) = node.slot_box(slot);
             let slot_box = Aabb { min, max };
+            if (0..3).any(|axis| node.min[axis][slot] > node.max[axis][slot]) {
+                return Err(format!("node {index} slot {slot} has an inverted box"));
+            }
             if parent_box.is_some_and(|parent| !parent.contains_box(&slot_box)) {
                 return Err(format!(
                     "node {index} slot {slot} is outside its parent's box"
@@ -108,4 +116,10 @@ impl ValidateWalk<'_> {
         self.next_strip += count as usize;
         Ok(())
     }
+}
+
+/// Whether `slot` of `node` is all zero bytes: planes and link.
+fn is_zero(node: &WideNode, slot: usize) -> bool {
+    node.link[slot] == 0
+        && (0..3).all(|axis| node.min[axis][slot] == 0 && node.max[axis][slot] == 0)
 }

@@ -330,14 +330,13 @@ pub fn write_encoded_strips(
         ..ChunkStats::default()
     };
     let bounds: Vec<Aabb> = encoded.iter().map(|s| s.bounds).collect();
-    let top = toplevel::build(&bounds, &TopLevelParams::default());
+    let top = toplevel::build(&bounds, &TopLevelParams::default()).expect("top level");
     let info = FileInfo {
         stats,
         leaf_windows,
         max_strip_length: 1000,
         bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
         grid,
-        grid_nodes: false,
         weld: Default::default(),
         attributes: Default::default(),
         closedness: None,
@@ -361,7 +360,6 @@ pub fn write_chunk_under(
         max_strip_length,
         bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
         grid: chunk.grid,
-        grid_nodes: false,
         weld: Default::default(),
         attributes: Default::default(),
         closedness: None,

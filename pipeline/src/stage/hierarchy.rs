@@ -2,10 +2,12 @@
 //! chunks' own hierarchies (`reducem::toplevel::splice`). Its output is the final node order:
 //! upper nodes and, for each chunk, where its nodes and strips start.
 
-use reducem::format::TopNode;
-use reducem::toplevel::{splice, SpliceItem, Subtree, TopLevelParams};
+use anyhow::Context;
+use reducem::format::{TopSlot, WideChild, WideNode, WIDE_WIDTH};
+use reducem::toplevel::{root_bounds, splice, SpliceItem, Subtree, TopLevelParams};
 use serde::{Deserialize, Serialize};
 
+use crate::chunk_io::StripChunk;
 use crate::fingerprint::Fingerprint;
 use crate::stage::merge::Merged;
 use crate::stage::{fresh_output, write_json, Job, Stamped};
@@ -16,8 +18,7 @@ const PLAN: &str = "hierarchy.json";
 /// One step of the final node order (see [`SpliceItem`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub enum Step {
-    /// An upper node's occupied slots in order; the others are empty. (Only these: JSON has no
-    /// infinities for the empty slots' boxes.)
+    /// An upper node's occupied slots in order; the others are empty.
     Node { slots: Vec<Slot> },
     Chunk {
         index: usize,
@@ -26,13 +27,14 @@ pub enum Step {
     },
 }
 
-/// One occupied slot of an upper node, fields as in [`TopNode`].
+/// One occupied slot of an upper node: its decoded box, which encodes again to the same
+/// decoded box, and the node it points at (an upper node or a chunk's root: the splice puts
+/// no strips in upper nodes).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Slot {
     pub min: [f32; 3],
     pub max: [f32; 3],
-    pub child: u32,
-    pub kind: u32,
+    pub node: u32,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -67,22 +69,22 @@ pub fn run(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
     let progress = job
         .progress
         .stage(UNIT, merged.chunks.len() as u64, "chunks");
-    let subtrees: Vec<Subtree> = merged
+    let subtrees = merged
         .chunks
         .iter()
-        .map(|c| Subtree {
-            bounds: reducem::geometry::Aabb {
-                min: c.bounds_min,
-                max: c.bounds_max,
-            },
-            node_count: c.nodes,
-            strip_count: c.strips,
+        .enumerate()
+        .map(|(index, c)| {
+            Ok(Subtree {
+                bounds: root_bounds(&chunk_root(job, index)?),
+                node_count: c.nodes,
+                strip_count: c.strips,
+            })
         })
-        .collect();
-    let steps = splice(&subtrees, &TopLevelParams::default())
+        .collect::<anyhow::Result<Vec<Subtree>>>()?;
+    let steps = splice(&subtrees, &TopLevelParams::default())?
         .into_iter()
         .map(step)
-        .collect();
+        .collect::<anyhow::Result<_>>()?;
     let hierarchy = Hierarchy {
         digest: fingerprint.digest(),
         steps,
@@ -94,20 +96,35 @@ pub fn run(job: &Job, merged: &Merged) -> anyhow::Result<Hierarchy> {
     Ok(hierarchy)
 }
 
-fn step(item: SpliceItem) -> Step {
-    match item {
+/// The root node of chunk `index`: the upper slot over the chunk must hold its decoded boxes,
+/// which reach past the chunk's strip bounds.
+fn chunk_root(job: &Job, index: usize) -> anyhow::Result<WideNode> {
+    let path = job.work.file(&crate::workdir::strip_chunk(index));
+    StripChunk::open(&path)
+        .and_then(|mut chunk| chunk.root())
+        .with_context(|| format!("reading the root node of {}", path.display()))
+}
+
+fn step(item: SpliceItem) -> anyhow::Result<Step> {
+    Ok(match item {
         SpliceItem::Node(node) => Step::Node {
-            slots: (0..node.occupied())
-                .map(|slot| {
+            slots: (0..WIDE_WIDTH)
+                .map_while(|slot| match node.slot(slot) {
+                    TopSlot::Empty => None,
+                    link => Some((slot, link)),
+                })
+                .map(|(slot, link)| {
+                    let TopSlot::Internal(child) = link else {
+                        anyhow::bail!("upper node slot {slot} holds {link:?}, not a node");
+                    };
                     let (min, max) = node.slot_box(slot);
-                    Slot {
+                    Ok(Slot {
                         min,
                         max,
-                        child: node.child[slot],
-                        kind: node.kind[slot],
-                    }
+                        node: child,
+                    })
                 })
-                .collect(),
+                .collect::<anyhow::Result<_>>()?,
         },
         SpliceItem::Subtree {
             index,
@@ -118,14 +135,18 @@ fn step(item: SpliceItem) -> Step {
             node_base,
             strip_base,
         },
-    }
+    })
 }
 
 /// The node an upper step stands for.
-pub fn node(slots: &[Slot]) -> TopNode {
-    let mut node = TopNode::EMPTY;
-    for (index, slot) in slots.iter().enumerate() {
-        node.set(index, &slot.min, &slot.max, slot.child, slot.kind);
-    }
-    node
+pub fn node(slots: &[Slot]) -> Result<WideNode, String> {
+    let children: Vec<WideChild> = slots
+        .iter()
+        .map(|slot| WideChild {
+            min: slot.min,
+            max: slot.max,
+            slot: TopSlot::Internal(slot.node),
+        })
+        .collect();
+    WideNode::encode(&children)
 }

@@ -36,6 +36,10 @@ pub fn fingerprint(job: &Job, chunked: &Chunked, chunk: usize) -> Fingerprint {
         .with("strip.sah_bins", strip.sah_bins)
         .with("vertices.grid_bits", grid_bits(job))
         .with("top_level", format!("{:?}", TopLevelParams::default()))
+        .with(
+            "strip.chunk_magic",
+            String::from_utf8_lossy(&chunk_io::STRIP_MAGIC),
+        )
 }
 
 /// `[vertices] grid_bits` when the encoding uses it, else "none" (f32 vertices).

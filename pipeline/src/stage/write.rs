@@ -9,10 +9,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use reducem::conversion::layout::{rebase_records, DataWords};
 use reducem::format::attribute_sections::AttributeVisit;
-use reducem::format::grid::NodeGrid;
 use reducem::format::reader::{ReducemFile, Validation};
 use reducem::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource};
-use reducem::format::SectionKind;
+use reducem::format::{SectionKind, GRID_LINK_INDEX};
 use reducem::toplevel::relocate;
 
 use crate::checksum::{checksum_file, Checksum};
@@ -33,7 +32,6 @@ pub fn output_path(job: &Job) -> PathBuf {
 pub fn fingerprint(job: &Job, hierarchy: &Hierarchy) -> Fingerprint {
     Fingerprint::new()
         .with("hierarchy_stage", &hierarchy.digest)
-        .with("strip.grid_nodes", job.config.strip.grid_nodes)
         .with("input.up", job.config.input.up_axis().name())
         .with("output.path", output_path(job).display())
 }
@@ -59,13 +57,12 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         max_strip_length: job.config.strip.max_length,
         bounds: merged.bounds(),
         grid: merged.grid,
-        grid_nodes: job.config.strip.grid_nodes,
         weld: merged.weld,
         attributes: job.config.build_params().attributes,
         closedness: Some(merged.edges.into()),
         up: Some(job.config.input.up_axis()),
     };
-    let mut source = Spliced::new(job, merged, hierarchy, info.node_grid()?)?;
+    let mut source = Spliced::new(job, merged, hierarchy)?;
     let temporary = reducem::atomic::temporary_path(&output);
     if let Err(error) = write_streaming(&temporary, &info, &mut source) {
         crate::interrupt::check()?;
@@ -117,6 +114,18 @@ fn verify(path: &Path) -> anyhow::Result<Checksum> {
     checksum_file(path).with_context(|| format!("reading {}", path.display()))
 }
 
+/// More nodes or strips than a top-level link addresses: checked before anything is written,
+/// so relocating a chunk's links cannot fail midway (2^28 strips are some five billion
+/// triangles). Not a known error kind, so exit code 70.
+#[derive(Debug, thiserror::Error)]
+#[error("more than 2^28 top-level nodes or strips: too many for a format 4 link")]
+pub struct TooManyLinks;
+
+/// A node the write could not encode or relocate (prevented by [`TooManyLinks`]).
+fn invalid(detail: String) -> io::Error {
+    io::Error::new(io::ErrorKind::InvalidData, detail)
+}
+
 /// What a write stopped between two chunks says; the stage reports the stop itself.
 const INTERRUPTED: &str = "stopped on request";
 
@@ -124,8 +133,6 @@ const INTERRUPTED: &str = "stopped on request";
 struct Spliced<'a> {
     job: &'a Job<'a>,
     steps: &'a [Step],
-    /// The grid of grid files' top-level node boxes ([`FileInfo::node_grid`]).
-    node_grid: Option<NodeGrid>,
     strip_count: u64,
     /// Where each chunk's strip blocks start in the strip-data section, in 4-byte words.
     data_word_base: Vec<u32>,
@@ -136,7 +143,6 @@ impl<'a> Spliced<'a> {
         job: &'a Job<'a>,
         merged: &'a Merged,
         hierarchy: &'a Hierarchy,
-        node_grid: Option<NodeGrid>,
     ) -> anyhow::Result<Spliced<'a>> {
         let mut data_word_base = vec![0u32; merged.chunks.len()];
         let mut words = DataWords::default();
@@ -145,11 +151,19 @@ impl<'a> Spliced<'a> {
                 data_word_base[index] = words.place(merged.chunks[index].data_bytes)?;
             }
         }
+        let strip_count = merged.chunks.iter().map(|c| c.strips as u64).sum();
+        let node_count = hierarchy.steps.iter().map(|step| match *step {
+            Step::Node { .. } => 1,
+            Step::Chunk { index, .. } => merged.chunks[index].nodes as u64,
+        });
+        let links = u64::from(GRID_LINK_INDEX) + 1;
+        if strip_count > links || node_count.sum::<u64>() > links {
+            return Err(TooManyLinks.into());
+        }
         Ok(Spliced {
             job,
             steps: &hierarchy.steps,
-            node_grid,
-            strip_count: merged.chunks.iter().map(|c| c.strips as u64).sum(),
+            strip_count,
             data_word_base,
         })
     }
@@ -183,20 +197,19 @@ impl SectionSource for Spliced<'_> {
         match kind {
             SectionKind::TopNodes => self.steps.iter().try_for_each(|step| match *step {
                 _ if crate::interrupt::check().is_err() => Err(io::Error::other(INTERRUPTED)),
-                Step::Node { ref slots } => {
-                    write_nodes(out, &[node(slots)], self.node_grid.as_ref())
-                }
+                Step::Node { ref slots } => write_nodes(out, &[node(slots).map_err(invalid)?]),
                 Step::Chunk {
                     index,
                     node_base,
                     strip_base,
                 } => {
                     let nodes = self.chunk(index)?.nodes()?;
-                    let moved: Vec<_> = nodes
+                    let moved = nodes
                         .iter()
                         .map(|n| relocate(n, node_base, strip_base))
-                        .collect();
-                    write_nodes(out, &moved, self.node_grid.as_ref())
+                        .collect::<Result<Vec<_>, _>>()
+                        .map_err(|e| invalid(format!("chunk {index}: {e}")))?;
+                    write_nodes(out, &moved)
                 }
             }),
             SectionKind::StripRecords => self.chunks().try_for_each(|chunk| {
