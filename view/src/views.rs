@@ -237,7 +237,7 @@ impl Viewer {
         view: &View,
         current: u64,
         generation: &AtomicU64,
-        deliver: impl Fn(EncodedFrame) + Sync,
+        mut deliver: impl FnMut(EncodedFrame),
     ) -> Result<(), Stale> {
         let Some(scene) = self.scene_of(view) else {
             return Ok(());
@@ -250,32 +250,22 @@ impl Viewer {
         coarse.image.width = scene.image.width.div_ceil(2);
         coarse.image.height = scene.image.height.div_ceil(2);
         let mut coarse_image = Progressive::new(self.tracer, &coarse, band_pixels(&coarse));
-        let coarse_frame = coarse_image.refine(1, is_current)?;
-        let coarse_rays = Rays::of(&coarse_image);
-        let deliver = &deliver;
-        std::thread::scope(|scope| {
-            // Encoded (serial work) while the full frame is traced (parallel work), and sent
-            // before it.
-            let mut coarse_sent = Some(scope.spawn(move || {
-                deliver(self.encode(coarse_frame, coarse_rays, view.camera, current, 0.25))
-            }));
-            let mut image = Progressive::new(self.tracer, &scene, band_pixels(&scene));
-            let (mut ao_samples, mut before) = (1, Rays::default());
-            loop {
-                let frame = image.refine(ao_samples, is_current)?;
-                let rays = Rays::of(&image).since(before);
-                let spp = image.samples_per_pixel() as f32;
-                let encoded = self.encode(frame, rays, view.camera, current, spp);
-                if let Some(coarse) = coarse_sent.take() {
-                    let _ = coarse.join();
-                }
-                deliver(encoded);
-                if image.is_complete() {
-                    return Ok(());
-                }
-                (ao_samples, before) = (ao_samples * 2, Rays::of(&image));
+        let frame = coarse_image.refine(1, is_current)?;
+        let rays = Rays::of(&coarse_image);
+        deliver(self.encode(frame, rays, view.camera, current, 0.25));
+
+        let mut image = Progressive::new(self.tracer, &scene, band_pixels(&scene));
+        let (mut ao_samples, mut before) = (1, Rays::default());
+        loop {
+            let frame = image.refine(ao_samples, is_current)?;
+            let rays = Rays::of(&image).since(before);
+            let spp = image.samples_per_pixel() as f32;
+            deliver(self.encode(frame, rays, view.camera, current, spp));
+            if image.is_complete() {
+                return Ok(());
             }
-        })
+            (ao_samples, before) = (ao_samples * 2, Rays::of(&image));
+        }
     }
 
     /// The file's resident bytes, measured at most every [`RESIDENCY_INTERVAL`].
