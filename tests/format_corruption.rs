@@ -612,15 +612,23 @@ fn crafted_grid_nodes_are_rejected_naming_node_and_byte() {
     );
 }
 
-/// A 2.2 reader rejects packed references through `vertex_encoding` 3 (unknown to it); this
-/// reader rejects that encoding in a file claiming 2.2, the unpacked grid encodings 1 and 2 in
-/// a 3.0 file, and a node shift on an encoding without grid nodes.
+/// Older readers reject the grid strips of format 4 through `vertex_encoding` 5 (unknown to
+/// them); this reader rejects that encoding in a file claiming format 2, packed references
+/// (encoding 3) in a file claiming 2.2, the unpacked grid encodings 1 and 2 in a 3.0 file, and
+/// a node shift on an encoding without grid nodes.
 #[test]
 fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
     let bytes = grid_file_bytes("grid-nodes-version-source.rdm");
     assert_eq!(&bytes[8..12], &[3, 0, 1, 0]);
-    assert_eq!(&bytes[20..24], &3u32.to_le_bytes());
-    let message = open_error("grid-nodes-2.2.rdm", &claiming_version(&bytes, 2, 2));
+    assert_eq!(&bytes[20..24], &5u32.to_le_bytes());
+    let message = open_error("grid-strips-2.5.rdm", &claiming_version(&bytes, 2, 5));
+    assert!(
+        message.contains("at byte 20") && message.contains("not part of format 2"),
+        "{message}"
+    );
+    let mut packed = bytes.clone();
+    packed[20..24].copy_from_slice(&3u32.to_le_bytes());
+    let message = open_error("grid-nodes-2.2.rdm", &claiming_version(&packed, 2, 2));
     assert!(
         message.contains("at byte 20") && message.contains("needs format 2.3"),
         "{message}"
@@ -689,4 +697,58 @@ fn lossless_grid_nodes_need_format_2_4_and_a_well_formed_node_grid() {
             "{name}: {message}"
         );
     }
+}
+
+/// Grid strips (`vertex_encoding` 5) end at their references: each block is its vertex part,
+/// split axes and packed references, padded to 4 bytes, with no block boxes even where a
+/// lossless strip of as many windows has them; a reference past the strip's vertices is
+/// rejected naming the strip and its byte.
+#[test]
+fn grid_strips_have_no_boxes_and_crafted_references_are_rejected() {
+    use reducem::format::block_boxes::area_bytes;
+    use reducem::format::quantized::{vertex_part_bytes, AxisWordLayout};
+    use reducem::format::references::{packed_bytes, packed_width};
+    let bytes = grid_file_bytes("grid-strip-layout-source.rdm");
+    let records = section_range(&bytes, SectionKind::StripRecords);
+    let data = section_offset(&bytes, SectionKind::StripData);
+    let data_len = section_range(&bytes, SectionKind::StripData).1;
+    let layout = AxisWordLayout::Packed { grid_bits: 16 };
+    let leaf_windows = u32::from_le_bytes(bytes[24..28].try_into().unwrap()) as usize;
+    let strips: Vec<(usize, usize, usize)> = bytes[records.0..records.0 + records.1]
+        .chunks_exact(8)
+        .map(|r| {
+            let field = |o: usize| u16::from_le_bytes([r[o], r[o + 1]]) as usize;
+            let word = u32::from_le_bytes(r[..4].try_into().unwrap()) as usize;
+            (4 * word, field(4), field(6))
+        })
+        .collect();
+    assert!(strips.iter().any(|&(_, _, refs)| area_bytes(refs - 2) > 0));
+    let block_parts = |&(start, vertices, references): &(usize, usize, usize)| {
+        let axes = layout.read(&bytes[data + start..]);
+        let nodes = reducem::format::implicit_tree::internal_nodes(references - 2, leaf_windows);
+        let before_references =
+            vertex_part_bytes(vertices, &axes, layout) + reducem::format::axis_bytes(nodes);
+        (before_references, packed_bytes(references, vertices))
+    };
+    let ends = strips.iter().skip(1).map(|s| s.0).chain([data_len]);
+    for (strip, end) in strips.iter().zip(ends) {
+        let (before_references, references) = block_parts(strip);
+        assert_eq!(end, strip.0 + (before_references + references).next_multiple_of(4));
+    }
+    let (strip, &(start, vertices, references)) = strips
+        .iter()
+        .enumerate()
+        .find(|(_, s)| !s.1.is_power_of_two() && s.2 > 10)
+        .expect("a long strip");
+    let first_reference = data + start + block_parts(&(start, vertices, references)).0;
+    let width = packed_width(vertices);
+    let mut crafted = bytes.clone();
+    crafted[first_reference] |= (1 << width) - 1;
+    let message = open_error("grid-reference.rdm", &crafted);
+    assert!(
+        message.contains(&format!("strip {strip}"))
+            && message.contains(&format!("reference 0 is {} out of range", (1 << width) - 1))
+            && message.contains(&format!("at byte {first_reference}")),
+        "{message}"
+    );
 }

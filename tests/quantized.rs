@@ -46,7 +46,7 @@ fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usiz
     let layout = VertexLayout::Grid {
         grid,
         packed: true,
-        boxes: true,
+        boxes: false,
     };
     assert_eq!(file.vertex_layout(), &layout);
     let expected = expected_triangles(&quantized);

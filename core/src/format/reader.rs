@@ -149,8 +149,8 @@ pub enum VertexLayout {
     F32 { boxes: bool },
     /// Grid vertices. `packed` since format 2.3: axis words at the grid's bits
     /// ([`AxisWordLayout::Packed`]) and references at the strip's ([`super::references`]);
-    /// before, u32 axis words and one byte per reference. `boxes` since format 3.0 (always
-    /// with `packed`).
+    /// before, u32 axis words and one byte per reference. `boxes` in format 3 files of
+    /// `vertex_encoding` 3 only (always with `packed`).
     Grid {
         grid: Grid,
         packed: bool,
@@ -159,13 +159,14 @@ pub enum VertexLayout {
 }
 
 impl From<Option<Grid>> for VertexLayout {
-    /// The layout the writer gives vertices on `grid` (or f32 ones without): format 3.
+    /// The layout the writer gives vertices on `grid` (or f32 ones without): format 3 boxes
+    /// for f32 vertices, none for grid ones (`vertex_encoding` 5).
     fn from(grid: Option<Grid>) -> VertexLayout {
         grid.map_or(VertexLayout::F32 { boxes: true }, |grid| {
             VertexLayout::Grid {
                 grid,
                 packed: true,
-                boxes: true,
+                boxes: false,
             }
         })
     }
