@@ -7,6 +7,7 @@ use common::{temp_path, torus};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::decode;
 use reducem::format::reader::{FormatError, ReducemFile};
+use reducem::format::quantized::{anchor_shift, AxisWord, AxisWordLayout};
 use reducem::format::{Defect, PrecisionRecord, SectionKind, HEADER_PAGE, PRECISION_OFFSET};
 
 fn valid_file_bytes(name: &str) -> Vec<u8> {
@@ -475,15 +476,27 @@ fn crafted_grid_headers_are_rejected_naming_the_byte() {
     );
 }
 
-/// `bytes` with the packed axis word of `axis` (16 anchor bits and 5 width bits per axis on a
-/// 16-bit grid) of the block at `block` set to `(anchor, width)`.
-fn with_axis_word(bytes: &[u8], block: usize, axis: u32, anchor: u32, width: u32) -> Vec<u8> {
+/// The axis words of a 16-bit grid file's strips (`vertex_encoding` 5).
+const GRID_WORDS: AxisWordLayout = AxisWordLayout::Aligned { grid_bits: 16 };
+
+/// `bytes` with the axis word of `axis` of the block at `block` set to `(anchor, width)`:
+/// 5 width bits, then the anchor's 16 bits but the low `anchor_shift(width)`, the words after it
+/// and the offsets moved to follow.
+fn with_axis_word(bytes: &[u8], block: usize, axis: usize, anchor: u32, width: u32) -> Vec<u8> {
     let mut edited = bytes.to_vec();
     let head = &mut edited[block..block + 16];
-    let mut stream = u128::from_le_bytes(head.try_into().unwrap());
-    stream &= !(((1u128 << 21) - 1) << (21 * axis));
-    stream |= ((anchor | width << 16) as u128) << (21 * axis);
-    head.copy_from_slice(&stream.to_le_bytes());
+    let mut words = GRID_WORDS.read(head);
+    let offsets = u128::from_le_bytes(head.try_into().unwrap()) >> GRID_WORDS.bits(&words);
+    words[axis] = AxisWord { anchor, width };
+    let mut stream = 0u128;
+    let mut bit = 0;
+    for word in words {
+        let shift = anchor_shift(word.width).min(16);
+        let high_bits = (word.anchor >> shift) & ((1 << (16 - shift)) - 1);
+        stream |= (word.width as u128 | (high_bits as u128) << 5) << bit;
+        bit += 5 + 16 - shift as usize;
+    }
+    head.copy_from_slice(&(stream | offsets << bit).to_le_bytes());
     edited
 }
 
@@ -500,13 +513,14 @@ fn crafted_grid_blocks_are_rejected_naming_strip_and_byte() {
             && message.contains(&format!("at byte {block}")),
         "{message}"
     );
-    // The y word starts at bit 21, in the block's third byte.
+    // The y word starts after x's, in the block's third byte or earlier.
     let off_grid = with_axis_word(&bytes, block, 1, 65_535, 4);
+    let y_at = block + GRID_WORDS.word_start(&GRID_WORDS.read(&off_grid[block..]), 1) / 8;
     let message = open_error("off-grid.rdm", &off_grid);
     assert!(
         message.contains("strip 0")
-            && message.contains("leaves the 16-bit grid")
-            && message.contains(&format!("at byte {}", block + 2)),
+            && message.contains("anchor 65534 plus 4-bit offsets leaves the 16-bit grid")
+            && message.contains(&format!("at byte {y_at}")),
         "{message}"
     );
     // Offsets this wide make the block run past the end of the last strip's data.
@@ -706,13 +720,13 @@ fn lossless_grid_nodes_need_format_2_4_and_a_well_formed_node_grid() {
 #[test]
 fn grid_strips_have_no_boxes_and_crafted_references_are_rejected() {
     use reducem::format::block_boxes::area_bytes;
-    use reducem::format::quantized::{vertex_part_bytes, AxisWordLayout};
+    use reducem::format::quantized::vertex_part_bytes;
     use reducem::format::references::{packed_bytes, packed_width};
     let bytes = grid_file_bytes("grid-strip-layout-source.rdm");
     let records = section_range(&bytes, SectionKind::StripRecords);
     let data = section_offset(&bytes, SectionKind::StripData);
     let data_len = section_range(&bytes, SectionKind::StripData).1;
-    let layout = AxisWordLayout::Packed { grid_bits: 16 };
+    let layout = GRID_WORDS;
     let leaf_windows = u32::from_le_bytes(bytes[24..28].try_into().unwrap()) as usize;
     let strips: Vec<(usize, usize, usize)> = bytes[records.0..records.0 + records.1]
         .chunks_exact(8)

@@ -334,7 +334,7 @@ impl<'a> StripLayout<'a> {
             Positions::Grid { points, bits, .. } => {
                 let stored: Vec<[u32; 3]> =
                     self.slots.iter().map(|s| points[mesh_vertex(s)]).collect();
-                let layout = quantized::AxisWordLayout::Packed { grid_bits: bits };
+                let layout = quantized::AxisWordLayout::Aligned { grid_bits: bits };
                 quantized::pack(&stored, bits, layout)
             }
         }

@@ -254,6 +254,7 @@ impl Checker<'_> {
                     grid,
                     packed,
                     boxes,
+                    aligned: encoding == VertexEncoding::GridStrips4,
                 };
                 Ok((layout, node_grid))
             }
