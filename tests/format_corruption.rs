@@ -6,8 +6,8 @@ mod common;
 use common::{temp_path, torus};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::decode;
-use reducem::format::reader::{FormatError, ReducemFile};
 use reducem::format::quantized::{anchor_shift, AxisWord, AxisWordLayout};
+use reducem::format::reader::{FormatError, ReducemFile};
 use reducem::format::{Defect, PrecisionRecord, SectionKind, HEADER_PAGE, PRECISION_OFFSET};
 
 fn valid_file_bytes(name: &str) -> Vec<u8> {
@@ -747,7 +747,10 @@ fn grid_strips_have_no_boxes_and_crafted_references_are_rejected() {
     let ends = strips.iter().skip(1).map(|s| s.0).chain([data_len]);
     for (strip, end) in strips.iter().zip(ends) {
         let (before_references, references) = block_parts(strip);
-        assert_eq!(end, strip.0 + (before_references + references).next_multiple_of(4));
+        assert_eq!(
+            end,
+            strip.0 + (before_references + references).next_multiple_of(4)
+        );
     }
     let (strip, &(start, vertices, references)) = strips
         .iter()

@@ -142,7 +142,8 @@ fn older_seeds_trace_as_their_mesh_converted_now() {
         convert_mesh(&octahedron_sphere(levels), &params, &converted).expect("convert");
         let new = ReducemFile::open(&converted).expect("open the file converted now");
         assert_eq!(new.header().version_major, 3, "{name}");
-        let layout = |file: &ReducemFile| (file.header().version_major, file.header().vertex_encoding);
+        let layout =
+            |file: &ReducemFile| (file.header().version_major, file.header().vertex_encoding);
         assert_ne!(layout(&old), layout(&new), "{name}");
         assert!(new.strip_records().iter().any(|r| r.reference_count > 10));
         for kernel in Kernel::supported() {

@@ -558,7 +558,11 @@ mod tests {
     #[test]
     fn aligned_anchors_drop_their_low_bits() {
         let layout = AxisWordLayout::Aligned { grid_bits: 20 };
-        let points = [[4_015, 77, 1_048_570], [4_135, 77, 1_048_575], [4_050, 78, 1_048_000]];
+        let points = [
+            [4_015, 77, 1_048_570],
+            [4_135, 77, 1_048_575],
+            [4_050, 78, 1_048_000],
+        ];
         let mut bytes = pack(&points, 20, layout);
         let axes = words(&bytes, 20, layout);
         // x spans 120 (7 bits) from 4,015, but 4,000 = 250 * 2^4 is 135 below 4,135: 8 bits,
