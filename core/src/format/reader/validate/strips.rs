@@ -89,8 +89,13 @@ impl BlockShape<'_> {
         let count = record.vertex_count as usize;
         let longest = match self.layout {
             VertexLayout::F32 { .. } => self.length(record, nodes, count * F32_VERTEX_BYTES),
-            VertexLayout::Grid { grid, packed, .. } => {
-                let words_layout = VertexLayout::axis_words(&grid, packed);
+            VertexLayout::Grid {
+                grid,
+                packed,
+                aligned,
+                ..
+            } => {
+                let words_layout = VertexLayout::axis_words(&grid, packed, aligned);
                 let widest = [AxisWord {
                     anchor: 0,
                     width: grid.bits,
@@ -116,9 +121,14 @@ impl BlockShape<'_> {
                 let vertex_bytes = record.vertex_count as usize * F32_VERTEX_BYTES;
                 self.length(record, nodes, vertex_bytes)
             }
-            VertexLayout::Grid { grid, packed, .. } => {
-                let words_layout = VertexLayout::axis_words(&grid, packed);
-                self.length(record, nodes, words_layout.bits().div_ceil(8))
+            VertexLayout::Grid {
+                grid,
+                packed,
+                aligned,
+                ..
+            } => {
+                let words_layout = VertexLayout::axis_words(&grid, packed, aligned);
+                self.length(record, nodes, words_layout.min_bits().div_ceil(8))
             }
         };
         let start = record.data_word as u64 * 4;
@@ -185,11 +195,16 @@ impl BlockShape<'_> {
     ) -> Result<CheckedBlock<'a>, StripDefect> {
         let vertex_bytes = match self.layout {
             VertexLayout::F32 { .. } => record.vertex_count as usize * F32_VERTEX_BYTES,
-            VertexLayout::Grid { grid, packed, .. } => {
-                let words_layout = VertexLayout::axis_words(&grid, packed);
+            VertexLayout::Grid {
+                grid,
+                packed,
+                aligned,
+                ..
+            } => {
+                let words_layout = VertexLayout::axis_words(&grid, packed, aligned);
                 let words = words_layout.read(available);
                 for (axis, word) in words.iter().enumerate() {
-                    let at = (axis * words_layout.bits() / 3 / 8) as u64;
+                    let at = (words_layout.word_start(&words, axis) / 8) as u64;
                     word.check(grid.bits)
                         .map_err(|detail| (Some(start + at), Defect::OutOfRange, detail))?;
                 }
