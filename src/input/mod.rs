@@ -18,7 +18,9 @@ mod obj_survey;
 mod ply;
 mod source;
 mod stl;
+mod stl_stream;
 mod stream;
+mod temporary;
 mod tolerance_weld;
 mod weld;
 
