@@ -122,6 +122,16 @@ pub fn supported_formats() -> String {
     )
 }
 
+/// The formats' names as a list for help texts: "PLY, glTF 2.0 / GLB, STL or OBJ".
+pub fn format_names() -> String {
+    let names: Vec<&str> = FORMATS.iter().map(|format| format.name()).collect();
+    match names.split_last() {
+        Some((last, [])) => last.to_string(),
+        Some((last, others)) => format!("{} or {last}", others.join(", ")),
+        None => String::new(),
+    }
+}
+
 /// Reads the mesh at `path`, whatever its format and compression.
 pub fn read_mesh_with(path: &Path, request: AttributeRequest) -> Result<Mesh, InputError> {
     let detected = detect(path)?;
