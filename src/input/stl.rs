@@ -1,4 +1,5 @@
-//! STL, binary and ASCII, read through a buffer and welded as it is read.
+//! STL, binary and ASCII, read through a buffer and welded as it is read (the chunker's
+//! bounded-memory weld of the same mesh is [`super::stl_stream`]).
 //!
 //! STL repeats every corner in every facet; a map from position bits to vertex welds
 //! bit-identical positions (so `-0.0` and `0.0` stay apart, as in [`super::weld`]) in order of

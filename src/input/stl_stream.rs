@@ -4,7 +4,7 @@
 //! positions (by bits) numbered in order of their first corner. Three passes over the facets
 //! find those ids without holding the model:
 //!
-//! 1. The facets are cut into windows. Within a window a hash set finds the positions seen
+//! 1. The facets are cut into windows. Within a window a hash map finds the positions seen
 //!    there first, and each of those is spilled, with its corner number, to one of several
 //!    bucket files chosen by a hash of the position, so that every occurrence of a position
 //!    lands in the same bucket, in corner order.
@@ -12,10 +12,10 @@
 //!    position's first corner in the whole file. It is marked in a bit set over all corners
 //!    (1 bit a corner), and every record's answer (that first corner) is written back in the
 //!    bucket's order.
-//! 3. The windows are read again with the same hash set; a position new to the window takes
-//!    the next answer of its bucket, and its id is the number of first corners before that
-//!    answer (a rank in the bit set). A corner that is its own answer brings a new vertex,
-//!    in id order.
+//! 3. The windows are read again with the same hash map, now to vertex ids; a position new to
+//!    the window takes the next answer of its bucket, and its id is the number of first
+//!    corners before that answer (a rank in the bit set). A corner that is its own answer
+//!    brings a new vertex, in id order.
 //!
 //! Pass 3 writes the welded mesh as a binary PLY in the temporary directory, which is then read
 //! like any binary PLY (windows of `window_bytes`). An ASCII STL is first rewritten as a binary
@@ -40,8 +40,8 @@ use crate::geometry::Point;
 
 type PositionBuild = BuildHasherDefault<PositionHasher>;
 
-/// Bytes a corner costs in a window's hash set (its 12 position bytes, the set's control byte
-/// and its spare capacity).
+/// Bytes a corner costs in a window's hash map (its 16-byte entry, the map's control byte and
+/// its spare capacity).
 const WINDOW_BYTES_PER_CORNER: usize = 32;
 /// Bytes a spilled record costs while its bucket is sorted: the record (position and corner),
 /// its sort key and its answer.
