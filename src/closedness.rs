@@ -54,14 +54,17 @@ pub fn count_chunk_edges(
     let mut uses = EdgeUses::of(mesh, &first_vertex_of_position(mesh));
     let mut counts = Closedness::default();
     let mut border = Vec::new();
-    for (low, bucket) in uses.buckets_mut() {
+    for (low, bucket) in uses.buckets_mut().filter(|(_, bucket)| !bucket.is_empty()) {
         // A bucket holds about a vertex's valence of uses.
         bucket.sort_unstable();
+        let low = key(low);
+        // Asked once a vertex: most positions are not shared, and then none of their edges is.
+        let low_shared = shared(&low);
         for group in bucket.chunk_by(|a, b| a >> 1 == b >> 1) {
             let forward = group.iter().filter(|&&u| u & 1 == 1).count() as u32;
             let backward = group.len() as u32 - forward;
-            let (low, high) = (key(low), key((group[0] >> 1) as u32));
-            match shared(&low) && shared(&high) {
+            let high = key((group[0] >> 1) as u32);
+            match low_shared && shared(&high) {
                 true if low < high => border.push(BorderEdge {
                     first: low,
                     second: high,
