@@ -3,13 +3,12 @@
 # 100k camera-like and 100k AO-like rays on one model, per kernel: a repeatable comparison of two
 # versions of the tracer on a busy machine, where wall-clock times are not.
 #
-#   scripts/compare_instructions.sh OLD/reducem NEW/reducem MODEL.ply MODEL.rdm [NEW_MODEL.rdm]
+#   scripts/compare_instructions.sh OLD/reducem NEW/reducem MODEL.ply MODEL.rdm
 #
-# MODEL.ply is the mesh MODEL.rdm was converted from (its vertices place the rays). NEW_MODEL.rdm,
-# when given, is what the new binary answers on (the same mesh converted by it, e.g. in a newer
-# format). The answers of both binaries are compared byte for byte.
+# MODEL.ply is the mesh MODEL.rdm was converted from (its vertices place the rays). The answers
+# of both binaries are compared byte for byte.
 set -euo pipefail
-old=$1 new=$2 ply=$3 model=$4 new_model=${5:-$4}
+old=$1 new=$2 ply=$3 model=$4
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
 python3 - "$ply" "$dir/camera.rays" "$dir/ao.rays" <<'PY'
@@ -45,8 +44,8 @@ with open(ao_path, "wb") as out:
                               1e-4 * diagonal, 0.05 * diagonal))
 PY
 instructions() {
-    local binary=$1 model=$2 kernel=$3 rays=$4 answers=$5
-    shift 5
+    local binary=$1 kernel=$2 rays=$3 answers=$4
+    shift 4
     REDUCEM_KERNEL=$kernel RAYON_NUM_THREADS=1 valgrind --tool=callgrind \
         --callgrind-out-file=/dev/null "$binary" query "$model" --rays "$dir/$rays.rays" \
         -o "$answers" "$@" 2>&1 | sed -n 's/.*Collected : \([0-9]*\).*/\1/p'
@@ -56,8 +55,8 @@ for kernel in avx2 sse2; do
     for rays in camera ao; do
         flag=()
         [[ $rays == ao ]] && flag=(--occluded)
-        a=$(instructions "$old" "$model" "$kernel" "$rays" "$dir/old.out" "${flag[@]}")
-        b=$(instructions "$new" "$new_model" "$kernel" "$rays" "$dir/new.out" "${flag[@]}")
+        a=$(instructions "$old" "$kernel" "$rays" "$dir/old.out" "${flag[@]}")
+        b=$(instructions "$new" "$kernel" "$rays" "$dir/new.out" "${flag[@]}")
         cmp -s "$dir/old.out" "$dir/new.out" || { echo "answers differ ($kernel, $rays)" >&2; exit 1; }
         awk -v k="$kernel" -v r="$rays" -v a="$a" -v b="$b" \
             'BEGIN { printf "%s %s %d %d %+.1f%%\n", k, r, a, b, 100 * (b - a) / a }'

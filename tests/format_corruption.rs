@@ -6,7 +6,6 @@ mod common;
 use common::{temp_path, torus};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::decode;
-use reducem::format::quantized::{anchor_shift, AxisWord, AxisWordLayout};
 use reducem::format::reader::{FormatError, ReducemFile};
 use reducem::format::{Defect, PrecisionRecord, SectionKind, HEADER_PAGE, PRECISION_OFFSET};
 
@@ -476,27 +475,15 @@ fn crafted_grid_headers_are_rejected_naming_the_byte() {
     );
 }
 
-/// The axis words of a 16-bit grid file's strips (`vertex_encoding` 5).
-const GRID_WORDS: AxisWordLayout = AxisWordLayout::Aligned { grid_bits: 16 };
-
-/// `bytes` with the axis word of `axis` of the block at `block` set to `(anchor, width)`:
-/// 5 width bits, then the anchor's 16 bits but the low `anchor_shift(width)`, the words after it
-/// and the offsets moved to follow.
-fn with_axis_word(bytes: &[u8], block: usize, axis: usize, anchor: u32, width: u32) -> Vec<u8> {
+/// `bytes` with the packed axis word of `axis` (16 anchor bits and 5 width bits per axis on a
+/// 16-bit grid) of the block at `block` set to `(anchor, width)`.
+fn with_axis_word(bytes: &[u8], block: usize, axis: u32, anchor: u32, width: u32) -> Vec<u8> {
     let mut edited = bytes.to_vec();
     let head = &mut edited[block..block + 16];
-    let mut words = GRID_WORDS.read(head);
-    let offsets = u128::from_le_bytes(head.try_into().unwrap()) >> GRID_WORDS.bits(&words);
-    words[axis] = AxisWord { anchor, width };
-    let mut stream = 0u128;
-    let mut bit = 0;
-    for word in words {
-        let shift = anchor_shift(word.width).min(16);
-        let high_bits = (word.anchor >> shift) & ((1 << (16 - shift)) - 1);
-        stream |= (word.width as u128 | (high_bits as u128) << 5) << bit;
-        bit += 5 + 16 - shift as usize;
-    }
-    head.copy_from_slice(&(stream | offsets << bit).to_le_bytes());
+    let mut stream = u128::from_le_bytes(head.try_into().unwrap());
+    stream &= !(((1u128 << 21) - 1) << (21 * axis));
+    stream |= ((anchor | width << 16) as u128) << (21 * axis);
+    head.copy_from_slice(&stream.to_le_bytes());
     edited
 }
 
@@ -513,14 +500,13 @@ fn crafted_grid_blocks_are_rejected_naming_strip_and_byte() {
             && message.contains(&format!("at byte {block}")),
         "{message}"
     );
-    // The y word starts after x's, in the block's third byte or earlier.
+    // The y word starts at bit 21, in the block's third byte.
     let off_grid = with_axis_word(&bytes, block, 1, 65_535, 4);
-    let y_at = block + GRID_WORDS.word_start(&GRID_WORDS.read(&off_grid[block..]), 1) / 8;
     let message = open_error("off-grid.rdm", &off_grid);
     assert!(
         message.contains("strip 0")
-            && message.contains("anchor 65534 plus 4-bit offsets leaves the 16-bit grid")
-            && message.contains(&format!("at byte {y_at}")),
+            && message.contains("leaves the 16-bit grid")
+            && message.contains(&format!("at byte {}", block + 2)),
         "{message}"
     );
     // Offsets this wide make the block run past the end of the last strip's data.
@@ -626,23 +612,15 @@ fn crafted_grid_nodes_are_rejected_naming_node_and_byte() {
     );
 }
 
-/// Older readers reject the grid strips of format 4 through `vertex_encoding` 5 (unknown to
-/// them); this reader rejects that encoding in a file claiming format 2, packed references
-/// (encoding 3) in a file claiming 2.2, the unpacked grid encodings 1 and 2 in a 3.0 file, and
-/// a node shift on an encoding without grid nodes.
+/// A 2.2 reader rejects packed references through `vertex_encoding` 3 (unknown to it); this
+/// reader rejects that encoding in a file claiming 2.2, the unpacked grid encodings 1 and 2 in
+/// a 3.0 file, and a node shift on an encoding without grid nodes.
 #[test]
 fn grid_encodings_need_their_format_minor_and_a_finite_node_grid() {
     let bytes = grid_file_bytes("grid-nodes-version-source.rdm");
     assert_eq!(&bytes[8..12], &[3, 0, 1, 0]);
-    assert_eq!(&bytes[20..24], &5u32.to_le_bytes());
-    let message = open_error("grid-strips-2.5.rdm", &claiming_version(&bytes, 2, 5));
-    assert!(
-        message.contains("at byte 20") && message.contains("not part of format 2"),
-        "{message}"
-    );
-    let mut packed = bytes.clone();
-    packed[20..24].copy_from_slice(&3u32.to_le_bytes());
-    let message = open_error("grid-nodes-2.2.rdm", &claiming_version(&packed, 2, 2));
+    assert_eq!(&bytes[20..24], &3u32.to_le_bytes());
+    let message = open_error("grid-nodes-2.2.rdm", &claiming_version(&bytes, 2, 2));
     assert!(
         message.contains("at byte 20") && message.contains("needs format 2.3"),
         "{message}"
@@ -711,61 +689,4 @@ fn lossless_grid_nodes_need_format_2_4_and_a_well_formed_node_grid() {
             "{name}: {message}"
         );
     }
-}
-
-/// Grid strips (`vertex_encoding` 5) end at their references: each block is its vertex part,
-/// split axes and packed references, padded to 4 bytes, with no block boxes even where a
-/// lossless strip of as many windows has them; a reference past the strip's vertices is
-/// rejected naming the strip and its byte.
-#[test]
-fn grid_strips_have_no_boxes_and_crafted_references_are_rejected() {
-    use reducem::format::block_boxes::area_bytes;
-    use reducem::format::quantized::vertex_part_bytes;
-    use reducem::format::references::{packed_bytes, packed_width};
-    let bytes = grid_file_bytes("grid-strip-layout-source.rdm");
-    let records = section_range(&bytes, SectionKind::StripRecords);
-    let data = section_offset(&bytes, SectionKind::StripData);
-    let data_len = section_range(&bytes, SectionKind::StripData).1;
-    let layout = GRID_WORDS;
-    let leaf_windows = u32::from_le_bytes(bytes[24..28].try_into().unwrap()) as usize;
-    let strips: Vec<(usize, usize, usize)> = bytes[records.0..records.0 + records.1]
-        .chunks_exact(8)
-        .map(|r| {
-            let field = |o: usize| u16::from_le_bytes([r[o], r[o + 1]]) as usize;
-            let word = u32::from_le_bytes(r[..4].try_into().unwrap()) as usize;
-            (4 * word, field(4), field(6))
-        })
-        .collect();
-    assert!(strips.iter().any(|&(_, _, refs)| area_bytes(refs - 2) > 0));
-    let block_parts = |&(start, vertices, references): &(usize, usize, usize)| {
-        let axes = layout.read(&bytes[data + start..]);
-        let nodes = reducem::format::implicit_tree::internal_nodes(references - 2, leaf_windows);
-        let before_references =
-            vertex_part_bytes(vertices, &axes, layout) + reducem::format::axis_bytes(nodes);
-        (before_references, packed_bytes(references, vertices))
-    };
-    let ends = strips.iter().skip(1).map(|s| s.0).chain([data_len]);
-    for (strip, end) in strips.iter().zip(ends) {
-        let (before_references, references) = block_parts(strip);
-        assert_eq!(
-            end,
-            strip.0 + (before_references + references).next_multiple_of(4)
-        );
-    }
-    let (strip, &(start, vertices, references)) = strips
-        .iter()
-        .enumerate()
-        .find(|(_, s)| !s.1.is_power_of_two() && s.2 > 10)
-        .expect("a long strip");
-    let first_reference = data + start + block_parts(&(start, vertices, references)).0;
-    let width = packed_width(vertices);
-    let mut crafted = bytes.clone();
-    crafted[first_reference] |= (1 << width) - 1;
-    let message = open_error("grid-reference.rdm", &crafted);
-    assert!(
-        message.contains(&format!("strip {strip}"))
-            && message.contains(&format!("reference 0 is {} out of range", (1 << width) - 1))
-            && message.contains(&format!("at byte {first_reference}")),
-        "{message}"
-    );
 }

@@ -46,11 +46,9 @@ fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usiz
     let layout = VertexLayout::Grid {
         grid,
         packed: true,
-        boxes: false,
-        aligned: true,
+        boxes: true,
     };
     assert_eq!(file.vertex_layout(), &layout);
-    assert_eq!(file.header().vertex_encoding, 5, "format 4 grid strips");
     let expected = expected_triangles(&quantized);
     assert_eq!(
         canonical_sorted(decode::triangles(&file)),
@@ -385,7 +383,6 @@ fn format_2_2_grid_files_with_byte_references_read_the_same() {
             grid: old.precision().grid(),
             packed: false,
             boxes: false,
-            aligned: false,
         }
     );
     assert_eq!(

@@ -2,8 +2,8 @@
 //! by hand (ReduceM files, ray files, binary PLY in both byte orders). The text seeds (ASCII
 //! PLY, OBJ) are written by hand in `fuzz/corpus/`. Regenerate after a format change with
 //! `cargo run -p reducem-fuzz --release -- seed fuzz/corpus`; the seeds of older formats
-//! (`reducem/*-format-2.x.rdm` and `grid-format-3.0.rdm`, written by the writers of those
-//! versions) are kept by hand, so that the reader of every version this one reads stays fuzzed.
+//! (`reducem/*-format-2.x.rdm`, written by the writers of those versions) are kept by hand, so
+//! that the reader of every version this one reads stays fuzzed.
 
 use std::path::Path;
 

@@ -68,7 +68,7 @@ impl FileInfo {
 
     fn vertex_encoding(&self) -> io::Result<VertexEncoding> {
         Ok(match (self.grid, self.node_grid()?) {
-            (Some(_), _) => VertexEncoding::GridStrips4,
+            (Some(_), _) => VertexEncoding::GridPackedReferences,
             (None, Some(_)) => VertexEncoding::F32GridNodes,
             (None, None) => VertexEncoding::F32,
         })

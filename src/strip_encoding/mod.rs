@@ -26,8 +26,7 @@
 //! vertex count needs ([`crate::format::references`]).
 //!
 //! Format 3.0 packs the references of lossless strips too and appends the strip's block boxes
-//! ([`crate::format::block_boxes`]); see there for what they cost and gain. Grid strips
-//! (`vertex_encoding` 5) have none: there the boxes cost more bytes than they save time.
+//! ([`crate::format::block_boxes`]); see there for what they cost and gain.
 
 pub(crate) mod attributes;
 mod block_boxes;
@@ -334,7 +333,7 @@ impl<'a> StripLayout<'a> {
             Positions::Grid { points, bits, .. } => {
                 let stored: Vec<[u32; 3]> =
                     self.slots.iter().map(|s| points[mesh_vertex(s)]).collect();
-                let layout = quantized::AxisWordLayout::Aligned { grid_bits: bits };
+                let layout = quantized::AxisWordLayout::Packed { grid_bits: bits };
                 quantized::pack(&stored, bits, layout)
             }
         }
@@ -350,10 +349,8 @@ impl<'a> StripLayout<'a> {
             .map(|&v| self.home[v as usize].unwrap_or_default() as u8)
             .collect();
         block.extend(pack(&references, self.slots.len()));
-        if let Positions::F32(_) = self.positions {
-            let positions: Vec<Point> = self.local.iter().map(|&v| *self.point(v)).collect();
-            block.extend(block_boxes::encode(&positions, *self.point(self.slots[0])));
-        }
+        let positions: Vec<Point> = self.local.iter().map(|&v| *self.point(v)).collect();
+        block.extend(block_boxes::encode(&positions, *self.point(self.slots[0])));
         block.resize(align_up(block.len() as u64, 4) as usize, 0);
         EncodedStrip {
             vertex_sources: self

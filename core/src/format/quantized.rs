@@ -10,8 +10,7 @@
 //! `[h + i s, h + i s + wx)`, then y, then z (`s = wx + wy + wz`, `h` the axis words' bits).
 //! The axis words are stored as laid out by [`AxisWordLayout`]: since format 2.3 packed at the
 //! grid's bits (`h = 3 (grid_bits + 5)`, 75 bits at 20 bits instead of 96), before as three
-//! u32 words with the anchor in bits 0..24 and the width in bits 24..29; in format 4 strips
-//! (`vertex_encoding` 5) with anchors aligned to their width ([`AxisWordLayout::Aligned`]).
+//! u32 words with the anchor in bits 0..24 and the width in bits 24..29.
 //!
 //! A vertex's grid coordinate on an axis is `a + offset`. Writers keep `a + 2^w - 1` inside the
 //! grid (`< 2^bits`), so a reader checks three words, not every vertex, to know that every grid
@@ -37,51 +36,14 @@ pub enum AxisWordLayout {
     /// Per axis `grid_bits` anchor bits then 5 width bits, the offsets following in the same bit
     /// stream (format 2.3).
     Packed { grid_bits: u32 },
-    /// Per axis 5 width bits `w`, then the anchor without its low [`anchor_shift`]`(w)` bits,
-    /// which are zero (format 4 strips). A strip spans a few vertices of the grid, whose low
-    /// anchor bits are noise: aligning the anchor costs an offset bit on few strips and saves
-    /// about `w - 3` anchor bits on every axis.
-    Aligned { grid_bits: u32 },
-}
-
-/// Offset bits an aligned anchor leaves free: it is a multiple of `2^(w - ALIGNED_ANCHOR_SLACK)`.
-/// The slack that saves the most bytes on the scans (`docs/BENCHMARKS.md`, *Grid files, format
-/// 4 strips*): less costs offset bits on more strips, more stores more anchor bits.
-pub const ALIGNED_ANCHOR_SLACK: u32 = 3;
-
-/// The low bits an aligned anchor of offset width `width` leaves out (and are zero).
-#[inline(always)]
-pub fn anchor_shift(width: u32) -> u32 {
-    width.saturating_sub(ALIGNED_ANCHOR_SLACK)
 }
 
 impl AxisWordLayout {
-    /// Bits of the three axis words `axes`, where vertex 0's offsets start.
-    pub fn bits(self, axes: &[AxisWord; 3]) -> usize {
-        axes.iter().map(|axis| self.word_bits(axis.width)).sum()
-    }
-
-    /// The fewest bits three axis words take: every block is at least this long.
-    pub fn min_bits(self) -> usize {
+    /// Bits of the three axis words, where vertex 0's offsets start.
+    pub fn bits(self) -> usize {
         match self {
-            AxisWordLayout::Aligned { grid_bits } => 3 * self.word_bits(grid_bits),
-            _ => 3 * self.word_bits(0),
-        }
-    }
-
-    /// The bit at which the word of `axis` starts.
-    pub fn word_start(self, axes: &[AxisWord; 3], axis: usize) -> usize {
-        axes[..axis].iter().map(|a| self.word_bits(a.width)).sum()
-    }
-
-    /// Bits of one axis word of offset width `width`.
-    fn word_bits(self, width: u32) -> usize {
-        match self {
-            AxisWordLayout::Words => 32,
-            AxisWordLayout::Packed { grid_bits } => (grid_bits + WIDTH_BITS) as usize,
-            AxisWordLayout::Aligned { grid_bits } => {
-                (WIDTH_BITS + grid_bits - anchor_shift(width).min(grid_bits)) as usize
-            }
+            AxisWordLayout::Words => 96,
+            AxisWordLayout::Packed { grid_bits } => 3 * (grid_bits + WIDTH_BITS) as usize,
         }
     }
 
@@ -104,20 +66,6 @@ impl AxisWordLayout {
                     width: (word >> grid_bits) & ((1 << WIDTH_BITS) - 1),
                 }
             }),
-            AxisWordLayout::Aligned { grid_bits } => {
-                let mut bit = 0;
-                [0, 1, 2].map(|_| {
-                    let width = (stream >> bit) as u32 & mask(WIDTH_BITS);
-                    // A crafted width above the grid's bits reads some anchor; the word's check
-                    // rejects it.
-                    let shift = anchor_shift(width).min(grid_bits);
-                    let anchor = ((stream >> (bit + WIDTH_BITS as usize)) as u32
-                        & mask(grid_bits - shift))
-                        << shift;
-                    bit += self.word_bits(width);
-                    AxisWord { anchor, width }
-                })
-            }
         }
     }
 }
@@ -175,28 +123,7 @@ pub fn vertex_bits(axes: &[AxisWord; 3]) -> usize {
 
 /// Bytes of the axis words and offsets of `count` vertices.
 pub fn vertex_part_bytes(count: usize, axes: &[AxisWord; 3], layout: AxisWordLayout) -> usize {
-    (layout.bits(axes) + count * vertex_bits(axes)).div_ceil(8)
-}
-
-/// The axis word of coordinates `min ..= max` on a grid of `grid_bits` bits: the narrowest
-/// offsets from an anchor at or below `min` that the layout can store.
-fn axis_word(min: u32, max: u32, grid_bits: u32, layout: AxisWordLayout) -> AxisWord {
-    let mut width = u32::BITS - (max - min).leading_zeros();
-    loop {
-        let shift = match layout {
-            AxisWordLayout::Aligned { .. } => anchor_shift(width),
-            _ => 0,
-        };
-        // Lowered when the offsets' full range would pass the grid's last coordinate (still a
-        // multiple of 2^shift, as 2^bits and 2^width are); the offsets still fit, since
-        // max < 2^bits.
-        let anchor = (min >> shift << shift).min((1u32 << grid_bits) - (1u32 << width));
-        // At one more bit than the extent needs the aligned anchor is close enough: this ends.
-        if max - anchor <= mask(width) {
-            return AxisWord { anchor, width };
-        }
-        width += 1;
-    }
+    (layout.bits() + count * vertex_bits(axes)).div_ceil(8)
 }
 
 /// The axis words and packed offsets of `points` on a grid of `grid_bits` bits.
@@ -204,7 +131,11 @@ pub fn pack(points: &[[u32; 3]], grid_bits: u32, layout: AxisWordLayout) -> Vec<
     let axes: [AxisWord; 3] = std::array::from_fn(|a| {
         let min = points.iter().map(|p| p[a]).min().unwrap_or(0);
         let max = points.iter().map(|p| p[a]).max().unwrap_or(0);
-        axis_word(min, max, grid_bits, layout)
+        let width = u32::BITS - (max - min).leading_zeros();
+        // Lowered when the offsets' full range would pass the grid's last coordinate; the
+        // offsets still fit, since max < 2^bits.
+        let anchor = min.min((1u32 << grid_bits) - (1u32 << width));
+        AxisWord { anchor, width }
     });
     let mut writer = BitWriter {
         bytes: Vec::with_capacity(vertex_part_bytes(points.len(), &axes, layout)),
@@ -217,11 +148,6 @@ pub fn pack(points: &[[u32; 3]], grid_bits: u32, layout: AxisWordLayout) -> Vec<
             AxisWordLayout::Packed { grid_bits } => {
                 writer.push(axis.anchor, grid_bits);
                 writer.push(axis.width, WIDTH_BITS);
-            }
-            AxisWordLayout::Aligned { grid_bits } => {
-                let shift = anchor_shift(axis.width);
-                writer.push(axis.width, WIDTH_BITS);
-                writer.push(axis.anchor >> shift, grid_bits - shift);
             }
         }
     }
@@ -311,7 +237,7 @@ impl<'a> GridVertices<'a> {
         }
         GridVertices {
             bytes,
-            base_bit: layout.bits(axes) as u32,
+            base_bit: layout.bits() as u32,
             anchor: [axes[0].anchor, axes[1].anchor, axes[2].anchor],
             mask: [
                 mask(axes[0].width),
@@ -451,11 +377,10 @@ mod tests {
     use super::*;
     use crate::geometry::Aabb;
 
-    fn layouts(bits: u32) -> [AxisWordLayout; 3] {
+    fn layouts(bits: u32) -> [AxisWordLayout; 2] {
         [
             AxisWordLayout::Words,
             AxisWordLayout::Packed { grid_bits: bits },
-            AxisWordLayout::Aligned { grid_bits: bits },
         ]
     }
 
@@ -496,15 +421,7 @@ mod tests {
         for layout in layouts(20) {
             let mut bytes = pack(&points, 20, layout);
             let axes = words(&bytes, 20, layout);
-            for (axis, extent_width) in axes.iter().zip([12, 0, 9]) {
-                match layout {
-                    AxisWordLayout::Aligned { .. } => {
-                        assert!((extent_width..=extent_width + 1).contains(&axis.width));
-                        assert_eq!(axis.anchor % (1 << anchor_shift(axis.width)), 0);
-                    }
-                    _ => assert_eq!(axis.width, extent_width),
-                }
-            }
+            assert_eq!(axes.map(|a| a.width), [12, 0, 9]);
             assert_eq!(axes[1].anchor, 77);
             assert_eq!(bytes.len(), vertex_part_bytes(points.len(), &axes, layout));
             bytes.extend([0; 3]);
@@ -550,33 +467,6 @@ mod tests {
             bytes.extend([0; 3]);
             let vertices = decoder(&bytes, 2, &unit_grid(10), layout);
             assert_eq!(vertices.grid_point(1), points[1]);
-        }
-    }
-
-    /// Aligned anchors are multiples of 2^(width - 3) and cost at most one offset bit; their
-    /// words take 5 bits and the anchor's high bits.
-    #[test]
-    fn aligned_anchors_drop_their_low_bits() {
-        let layout = AxisWordLayout::Aligned { grid_bits: 20 };
-        let points = [
-            [4_015, 77, 1_048_570],
-            [4_135, 77, 1_048_575],
-            [4_050, 78, 1_048_000],
-        ];
-        let mut bytes = pack(&points, 20, layout);
-        let axes = words(&bytes, 20, layout);
-        // x spans 120 (7 bits) from 4,015, but 4,000 = 250 * 2^4 is 135 below 4,135: 8 bits,
-        // from 4,000 = 125 * 2^5; y is 1 bit wide from 77; z spans 575 (10 bits) from
-        // 1,047,936 = 8,187 * 2^7, lowered to 2^20 - 2^10 to end inside the grid.
-        let expected = [(4_000, 8), (77, 1), (1_047_552, 10)];
-        assert_eq!(axes.map(|a| (a.anchor, a.width)), expected);
-        assert_eq!(layout.bits(&axes), (5 + 15) + (5 + 20) + (5 + 13));
-        assert_eq!(layout.word_start(&axes, 2), 45);
-        assert_eq!(bytes.len(), vertex_part_bytes(points.len(), &axes, layout));
-        bytes.extend([0; 3]);
-        let vertices = decoder(&bytes, points.len(), &unit_grid(20), layout);
-        for (i, p) in points.iter().enumerate() {
-            assert_eq!(vertices.grid_point(i), *p);
         }
     }
 

@@ -149,28 +149,23 @@ pub enum VertexLayout {
     F32 { boxes: bool },
     /// Grid vertices. `packed` since format 2.3: axis words at the grid's bits
     /// ([`AxisWordLayout::Packed`]) and references at the strip's ([`super::references`]);
-    /// before, u32 axis words and one byte per reference. `boxes` in format 3 files of
-    /// `vertex_encoding` 3 only (always with `packed`). `aligned` in format 4 strips
-    /// (`vertex_encoding` 5, with `packed`): axis words with aligned anchors
-    /// ([`AxisWordLayout::Aligned`]).
+    /// before, u32 axis words and one byte per reference. `boxes` since format 3.0 (always
+    /// with `packed`).
     Grid {
         grid: Grid,
         packed: bool,
         boxes: bool,
-        aligned: bool,
     },
 }
 
 impl From<Option<Grid>> for VertexLayout {
-    /// The layout the writer gives vertices on `grid` (or f32 ones without): format 3 boxes
-    /// for f32 vertices, none for grid ones (`vertex_encoding` 5).
+    /// The layout the writer gives vertices on `grid` (or f32 ones without): format 3.
     fn from(grid: Option<Grid>) -> VertexLayout {
         grid.map_or(VertexLayout::F32 { boxes: true }, |grid| {
             VertexLayout::Grid {
                 grid,
                 packed: true,
-                boxes: false,
-                aligned: true,
+                boxes: true,
             }
         })
     }
@@ -178,12 +173,12 @@ impl From<Option<Grid>> for VertexLayout {
 
 impl VertexLayout {
     /// How the axis words of a grid block are stored.
-    fn axis_words(grid: &Grid, packed: bool, aligned: bool) -> AxisWordLayout {
-        let grid_bits = grid.bits;
-        match (packed, aligned) {
-            (true, true) => AxisWordLayout::Aligned { grid_bits },
-            (true, false) => AxisWordLayout::Packed { grid_bits },
-            (false, _) => AxisWordLayout::Words,
+    fn axis_words(grid: &Grid, packed: bool) -> AxisWordLayout {
+        match packed {
+            true => AxisWordLayout::Packed {
+                grid_bits: grid.bits,
+            },
+            false => AxisWordLayout::Words,
         }
     }
 
@@ -652,16 +647,14 @@ fn try_view_block<'a>(
             grid,
             packed,
             boxes,
-            aligned,
         } => {
-            let words_layout = VertexLayout::axis_words(&grid, packed, aligned);
+            let words_layout = VertexLayout::axis_words(&grid, packed);
             let words = words_layout.read(block);
             let vertex_bytes = vertex_part_bytes(count, &words, words_layout);
             let layout = VertexLayout::Grid {
                 grid,
                 packed,
                 boxes,
-                aligned,
             };
             let parts = BlockParts::new(record, parts, &layout);
             let block = block.get(..vertex_bytes + parts.bytes())?;

@@ -25,11 +25,6 @@ pub enum VertexEncoding {
     /// geometry, so rounding them outward loses nothing; decoding them costs speed, so writers
     /// write this encoding on request only. Since format 2.4.
     F32GridNodes = 4,
-    /// Grid vertices and references as [`VertexEncoding::GridPackedReferences`], strips without
-    /// block boxes: on grid files the boxes cost more bytes than their culling saves time (see
-    /// `docs/BENCHMARKS.md`, *Grid files, format 4 strips*). What format 3.1 and later writers
-    /// write for grid vertices; older readers reject the value.
-    GridStrips4 = 5,
 }
 
 impl VertexEncoding {
@@ -40,7 +35,6 @@ impl VertexEncoding {
             2 => Some(VertexEncoding::GridNodes),
             3 => Some(VertexEncoding::GridPackedReferences),
             4 => Some(VertexEncoding::F32GridNodes),
-            5 => Some(VertexEncoding::GridStrips4),
             _ => None,
         }
     }
@@ -61,24 +55,17 @@ impl VertexEncoding {
             VertexEncoding::GridNodes
                 | VertexEncoding::GridPackedReferences
                 | VertexEncoding::F32GridNodes
-                | VertexEncoding::GridStrips4
         )
     }
 
-    /// Whether strips of a format 3 file carry block boxes ([`super::block_boxes`]).
-    pub fn has_block_boxes(self) -> bool {
-        self != VertexEncoding::GridStrips4
-    }
-
-    /// The first format 2 minor with this encoding; `None` for one format 2 does not have.
-    pub fn minor(self) -> Option<u16> {
+    /// The first format minor with this encoding.
+    pub fn minor(self) -> u16 {
         match self {
-            VertexEncoding::F32 => Some(0),
-            VertexEncoding::Grid => Some(1),
-            VertexEncoding::GridNodes => Some(2),
-            VertexEncoding::GridPackedReferences => Some(3),
-            VertexEncoding::F32GridNodes => Some(4),
-            VertexEncoding::GridStrips4 => None,
+            VertexEncoding::F32 => 0,
+            VertexEncoding::Grid => 1,
+            VertexEncoding::GridNodes => 2,
+            VertexEncoding::GridPackedReferences => 3,
+            VertexEncoding::F32GridNodes => 4,
         }
     }
 }

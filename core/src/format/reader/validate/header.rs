@@ -141,18 +141,12 @@ impl Checker<'_> {
                 format!("unknown vertex encoding {}", header.vertex_encoding),
             ));
         };
-        let first_minor = encoding.minor();
-        if header.version_major == 2 && first_minor.is_none_or(|m| header.version_minor < m) {
-            let detail = match first_minor {
-                Some(minor) => format!(
-                    "vertex encoding {} needs format 2.{minor} or later",
-                    header.vertex_encoding
-                ),
-                None => format!(
-                    "vertex encoding {} is not part of format 2",
-                    header.vertex_encoding
-                ),
-            };
+        if header.version_major == 2 && header.version_minor < encoding.minor() {
+            let detail = format!(
+                "vertex encoding {} needs format 2.{} or later",
+                header.vertex_encoding,
+                encoding.minor()
+            );
             return Err(self.invalid(
                 FilePart::Header,
                 offset_of!(Header, vertex_encoding) as u64,
@@ -160,7 +154,7 @@ impl Checker<'_> {
                 detail,
             ));
         }
-        let boxes = header.has_block_boxes() && encoding.has_block_boxes();
+        let boxes = header.has_block_boxes();
         if boxes && matches!(encoding, VertexEncoding::Grid | VertexEncoding::GridNodes) {
             let detail = format!(
                 "vertex encoding {} (unpacked grid blocks) is not part of format 3",
@@ -246,15 +240,11 @@ impl Checker<'_> {
                 } else {
                     None
                 };
-                let packed = matches!(
-                    encoding,
-                    VertexEncoding::GridPackedReferences | VertexEncoding::GridStrips4
-                );
+                let packed = encoding == VertexEncoding::GridPackedReferences;
                 let layout = VertexLayout::Grid {
                     grid,
                     packed,
                     boxes,
-                    aligned: encoding == VertexEncoding::GridStrips4,
                 };
                 Ok((layout, node_grid))
             }

@@ -89,13 +89,8 @@ impl BlockShape<'_> {
         let count = record.vertex_count as usize;
         let longest = match self.layout {
             VertexLayout::F32 { .. } => self.length(record, nodes, count * F32_VERTEX_BYTES),
-            VertexLayout::Grid {
-                grid,
-                packed,
-                aligned,
-                ..
-            } => {
-                let words_layout = VertexLayout::axis_words(&grid, packed, aligned);
+            VertexLayout::Grid { grid, packed, .. } => {
+                let words_layout = VertexLayout::axis_words(&grid, packed);
                 let widest = [AxisWord {
                     anchor: 0,
                     width: grid.bits,
@@ -121,14 +116,9 @@ impl BlockShape<'_> {
                 let vertex_bytes = record.vertex_count as usize * F32_VERTEX_BYTES;
                 self.length(record, nodes, vertex_bytes)
             }
-            VertexLayout::Grid {
-                grid,
-                packed,
-                aligned,
-                ..
-            } => {
-                let words_layout = VertexLayout::axis_words(&grid, packed, aligned);
-                self.length(record, nodes, words_layout.min_bits().div_ceil(8))
+            VertexLayout::Grid { grid, packed, .. } => {
+                let words_layout = VertexLayout::axis_words(&grid, packed);
+                self.length(record, nodes, words_layout.bits().div_ceil(8))
             }
         };
         let start = record.data_word as u64 * 4;
@@ -195,16 +185,11 @@ impl BlockShape<'_> {
     ) -> Result<CheckedBlock<'a>, StripDefect> {
         let vertex_bytes = match self.layout {
             VertexLayout::F32 { .. } => record.vertex_count as usize * F32_VERTEX_BYTES,
-            VertexLayout::Grid {
-                grid,
-                packed,
-                aligned,
-                ..
-            } => {
-                let words_layout = VertexLayout::axis_words(&grid, packed, aligned);
+            VertexLayout::Grid { grid, packed, .. } => {
+                let words_layout = VertexLayout::axis_words(&grid, packed);
                 let words = words_layout.read(available);
                 for (axis, word) in words.iter().enumerate() {
-                    let at = (words_layout.word_start(&words, axis) / 8) as u64;
+                    let at = (axis * words_layout.bits() / 3 / 8) as u64;
                     word.check(grid.bits)
                         .map_err(|detail| (Some(start + at), Defect::OutOfRange, detail))?;
                 }
