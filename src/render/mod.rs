@@ -844,21 +844,34 @@ mod tests {
         mesh
     }
 
+    /// `bumpy_grid` converted into a temporary file named after `test`, and opened.
+    fn bumpy_file(test: &str) -> (std::path::PathBuf, ReducemFile) {
+        let path = std::env::temp_dir().join(format!("render-{test}-{}.rdm", std::process::id()));
+        convert_mesh(&bumpy_grid(), &BuildParams::default(), &path).expect("convert");
+        let file = ReducemFile::open(&path).expect("open");
+        (path, file)
+    }
+
+    /// An automatic camera, a light and AO samples over an image of `width` × `height`;
+    /// `shadows` lets the light cast shadows.
+    fn lit_scene(size: (u32, u32), antialiasing: u32, shadows: bool, samples: u32) -> Scene {
+        let (width, height) = size;
+        let text = format!(
+            "[image]\nwidth = {width}\nheight = {height}\nantialiasing = {antialiasing}\n\
+             [camera]\nauto = true\n[[directional_light]]\ndirection = [-1.0, -0.5, -1.0]\n\
+             cast_shadows = {shadows}\n[ambient_occlusion]\nsamples = {samples}\n"
+        );
+        Scene::parse(std::path::Path::new("s.toml"), &text).expect("scene")
+    }
+
     /// Bands of a few tile rows give the very pixels and ray counts of one band for the whole
     /// image, in either order, with antialiasing, shadows and ambient occlusion.
     #[test]
     fn an_image_rendered_in_bands_is_the_image_rendered_whole() {
-        let path = std::env::temp_dir().join(format!("render-bands-{}.rdm", std::process::id()));
-        convert_mesh(&bumpy_grid(), &BuildParams::default(), &path).expect("convert");
-        let file = ReducemFile::open(&path).expect("open");
+        let (path, file) = bumpy_file("bands");
         let tracer = Tracer::new(&file, TraceOptions::default());
         for antialiasing in [1u32, 3] {
-            let text = format!(
-                "[image]\nwidth = 37\nheight = 29\nantialiasing = {antialiasing}\n\
-                 [camera]\nauto = true\n[[directional_light]]\ndirection = [-1.0, -0.5, -1.0]\ncast_shadows = true\n\
-                 [ambient_occlusion]\nsamples = 3\n"
-            );
-            let scene = Scene::parse(std::path::Path::new("s.toml"), &text).expect("scene");
+            let scene = lit_scene((37, 29), antialiasing, true, 3);
             let render = |order, band_pixels| {
                 let mut bands = Vec::new();
                 let report = render_in_bands(&tracer, &scene, order, band_pixels, |rows| {
@@ -914,17 +927,10 @@ mod tests {
     /// once, the samples per pixel growing with each round, with antialiasing or without.
     #[test]
     fn an_image_refined_in_rounds_ends_as_the_image_rendered_at_once() {
-        let path = std::env::temp_dir().join(format!("render-rounds-{}.rdm", std::process::id()));
-        convert_mesh(&bumpy_grid(), &BuildParams::default(), &path).expect("convert");
-        let file = ReducemFile::open(&path).expect("open");
+        let (path, file) = bumpy_file("rounds");
         let tracer = Tracer::new(&file, TraceOptions::default());
         for antialiasing in [1u32, 2] {
-            let text = format!(
-                "[image]\nwidth = 37\nheight = 29\nantialiasing = {antialiasing}\n\
-                 [camera]\nauto = true\n[[directional_light]]\ndirection = [-1.0, -0.5, -1.0]\ncast_shadows = true\n\
-                 [ambient_occlusion]\nsamples = 5\n"
-            );
-            let scene = Scene::parse(std::path::Path::new("s.toml"), &text).expect("scene");
+            let scene = lit_scene((37, 29), antialiasing, true, 5);
             let (whole, whole_report) = render(&tracer, &scene);
             let mut progressive = Progressive::new(&tracer, &scene, 1);
             assert_eq!(progressive.samples_per_pixel(), 0);
@@ -959,13 +965,9 @@ mod tests {
     /// A round abandoned between bands leaves the image to be finished by the next round.
     #[test]
     fn an_abandoned_round_is_finished_by_the_next() {
-        let path = std::env::temp_dir().join(format!("render-abandon-{}.rdm", std::process::id()));
-        convert_mesh(&bumpy_grid(), &BuildParams::default(), &path).expect("convert");
-        let file = ReducemFile::open(&path).expect("open");
+        let (path, file) = bumpy_file("abandon");
         let tracer = Tracer::new(&file, TraceOptions::default());
-        let text = "[image]\nwidth = 16\nheight = 24\n[camera]\nauto = true\n\
-                    [[directional_light]]\ndirection = [-1.0, -0.5, -1.0]\n[ambient_occlusion]\nsamples = 3\n";
-        let scene = Scene::parse(std::path::Path::new("s.toml"), text).expect("scene");
+        let scene = lit_scene((16, 24), 1, false, 3);
         let (whole, _) = render(&tracer, &scene);
         let mut progressive = Progressive::new(&tracer, &scene, 1);
         let mut bands_left = 2;
