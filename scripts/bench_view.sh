@@ -4,6 +4,9 @@
 # figure includes the coarse frame every move renders first), and the median latency from a
 # camera change to its first coarse frame; then the time from starting the viewer on a model
 # with a cold page cache to the page's first frame. Primary shading (configs/scenes/primary.toml).
+# As a reference for the load of a shared machine, the same run also times `reducem query` on the
+# camera rays of a 512² view (the first camera, in the renderer's 8×8-tile order), THREADS threads,
+# median of 3.
 #
 #   scripts/bench_view.sh MODEL [THREADS] [SECONDS]
 #   scripts/bench_view.sh /tmp/scan10m.rdm 2 10
@@ -59,11 +62,49 @@ seconds=${3:-10}
 cargo build --release --quiet -p reducem -p reducem-view --bins
 python3 -c "import os,sys; fd=os.open(sys.argv[1], os.O_RDONLY); os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_DONTNEED); os.close(fd)" "$model"
 exec "${PYTHON:-python3}" - "$model" "$threads" "$seconds" <<'EOF'
-import statistics, subprocess, sys, time
+import json, math, os, statistics, struct, subprocess, sys, tempfile, time
 from selenium import webdriver
 from selenium.webdriver.chrome.service import Service
 
 model, threads, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
+
+def camera_rays(camera, side):
+    """The primary rays of a side² view of `camera`, 8x8 tiles in 4x2 packet blocks."""
+    sub = lambda a, b: [x - y for x, y in zip(a, b)]
+    cross = lambda a, b: [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    unit = lambda a: [x / math.sqrt(sum(c * c for c in a)) for x in a]
+    forward = unit(sub(camera["look_at"], camera["position"]))
+    right = unit(cross(forward, camera["up"]))
+    up = cross(right, forward)
+    half = math.tan(math.radians(camera["fov"]) / 2)
+    rays = bytearray()
+    for tile_y in range(0, side, 8):
+        for tile_x in range(0, side, 8):
+            for block_y in range(tile_y, tile_y + 8, 2):
+                for block_x in range(tile_x, tile_x + 8, 4):
+                    for y in range(block_y, block_y + 2):
+                        for x in range(block_x, block_x + 4):
+                            sx, sy = (2 * (x + 0.5) / side - 1) * half, (1 - 2 * (y + 0.5) / side) * half
+                            direction = unit([f + r * sx + u * sy for f, r, u in zip(forward, right, up)])
+                            rays += struct.pack("<8f", *camera["position"], *direction, 0.0, math.inf)
+    return rays
+
+def reference_rate(camera, side):
+    """`reducem query` Mrays/s on the camera rays of a side² view, median of 3."""
+    with tempfile.TemporaryDirectory() as directory:
+        rays, hits = os.path.join(directory, "camera.rays"), os.path.join(directory, "camera.hits")
+        with open(rays, "wb") as f:
+            f.write(camera_rays(camera, side))
+        environment = dict(os.environ, RAYON_NUM_THREADS=threads)
+        runs = []
+        for _ in range(3):
+            began = time.monotonic()
+            subprocess.run(["target/release/reducem", "query", model, "--rays", rays, "-o", hits],
+                           check=True, env=environment, stderr=subprocess.DEVNULL)
+            runs.append(time.monotonic() - began)
+    rate = side * side / statistics.median(runs) / 1e6
+    return (f"reference: reducem query, {side}x{side} camera rays, {threads} threads: {rate:.1f} Mrays/s "
+            f"(whole process, median of 3), load average {os.getloadavg()[0]:.1f}")
 started = time.monotonic()
 viewer = subprocess.Popen(["target/release/reducem", "view", model, "--up", "z", "--threads", threads],
                           stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
@@ -106,6 +147,8 @@ try:
         print(f"{side}x{side}: {fps:.1f} full frames/s over {result['elapsed'] / 1000:.1f} s, "
               f"camera change to coarse frame median {latency:.0f} ms ({len(result['latencies'])} moves), "
               f"{threads} threads")
+    camera = json.loads(driver.execute_script("return document.documentElement.dataset.camera"))
+    print(reference_rate(camera, 512))
 finally:
     driver.quit()
     viewer.terminate()

@@ -19,11 +19,6 @@ use crate::stripify::adjacency::is_dropped;
 /// A position by its bits, ordered lexicographically.
 pub type PositionKey = [u32; 3];
 
-/// One use of an edge: its ends as the smallest vertex of their position, in index order, and
-/// whether the triangle runs it from the first to the second (12 bytes, where positions would
-/// take 28).
-type EdgeUse = (u32, u32, bool);
-
 /// The edge counts of `mesh`'s stored triangles.
 pub fn count_edges(mesh: &Mesh) -> Closedness {
     count_chunk_edges(mesh, |_| false).0
@@ -56,52 +51,118 @@ pub fn count_chunk_edges(
     shared: impl Fn(&PositionKey) -> bool,
 ) -> (Closedness, Vec<BorderEdge>) {
     let key = |vertex: u32| mesh.positions[vertex as usize].map(f32::to_bits);
-    let same_position = first_vertex_of_position(mesh);
-    let mut uses: Vec<EdgeUse> = Vec::with_capacity(mesh.triangles.len() * 3);
-    for triangle in mesh.triangles.iter().filter(|t| !is_dropped(mesh, t)) {
-        let corners = triangle.map(|v| same_position[v as usize]);
-        uses.extend((0..3).map(|i| edge_use(corners[i], corners[(i + 1) % 3])));
-    }
-    uses.par_sort_unstable();
+    let mut uses = EdgeUses::of(mesh, &first_vertex_of_position(mesh));
     let mut counts = Closedness::default();
     let mut border = Vec::new();
-    for group in uses.chunk_by(|a, b| (a.0, a.1) == (b.0, b.1)) {
-        let forward = group.iter().filter(|u| u.2).count() as u32;
-        let backward = group.len() as u32 - forward;
-        let (low, high) = (key(group[0].0), key(group[0].1));
-        match shared(&low) && shared(&high) {
-            true if low < high => border.push(BorderEdge {
-                first: low,
-                second: high,
-                forward,
-                backward,
-            }),
-            true => border.push(BorderEdge {
-                first: high,
-                second: low,
-                forward: backward,
-                backward: forward,
-            }),
-            false => tally(&mut counts, forward, backward),
+    for (low, bucket) in uses.buckets_mut().filter(|(_, bucket)| !bucket.is_empty()) {
+        // A bucket holds about a vertex's valence of uses.
+        bucket.sort_unstable();
+        let low = key(low);
+        // Asked once a vertex: most positions are not shared, and then none of their edges is.
+        let low_shared = shared(&low);
+        for group in bucket.chunk_by(|a, b| a >> 1 == b >> 1) {
+            let forward = group.iter().filter(|&&u| u & 1 == 1).count() as u32;
+            let backward = group.len() as u32 - forward;
+            let high = key((group[0] >> 1) as u32);
+            match low_shared && shared(&high) {
+                true if low < high => border.push(BorderEdge {
+                    first: low,
+                    second: high,
+                    forward,
+                    backward,
+                }),
+                true => border.push(BorderEdge {
+                    first: high,
+                    second: low,
+                    forward: backward,
+                    backward: forward,
+                }),
+                false => tally(&mut counts, forward, backward),
+            }
         }
     }
     border.sort_unstable();
     (counts, border)
 }
 
+/// Every use of an edge by a stored triangle, its ends taken as the smallest vertex of their
+/// position, filed under its lower end by a counting sort: linear, where sorting the uses was
+/// most of the cost. A use is `(higher end << 1) | forward` (8 bytes), `forward` when the
+/// triangle runs the edge from its lower to its higher end.
+struct EdgeUses {
+    uses: Vec<u64>,
+    /// `uses[bucket_end[v - 1]..bucket_end[v]]` are the uses whose lower end is `v`.
+    bucket_end: Vec<usize>,
+}
+
+impl EdgeUses {
+    fn of(mesh: &Mesh, same_position: &[u32]) -> EdgeUses {
+        let edges: Vec<[u32; 2]> = (mesh.triangles.par_iter())
+            .filter(|t| !is_dropped(mesh, t))
+            .flat_map_iter(|t| {
+                let [a, b, c] = t.map(|v| same_position[v as usize]);
+                [[a, b], [b, c], [c, a]]
+            })
+            .collect();
+        let mut bucket_end = vec![0usize; mesh.positions.len() + 1];
+        for &[from, to] in &edges {
+            bucket_end[from.min(to) as usize + 1] += 1;
+        }
+        for v in 1..bucket_end.len() {
+            bucket_end[v] += bucket_end[v - 1];
+        }
+        let mut uses = vec![0u64; edges.len()];
+        for &[from, to] in &edges {
+            let cursor = &mut bucket_end[from.min(to) as usize];
+            uses[*cursor] = (u64::from(from.max(to)) << 1) | u64::from(from < to);
+            *cursor += 1;
+        }
+        // Each cursor now sits at its bucket's end; the trailing entry is unused.
+        bucket_end.pop();
+        EdgeUses { uses, bucket_end }
+    }
+
+    /// Each vertex with the uses filed under it.
+    fn buckets_mut(&mut self) -> impl Iterator<Item = (u32, &mut [u64])> {
+        let mut rest = self.uses.as_mut_slice();
+        let mut start = 0;
+        self.bucket_end
+            .iter()
+            .enumerate()
+            .map(move |(vertex, &end)| {
+                let (bucket, tail) = std::mem::take(&mut rest).split_at_mut(end - start);
+                rest = tail;
+                start = end;
+                (vertex as u32, bucket)
+            })
+    }
+}
+
 /// For each vertex, the smallest vertex at bit-identical coordinates: edges are edges of
 /// positions, and a chunk may keep two vertices on one position apart (different attributes).
+/// Found with an open-addressing table of vertices filled in index order, so the first one
+/// holding a position is the smallest.
 fn first_vertex_of_position(mesh: &Mesh) -> Vec<u32> {
+    const EMPTY: u32 = u32::MAX;
     let key = |vertex: u32| mesh.positions[vertex as usize].map(f32::to_bits);
-    let mut order: Vec<u32> = (0..mesh.positions.len() as u32).collect();
-    order.par_sort_unstable_by_key(|&vertex| (key(vertex), vertex));
-    let mut first = vec![0u32; mesh.positions.len()];
-    for group in order.chunk_by(|&a, &b| key(a) == key(b)) {
-        group
-            .iter()
-            .for_each(|&vertex| first[vertex as usize] = group[0]);
-    }
-    first
+    let mask = (mesh.positions.len() * 2).next_power_of_two() - 1;
+    let mut slots = vec![EMPTY; mask + 1];
+    (0..mesh.positions.len() as u32)
+        .map(|vertex| {
+            let position = key(vertex);
+            let mut slot = hash(&position) as usize & mask;
+            loop {
+                match slots[slot] {
+                    EMPTY => {
+                        slots[slot] = vertex;
+                        return vertex;
+                    }
+                    held if key(held) == position => return held,
+                    _ => slot = (slot + 1) & mask,
+                }
+            }
+        })
+        .collect()
 }
 
 /// The counts of the edges in `sorted` (every chunk's border edges, in key order), each edge's
@@ -123,13 +184,6 @@ fn tally(counts: &mut Closedness, forward: impl Into<u64>, backward: impl Into<u
         (1, 0) | (0, 1) => counts.boundary_edges += 1,
         (1, 1) => {}
         _ => counts.nonmanifold_edges += 1,
-    }
-}
-
-fn edge_use(from: u32, to: u32) -> EdgeUse {
-    match from < to {
-        true => (from, to, true),
-        false => (to, from, false),
     }
 }
 
@@ -177,11 +231,14 @@ impl SharedPositions {
     }
 
     fn bucket(&self, key: &PositionKey) -> u64 {
-        let packed = key.iter().fold(0u64, |hash, &word| {
-            crate::splitmix::mix(hash ^ u64::from(word))
-        });
-        packed & self.mask
+        hash(key) & self.mask
     }
+}
+
+fn hash(key: &PositionKey) -> u64 {
+    key.iter().fold(0u64, |hash, &word| {
+        crate::splitmix::mix(hash ^ u64::from(word))
+    })
 }
 
 /// The up axis of a model read from `path` when the configuration names none: its format's

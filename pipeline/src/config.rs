@@ -48,7 +48,7 @@ pub struct Config {
     pub source: PathBuf,
 }
 
-/// Exactly one of `path` (a PLY, OBJ or STL file, also gzip- or zstd-compressed) and `generate` (a synthetic mesh).
+/// Exactly one of `path` (a PLY, OBJ, STL or glTF/GLB file, also gzip- or zstd-compressed) and `generate` (a synthetic mesh).
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct InputConfig {

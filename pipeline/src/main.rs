@@ -76,7 +76,7 @@ enum Command {
     /// WORK/convert.toml and runs (or resumes) it like `run`.
     #[command(after_help = exit::HELP)]
     Convert {
-        /// The mesh to convert (PLY, OBJ or STL, plain or gzip/zstd-compressed).
+        #[arg(help = convert_input_help())]
         input: PathBuf,
         /// The ReduceM file to write.
         #[arg(short, long)]
@@ -114,7 +114,7 @@ enum Command {
         /// The job's configuration file.
         config: PathBuf,
     },
-    /// Stream a synthetic mesh to binary PLY.
+    /// Stream a synthetic mesh to binary PLY (STL or GLB for a .stl or .glb output).
     #[command(after_help = exit::HELP)]
     Gen {
         /// The kind of mesh.
@@ -164,6 +164,14 @@ fn gen_output_format(
 
 /// `pipeline gen`'s KIND: the generator's kinds, each with its description in `--help` (the
 /// library's `Kind` knows nothing of clap).
+/// The input formats, from reducem's table of formats.
+fn convert_input_help() -> String {
+    format!(
+        "The mesh to convert ({}, plain or gzip/zstd-compressed)",
+        reducem::input::format_names()
+    )
+}
+
 fn kind_parser() -> impl clap::builder::TypedValueParser<Value = gen::Kind> {
     let kinds = gen::Kind::ALL.map(|kind| PossibleValue::new(kind.name()).help(kind.description()));
     PossibleValuesParser::new(kinds).try_map(|name| name.parse::<gen::Kind>())

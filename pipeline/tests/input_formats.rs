@@ -99,3 +99,16 @@ fn broken_stl_and_compressed_files_exit_65_naming_file_and_place() {
     assert_broken_inputs_exit_65(&dir, cases.into());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn convert_help_names_every_format_of_the_table() {
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_pipeline"))
+        .args(["convert", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&output.stdout);
+    for format in reducem::input::FORMATS {
+        assert!(help.contains(format.name()), "{} in {help}", format.name());
+    }
+    assert!(help.contains("glTF 2.0 / GLB"), "{help}");
+}

@@ -7,7 +7,7 @@ reach it) and returns a ``Scene``, whose
 Tracing runs in the native tracer, without the GIL, on all cores (or ``nthreads``), and gives
 bit-identical answers to ``reducem query`` on the same rays.
 
-``reducem.convert(input, output, *, progress=None, **options)`` converts a PLY, OBJ or STL mesh with
+``reducem.convert(input, output, *, progress=None, **options)`` converts a PLY, OBJ, STL or glTF mesh with
 the staged, resumable conversion of ``pipeline convert``; options are named like the
 configuration keys. It reports to the ``reducem`` logger (stages at INFO, each unit of work at
 DEBUG) and, if given, calls ``progress(stage, done, total, unit)`` as each stage starts and

@@ -27,7 +27,7 @@ const INFO: u8 = 20;
 /// Configuration keys with a field of their own in [`ConvertArgs`].
 const ARGUMENT_KEYS: [&str; 3] = ["max_length", "encoding", "grid_bits"];
 
-/// Converts the mesh `input` (PLY, OBJ or STL, also .gz or .zst) to the ReduceM file `output`, resuming an interrupted
+/// Converts the mesh `input` (PLY, OBJ, STL or glTF/GLB, also .gz or .zst) to the ReduceM file `output`, resuming an interrupted
 /// conversion from its work directory (default `OUTPUT.work`). Reports go to the `reducem`
 /// logger (INFO: stages starting and done, DEBUG: each unit of work) and, when given, to
 /// `progress(stage, done, total, unit)` at a stage's start and after each unit.

@@ -6,15 +6,13 @@
 //! converted file is therefore byte-identical to the plain input's; errors name the compressed
 //! file, with offsets and lines counted in its decompressed content.
 
-use std::fs::{File, OpenOptions};
+use std::fs::File;
 use std::io::{self, BufWriter, Read};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::path::Path;
 
 use super::error::{InputError, InputErrorKind, Location};
 use super::ply::io_error;
-use super::{MeshSource, VertexAttributes};
-use crate::geometry::Point;
+use super::temporary::TemporaryFile;
 
 /// A compression around a mesh file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -92,56 +90,17 @@ pub(crate) fn head(
     Ok(head)
 }
 
-/// The decompressed copy of a compressed input, deleted when dropped.
-pub(crate) struct Decompressed {
-    original: PathBuf,
-    temporary: PathBuf,
-}
-
-impl Decompressed {
-    pub(crate) fn path(&self) -> &Path {
-        &self.temporary
-    }
-
-    /// `error` as found in the copy, naming the compressed file instead.
-    pub(crate) fn rename(&self, mut error: InputError) -> InputError {
-        error.path.clone_from(&self.original);
-        error
-    }
-}
-
-impl Drop for Decompressed {
-    fn drop(&mut self) {
-        // The copy is ours alone; a failure leaves a file in the temporary directory.
-        let _ = std::fs::remove_file(&self.temporary);
-    }
-}
-
 /// Decompresses `path` into a new temporary file, keeping the name's inner extension.
 pub(crate) fn decompress(
     path: &Path,
     compression: Compression,
-) -> Result<Decompressed, InputError> {
-    static NEXT: AtomicU64 = AtomicU64::new(0);
+) -> Result<TemporaryFile, InputError> {
     let inner_name = path
         .file_name()
         .and_then(|name| name.to_str())
         .map(|name| name.strip_suffix(compression.extension()).unwrap_or(name))
         .unwrap_or("input");
-    let temporary = std::env::temp_dir().join(format!(
-        "reducem-{}-{}-{inner_name}",
-        std::process::id(),
-        NEXT.fetch_add(1, Ordering::Relaxed)
-    ));
-    let file = OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&temporary)
-        .map_err(|error| io_error(&temporary, &error))?;
-    let decompressed = Decompressed {
-        original: path.to_path_buf(),
-        temporary,
-    };
+    let (decompressed, file) = TemporaryFile::create(path, inner_name)?;
     let mut decoder = compression.decoder(path)?;
     let mut writer = BufWriter::with_capacity(1 << 20, file);
     let mut buffer = vec![0u8; 1 << 20];
@@ -159,46 +118,4 @@ pub(crate) fn decompress(
     }
     io::Write::flush(&mut writer).map_err(|error| io_error(decompressed.path(), &error))?;
     Ok(decompressed)
-}
-
-/// A source read from a decompressed copy, which it keeps until dropped; its errors name the
-/// compressed file.
-pub(crate) struct DecompressedSource {
-    source: Box<dyn MeshSource>,
-    copy: Decompressed,
-}
-
-impl DecompressedSource {
-    pub(crate) fn new(source: Box<dyn MeshSource>, copy: Decompressed) -> DecompressedSource {
-        DecompressedSource { source, copy }
-    }
-}
-
-impl MeshSource for DecompressedSource {
-    fn vertex_count(&self) -> u64 {
-        self.source.vertex_count()
-    }
-
-    fn for_each_position_window(
-        &self,
-        visit: &mut dyn FnMut(u64, &[Point]),
-    ) -> Result<(), InputError> {
-        let result = self.source.for_each_position_window(visit);
-        result.map_err(|error| self.copy.rename(error))
-    }
-
-    fn for_each_triangle(&self, visit: &mut dyn FnMut(u64, [u32; 3])) -> Result<(), InputError> {
-        let result = self.source.for_each_triangle(visit);
-        result.map_err(|error| self.copy.rename(error))
-    }
-
-    fn positions_of(&self, sorted_ids: &[u32]) -> Result<Vec<Point>, InputError> {
-        let result = self.source.positions_of(sorted_ids);
-        result.map_err(|error| self.copy.rename(error))
-    }
-
-    fn attributes_of(&self, sorted_ids: &[u32]) -> Result<VertexAttributes, InputError> {
-        let result = self.source.attributes_of(sorted_ids);
-        result.map_err(|error| self.copy.rename(error))
-    }
 }

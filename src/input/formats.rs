@@ -10,12 +10,14 @@ use std::fs::File;
 use std::io::Read;
 use std::path::Path;
 
-use super::compressed::{self, Compression, Decompressed};
+use super::compressed::{self, Compression};
 use super::error::{InputError, InputErrorKind, Location};
 use super::ply::io_error;
 use super::source::WindowedPly;
+use super::temporary::TemporarySource;
 use super::{
-    gltf, obj, stl, weld_identical_positions, AttributeRequest, MeshSource, PlyFile, PlyStream,
+    gltf, obj, stl, stl_stream, weld_identical_positions, AttributeRequest, MeshSource, PlyFile,
+    PlyStream,
 };
 use crate::mesh::Mesh;
 pub use reducem_core::format::model::UpAxis;
@@ -120,6 +122,16 @@ pub fn supported_formats() -> String {
     )
 }
 
+/// The formats' names as a list for help texts: "PLY, glTF 2.0 / GLB, STL or OBJ".
+pub fn format_names() -> String {
+    let names: Vec<&str> = FORMATS.iter().map(|format| format.name()).collect();
+    match names.split_last() {
+        Some((last, [])) => last.to_string(),
+        Some((last, others)) => format!("{} or {last}", others.join(", ")),
+        None => String::new(),
+    }
+}
+
 /// Reads the mesh at `path`, whatever its format and compression.
 pub fn read_mesh_with(path: &Path, request: AttributeRequest) -> Result<Mesh, InputError> {
     let detected = detect(path)?;
@@ -157,10 +169,7 @@ pub fn open_source(
         .format
         .open(decompressed.path(), request, window_bytes)
         .map_err(|error| decompressed.rename(error))?;
-    Ok(Box::new(compressed::DecompressedSource::new(
-        source,
-        decompressed,
-    )))
+    Ok(Box::new(TemporarySource::new(source, decompressed)))
 }
 
 /// Runs `read` on the plain content of `path`: the file itself, or its decompressed copy
@@ -173,7 +182,7 @@ fn with_content<T>(
     match detected.compression {
         None => read(path),
         Some(compression) => {
-            let decompressed: Decompressed = compressed::decompress(path, compression)?;
+            let decompressed = compressed::decompress(path, compression)?;
             read(decompressed.path()).map_err(|error| decompressed.rename(error))
         }
     }
@@ -282,6 +291,17 @@ impl MeshFormat for Stl {
     fn read_mesh(&self, path: &Path, request: AttributeRequest) -> Result<Mesh, InputError> {
         stl::check_attributes(path, request)?;
         stl::read_stl(path)
+    }
+
+    /// Welded in passes through temporary files, so memory follows `window_bytes`.
+    fn open(
+        &self,
+        path: &Path,
+        request: AttributeRequest,
+        window_bytes: usize,
+    ) -> Result<Box<dyn MeshSource>, InputError> {
+        stl::check_attributes(path, request)?;
+        stl_stream::open_streamed(path, window_bytes)
     }
 }
 

@@ -18,7 +18,9 @@ mod obj_survey;
 mod ply;
 mod source;
 mod stl;
+mod stl_stream;
 mod stream;
+mod temporary;
 mod tolerance_weld;
 mod weld;
 
@@ -28,7 +30,8 @@ pub use crate::format::counts::WeldStats;
 pub use compressed::Compression;
 pub use error::{InputError, InputErrorKind, Location};
 pub use formats::{
-    check_attributes, detect, open_source, read_mesh_with, Detected, MeshFormat, UpAxis, FORMATS,
+    check_attributes, detect, format_names, open_source, read_mesh_with, Detected, MeshFormat,
+    UpAxis, FORMATS,
 };
 pub use obj::{read_obj, read_obj_with};
 pub use ply::PlyFile;

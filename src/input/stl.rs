@@ -1,4 +1,5 @@
-//! STL, binary and ASCII, read through a buffer and welded as it is read.
+//! STL, binary and ASCII, read through a buffer and welded as it is read (the chunker's
+//! bounded-memory weld of the same mesh is [`super::stl_stream`]).
 //!
 //! STL repeats every corner in every facet; a map from position bits to vertex welds
 //! bit-identical positions (so `-0.0` and `0.0` stay apart, as in [`super::weld`]) in order of
@@ -75,22 +76,33 @@ pub(crate) fn check_attributes(path: &Path, request: AttributeRequest) -> Result
     Err(InputError::new(path, Location::File, kind))
 }
 
-/// Reads a binary or ASCII STL file, welded.
-pub(crate) fn read_stl(path: &Path) -> Result<Mesh, InputError> {
-    let file = File::open(path).map_err(|error| io_error(path, &error))?;
+/// How an STL file is laid out, told by its size and first bytes.
+pub(crate) enum StlLayout {
+    Binary { facets: u64 },
+    Ascii,
+}
+
+/// Tells binary from ASCII, or fails naming the declared facet count and the size when the
+/// file is neither.
+pub(crate) fn layout(path: &Path) -> Result<StlLayout, InputError> {
+    let mut file = File::open(path).map_err(|error| io_error(path, &error))?;
     let length = file
         .metadata()
         .map_err(|error| io_error(path, &error))?
         .len();
-    let mut reader = BufReader::with_capacity(1 << 20, file);
-    let head = reader.fill_buf().map_err(|error| io_error(path, &error))?;
-    if binary_size_matches(head, length) {
-        return read_binary(path, reader, length);
+    let mut head = Vec::with_capacity(TEXT_PROBE_BYTES);
+    (&mut file)
+        .take(TEXT_PROBE_BYTES as u64)
+        .read_to_end(&mut head)
+        .map_err(|error| io_error(path, &error))?;
+    if binary_size_matches(&head, length) {
+        let facets = (length - HEADER_BYTES - 4) / FACET_BYTES;
+        return Ok(StlLayout::Binary { facets });
     }
-    if is_ascii(head) {
-        return AsciiReader::new(path, reader).read();
+    if is_ascii(&head) {
+        return Ok(StlLayout::Ascii);
     }
-    let Some(declared) = declared_facets(head) else {
+    let Some(declared) = declared_facets(&head) else {
         let kind = InputErrorKind::Truncated {
             needed: HEADER_BYTES + 4 - length,
         };
@@ -105,9 +117,33 @@ pub(crate) fn read_stl(path: &Path) -> Result<Mesh, InputError> {
     Err(InputError::new(path, Location::File, kind))
 }
 
-fn read_binary(path: &Path, mut reader: impl Read, length: u64) -> Result<Mesh, InputError> {
-    let facets = (length - HEADER_BYTES - 4) / FACET_BYTES;
-    let mut welder = Welder::with_capacity(facets as usize);
+/// Reads a binary or ASCII STL file, welded.
+pub(crate) fn read_stl(path: &Path) -> Result<Mesh, InputError> {
+    let mut welder;
+    match layout(path)? {
+        StlLayout::Binary { facets } => {
+            welder = Welder::with_capacity(facets as usize);
+            for_each_binary_facet(path, facets, |facet, corners| {
+                welder.polygon(path, facet, &corners)
+            })?;
+        }
+        StlLayout::Ascii => {
+            welder = Welder::with_capacity(0);
+            read_ascii(path, &mut welder)?;
+        }
+    }
+    Ok(welder.into_mesh())
+}
+
+/// Visits the corners of every facet of a binary STL of `facets` facets, in file order, as
+/// `visit(facet, corners)`, checking each coordinate.
+pub(crate) fn for_each_binary_facet(
+    path: &Path,
+    facets: u64,
+    mut visit: impl FnMut(u64, [Point; 3]) -> Result<(), InputError>,
+) -> Result<(), InputError> {
+    let file = File::open(path).map_err(|error| io_error(path, &error))?;
+    let mut reader = BufReader::with_capacity(1 << 20, file);
     let mut skipped = [0u8; HEADER_BYTES as usize + 4];
     reader
         .read_exact(&mut skipped)
@@ -118,9 +154,8 @@ fn read_binary(path: &Path, mut reader: impl Read, length: u64) -> Result<Mesh, 
             .read_exact(&mut facet)
             .map_err(|error| io_error(path, &error))?;
         let start = HEADER_BYTES + 4 + index * FACET_BYTES;
-        let mut triangle = [0u32; 3];
-        for (corner, vertex) in triangle.iter_mut().enumerate() {
-            let mut point = [0f32; 3];
+        let mut corners = [[0f32; 3]; 3];
+        for (corner, point) in corners.iter_mut().enumerate() {
             for (axis, coordinate) in point.iter_mut().enumerate() {
                 let offset = 12 + 12 * corner + 4 * axis;
                 let bytes = facet[offset..offset + 4].try_into().expect("4 bytes");
@@ -128,11 +163,22 @@ fn read_binary(path: &Path, mut reader: impl Read, length: u64) -> Result<Mesh, 
                 let location = || facet_location(index, start + offset as u64, None);
                 *coordinate = checked_coordinate(path, axis, value, location)?;
             }
-            *vertex = welder.vertex(path, point, index)?;
         }
-        welder.triangles.push(triangle);
+        visit(index, corners)?;
     }
-    Ok(welder.into_mesh())
+    Ok(())
+}
+
+/// Reads the ASCII STL at `path`, handing every facet's corners to `facets`.
+pub(crate) fn read_ascii(path: &Path, facets: &mut dyn FacetSink) -> Result<(), InputError> {
+    let file = File::open(path).map_err(|error| io_error(path, &error))?;
+    AsciiReader::new(path, BufReader::with_capacity(1 << 20, file), facets).read()
+}
+
+/// Where an ASCII STL's facets go: welded in memory, or written out for the streamed weld.
+pub(crate) trait FacetSink {
+    /// The corners of facet `facet` (three, or more for a polygon facet, which becomes a fan).
+    fn polygon(&mut self, path: &Path, facet: u64, corners: &[Point]) -> Result<(), InputError>;
 }
 
 fn facet_location(index: u64, byte_offset: u64, line: Option<u64>) -> Location {
@@ -159,7 +205,7 @@ fn checked_coordinate(
 /// Hashes the 12 position bytes with two multiply-rotate rounds: the default SipHash costs
 /// more than the rest of reading a binary facet.
 #[derive(Default)]
-struct PositionHasher(u64);
+pub(crate) struct PositionHasher(u64);
 
 impl Hasher for PositionHasher {
     fn write(&mut self, bytes: &[u8]) {
@@ -229,6 +275,24 @@ impl Welder {
     }
 }
 
+impl FacetSink for Welder {
+    fn polygon(&mut self, path: &Path, facet: u64, corners: &[Point]) -> Result<(), InputError> {
+        let mut vertices = Vec::with_capacity(corners.len());
+        for &point in corners {
+            vertices.push(self.vertex(path, point, facet)?);
+        }
+        self.triangles.extend(fan(&vertices));
+        Ok(())
+    }
+}
+
+/// The triangles `(v0, vi, vi+1)` of a polygon, as PLY and OBJ faces are split.
+pub(crate) fn fan<T: Copy>(corners: &[T]) -> impl Iterator<Item = [T; 3]> + '_ {
+    corners[1..]
+        .windows(2)
+        .map(|pair| [corners[0], pair[0], pair[1]])
+}
+
 /// A reader of ASCII STL that knows the line and byte of every token.
 struct AsciiReader<'a, R> {
     path: &'a Path,
@@ -242,11 +306,11 @@ struct AsciiReader<'a, R> {
     cursor: usize,
     /// The facet being read (the count read so far, between facets).
     facet: u64,
-    welder: Welder,
+    facets: &'a mut dyn FacetSink,
 }
 
 impl<'a, R: BufRead> AsciiReader<'a, R> {
-    fn new(path: &'a Path, reader: R) -> Self {
+    fn new(path: &'a Path, reader: R, facets: &'a mut dyn FacetSink) -> Self {
         AsciiReader {
             path,
             reader,
@@ -255,12 +319,12 @@ impl<'a, R: BufRead> AsciiReader<'a, R> {
             line_start: 0,
             cursor: 0,
             facet: 0,
-            welder: Welder::with_capacity(0),
+            facets,
         }
     }
 
     /// `solid` blocks, each of facets up to its `endsolid`, until the end of the file.
-    fn read(mut self) -> Result<Mesh, InputError> {
+    fn read(mut self) -> Result<(), InputError> {
         while let Some((keyword, _)) = self.token()? {
             if !keyword.eq_ignore_ascii_case("solid") {
                 return Err(self.unexpected("solid", &keyword));
@@ -272,7 +336,7 @@ impl<'a, R: BufRead> AsciiReader<'a, R> {
             let kind = InputErrorKind::UnexpectedEndOfText;
             return Err(InputError::new(self.path, Location::File, kind));
         }
-        Ok(self.welder.into_mesh())
+        Ok(())
     }
 
     /// One facet; false at the `endsolid` that closes the block.
@@ -289,7 +353,7 @@ impl<'a, R: BufRead> AsciiReader<'a, R> {
         self.skip_rest_of_line();
         self.keyword("outer")?;
         self.keyword("loop")?;
-        let mut corners: Vec<u32> = Vec::with_capacity(3);
+        let mut corners: Vec<Point> = Vec::with_capacity(3);
         loop {
             let keyword = self.required_token()?.0;
             if keyword.eq_ignore_ascii_case("endloop") {
@@ -298,8 +362,7 @@ impl<'a, R: BufRead> AsciiReader<'a, R> {
             if !keyword.eq_ignore_ascii_case("vertex") {
                 return Err(self.unexpected("vertex' or 'endloop", &keyword));
             }
-            let point = self.point()?;
-            corners.push(self.welder.vertex(self.path, point, self.facet)?);
+            corners.push(self.point()?);
         }
         self.keyword("endfacet")?;
         if corners.len() < 3 {
@@ -307,9 +370,7 @@ impl<'a, R: BufRead> AsciiReader<'a, R> {
             return Err(InputError::new(self.path, self.location(0), kind));
         }
         // A polygon facet (some exporters write them) becomes a fan, like PLY and OBJ faces.
-        for pair in corners[1..].windows(2) {
-            self.welder.triangles.push([corners[0], pair[0], pair[1]]);
-        }
+        self.facets.polygon(self.path, self.facet, &corners)?;
         self.facet += 1;
         Ok(true)
     }

@@ -6,7 +6,8 @@
 //! The side comes from a sample of whole strips spread evenly over the file, never every
 //! triangle, so a 300M-triangle file costs the same few thousand block reads as a small one. The
 //! distance comes from low-resolution hit masks: the model's true silhouette, not its bounding
-//! box, decides how much of the image it fills.
+//! box, decides how much of the image it fills; the image's own border pixels then check that
+//! the model stays inside it.
 
 use glam::Vec3;
 
@@ -69,7 +70,35 @@ pub fn front_view(
         look_at += shift;
         position = look_at + toward_camera * (distance / zoom);
     }
+    let camera = |position| Camera::looking(position, look_at, up, fov_degrees, width, height);
+    for _ in 0..STEPS_BACK {
+        if !touches_border(tracer, &camera(position), width, height) {
+            break;
+        }
+        position = look_at + (position - look_at) * STEP_BACK;
+    }
     (position, look_at)
+}
+
+/// The factor of the distance of a step back from a model that reaches the image's border: the
+/// hit masks see the model only within the image, so a model that leaves the image (in an image
+/// much wider than tall, or by perspective) is measured too small.
+const STEP_BACK: f32 = 1.05;
+
+/// The most steps back: enough to double the distance.
+const STEPS_BACK: usize = 15;
+
+/// The model covers a pixel on the border of `camera`'s `width` × `height` image.
+fn touches_border(tracer: &Tracer, camera: &Camera, width: u32, height: u32) -> bool {
+    let rows = [0, height.saturating_sub(1)].map(|y| (0..width).map(move |x| (x, y)));
+    let columns = [0, width.saturating_sub(1)].map(|x| (0..height).map(move |y| (x, y)));
+    let rays: Vec<Ray> = rows
+        .into_iter()
+        .flatten()
+        .chain(columns.into_iter().flatten())
+        .map(|(x, y)| camera.primary_ray(x, y))
+        .collect();
+    tracer.intersect_batch(&rays).iter().any(Option::is_some)
 }
 
 /// Unit vector from the model towards the camera: the side most of the model's area faces,

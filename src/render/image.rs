@@ -8,6 +8,8 @@
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
+use rayon::prelude::*;
+
 use super::scene::Scene;
 use super::{render_rows, Frame, RenderReport, RowOrder};
 use crate::atomic;
@@ -21,12 +23,18 @@ pub struct ImageError {
     pub source: io::Error,
 }
 
-/// The frame as 8-bit sRGB bytes, three per pixel.
+/// The frame as 8-bit sRGB bytes, three per pixel; in parallel (a pixel's bytes depend only on
+/// the pixel), as the viewer encodes a frame between two frames' tracing.
 pub fn srgb_bytes(frame: &Frame) -> Vec<u8> {
-    let mut bytes = Vec::with_capacity(frame.pixels.len() * 3);
-    extend_srgb(&mut bytes, &frame.pixels);
-    bytes
+    frame
+        .pixels
+        .par_chunks(SRGB_CHUNK_PIXELS)
+        .flat_map_iter(|pixels| pixels.iter().flat_map(|pixel| pixel.map(encode_srgb)))
+        .collect()
 }
+
+/// Pixels one thread encodes to sRGB at a time: enough to outweigh the hand-over.
+const SRGB_CHUNK_PIXELS: usize = 1 << 14;
 
 /// Appends the 8-bit sRGB bytes of `pixels` to `bytes`.
 fn extend_srgb(bytes: &mut Vec<u8>, pixels: &[[f32; 3]]) {

@@ -10,7 +10,8 @@
 //! The image is rendered in bands of whole tile rows, each band through every pass and handed
 //! on as finished rows ([`render_rows`]) before the next begins: the passes' per-pixel state
 //! (about 110 bytes a pixel) is held for one band, never for the whole image, and the image is
-//! the same as rendered whole.
+//! the same as rendered whole. The viewer refines an image in rounds instead ([`Progressive`]):
+//! the same passes and per-pixel accumulation, AO samples added a round at a time.
 //!
 //! Shading is Lambertian with a two-sided normal: `albedo × colour × (ambient × AO + Σ lights
 //! intensity × cos θ × visibility / falloff)`, point lights falling off with squared distance,
@@ -147,7 +148,7 @@ pub fn render_rows<E>(
 }
 
 /// [`render_rows`] in bands of about `band_pixels` fine pixels: smaller bands let a caller
-/// (the viewer) abandon an image sooner, by returning an error from `rows`.
+/// abandon an image sooner, by returning an error from `rows`.
 pub fn render_in_bands<E>(
     tracer: &Tracer,
     scene: &Scene,
@@ -156,23 +157,127 @@ pub fn render_in_bands<E>(
     mut rows: impl FnMut(&[[f32; 3]]) -> Result<(), E>,
 ) -> Result<RenderReport, E> {
     let factor = scene.image.antialiasing.max(1);
-    let mut fine = scene.clone();
-    fine.image.width *= factor;
-    fine.image.height *= factor;
-    let renderer = BandRenderer::new(tracer, &fine);
+    let renderer = BandRenderer::new(tracer, &fine_scene(scene));
     let mut effects = renderer.effects();
-    let mut bands = bands(fine.image.width, fine.image.height, factor, band_pixels);
+    let (fine_width, fine_height) = (renderer.plan.width, renderer.plan.height);
+    let mut bands = bands(fine_width, fine_height, factor, band_pixels);
     if order == RowOrder::BandsBottomUp {
         bands.reverse();
     }
     for band in bands {
-        let samples = renderer.render_band(band.clone(), &mut effects);
-        match factor {
-            1 => rows(&samples)?,
-            _ => rows(&averaged(&samples, fine.image.width, factor))?,
-        }
+        let mut samples = renderer.trace_band(band, &mut effects);
+        renderer.add_ao_samples(&mut samples, renderer.ao_samples(), &mut effects);
+        rows(&renderer.finished_rows(&samples, factor))?;
     }
     Ok(renderer.report(scene, effects))
+}
+
+/// `scene` on its finer image of `[image] antialiasing` × as many pixels each way.
+fn fine_scene(scene: &Scene) -> Scene {
+    let factor = scene.image.antialiasing.max(1);
+    let mut fine = scene.clone();
+    fine.image.width *= factor;
+    fine.image.height *= factor;
+    fine
+}
+
+/// An image refined in rounds, as the viewer shows it: the first round traces the primary rays
+/// and shadows and each round adds ambient-occlusion samples, until the scene's count. The
+/// passes and the per-pixel accumulation are [`render_in_bands`]'s, so the last round's image is
+/// `reducem render`'s, bit for bit (a pixel's open AO rays are counted, and divided by the
+/// samples traced only when shading).
+pub struct Progressive<'a, 'f> {
+    renderer: BandRenderer<'a, 'f>,
+    scene: Scene,
+    bands: Vec<BandSamples>,
+    effects: Vec<EffectReport>,
+}
+
+impl<'a, 'f> Progressive<'a, 'f> {
+    /// `scene`'s image with nothing traced yet, in bands of about `band_pixels` fine pixels
+    /// (between bands a round may be abandoned).
+    pub fn new(tracer: &'a Tracer<'f>, scene: &Scene, band_pixels: u32) -> Progressive<'a, 'f> {
+        let renderer = BandRenderer::new(tracer, &fine_scene(scene));
+        let effects = renderer.effects();
+        let (width, height) = (renderer.plan.width, renderer.plan.height);
+        let factor = scene.image.antialiasing.max(1);
+        let bands = bands(width, height, factor, band_pixels)
+            .into_iter()
+            .map(|rows| BandSamples::untraced(width, rows))
+            .collect();
+        Progressive {
+            renderer,
+            scene: scene.clone(),
+            bands,
+            effects,
+        }
+    }
+
+    /// Samples per pixel of the image so far: the antialiasing samples, times the AO samples
+    /// traced when the scene has AO; 0 before the first round.
+    pub fn samples_per_pixel(&self) -> u32 {
+        let ao = match self.renderer.plan.ambient_occlusion {
+            Some(_) => self.ao_samples_done(),
+            None => u32::from(self.traced()),
+        };
+        self.scene.image.antialiasing.max(1).pow(2) * ao
+    }
+
+    /// Every band's primary and shadow passes ran.
+    fn traced(&self) -> bool {
+        self.bands.iter().all(|band| band.traced)
+    }
+
+    /// The AO samples every band has (a round abandoned midway leaves some bands ahead).
+    fn ao_samples_done(&self) -> u32 {
+        let done = self.bands.iter().map(|band| band.ao_samples.end).min();
+        done.unwrap_or(0)
+    }
+
+    /// Every sample the scene declares is in the image.
+    pub fn is_complete(&self) -> bool {
+        self.traced() && self.ao_samples_done() == self.renderer.ao_samples().end
+    }
+
+    /// One more round: the primary rays and shadows when not yet traced, and AO samples up to
+    /// `ao_samples_until` (at most the scene's); `between_bands` is asked before each band and
+    /// its error abandons the round. The image after the round.
+    pub fn refine<E>(
+        &mut self,
+        ao_samples_until: u32,
+        mut between_bands: impl FnMut() -> Result<(), E>,
+    ) -> Result<Frame, E> {
+        let renderer = &self.renderer;
+        let until = ao_samples_until.min(renderer.ao_samples().end);
+        let factor = self.scene.image.antialiasing.max(1);
+        let mut pixels = Vec::new();
+        for band in &mut self.bands {
+            between_bands()?;
+            if !band.traced {
+                *band = renderer.trace_band(band.rows.clone(), &mut self.effects);
+            }
+            let samples = band.ao_samples.end..until.max(band.ao_samples.end);
+            renderer.add_ao_samples(band, samples, &mut self.effects);
+            pixels.extend(renderer.finished_rows(band, factor));
+        }
+        Ok(Frame {
+            width: self.scene.image.width,
+            height: self.scene.image.height,
+            pixels,
+        })
+    }
+
+    /// The rays of every round so far and their tracing time in seconds: [`Progressive::report`]
+    /// without its residency, whose measure reads the process's whole memory map.
+    pub fn rays_traced(&self) -> (u64, f64) {
+        let rays = self.effects.iter().map(|e| e.rays).sum();
+        (rays, self.effects.iter().map(|e| e.seconds).sum())
+    }
+
+    /// The rays and times of every round so far, with residency measured now.
+    pub fn report(&self) -> RenderReport {
+        self.renderer.report(&self.scene, self.effects.clone())
+    }
 }
 
 /// Fine pixels a band holds, unless its fewest rows are more: about 40 MB of per-pixel state,
@@ -237,18 +342,46 @@ fn averaged(samples: &[[f32; 3]], fine_width: u32, factor: u32) -> Vec<[f32; 3]>
         .collect()
 }
 
-/// What every band of one image shares: the plan, the camera, the attributes the shading uses.
+/// What every band of one image shares: the scene, the plan, the camera, the attributes the
+/// shading uses.
 struct BandRenderer<'a, 'f> {
     tracer: &'a Tracer<'f>,
-    scene: &'a Scene,
+    scene: Scene,
     plan: Plan,
     camera: Camera,
     used: AttributeUse,
 }
 
+/// A band's per-pixel state after its passes: surfaces, visibility per light, and the AO rays
+/// of the samples traced so far that found the hemisphere open.
+struct BandSamples {
+    rows: Range<u32>,
+    band: Band,
+    /// The primary and shadow passes ran.
+    traced: bool,
+    surfaces: Vec<Option<Surface>>,
+    visibility: Vec<Vec<f32>>,
+    open_rays: Vec<u32>,
+    ao_samples: Range<u32>,
+}
+
+impl BandSamples {
+    fn untraced(width: u32, rows: Range<u32>) -> BandSamples {
+        BandSamples {
+            band: Band::new(width, rows.clone()),
+            rows,
+            traced: false,
+            surfaces: Vec::new(),
+            visibility: Vec::new(),
+            open_rays: Vec::new(),
+            ao_samples: 0..0,
+        }
+    }
+}
+
 impl<'a, 'f> BandRenderer<'a, 'f> {
     /// The renderer of one sample per pixel of `scene`'s image.
-    fn new(tracer: &'a Tracer<'f>, scene: &'a Scene) -> BandRenderer<'a, 'f> {
+    fn new(tracer: &'a Tracer<'f>, scene: &Scene) -> BandRenderer<'a, 'f> {
         let file = tracer.file();
         let header = file.header();
         let bounds = Aabb {
@@ -261,7 +394,7 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
         let used = AttributeUse::new(file.attributes(), &scene.shading);
         BandRenderer {
             tracer,
-            scene,
+            scene: scene.clone(),
             plan,
             camera,
             used,
@@ -286,46 +419,90 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             .collect()
     }
 
-    /// The pixels of the image's `rows`, each pass's rays and time added to `effects` (in the
-    /// order of [`BandRenderer::effects`]).
-    fn render_band(&self, rows: Range<u32>, effects: &mut [EffectReport]) -> Vec<[f32; 3]> {
-        let (tracer, plan) = (self.tracer, &self.plan);
-        let band = Band::new(plan.width, rows);
-        let mut passes = effects.iter_mut();
-        let mut account = |rays: u64, started: Instant| {
-            let effect = passes.next().expect("an effect per pass");
-            effect.rays += rays;
-            effect.seconds += started.elapsed().as_secs_f64();
-        };
+    /// The AO sample indices the scene declares (none without AO).
+    fn ao_samples(&self) -> Range<u32> {
+        0..self.plan.ambient_occlusion.map_or(0, |ao| ao.samples)
+    }
 
+    /// The primary and shadow passes over the image's `rows`, each pass's rays and time added to
+    /// `effects` (in the order of [`BandRenderer::effects`]).
+    fn trace_band(&self, rows: Range<u32>, effects: &mut [EffectReport]) -> BandSamples {
+        let (tracer, plan) = (self.tracer, &self.plan);
+        let band = Band::new(plan.width, rows.clone());
         let started = Instant::now();
         let surfaces = primary_pass(tracer, &self.camera, &band, self.used);
-        account(band.pixel_count() as u64, started);
+        account(&mut effects[0], band.pixel_count() as u64, started);
 
         let mut visibility = vec![Vec::new(); plan.lights.len()];
-        for &light in &plan.shadow_lights {
+        for (pass, &light) in plan.shadow_lights.iter().enumerate() {
             let started = Instant::now();
             let (visible, rays) = shadow_pass(tracer, &plan.lights[light], &surfaces, &band);
             visibility[light] = visible;
-            account(rays, started);
+            account(&mut effects[1 + pass], rays, started);
         }
-
-        let ambient = plan.ambient_occlusion.map(|ao| {
-            let started = Instant::now();
-            let seed = self.scene.shading.seed;
-            let (unoccluded, rays) = ao_pass(tracer, &ao, seed, &surfaces, &band);
-            account(rays, started);
-            unoccluded
-        });
-
-        if self.scene.shading.mode == ShadingMode::Normals {
-            return normal_colors(&self.scene.shading, &surfaces);
+        BandSamples {
+            open_rays: vec![0; band.pixel_count()],
+            rows,
+            band,
+            traced: true,
+            surfaces,
+            visibility,
+            ao_samples: 0..0,
         }
-        let (exposure, tone_curve) = (self.scene.shading.exposure, self.scene.shading.tone_curve);
-        shade(self.scene, plan, &surfaces, &visibility, ambient.as_deref())
-            .into_iter()
-            .map(|pixel| pixel.map(|channel| tone_curve.apply(channel * exposure)))
-            .collect()
+    }
+
+    /// The AO rays of sample indices `samples` (following those traced) added to `band`'s.
+    fn add_ao_samples(
+        &self,
+        band: &mut BandSamples,
+        samples: Range<u32>,
+        effects: &mut [EffectReport],
+    ) {
+        let Some(ao) = self.plan.ambient_occlusion.filter(|_| !samples.is_empty()) else {
+            return;
+        };
+        debug_assert_eq!(band.ao_samples.end, samples.start);
+        let started = Instant::now();
+        let seed = self.scene.shading.seed;
+        let (open, rays) = ao_pass(self.tracer, &ao, seed, samples.clone(), band);
+        for (sum, open) in band.open_rays.iter_mut().zip(open) {
+            *sum += open;
+        }
+        band.ao_samples.end = samples.end;
+        let last = effects.len() - 1;
+        account(&mut effects[last], rays, started);
+    }
+
+    /// The shaded pixels of `band` with the samples traced so far, each `factor` × `factor`
+    /// block of them averaged into one.
+    fn finished_rows(&self, band: &BandSamples, factor: u32) -> Vec<[f32; 3]> {
+        let samples = self.shade_band(band);
+        match factor {
+            1 => samples,
+            _ => averaged(&samples, self.plan.width, factor),
+        }
+    }
+
+    fn shade_band(&self, band: &BandSamples) -> Vec<[f32; 3]> {
+        let shading = &self.scene.shading;
+        if shading.mode == ShadingMode::Normals {
+            return normal_colors(shading, &band.surfaces);
+        }
+        let traced = band.ao_samples.len() as f32;
+        let open_fraction: Option<Vec<f32>> = (!band.ao_samples.is_empty())
+            .then(|| band.open_rays.iter().map(|&o| o as f32 / traced).collect());
+        let (exposure, tone_curve) = (shading.exposure, shading.tone_curve);
+        let lights = &band.visibility;
+        shade(
+            &self.scene,
+            &self.plan,
+            &band.surfaces,
+            lights,
+            open_fraction.as_deref(),
+        )
+        .into_iter()
+        .map(|pixel| pixel.map(|channel| tone_curve.apply(channel * exposure)))
+        .collect()
     }
 
     /// The report of the whole image of `scene` (the scene as asked for, before antialiasing's
@@ -350,6 +527,12 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             memory: residency::measure(file.path(), file.file_bytes()),
         }
     }
+}
+
+/// `rays` traced since `started` added to `effect`.
+fn account(effect: &mut EffectReport, rays: u64, started: Instant) {
+    effect.rays += rays;
+    effect.seconds += started.elapsed().as_secs_f64();
 }
 
 /// A band of whole image rows: its tiles, by the image's pixel indices, and where its pixels
@@ -505,41 +688,42 @@ fn shadow_pass(
     (per_pixel.into_iter().map(|(v, _)| v).collect(), rays)
 }
 
-/// Unoccluded fraction of the hemisphere per pixel and the rays traced. A tile's AO rays are
-/// traced as one batch ([`Tracer::occluded_chunk`]: grouped by octant into packets), which
-/// answers exactly as ray by ray.
+/// Per pixel of `band`, its AO rays of sample indices `samples` that found the hemisphere open,
+/// and the rays traced. A tile's AO rays are traced as one batch ([`Tracer::occluded_chunk`]:
+/// grouped by octant into packets), which answers exactly as ray by ray.
 fn ao_pass(
     tracer: &Tracer,
     ao: &AoPlan,
     seed: u32,
-    surfaces: &[Option<Surface>],
-    band: &Band,
-) -> (Vec<f32>, u64) {
-    let per_pixel: Vec<(f32, u64)> = over_tiles(band, |tile| {
+    samples: Range<u32>,
+    band: &BandSamples,
+) -> (Vec<u32>, u64) {
+    let surfaces = &band.surfaces;
+    let band = &band.band;
+    let per_pixel: Vec<(u32, u64)> = over_tiles(band, |tile| {
         let rays: Vec<Ray> = tile
             .iter()
             .filter_map(|&pixel| surfaces[band.local(pixel)].map(|surface| (pixel, surface)))
             .flat_map(|(pixel, surface)| {
-                (0..ao.samples).map(move |s| surface.ao_ray(seed, pixel, s, ao.max_distance))
+                samples
+                    .clone()
+                    .map(move |s| surface.ao_ray(seed, pixel, s, ao.max_distance))
             })
             .collect();
         let mut occluded = tracer.occluded_chunk(&rays).into_iter();
         tile.iter()
             .map(|&pixel| match surfaces[band.local(pixel)] {
                 Some(_) => {
-                    let open = occluded
-                        .by_ref()
-                        .take(ao.samples as usize)
-                        .filter(|&o| !o)
-                        .count();
-                    (open as f32 / ao.samples as f32, ao.samples as u64)
+                    let traced = samples.len();
+                    let open = occluded.by_ref().take(traced).filter(|&o| !o).count();
+                    (open as u32, traced as u64)
                 }
-                None => (1.0, 0),
+                None => (0, 0),
             })
             .collect()
     });
     let rays = per_pixel.iter().map(|&(_, r)| r).sum();
-    (per_pixel.into_iter().map(|(v, _)| v).collect(), rays)
+    (per_pixel.into_iter().map(|(open, _)| open).collect(), rays)
 }
 
 fn shade(
@@ -660,21 +844,34 @@ mod tests {
         mesh
     }
 
+    /// `bumpy_grid` converted into a temporary file named after `test`, and opened.
+    fn bumpy_file(test: &str) -> (std::path::PathBuf, ReducemFile) {
+        let path = std::env::temp_dir().join(format!("render-{test}-{}.rdm", std::process::id()));
+        convert_mesh(&bumpy_grid(), &BuildParams::default(), &path).expect("convert");
+        let file = ReducemFile::open(&path).expect("open");
+        (path, file)
+    }
+
+    /// An automatic camera, a light and AO samples over an image of `width` × `height`;
+    /// `shadows` lets the light cast shadows.
+    fn lit_scene(size: (u32, u32), antialiasing: u32, shadows: bool, samples: u32) -> Scene {
+        let (width, height) = size;
+        let text = format!(
+            "[image]\nwidth = {width}\nheight = {height}\nantialiasing = {antialiasing}\n\
+             [camera]\nauto = true\n[[directional_light]]\ndirection = [-1.0, -0.5, -1.0]\n\
+             cast_shadows = {shadows}\n[ambient_occlusion]\nsamples = {samples}\n"
+        );
+        Scene::parse(std::path::Path::new("s.toml"), &text).expect("scene")
+    }
+
     /// Bands of a few tile rows give the very pixels and ray counts of one band for the whole
     /// image, in either order, with antialiasing, shadows and ambient occlusion.
     #[test]
     fn an_image_rendered_in_bands_is_the_image_rendered_whole() {
-        let path = std::env::temp_dir().join(format!("render-bands-{}.rdm", std::process::id()));
-        convert_mesh(&bumpy_grid(), &BuildParams::default(), &path).expect("convert");
-        let file = ReducemFile::open(&path).expect("open");
+        let (path, file) = bumpy_file("bands");
         let tracer = Tracer::new(&file, TraceOptions::default());
         for antialiasing in [1u32, 3] {
-            let text = format!(
-                "[image]\nwidth = 37\nheight = 29\nantialiasing = {antialiasing}\n\
-                 [camera]\nauto = true\n[[directional_light]]\ndirection = [-1.0, -0.5, -1.0]\ncast_shadows = true\n\
-                 [ambient_occlusion]\nsamples = 3\n"
-            );
-            let scene = Scene::parse(std::path::Path::new("s.toml"), &text).expect("scene");
+            let scene = lit_scene((37, 29), antialiasing, true, 3);
             let render = |order, band_pixels| {
                 let mut bands = Vec::new();
                 let report = render_in_bands(&tracer, &scene, order, band_pixels, |rows| {
@@ -723,6 +920,69 @@ mod tests {
             assert!(whole_report.rays_of("ambient_occlusion") > 0);
             assert!(whole_report.rays_of("shadows") > 0);
         }
+        std::fs::remove_file(&path).expect("remove");
+    }
+
+    /// Rounds of AO samples end with the very pixels and ray counts of the image rendered at
+    /// once, the samples per pixel growing with each round, with antialiasing or without.
+    #[test]
+    fn an_image_refined_in_rounds_ends_as_the_image_rendered_at_once() {
+        let (path, file) = bumpy_file("rounds");
+        let tracer = Tracer::new(&file, TraceOptions::default());
+        for antialiasing in [1u32, 2] {
+            let scene = lit_scene((37, 29), antialiasing, true, 5);
+            let (whole, whole_report) = render(&tracer, &scene);
+            let mut progressive = Progressive::new(&tracer, &scene, 1);
+            assert_eq!(progressive.samples_per_pixel(), 0);
+            let mut spp = Vec::new();
+            let mut frames = Vec::new();
+            for until in [1, 2, 4, 8] {
+                let frame = progressive
+                    .refine(until, || Ok::<(), ()>(()))
+                    .expect("refined");
+                spp.push(progressive.samples_per_pixel());
+                frames.push(frame);
+            }
+            let square = antialiasing * antialiasing;
+            assert_eq!(spp, [1, 2, 4, 5].map(|s| s * square));
+            assert!(progressive.is_complete());
+            let bits = |frame: &Frame| -> Vec<u32> {
+                frame.pixels.iter().flatten().map(|c| c.to_bits()).collect()
+            };
+            assert_eq!(
+                bits(&frames[3]),
+                bits(&whole),
+                "antialiasing {antialiasing}"
+            );
+            assert_ne!(bits(&frames[0]), bits(&whole), "one AO sample of five");
+            let report = progressive.report();
+            assert_eq!(report.total_rays, whole_report.total_rays);
+            assert_eq!(report.effects.len(), whole_report.effects.len());
+        }
+        std::fs::remove_file(&path).expect("remove");
+    }
+
+    /// A round abandoned between bands leaves the image to be finished by the next round.
+    #[test]
+    fn an_abandoned_round_is_finished_by_the_next() {
+        let (path, file) = bumpy_file("abandon");
+        let tracer = Tracer::new(&file, TraceOptions::default());
+        let scene = lit_scene((16, 24), 1, false, 3);
+        let (whole, _) = render(&tracer, &scene);
+        let mut progressive = Progressive::new(&tracer, &scene, 1);
+        let mut bands_left = 2;
+        let abandoned = progressive.refine(3, || {
+            if bands_left == 0 {
+                return Err("stale");
+            }
+            bands_left -= 1;
+            Ok(())
+        });
+        assert_eq!(abandoned, Err("stale"));
+        assert!(!progressive.is_complete());
+        let frame = progressive.refine(3, || Ok::<(), ()>(())).expect("refined");
+        assert!(progressive.is_complete());
+        assert_eq!(frame, whole);
         std::fs::remove_file(&path).expect("remove");
     }
 

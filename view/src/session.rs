@@ -1,5 +1,5 @@
-//! One page's WebSocket: the page sends views and picks as JSON; the server answers picks as JSON
-//! and views with frames, each a binary message (a little-endian u32 header length, the JSON
+//! One page's WebSocket: the page sends views, picks and its canvas size as JSON; the server
+//! answers picks and the cameras framed for the canvas as JSON, and views with frames, each a binary message (a little-endian u32 header length, the JSON
 //! header, the JPEG).
 //!
 //! One thread reads and writes the socket; a renderer thread renders the latest view and leaves
@@ -27,7 +27,16 @@ const POLL: Duration = Duration::from_millis(5);
 #[serde(tag = "type", rename_all = "lowercase")]
 enum PageMessage {
     View(View),
-    Pick { view: View, x: u32, y: u32 },
+    Pick {
+        view: View,
+        x: u32,
+        y: u32,
+    },
+    /// The first cameras framed for the page's canvas.
+    Framing {
+        width: u32,
+        height: u32,
+    },
 }
 
 /// What the server sends as text (serialized as structs, so that f32 values print as the
@@ -48,6 +57,10 @@ enum ServerMessage {
     },
     Pick {
         pick: Option<Pick>,
+    },
+    /// The first camera for either axis, framed for the size the page asked for.
+    Framing {
+        cameras: Cameras,
     },
 }
 
@@ -232,6 +245,13 @@ fn answer(
         Ok(PageMessage::Pick { view, x, y }) => {
             let pick = viewer.pick(&view, x, y);
             send(socket, &ServerMessage::Pick { pick })?;
+        }
+        Ok(PageMessage::Framing { width, height }) => {
+            let cameras = Cameras {
+                y: viewer.framed_camera(UpAxis::Y, width, height),
+                z: viewer.framed_camera(UpAxis::Z, width, height),
+            };
+            send(socket, &ServerMessage::Framing { cameras })?;
         }
         Err(error) => eprintln!("reducem view: a page message not understood: {error}"),
     }

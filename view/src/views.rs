@@ -2,13 +2,15 @@
 //! its progressive frames, its images and its picks.
 
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 use glam::Vec3;
 use reducem::format::attributes::NormalEncoding;
 use reducem::render::camera::{placement, Camera};
 use reducem::render::image::srgb_bytes;
 use reducem::render::scene::{Scene, ShadingMode};
-use reducem::render::{render_in_bands, Frame, RenderReport, RowOrder};
+use reducem::render::{residency, Frame, Progressive};
 use reducem::trace::ray_file::{trace_hits_as, HitFormat};
 use reducem::trace::Tracer;
 use serde::{Deserialize, Serialize};
@@ -76,6 +78,8 @@ pub struct Viewer {
     y_up_scene: Scene,
     pub up: UpAxis,
     pub token: String,
+    /// When the file's resident bytes were last measured, and the figure.
+    resident: Mutex<Option<(Instant, Option<u64>)>>,
 }
 
 /// One image of a view, encoded, with what the page shows about it.
@@ -101,6 +105,39 @@ pub struct FrameHeader {
 /// A view's image was abandoned: the page asked for another view meanwhile.
 pub struct Stale;
 
+/// The rays a frame took and their tracing time.
+#[derive(Clone, Copy, Default)]
+struct Rays {
+    rays: u64,
+    seconds: f64,
+}
+
+impl Rays {
+    fn of(image: &Progressive) -> Rays {
+        let (rays, seconds) = image.rays_traced();
+        Rays { rays, seconds }
+    }
+
+    /// These rays less those counted `before`.
+    fn since(self, before: Rays) -> Rays {
+        Rays {
+            rays: self.rays - before.rays,
+            seconds: self.seconds - before.seconds,
+        }
+    }
+}
+
+/// How long a measure of the file's resident memory is shown before it is taken again: it
+/// reads the process's whole memory map, work that grows with the pages resident.
+const RESIDENCY_INTERVAL: Duration = Duration::from_millis(500);
+
+/// Fine pixels of a band of `scene`'s image: eight rows, so that a stale camera's leftover work
+/// is a few milliseconds.
+fn band_pixels(scene: &Scene) -> u32 {
+    let image = &scene.image;
+    image.width.saturating_mul(image.antialiasing.pow(2) * 8)
+}
+
 impl Viewer {
     /// The viewer of `tracer`'s file with `scene`, as written (for a z-up model).
     pub fn new(
@@ -117,6 +154,7 @@ impl Viewer {
             y_up_scene,
             up,
             token,
+            resident: Mutex::new(None),
         }
     }
 
@@ -129,11 +167,17 @@ impl Viewer {
     }
 
     /// The camera the page starts from for a model whose up axis is `up`: the scene's, framed as
-    /// `reducem render` frames it.
+    /// `reducem render` frames it for the scene's image size.
     pub fn initial_camera(&self, up: UpAxis) -> CameraView {
-        let scene = self.scene(up);
-        let settings = &scene.camera;
-        let (width, height) = (scene.image.width, scene.image.height);
+        let image = &self.scene(up).image;
+        self.framed_camera(up, image.width, image.height)
+    }
+
+    /// The scene's camera for a model whose up axis is `up`, framed for a `width` × `height`
+    /// image (the page's canvas) as `reducem render` frames its own image.
+    pub fn framed_camera(&self, up: UpAxis, width: u32, height: u32) -> CameraView {
+        let settings = &self.scene(up).camera;
+        let (width, height) = (width.clamp(1, MAX_SIDE), height.clamp(1, MAX_SIDE));
         let (position, look_at) = placement(self.tracer, settings, width, height);
         CameraView {
             position: position.into(),
@@ -184,9 +228,10 @@ impl Viewer {
     }
 
     /// The frames of `view` in the order the page shows them: a coarse one of a quarter of the
-    /// pixels with primary shading, the full-size one, then (when the scene declares shadows,
-    /// AO or antialiasing) the scene's own image, as `reducem render` makes it. Each goes to
-    /// `deliver` as soon as it is ready; work stops when `generation` leaves `current`.
+    /// pixels with primary shading, then the full-size image in rounds, as `reducem render`
+    /// makes it: the first with primary shading and shadows, each further one with twice the AO
+    /// samples, until the scene's count. Each goes to `deliver` as soon as it is ready; work
+    /// stops when `generation` leaves `current`.
     pub fn render_progressively(
         &self,
         view: &View,
@@ -197,53 +242,50 @@ impl Viewer {
         let Some(scene) = self.scene_of(view) else {
             return Ok(());
         };
-        let primary = primary_only(&scene);
-        let mut coarse = primary.clone();
+        let is_current = || match generation.load(Ordering::Acquire) == current {
+            true => Ok(()),
+            false => Err(Stale),
+        };
+        let mut coarse = primary_only(&scene);
         coarse.image.width = scene.image.width.div_ceil(2);
         coarse.image.height = scene.image.height.div_ceil(2);
-        let mut stages = vec![(coarse, 0.25), (primary.clone(), 1.0)];
-        if scene != primary {
-            let samples = scene.ambient_occlusion.as_ref().map_or(1, |ao| ao.samples);
-            let spp = (samples * scene.image.antialiasing.pow(2)) as f32;
-            stages.push((scene.clone(), spp));
+        let mut coarse_image = Progressive::new(self.tracer, &coarse, band_pixels(&coarse));
+        let frame = coarse_image.refine(1, is_current)?;
+        let rays = Rays::of(&coarse_image);
+        deliver(self.encode(frame, rays, view.camera, current, 0.25));
+
+        let mut image = Progressive::new(self.tracer, &scene, band_pixels(&scene));
+        let (mut ao_samples, mut before) = (1, Rays::default());
+        loop {
+            let frame = image.refine(ao_samples, is_current)?;
+            let rays = Rays::of(&image).since(before);
+            let spp = image.samples_per_pixel() as f32;
+            deliver(self.encode(frame, rays, view.camera, current, spp));
+            if image.is_complete() {
+                return Ok(());
+            }
+            (ao_samples, before) = (ao_samples * 2, Rays::of(&image));
         }
-        for (stage, spp) in stages {
-            let (frame, report) = self.render_while_current(&stage, current, generation)?;
-            deliver(self.encode(frame, &report, view.camera, current, spp));
-        }
-        Ok(())
     }
 
-    /// `scene` rendered, or [`Stale`] as soon as a band ends with `generation` moved on.
-    fn render_while_current(
-        &self,
-        scene: &Scene,
-        current: u64,
-        generation: &AtomicU64,
-    ) -> Result<(Frame, RenderReport), Stale> {
-        let (width, height) = (scene.image.width, scene.image.height);
-        let mut pixels = Vec::with_capacity(width as usize * height as usize);
-        // A band of eight rows keeps a stale camera's leftover work to a few milliseconds.
-        let band_pixels = width.saturating_mul(scene.image.antialiasing.pow(2) * 8);
-        let report = render_in_bands(self.tracer, scene, RowOrder::TopDown, band_pixels, |rows| {
-            if generation.load(Ordering::Acquire) != current {
-                return Err(Stale);
+    /// The file's resident bytes, measured at most every [`RESIDENCY_INTERVAL`].
+    fn resident_bytes(&self) -> Option<u64> {
+        let mut last = self.resident.lock().unwrap_or_else(|p| p.into_inner());
+        match *last {
+            Some((measured, bytes)) if measured.elapsed() < RESIDENCY_INTERVAL => bytes,
+            _ => {
+                let file = self.tracer.file();
+                let bytes = residency::mapping_rss(file.path());
+                *last = Some((Instant::now(), bytes));
+                bytes
             }
-            pixels.extend_from_slice(rows);
-            Ok(())
-        })?;
-        let frame = Frame {
-            width,
-            height,
-            pixels,
-        };
-        Ok((frame, report))
+        }
     }
 
     fn encode(
         &self,
         frame: Frame,
-        report: &RenderReport,
+        rays: Rays,
         camera: CameraView,
         generation: u64,
         spp: f32,
@@ -266,10 +308,10 @@ impl Viewer {
                 height: frame.height,
                 spp,
                 camera,
-                rays: report.total_rays,
-                seconds: report.trace_seconds,
+                rays: rays.rays,
+                seconds: rays.seconds,
                 triangles: self.tracer.file().header().triangle_count,
-                resident_bytes: report.memory.mapped_resident_bytes,
+                resident_bytes: self.resident_bytes(),
             },
             jpeg,
         }

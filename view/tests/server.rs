@@ -335,6 +335,45 @@ fn a_view_gets_a_coarse_frame_then_the_full_one_and_picks_and_images_match_the_l
     std::fs::remove_file(&file).unwrap();
 }
 
+/// The first cameras framed for a wide and for a tall canvas keep the model inside the image:
+/// no pixel on its border shows the model, some pixel inside does.
+#[test]
+fn the_first_camera_framed_for_a_wide_or_tall_canvas_keeps_the_model_inside() {
+    let file = model("framing");
+    let server = Server::start(&file, &["--up", "z"]);
+    let mut socket = server.page_socket();
+    text(&mut socket);
+    let opened = ReducemFile::open(&file).unwrap();
+    let tracer = Tracer::new(&opened, TraceOptions::default());
+    for (width, height) in [(160, 40), (40, 160)] {
+        let framing = serde_json::json!({ "type": "framing", "width": width, "height": height });
+        send(&mut socket, framing);
+        let answer = text(&mut socket);
+        assert_eq!(answer["type"], "framing");
+        for up in ["y", "z"] {
+            let scene = default_scene(&answer["cameras"][up], width, height);
+            let (frame, _) = reducem::render::render(&tracer, &scene);
+            let shading = &scene.shading;
+            let background = shading
+                .background
+                .map(|channel| shading.tone_curve.apply(channel * shading.exposure));
+            let model_at = |x: u32, y: u32| frame.pixels[(y * width + x) as usize] != background;
+            let on_border = (0..width)
+                .flat_map(|x| [(x, 0), (x, height - 1)])
+                .chain((0..height).flat_map(|y| [(0, y), (width - 1, y)]))
+                .filter(|&(x, y)| model_at(x, y))
+                .count();
+            let inside = (0..width * height)
+                .filter(|&p| model_at(p % width, p / width))
+                .count();
+            assert_eq!(on_border, 0, "{width}x{height}, up {up}");
+            assert!(inside > 0, "{width}x{height}, up {up}: the model is seen");
+        }
+    }
+    drop(opened);
+    std::fs::remove_file(&file).unwrap();
+}
+
 #[test]
 fn a_page_that_leaves_mid_frame_leaves_the_server_serving_others() {
     let file = model("leave");
@@ -358,7 +397,8 @@ fn a_page_that_leaves_mid_frame_leaves_the_server_serving_others() {
 }
 
 #[test]
-fn the_scene_file_of_a_view_with_effects_switched_on_renders_its_saved_image() {
+fn a_view_with_effects_switched_on_accumulates_its_samples_and_its_scene_file_renders_its_saved_image(
+) {
     let file = model("scene");
     let server = Server::start(&file, &["--up", "y"]);
     let mut socket = server.page_socket();
@@ -391,6 +431,20 @@ fn the_scene_file_of_a_view_with_effects_switched_on_renders_its_saved_image() {
     let report = render_into(&tracer, &scene, ImageFormat::Png, &mut expected).unwrap();
     assert!(report.rays_of("ambient_occlusion") > 0 && report.rays_of("shadows") > 0);
     assert!(png == expected, "the scene file renders the saved image");
+
+    let mut view = view_message(&hello["camera"], 40, 30);
+    (view["type"], view["effects"]) = ("view".into(), effects);
+    send(&mut socket, view);
+    let mut spp = Vec::new();
+    while spp.last() != Some(&16.0) {
+        let (header, _) = frame(&mut socket);
+        spp.push(header["spp"].as_f64().unwrap());
+    }
+    assert_eq!(
+        spp,
+        [0.25, 1.0, 2.0, 4.0, 8.0, 16.0],
+        "AO samples accumulate"
+    );
     drop(opened);
     std::fs::remove_file(&file).unwrap();
 }

@@ -12,9 +12,9 @@
 //! [`crate::trace::prepared`], and the ray's `[tmin, tmax]` by the same relative margin.
 
 use arrayvec::ArrayVec;
-use wide::f32x4;
+use wide::{f32x4, i32x4};
 
-use crate::format::block_boxes::{BoxFrame, BOX_WINDOWS, CODE_BIAS, MAX_CODE};
+use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_WINDOWS, CODE_BIAS, MAX_CODE};
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
@@ -22,9 +22,7 @@ use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, WideNode, TOP_WIDTH,
 use crate::geometry::Point;
 use crate::trace::kernel::crossing_blocks::{for_each_candidate, StripBlocks, MASK_BLOCKS};
 use crate::trace::kernel::Kernel;
-use crate::trace::prepared::{
-    max_not_nan, max_not_nan_x4, min_not_nan, min_not_nan_x4, PreparedRay, FAR_INFLATION,
-};
+use crate::trace::prepared::{max_not_nan_x4, min_not_nan_x4, PreparedRay, FAR_INFLATION};
 use crate::trace::watertight::{RayPoint, RaySpace};
 use crate::trace::Ray;
 
@@ -32,8 +30,11 @@ use crate::trace::Ray;
 /// ray-space transform and of the slab test.
 const MARGIN: f32 = 1.0 / 65_536.0;
 
+/// Boxes tested together, in the lanes of one register.
+const BOX_LANES: usize = 4;
+
 /// Four boxes axis by axis: `min[axis][box]`, `max[axis][box]`.
-type FourBoxes = ([[f32; 4]; 3], [[f32; 4]; 3]);
+type FourBoxes = ([[f32; BOX_LANES]; 3], [[f32; BOX_LANES]; 3]);
 
 /// A valid ray (finite, non-zero direction, `0 <= tmin <= tmax`) ready for the walk.
 pub(super) struct CrossingWalk {
@@ -44,8 +45,6 @@ pub(super) struct CrossingWalk {
     entry_reciprocal: [f32x4; 3],
     exit_reciprocal: [f32x4; 3],
     negative: [bool; 3],
-    /// The same in the lanes `x, y, z` of one register (lane 3 unused), for block boxes.
-    axes: AxisLanes,
     /// `[tmin, tmax]` grown by [`MARGIN`].
     t_near: f32,
     t_far: f32,
@@ -55,9 +54,6 @@ impl CrossingWalk {
     pub(super) fn new(ray: &Ray, kernel: Kernel) -> CrossingWalk {
         let prepared = PreparedRay::new(ray);
         let splat = |v: &Point| v.map(f32x4::splat);
-        let all_ones = prepared
-            .negative
-            .map(|n| f32::from_bits(if n { u32::MAX } else { 0 }));
         CrossingWalk {
             kernel,
             space: prepared.space,
@@ -66,12 +62,6 @@ impl CrossingWalk {
             entry_reciprocal: splat(&prepared.entry_reciprocal),
             exit_reciprocal: splat(&prepared.exit_reciprocal),
             negative: prepared.negative,
-            axes: AxisLanes {
-                origin: axis_lanes(&ray.origin),
-                entry_reciprocal: axis_lanes(&prepared.entry_reciprocal),
-                exit_reciprocal: axis_lanes(&prepared.exit_reciprocal),
-                negative: axis_lanes(&all_ones),
-            },
             t_near: ray.tmin * (1.0 - MARGIN),
             t_far: ray.tmax * (1.0 + MARGIN),
         }
@@ -158,7 +148,8 @@ impl CrossingWalk {
     }
 
     /// Of the `count` blocks from `first_block`, those whose box the ray may meet (all when
-    /// the boxes cannot be framed or read: only in a corrupt strip, which validation reports).
+    /// the boxes cannot be framed or read: only in a corrupt strip, which validation reports),
+    /// four blocks to a node's test: a strip's few blocks cost one or two of them.
     fn entered_blocks(&self, view: &StripView, first_block: usize, count: usize) -> u64 {
         let anchor = match view.vertices {
             StripVertices::F32(vertices) => vertices.point(0),
@@ -168,35 +159,13 @@ impl CrossingWalk {
         let Some(frame) = view.boxes.frame(anchor) else {
             return all;
         };
-        let planes = BlockPlanes::new(&frame);
         let mut mask = 0u64;
-        for block in 0..count {
-            let Some(codes) = view.boxes.codes(first_block + block) else {
-                return mask | (all & (u64::MAX << block));
-            };
-            let (min, max) = planes.decode(codes);
-            mask |= u64::from(self.block_entered(min, max)) << block;
+        for first in (0..count).step_by(BOX_LANES) {
+            let lanes = (count - first).min(BOX_LANES);
+            let (boxes, unreadable) = block_boxes(&view.boxes, &frame, first_block + first, lanes);
+            mask |= u64::from(self.entered(&boxes) | unreadable) << first;
         }
-        mask
-    }
-
-    /// [`CrossingWalk::entered`] for one box held axis by axis in lanes.
-    #[inline(always)]
-    fn block_entered(&self, min: f32x4, max: f32x4) -> bool {
-        let axes = &self.axes;
-        let (low, high) = (min - axes.origin, max - axes.origin);
-        let reach = (low.abs() + high.abs()).to_array();
-        let widen = f32x4::splat((reach[0] + reach[1] + reach[2]) * MARGIN);
-        let (low, high) = (low - widen, high + widen);
-        let entry = axes.negative.select(high, low) * axes.entry_reciprocal;
-        let exit = axes.negative.select(low, high) * axes.exit_reciprocal;
-        let (entry, exit) = (
-            entry.to_array(),
-            (exit * f32x4::splat(FAR_INFLATION)).to_array(),
-        );
-        let near = (0..3).fold(self.t_near, |near, axis| max_not_nan(near, entry[axis]));
-        let far = (0..3).fold(self.t_far, |far, axis| min_not_nan(far, exit[axis]));
-        near <= far
+        mask & all
     }
 
     /// The boxes the ray may meet within its grown interval, each grown by [`MARGIN`] (module
@@ -224,45 +193,43 @@ impl CrossingWalk {
     }
 }
 
-/// A point's `x, y, z` in lanes 0 to 2 (lane 3 zero).
-fn axis_lanes(p: &Point) -> f32x4 {
-    f32x4::from([p[0], p[1], p[2], 0.0])
-}
-
-/// A ray's origin, reciprocals and direction signs (all-ones lanes) axis by axis in lanes.
-struct AxisLanes {
-    origin: f32x4,
-    entry_reciprocal: f32x4,
-    exit_reciprocal: f32x4,
-    negative: f32x4,
-}
-
-/// A strip's box frame in lanes, to decode one block box into `x, y, z` lanes as
-/// [`crate::format::block_boxes::decode_plane`] does, bit for bit (the code minus the bias
-/// and the product by the power-of-two scale are exact, the sum rounds once).
-struct BlockPlanes {
-    anchor: f32x4,
-    scale: f32x4,
-}
-
-impl BlockPlanes {
-    fn new(frame: &BoxFrame) -> BlockPlanes {
-        BlockPlanes {
-            anchor: axis_lanes(&frame.anchor),
-            scale: axis_lanes(&frame.scale),
+/// Blocks `first .. first + lanes` of a strip's boxes (`lanes <= 4`) decoded in `frame` axis
+/// by axis, as [`crate::format::block_boxes::decode_plane`] does, bit for bit (the code minus
+/// the bias and its product by the power-of-two scale are exact, the sum rounds once); and the
+/// lanes whose box cannot be read (bit `k` for block `first + k`).
+#[inline(always)]
+fn block_boxes(
+    boxes: &BlockBoxes,
+    frame: &BoxFrame,
+    first: usize,
+    lanes: usize,
+) -> (FourBoxes, u32) {
+    let mut codes = [[0i32; BOX_LANES]; 3];
+    let mut unreadable = 0;
+    for (lane, block) in (first..first + lanes).enumerate() {
+        match boxes.codes(block) {
+            Some(box_codes) => {
+                (0..3).for_each(|axis| codes[axis][lane] = i32::from(box_codes[axis]))
+            }
+            None => unreadable |= 1 << lane,
         }
     }
-
-    #[inline(always)]
-    fn decode(&self, codes: [u8; 3]) -> (f32x4, f32x4) {
-        let plane = |shift: u8| {
-            let code = |axis: usize| f32::from((codes[axis] >> shift) & MAX_CODE);
-            let bias = CODE_BIAS as f32;
-            let offset = f32x4::from([code(0) - bias, code(1) - bias, code(2) - bias, 0.0]);
-            self.anchor + offset * self.scale
+    let planes = |axis: usize| {
+        let bytes = i32x4::from(codes[axis]);
+        let decode = |code: i32x4| {
+            let offset = (code - i32x4::splat(CODE_BIAS)).round_float();
+            (f32x4::splat(frame.anchor[axis]) + offset * f32x4::splat(frame.scale[axis])).to_array()
         };
-        (plane(0), plane(4))
-    }
+        (
+            decode(bytes & i32x4::splat(i32::from(MAX_CODE))),
+            decode(bytes >> 4),
+        )
+    };
+    let axes = [0, 1, 2].map(planes);
+    (
+        (axes.map(|(min, _)| min), axes.map(|(_, max)| max)),
+        unreadable,
+    )
 }
 
 /// Nodes pending in a walk: inline, then on the heap (only in trees deeper than any built).

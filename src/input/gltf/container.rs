@@ -3,10 +3,16 @@
 //!
 //! The GLB chunks are split here rather than by `gltf::Glb::from_slice`, which subtracts the
 //! header size from the declared length unchecked and gives no offsets for messages.
+//!
+//! The GLB and external `.bin` files are mapped rather than read: the accessors read each byte
+//! once, so only the page cache needs to hold them, not a copy in the process's heap.
 
-use std::fs;
-use std::ops::Range;
+use std::fs::File;
+use std::ops::{Deref, Range};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use memmap2::Mmap;
 
 use gltf::json::mesh::Semantic;
 use gltf::json::validation::{Checked, Error as ValidationError, Validate};
@@ -15,6 +21,7 @@ use gltf::json::{Path as JsonPath, Root};
 use super::{defect, json_defect};
 use crate::input::error::{InputError, InputErrorKind, Location};
 use crate::input::ply::io_error;
+use crate::mapping::map_file;
 
 const GLB_MAGIC: &[u8; 4] = b"glTF";
 const GLB_HEADER_BYTES: usize = 12;
@@ -33,12 +40,34 @@ pub(crate) fn is_glb(head: &[u8]) -> bool {
 
 /// The bytes of one buffer and where they are, for messages.
 pub(super) struct BufferData {
-    pub bytes: Vec<u8>,
+    pub bytes: BufferBytes,
     /// The file the bytes are in (the GLB or `.gltf` for embedded ones).
     pub file: PathBuf,
     /// Offset of the buffer's first byte in `file`; `None` for a data URI, whose bytes are
     /// decoded base64.
     pub file_offset: Option<u64>,
+}
+
+/// A buffer's bytes: a range of a mapped file, or decoded base64.
+pub(super) enum BufferBytes {
+    Mapped { map: Arc<Mmap>, range: Range<usize> },
+    Decoded(Vec<u8>),
+}
+
+impl Deref for BufferBytes {
+    type Target = [u8];
+
+    fn deref(&self) -> &[u8] {
+        match self {
+            BufferBytes::Mapped { map, range } => &map[range.clone()],
+            BufferBytes::Decoded(bytes) => bytes,
+        }
+    }
+}
+
+/// The whole file at `path`, mapped.
+fn mapped(path: &Path) -> std::io::Result<Arc<Mmap>> {
+    Ok(Arc::new(map_file(&File::open(path)?)?))
 }
 
 /// A parsed and validated document and its buffers (`None` where a buffer has no data, as
@@ -52,7 +81,7 @@ pub(super) struct Container {
 
 /// Reads, parses and validates `path`, and loads every buffer.
 pub(super) fn open(path: &Path) -> Result<Container, InputError> {
-    let mut bytes = fs::read(path).map_err(|error| io_error(path, &error))?;
+    let bytes = mapped(path).map_err(|error| io_error(path, &error))?;
     let (json_range, bin_range) = if is_glb(&bytes) {
         split_glb(path, &bytes)?
     } else {
@@ -64,8 +93,8 @@ pub(super) fn open(path: &Path) -> Result<Container, InputError> {
     validate(path, &root, json_offset)?;
     let mut bin = bin_range.map(|range| {
         let offset = range.start as u64;
-        bytes.truncate(range.end);
-        (bytes.split_off(range.start), offset)
+        let map = Arc::clone(&bytes);
+        (BufferBytes::Mapped { map, range }, offset)
     });
     let buffers = root
         .buffers
@@ -237,7 +266,7 @@ fn load_buffer(
     path: &Path,
     index: usize,
     buffer: &gltf::json::Buffer,
-    bin: &mut Option<(Vec<u8>, u64)>,
+    bin: &mut Option<(BufferBytes, u64)>,
     json_offset: u64,
 ) -> Result<Option<BufferData>, InputError> {
     let declared = buffer.byte_length.0;
@@ -252,10 +281,10 @@ fn load_buffer(
         }
         None => return Ok(None),
         Some(uri) if uri.starts_with("data:") => BufferData {
-            bytes: data_uri(uri).ok_or_else(|| {
+            bytes: BufferBytes::Decoded(data_uri(uri).ok_or_else(|| {
                 let message = "the data URI is not base64 data".to_string();
                 json_defect(path, "buffer", index, json_offset, message)
-            })?,
+            })?),
             file: path.to_path_buf(),
             file_offset: None,
         },
@@ -264,12 +293,13 @@ fn load_buffer(
                 .parent()
                 .unwrap_or(Path::new(""))
                 .join(percent_decoded(uri));
-            let bytes = fs::read(&file).map_err(|error| {
+            let map = mapped(&file).map_err(|error| {
                 let message = format!("cannot read {}: {error}", file.display());
                 json_defect(path, "buffer", index, json_offset, message)
             })?;
+            let range = 0..map.len();
             BufferData {
-                bytes,
+                bytes: BufferBytes::Mapped { map, range },
                 file,
                 file_offset: Some(0),
             }
