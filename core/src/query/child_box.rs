@@ -4,62 +4,53 @@
 
 use crate::format::grid::NodeGrid;
 use crate::format::{GridNode, NodeRecord, TopNode, WideNode, TOP_WIDTH};
-use crate::geometry::Point;
-use crate::trace::kernel::distance_bounds::LaneBoxes;
+use crate::trace::kernel::distance_bounds::{wide_child_boxes, LaneBoxes};
+use crate::trace::kernel::Kernel;
 
-/// A top-level node record's child boxes as f32 `(min, max)`.
+/// A group of four child boxes by axis and slot (`[axis][slot]`): minima, maxima.
+pub(crate) type FourBoxes = (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>);
+
+/// A top-level node record's child boxes as f32, in groups of four slots.
 pub(crate) trait ChildBox: NodeRecord {
     /// What decoding a box takes besides the node.
     type Grid;
-    fn child_box(&self, slot: usize, grid: &Self::Grid) -> (Point, Point);
-
-    /// The boxes of slots `4 group .. 4 group + 4` at once, by axis and slot (`[axis][slot]`):
-    /// minima, maxima. Slots that hold no child decode as whatever their planes store.
-    fn child_boxes(
-        &self,
-        grid: &Self::Grid,
-        group: usize,
-    ) -> (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>) {
-        let boxes: [(Point, Point); TOP_WIDTH] =
-            std::array::from_fn(|lane| self.child_box(group * TOP_WIDTH + lane, grid));
-        (
-            std::array::from_fn(|axis| boxes.map(|(min, _)| min[axis])),
-            std::array::from_fn(|axis| boxes.map(|(_, max)| max[axis])),
-        )
-    }
+    /// Every slot's box in groups of four (group `g`: slots `4 g .. 4 g + 4`); slots that hold
+    /// no child decode as whatever their planes store.
+    type Groups: AsRef<[FourBoxes]>;
+    fn child_boxes(&self, grid: &Self::Grid, kernel: Kernel) -> Self::Groups;
 }
 
 impl ChildBox for TopNode {
     type Grid = ();
-
-    fn child_box(&self, slot: usize, _: &()) -> (Point, Point) {
-        self.slot_box(slot)
-    }
+    type Groups = [FourBoxes; 1];
 
     /// The record stores its boxes by axis and slot already.
-    fn child_boxes(&self, _: &(), _group: usize) -> (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>) {
-        (self.min, self.max)
+    fn child_boxes(&self, _: &(), _: Kernel) -> [FourBoxes; 1] {
+        [(self.min, self.max)]
     }
 }
 
 impl ChildBox for GridNode {
     type Grid = NodeGrid;
+    type Groups = [FourBoxes; 1];
 
     /// Through [`NodeGrid::decode_axis`], the expression the writer rounded the boxes outward
     /// with.
-    fn child_box(&self, slot: usize, grid: &NodeGrid) -> (Point, Point) {
+    fn child_boxes(&self, grid: &NodeGrid, _: Kernel) -> [FourBoxes; 1] {
         let decode = |q: &[[u16; TOP_WIDTH]; 3]| {
-            std::array::from_fn(|axis| grid.decode_axis(q[axis][slot], axis))
+            std::array::from_fn(|axis| q[axis].map(|q| grid.decode_axis(q, axis)))
         };
-        (decode(&self.min), decode(&self.max))
+        [(decode(&self.min), decode(&self.max))]
     }
 }
 
 impl ChildBox for WideNode {
     type Grid = ();
+    type Groups = [FourBoxes; 2];
 
-    /// Through [`WideNode::decode`], the expression the writer rounded the boxes outward with.
-    fn child_box(&self, slot: usize, _: &()) -> (Point, Point) {
-        self.slot_box(slot)
+    /// All eight at once in the kernel's lanes: [`WideNode::decode`]'s bits, the expression
+    /// the writer rounded the boxes outward with.
+    fn child_boxes(&self, _: &(), kernel: Kernel) -> [FourBoxes; 2] {
+        wide_child_boxes(kernel, self)
     }
 }

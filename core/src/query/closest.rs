@@ -168,12 +168,12 @@ impl<'f> ClosestPointSearch<'f> {
         limit: f64,
     ) -> Option<(f64, (u32, u32))> {
         let mut nearest: Option<(f64, (u32, u32))> = None;
-        for group in 0..N::WIDTH / TOP_WIDTH {
+        let groups = node.child_boxes(grid, self.kernel);
+        for (group, (min, max)) in groups.as_ref().iter().enumerate() {
             if node.slot(group * TOP_WIDTH) == TopSlot::Empty {
                 break;
             }
-            let (min, max) = node.child_boxes(grid, group);
-            let bounds = child_bounds(self.kernel, &query.wide, &min, &max);
+            let bounds = child_bounds(self.kernel, &query.wide, min, max);
             for (lane, &bound) in bounds.iter().enumerate() {
                 let link = match node.slot(group * TOP_WIDTH + lane) {
                     TopSlot::Internal(index) => (index, INTERNAL_CHILD),

@@ -21,6 +21,7 @@ use crate::format::vertices::{StripVertices, VertexAccess};
 use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, WideNode, TOP_WIDTH, WIDE_WIDTH};
 use crate::geometry::Point;
 use crate::trace::kernel::crossing_blocks::{for_each_candidate, StripBlocks, MASK_BLOCKS};
+use crate::trace::kernel::crossing_nodes::{entered_wide, WidenedRay};
 use crate::trace::kernel::Kernel;
 use crate::trace::prepared::{max_not_nan_x4, min_not_nan_x4, PreparedRay, FAR_INFLATION};
 use crate::trace::watertight::{RayPoint, RaySpace};
@@ -48,12 +49,15 @@ pub(super) struct CrossingWalk {
     /// `[tmin, tmax]` grown by [`MARGIN`].
     t_near: f32,
     t_far: f32,
+    /// The same test's inputs for the kernels that clip a wide node's eight boxes at once.
+    widened: WidenedRay,
 }
 
 impl CrossingWalk {
     pub(super) fn new(ray: &Ray, kernel: Kernel) -> CrossingWalk {
         let prepared = PreparedRay::new(ray);
         let splat = |v: &Point| v.map(f32x4::splat);
+        let (t_near, t_far) = (ray.tmin * (1.0 - MARGIN), ray.tmax * (1.0 + MARGIN));
         CrossingWalk {
             kernel,
             space: prepared.space,
@@ -62,8 +66,18 @@ impl CrossingWalk {
             entry_reciprocal: splat(&prepared.entry_reciprocal),
             exit_reciprocal: splat(&prepared.exit_reciprocal),
             negative: prepared.negative,
-            t_near: ray.tmin * (1.0 - MARGIN),
-            t_far: ray.tmax * (1.0 + MARGIN),
+            t_near,
+            t_far,
+            widened: WidenedRay {
+                origin: ray.origin,
+                entry_reciprocal: prepared.entry_reciprocal,
+                exit_reciprocal: prepared.exit_reciprocal,
+                negative: prepared.negative,
+                t_near,
+                t_far,
+                margin: MARGIN,
+                far_inflation: FAR_INFLATION,
+            },
         }
     }
 
@@ -99,10 +113,7 @@ impl CrossingWalk {
             let Some(node) = file.top_node(nodes, index as usize) else {
                 continue;
             };
-            let mut entered = 0;
-            for group in 0..N::WIDTH / TOP_WIDTH {
-                entered |= self.entered(&node.boxes(grid, group)) << (group * TOP_WIDTH);
-            }
+            let mut entered = node.entered_children(self, grid);
             while entered != 0 {
                 let slot = entered.trailing_zeros() as usize;
                 entered &= entered - 1;
@@ -261,6 +272,16 @@ trait NodeBoxes: NodeRecord {
     type Grid;
     /// The boxes of slots `4 group .. 4 group + 4`.
     fn boxes(&self, grid: &Self::Grid, group: usize) -> FourBoxes;
+
+    /// The children whose box `walk`'s ray may meet ([`CrossingWalk::entered`]), as a bit mask.
+    #[inline(always)]
+    fn entered_children(&self, walk: &CrossingWalk, grid: &Self::Grid) -> u32 {
+        let mut entered = 0;
+        for group in 0..Self::WIDTH / TOP_WIDTH {
+            entered |= walk.entered(&self.boxes(grid, group)) << (group * TOP_WIDTH);
+        }
+        entered
+    }
 }
 
 impl NodeBoxes for TopNode {
@@ -298,6 +319,16 @@ impl NodeBoxes for WideNode {
             })
         };
         (decode(&self.min), decode(&self.max))
+    }
+
+    /// All eight boxes in one register where the kernel has one that wide: the same bits.
+    #[inline(always)]
+    fn entered_children(&self, walk: &CrossingWalk, _: &()) -> u32 {
+        entered_wide(walk.kernel, &walk.widened, self).unwrap_or_else(|| {
+            (0..WIDE_WIDTH / TOP_WIDTH).fold(0, |entered, group| {
+                entered | walk.entered(&self.boxes(&(), group)) << (group * TOP_WIDTH)
+            })
+        })
     }
 }
 

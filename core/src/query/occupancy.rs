@@ -2,9 +2,8 @@
 //! rule of [`super::crossings`]; on a mesh that is not closed (or whose closedness is unknown)
 //! the majority of `samples` rays in fixed directions, which the answer says is not exact.
 
-use rayon::prelude::*;
-
 use super::crossings::for_each_crossing;
+use super::point_order::answer_in_spatial_order;
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
 use crate::trace::Ray;
@@ -19,13 +18,11 @@ pub struct Occupancy {
 
 /// Whether each point is inside the surface, in parallel (rayon's current pool): the parity of
 /// one ray on a closed file, else the majority of `samples` rays (at least one; a tie is
-/// outside).
+/// outside). Points are answered in spatial order, so that neighbours' rays share the nodes
+/// and strips in cache.
 pub fn occupancy(file: &ReducemFile, points: &[Point], samples: u32) -> Occupancy {
     let rays = inside_rays(file, samples);
-    let inside = points
-        .par_iter()
-        .map(|point| point_inside(file, point, rays))
-        .collect();
+    let inside = answer_in_spatial_order(points, || (), |_, point| point_inside(file, point, rays));
     Occupancy {
         inside,
         exact: file.closed(),

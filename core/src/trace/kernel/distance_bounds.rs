@@ -9,8 +9,8 @@
 
 #![allow(unsafe_code)]
 
-use super::{Kernel, BLOCK};
-use crate::format::TOP_WIDTH;
+use super::{Kernel, TraceKernel, BLOCK};
+use crate::format::{WideNode, TOP_WIDTH};
 
 /// The factor that lowers a box's squared distance below its f64 rounding: a subtraction, three
 /// squares and two sums, each rounded by at most 2^-53 relative, stay within 2^-50.
@@ -35,6 +35,19 @@ pub(crate) fn child_bounds(
         // SAFETY: the CPU runs AVX2, just checked.
         Kernel::Avx2 if super::detect::avx2() => unsafe { child_bounds_avx2(query, min, max) },
         _ => child_lanes(query, min, max),
+    }
+}
+
+/// The eight child boxes of a format 4 node as two groups of four (`(min, max)` by axis and
+/// slot), decoded at once by the kernel: [`WideNode::decode`]'s bits (the kernels' tests).
+pub(crate) fn wide_child_boxes(
+    kernel: Kernel,
+    node: &WideNode,
+) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2] {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if super::detect::avx2() => super::avx2::Avx2::decode_wide(node),
+        _ => super::portable::Portable::decode_wide(node),
     }
 }
 

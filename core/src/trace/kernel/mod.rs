@@ -20,6 +20,7 @@
 mod avx2;
 pub(crate) mod codes;
 pub(crate) mod crossing_blocks;
+pub(crate) mod crossing_nodes;
 mod detect;
 pub(crate) mod distance_bounds;
 mod portable;
