@@ -412,7 +412,7 @@ struct PreviewSurfaces {
 impl PreviewSurfaces {
     /// The surface of the image's pixel `(x, y)` when the preview traced its ray.
     fn at(&self, x: u32, y: u32) -> Option<Option<Surface>> {
-        if x % self.step != 0 || y % self.step != 0 {
+        if !x.is_multiple_of(self.step) || !y.is_multiple_of(self.step) {
             return None;
         }
         let index = (y / self.step) as usize * self.width as usize + (x / self.step) as usize;
