@@ -14,7 +14,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 use reducem_core::trace::{coherent_order, Ray};
 
-use crate::rays::{Components, Rays};
+use crate::rays::{self, Components, Rays};
 
 /// Rays traced by one task in input order: the chunk size of `reducem query` (large enough to
 /// amortize scheduling and keep packets of consecutive rays, small enough to balance).
@@ -120,12 +120,12 @@ pub struct Chunk {
 pub fn sorted(rays: &Rays) -> Result<Option<Rays<'static>>, usize> {
     let read;
     let (all, positions, total): (&[Ray], _, _) = match rays {
-        Rays::All { components, .. } => {
-            read = (0..components.len())
-                .into_par_iter()
-                .map(|i| rays.ray(i))
-                .collect::<Option<Vec<Ray>>>()
-                .ok_or_else(|| first_invalid(rays, components.len()))?;
+        Rays::All {
+            components,
+            tnear,
+            tfar,
+        } => {
+            read = rays::read_all(*components, (*tnear, *tfar))?;
             (&read, None, components.len())
         }
         Rays::Gathered {
@@ -141,19 +141,11 @@ pub fn sorted(rays: &Rays) -> Result<Option<Rays<'static>>, usize> {
     Ok(Some(Rays::Gathered {
         rays: order.par_iter().map(|&index| all[index as usize]).collect(),
         positions: order
-            .iter()
+            .par_iter()
             .map(|&index| position(index as usize))
             .collect(),
         total,
     }))
-}
-
-/// The index of the first invalid one of the `count` rays of `rays`.
-fn first_invalid(rays: &Rays, count: usize) -> usize {
-    (0..count)
-        .into_par_iter()
-        .position_first(|i| rays.ray(i).is_none())
-        .unwrap_or(0)
 }
 
 /// The offsets in a band of `rows` rows, `width` wide, tile by tile in packet order.

@@ -63,21 +63,6 @@ impl Rays<'_> {
         }
     }
 
-    /// Traced ray `i` (of `0..traced()`), `None` when it is invalid.
-    pub fn ray(&self, i: usize) -> Option<Ray> {
-        match self {
-            Rays::Gathered { rays, .. } => Some(rays[i]),
-            Rays::All {
-                components,
-                tnear,
-                tfar,
-            } => {
-                let ray = components.ray(i);
-                is_valid(&ray).then(|| to_ray(ray, *tnear, *tfar))
-            }
-        }
-    }
-
     /// The traced rays `range` (of `0..traced()`), in `into` (cleared first; reused by a
     /// thread from chunk to chunk). Checks the rays as it reads them, so that valid rays take
     /// no pass of their own: the first invalid ray's index, and then `into` is incomplete.
@@ -120,6 +105,33 @@ fn read_rays<T: Copy>(
         into.push(to_ray(ray, tnear, tfar));
     }
     None
+}
+
+/// Every ray of `components` on `[tnear, tfar]` in their order, read on every core; or the
+/// first invalid one's index. Slices of six components are collected by index into one
+/// vector: no per-ray lookup by index, and no list of pieces copied again as a
+/// short-circuiting collect of `Option`s makes.
+pub fn read_all(components: Components<'_>, interval: (f32, f32)) -> Result<Vec<Ray>, usize> {
+    let rays = match components {
+        Components::F32(values) => read_all_of(values, |x| x, interval),
+        Components::F64(values) => read_all_of(values, |x| x as f32, interval),
+    };
+    let invalid = |ray: &Ray| !is_valid(&components_of(ray));
+    match rays.par_iter().position_first(invalid) {
+        Some(index) => Err(index),
+        None => Ok(rays),
+    }
+}
+
+fn read_all_of<T: Copy + Sync>(
+    values: &[T],
+    to_f32: impl Fn(T) -> f32 + Sync,
+    (tnear, tfar): (f32, f32),
+) -> Vec<Ray> {
+    values
+        .par_chunks_exact(6)
+        .map(|ray| to_ray(std::array::from_fn(|k| to_f32(ray[k])), tnear, tfar))
+        .collect()
 }
 
 /// The components of rays, C-contiguous, as the caller's array holds them.
@@ -269,6 +281,11 @@ pub fn describe_invalid(
 /// [`check_interval`] accepted: finite components and a non-zero direction.
 fn is_valid(ray: &[f32; 6]) -> bool {
     ray.iter().all(|x| x.is_finite()) && ray[3..] != [0.0; 3]
+}
+
+fn components_of(ray: &Ray) -> [f32; 6] {
+    let ([ox, oy, oz], [dx, dy, dz]) = (ray.origin, ray.direction);
+    [ox, oy, oz, dx, dy, dz]
 }
 
 fn to_ray([ox, oy, oz, dx, dy, dz]: [f32; 6], tmin: f32, tmax: f32) -> Ray {
