@@ -90,15 +90,10 @@ impl ChunkOrder {
         } else {
             last_band
         };
-        // Read in input order (contiguous, checked as read), then gathered into tile order.
-        let invalid = rays.chunk_into(range, &mut chunk.read);
+        let invalid = rays.gather_into(range.start, order, &mut chunk.rays);
         if invalid.is_some() {
             return invalid;
         }
-        chunk.rays.clear();
-        chunk
-            .rays
-            .extend(order.iter().map(|&offset| chunk.read[offset as usize]));
         chunk.places.extend_from_slice(order);
         None
     }
@@ -110,8 +105,6 @@ impl ChunkOrder {
 pub struct Chunk {
     pub rays: Vec<Ray>,
     pub places: Vec<u32>,
-    /// A band's rays in input order, before they are gathered into tile order.
-    read: Vec<Ray>,
 }
 
 /// The rays of `rays` gathered in the order `reducem query` traces an incoherent batch, each

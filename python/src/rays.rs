@@ -87,6 +87,60 @@ impl Rays<'_> {
     }
 }
 
+impl Rays<'_> {
+    /// The traced rays `start + offset` of each of `offsets`, in that order, in `into`
+    /// (cleared first), read straight from the caller's array; the smallest index of an
+    /// invalid one among them, and then `into` is incomplete.
+    pub fn gather_into(&self, start: usize, offsets: &[u32], into: &mut Vec<Ray>) -> Option<usize> {
+        into.clear();
+        match self {
+            Rays::Gathered { rays, .. } => {
+                into.extend(offsets.iter().map(|&offset| rays[start + offset as usize]));
+                None
+            }
+            Rays::All {
+                components: Components::F32(values),
+                tnear,
+                tfar,
+            } => gather_rays(values, (start, offsets), into, |x| x, (*tnear, *tfar)),
+            Rays::All {
+                components: Components::F64(values),
+                tnear,
+                tfar,
+            } => gather_rays(
+                values,
+                (start, offsets),
+                into,
+                |x| x as f32,
+                (*tnear, *tfar),
+            ),
+        }
+    }
+}
+
+/// Rays `start + offset` of `values` (six components each, converted by `to_f32`) appended
+/// to `into`; the smallest index of an invalid one.
+fn gather_rays<T: Copy>(
+    values: &[T],
+    (start, offsets): (usize, &[u32]),
+    into: &mut Vec<Ray>,
+    to_f32: impl Fn(T) -> f32,
+    (tnear, tfar): (f32, f32),
+) -> Option<usize> {
+    let mut first_invalid: Option<usize> = None;
+    for &offset in offsets {
+        let i = start + offset as usize;
+        let components = &values[6 * i..6 * i + 6];
+        let ray: [f32; 6] = std::array::from_fn(|k| to_f32(components[k]));
+        if is_valid(&ray) {
+            into.push(to_ray(ray, tnear, tfar));
+        } else {
+            first_invalid = Some(first_invalid.map_or(i, |first| first.min(i)));
+        }
+    }
+    first_invalid
+}
+
 /// Rays `range` of `values` (six components each, converted by `to_f32`) appended to `into`
 /// until an invalid one, whose index it returns.
 fn read_rays<T: Copy>(
