@@ -163,6 +163,7 @@ def main():
     figures = {key: count / statistics.median(values) / 1e6 for key, values in times.items()}
     for name in ("camera", "incoherent"):
         (args.work / f"{name}.rays").unlink()
+        (args.work / f"{name}.out").unlink()
     print(f"{args.triangles} triangles, {count} rays, {threads} threads, medians of {runs}; "
           f"load {os.getloadavg()[0]:.1f}")
     print(f"{'rays':<14}{'reducem':>9}{'query':>9}{'Open3D':>9}{'÷ query':>9}{'÷ Open3D':>10}")
