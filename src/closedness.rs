@@ -14,6 +14,7 @@ use crate::format::grid::Grid;
 use crate::format::model::{Closedness, UpAxis};
 use crate::geometry::Point;
 use crate::mesh::Mesh;
+use crate::splitmix::hash_words;
 use crate::stripify::adjacency::is_dropped;
 
 /// A position by its bits, ordered lexicographically.
@@ -150,7 +151,7 @@ fn first_vertex_of_position(mesh: &Mesh) -> Vec<u32> {
     (0..mesh.positions.len() as u32)
         .map(|vertex| {
             let position = key(vertex);
-            let mut slot = hash(&position) as usize & mask;
+            let mut slot = hash_words(&position) as usize & mask;
             loop {
                 match slots[slot] {
                     EMPTY => {
@@ -231,14 +232,8 @@ impl SharedPositions {
     }
 
     fn bucket(&self, key: &PositionKey) -> u64 {
-        hash(key) & self.mask
+        hash_words(key) & self.mask
     }
-}
-
-fn hash(key: &PositionKey) -> u64 {
-    key.iter().fold(0u64, |hash, &word| {
-        crate::splitmix::mix(hash ^ u64::from(word))
-    })
 }
 
 /// The up axis of a model read from `path` when the configuration names none: its format's

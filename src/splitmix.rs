@@ -9,6 +9,41 @@ pub fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// A hash of a few words: each pair of them folded in with one multiply, the sum finished by
+/// [`mix`]. The one hash of positions (as their bit patterns) and of edges between them, in
+/// tables, sets, partitions and maps alike.
+pub fn hash_words(words: &[u32]) -> u64 {
+    let pairs = words.chunks(2).map(|pair| {
+        let high = pair.get(1).copied().unwrap_or(0);
+        u64::from(pair[0]) | u64::from(high) << 32
+    });
+    mix(pairs.fold(0, fold_pair))
+}
+
+fn fold_pair(state: u64, pair: u64) -> u64 {
+    (state.rotate_left(5) ^ pair).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95)
+}
+
+/// [`hash_words`] for hash maps: a key is hashed as its little-endian bytes read as 32-bit words,
+/// the last padded with zeros. SipHash, the default, costs more than the rest of reading a
+/// binary STL facet.
+#[derive(Default)]
+pub struct WordHasher(u64);
+
+impl std::hash::Hasher for WordHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for chunk in bytes.chunks(8) {
+            let mut pair = [0u8; 8];
+            pair[..chunk.len()].copy_from_slice(chunk);
+            self.0 = fold_pair(self.0, u64::from_le_bytes(pair));
+        }
+    }
+
+    fn finish(&self) -> u64 {
+        mix(self.0)
+    }
+}
+
 /// The golden-ratio increment of the state.
 pub const GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
 
@@ -51,6 +86,19 @@ impl SplitMix64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_hasher_folds_bytes_as_hash_words_folds_their_words() {
+        use std::hash::Hasher;
+        let words = [0x3f80_0000u32, 0x8000_0000, 0x0100_0007];
+        let mut hasher = WordHasher::default();
+        hasher.write(&bytemuck::cast_slice::<u32, u8>(&words)[..11]);
+        assert_eq!(hasher.finish(), hash_words(&[words[0], words[1], 7]));
+        assert_ne!(
+            hash_words(&words),
+            hash_words(&[words[1], words[0], words[2]])
+        );
+    }
 
     #[test]
     fn first_outputs_match_the_reference_implementation() {

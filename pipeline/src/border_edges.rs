@@ -174,7 +174,7 @@ pub fn count_all(
 
 /// The pass that counts `edge`: every chunk's uses of one edge fall in the same pass.
 fn partition_of(edge: &BorderEdge, passes: u64) -> u64 {
-    let hash = (edge.first.iter().chain(&edge.second))
-        .fold(0u64, |hash, &w| reducem::splitmix::mix(hash ^ u64::from(w)));
-    hash % passes
+    let [a, b, c] = edge.first;
+    let [d, e, f] = edge.second;
+    reducem::splitmix::hash_words(&[a, b, c, d, e, f]) % passes
 }

@@ -14,7 +14,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 use reducem_core::trace::{coherent_order, Ray};
 
-use crate::rays::{Components, Rays};
+use crate::rays::{self, Components, Rays};
 
 /// Rays traced by one task in input order: the chunk size of `reducem query` (large enough to
 /// amortize scheduling and keep packets of consecutive rays, small enough to balance).
@@ -90,15 +90,10 @@ impl ChunkOrder {
         } else {
             last_band
         };
-        // Read in input order (contiguous, checked as read), then gathered into tile order.
-        let invalid = rays.chunk_into(range, &mut chunk.read);
+        let invalid = rays.gather_into(range.start, order, &mut chunk.rays);
         if invalid.is_some() {
             return invalid;
         }
-        chunk.rays.clear();
-        chunk
-            .rays
-            .extend(order.iter().map(|&offset| chunk.read[offset as usize]));
         chunk.places.extend_from_slice(order);
         None
     }
@@ -110,8 +105,6 @@ impl ChunkOrder {
 pub struct Chunk {
     pub rays: Vec<Ray>,
     pub places: Vec<u32>,
-    /// A band's rays in input order, before they are gathered into tile order.
-    read: Vec<Ray>,
 }
 
 /// The rays of `rays` gathered in the order `reducem query` traces an incoherent batch, each
@@ -120,12 +113,12 @@ pub struct Chunk {
 pub fn sorted(rays: &Rays) -> Result<Option<Rays<'static>>, usize> {
     let read;
     let (all, positions, total): (&[Ray], _, _) = match rays {
-        Rays::All { components, .. } => {
-            read = (0..components.len())
-                .into_par_iter()
-                .map(|i| rays.ray(i))
-                .collect::<Option<Vec<Ray>>>()
-                .ok_or_else(|| first_invalid(rays, components.len()))?;
+        Rays::All {
+            components,
+            tnear,
+            tfar,
+        } => {
+            read = rays::read_all(*components, (*tnear, *tfar))?;
             (&read, None, components.len())
         }
         Rays::Gathered {
@@ -141,19 +134,11 @@ pub fn sorted(rays: &Rays) -> Result<Option<Rays<'static>>, usize> {
     Ok(Some(Rays::Gathered {
         rays: order.par_iter().map(|&index| all[index as usize]).collect(),
         positions: order
-            .iter()
+            .par_iter()
             .map(|&index| position(index as usize))
             .collect(),
         total,
     }))
-}
-
-/// The index of the first invalid one of the `count` rays of `rays`.
-fn first_invalid(rays: &Rays, count: usize) -> usize {
-    (0..count)
-        .into_par_iter()
-        .position_first(|i| rays.ray(i).is_none())
-        .unwrap_or(0)
 }
 
 /// The offsets in a band of `rows` rows, `width` wide, tile by tile in packet order.

@@ -63,21 +63,6 @@ impl Rays<'_> {
         }
     }
 
-    /// Traced ray `i` (of `0..traced()`), `None` when it is invalid.
-    pub fn ray(&self, i: usize) -> Option<Ray> {
-        match self {
-            Rays::Gathered { rays, .. } => Some(rays[i]),
-            Rays::All {
-                components,
-                tnear,
-                tfar,
-            } => {
-                let ray = components.ray(i);
-                is_valid(&ray).then(|| to_ray(ray, *tnear, *tfar))
-            }
-        }
-    }
-
     /// The traced rays `range` (of `0..traced()`), in `into` (cleared first; reused by a
     /// thread from chunk to chunk). Checks the rays as it reads them, so that valid rays take
     /// no pass of their own: the first invalid ray's index, and then `into` is incomplete.
@@ -102,6 +87,60 @@ impl Rays<'_> {
     }
 }
 
+impl Rays<'_> {
+    /// The traced rays `start + offset` of each of `offsets`, in that order, in `into`
+    /// (cleared first), read straight from the caller's array; the smallest index of an
+    /// invalid one among them, and then `into` is incomplete.
+    pub fn gather_into(&self, start: usize, offsets: &[u32], into: &mut Vec<Ray>) -> Option<usize> {
+        into.clear();
+        match self {
+            Rays::Gathered { rays, .. } => {
+                into.extend(offsets.iter().map(|&offset| rays[start + offset as usize]));
+                None
+            }
+            Rays::All {
+                components: Components::F32(values),
+                tnear,
+                tfar,
+            } => gather_rays(values, (start, offsets), into, |x| x, (*tnear, *tfar)),
+            Rays::All {
+                components: Components::F64(values),
+                tnear,
+                tfar,
+            } => gather_rays(
+                values,
+                (start, offsets),
+                into,
+                |x| x as f32,
+                (*tnear, *tfar),
+            ),
+        }
+    }
+}
+
+/// Rays `start + offset` of `values` (six components each, converted by `to_f32`) appended
+/// to `into`; the smallest index of an invalid one.
+fn gather_rays<T: Copy>(
+    values: &[T],
+    (start, offsets): (usize, &[u32]),
+    into: &mut Vec<Ray>,
+    to_f32: impl Fn(T) -> f32,
+    (tnear, tfar): (f32, f32),
+) -> Option<usize> {
+    let mut first_invalid: Option<usize> = None;
+    for &offset in offsets {
+        let i = start + offset as usize;
+        let components = &values[6 * i..6 * i + 6];
+        let ray: [f32; 6] = std::array::from_fn(|k| to_f32(components[k]));
+        if is_valid(&ray) {
+            into.push(to_ray(ray, tnear, tfar));
+        } else {
+            first_invalid = Some(first_invalid.map_or(i, |first| first.min(i)));
+        }
+    }
+    first_invalid
+}
+
 /// Rays `range` of `values` (six components each, converted by `to_f32`) appended to `into`
 /// until an invalid one, whose index it returns.
 fn read_rays<T: Copy>(
@@ -120,6 +159,33 @@ fn read_rays<T: Copy>(
         into.push(to_ray(ray, tnear, tfar));
     }
     None
+}
+
+/// Every ray of `components` on `[tnear, tfar]` in their order, read on every core; or the
+/// first invalid one's index. Slices of six components are collected by index into one
+/// vector: no per-ray lookup by index, and no list of pieces copied again as a
+/// short-circuiting collect of `Option`s makes.
+pub fn read_all(components: Components<'_>, interval: (f32, f32)) -> Result<Vec<Ray>, usize> {
+    let rays = match components {
+        Components::F32(values) => read_all_of(values, |x| x, interval),
+        Components::F64(values) => read_all_of(values, |x| x as f32, interval),
+    };
+    let invalid = |ray: &Ray| !is_valid(&components_of(ray));
+    match rays.par_iter().position_first(invalid) {
+        Some(index) => Err(index),
+        None => Ok(rays),
+    }
+}
+
+fn read_all_of<T: Copy + Sync>(
+    values: &[T],
+    to_f32: impl Fn(T) -> f32 + Sync,
+    (tnear, tfar): (f32, f32),
+) -> Vec<Ray> {
+    values
+        .par_chunks_exact(6)
+        .map(|ray| to_ray(std::array::from_fn(|k| to_f32(ray[k])), tnear, tfar))
+        .collect()
 }
 
 /// The components of rays, C-contiguous, as the caller's array holds them.
@@ -269,6 +335,11 @@ pub fn describe_invalid(
 /// [`check_interval`] accepted: finite components and a non-zero direction.
 fn is_valid(ray: &[f32; 6]) -> bool {
     ray.iter().all(|x| x.is_finite()) && ray[3..] != [0.0; 3]
+}
+
+fn components_of(ray: &Ray) -> [f32; 6] {
+    let ([ox, oy, oz], [dx, dy, dz]) = (ray.origin, ray.direction);
+    [ox, oy, oz, dx, dy, dz]
 }
 
 fn to_ray([ox, oy, oz, dx, dy, dz]: [f32; 6], tmin: f32, tmax: f32) -> Ray {

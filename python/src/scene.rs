@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::OnceLock;
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
 use numpy::ndarray::{Array, IxDyn};
 use numpy::{PyArray, PyArray1};
@@ -15,6 +15,7 @@ use pyo3::exceptions::{PyRuntimeWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
+use rayon::ThreadPool;
 use reducem_core::format::attributes::{AttributeSet, NormalEncoding};
 use reducem_core::format::reader::ReducemFile;
 use reducem_core::query::occupancy::inside_rays;
@@ -742,7 +743,7 @@ fn trace_options(kernel: Kernel) -> TraceOptions {
     }
 }
 
-/// Runs `work` on rayon's global pool, or on a pool of `threads` threads when that is not 0.
+/// Runs `work` on rayon's global pool, or on the pool of `threads` threads when that is not 0.
 fn in_pool<T: Send>(
     threads: usize,
     work: impl FnOnce() -> Result<T, String> + Send,
@@ -750,11 +751,24 @@ fn in_pool<T: Send>(
     if threads == 0 {
         return work();
     }
-    rayon::ThreadPoolBuilder::new()
+    pool(threads)?.install(work)
+}
+
+/// The pool of `threads` threads, built on its first use and kept: a call with `nthreads`
+/// then starts and joins no threads, and runs on threads whose stacks are already faulted in.
+fn pool(threads: usize) -> Result<Arc<ThreadPool>, String> {
+    static POOLS: Mutex<Vec<(usize, Arc<ThreadPool>)>> = Mutex::new(Vec::new());
+    let mut pools = POOLS.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some((_, pool)) = pools.iter().find(|(count, _)| *count == threads) {
+        return Ok(Arc::clone(pool));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
-        .map_err(|error| format!("nthreads = {threads}: {error}"))?
-        .install(work)
+        .map_err(|error| format!("nthreads = {threads}: {error}"))?;
+    let pool = Arc::new(pool);
+    pools.push((threads, Arc::clone(&pool)));
+    Ok(pool)
 }
 
 /// `values` as a numpy array of `shape` (without a copy).

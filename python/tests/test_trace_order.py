@@ -87,6 +87,39 @@ def test_large_incoherent_batch_answers_as_small_batches_and_reducem_query(
     np.testing.assert_array_equal(occluded, query(reducem_bin, path, rays, occluded=True, work=tmp_path))
 
 
+def widened(rays, dtype):
+    """`rays` as `dtype` in a view that is not contiguous (every other column of a wider array)."""
+    wide = np.zeros((len(rays), 12), dtype)
+    wide[:, ::2] = rays
+    return wide[:, ::2]
+
+
+SORTED_LAYOUTS = {
+    "float64": lambda rays: rays.astype(np.float64),
+    "strided float32": lambda rays: widened(rays, np.float32),
+    "strided float64": lambda rays: widened(rays, np.float64),
+}
+
+
+@pytest.mark.parametrize("layout", sorted(SORTED_LAYOUTS))
+def test_sorted_batch_answers_any_layout_as_contiguous_float32(model, layout):
+    _, _, scene = model
+    rays = random_rays(scene, count=SORTED_RAYS, seed=7)
+    other = SORTED_LAYOUTS[layout](rays)
+    assert other.dtype != np.float32 or not other.flags.c_contiguous
+    assert_same_hits(scene.cast_rays(other), scene.cast_rays(rays))
+    np.testing.assert_array_equal(scene.test_occlusions(other), scene.test_occlusions(rays))
+
+
+def test_thread_pools_kept_between_calls_answer_alike(model):
+    _, _, scene = model
+    rays = random_rays(scene, count=SORTED_RAYS, seed=9)
+    expected = scene.test_occlusions(rays, nthreads=1)
+    assert 0 < expected.sum() < SORTED_RAYS
+    for nthreads in (2, 1, 2, 3, 0):
+        np.testing.assert_array_equal(scene.test_occlusions(rays, nthreads=nthreads), expected)
+
+
 def test_invalid_rays_in_a_sorted_batch_are_misses_or_the_first_is_named(model):
     _, _, scene = model
     rays = random_rays(scene, count=SORTED_RAYS, seed=5)

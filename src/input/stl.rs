@@ -14,7 +14,7 @@
 
 use std::collections::HashMap;
 use std::fs::File;
-use std::hash::{BuildHasherDefault, Hasher};
+use std::hash::BuildHasherDefault;
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
@@ -23,6 +23,7 @@ use super::ply::io_error;
 use super::AttributeRequest;
 use crate::geometry::Point;
 use crate::mesh::Mesh;
+use crate::splitmix::WordHasher;
 
 const HEADER_BYTES: u64 = 80;
 const FACET_BYTES: u64 = 50;
@@ -202,29 +203,9 @@ fn checked_coordinate(
     }
 }
 
-/// Hashes the 12 position bytes with two multiply-rotate rounds: the default SipHash costs
-/// more than the rest of reading a binary facet.
-#[derive(Default)]
-pub(crate) struct PositionHasher(u64);
-
-impl Hasher for PositionHasher {
-    fn write(&mut self, bytes: &[u8]) {
-        for chunk in bytes.chunks(8) {
-            let mut word = [0u8; 8];
-            word[..chunk.len()].copy_from_slice(chunk);
-            self.0 = (self.0.rotate_left(5) ^ u64::from_le_bytes(word))
-                .wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
-        }
-    }
-
-    fn finish(&self) -> u64 {
-        self.0 ^ (self.0 >> 29)
-    }
-}
-
 /// Vertices by position bits, in order of first occurrence, and the triangles over them.
 struct Welder {
-    index: HashMap<[u32; 3], u32, BuildHasherDefault<PositionHasher>>,
+    index: HashMap<[u32; 3], u32, BuildHasherDefault<WordHasher>>,
     positions: Vec<Point>,
     triangles: Vec<[u32; 3]>,
 }

@@ -33,12 +33,13 @@ use rayon::prelude::*;
 use super::error::{InputError, InputErrorKind, Location};
 use super::ply::io_error;
 use super::source::WindowedPly;
-use super::stl::{self, fan, FacetSink, PositionHasher, StlLayout};
+use super::stl::{self, fan, FacetSink, StlLayout};
 use super::temporary::{TemporaryFile, TemporarySource};
 use super::{AttributeRequest, MeshSource, PlyStream};
 use crate::geometry::Point;
+use crate::splitmix::WordHasher;
 
-type PositionBuild = BuildHasherDefault<PositionHasher>;
+type PositionBuild = BuildHasherDefault<WordHasher>;
 
 /// Bytes a corner costs in a window's hash map (its 16-byte entry, the map's control byte and
 /// its spare capacity).

@@ -22,6 +22,9 @@ pub struct Camera {
     up: Vec3,
     width: u32,
     height: u32,
+    /// Image pixels from one of this camera's pixels to the next: 1, or 2 for a preview whose
+    /// pixel `(x, y)` is the image's pixel `(2x, 2y)`, its ray through that pixel's centre.
+    pixel_step: u32,
 }
 
 impl Camera {
@@ -61,6 +64,17 @@ impl Camera {
             up: true_up * half_height,
             width,
             height,
+            pixel_step: 1,
+        }
+    }
+
+    /// This camera's image seen at every `step`-th pixel each way: pixel `(x, y)` of the
+    /// sparser image has the ray of pixel `(step x, step y)` of this one, so a preview's rays
+    /// are some of the full image's.
+    pub fn every_nth_pixel(self, step: u32) -> Camera {
+        Camera {
+            pixel_step: self.pixel_step * step,
+            ..self
         }
     }
 
@@ -77,8 +91,10 @@ impl Camera {
             - self.forward * direction.z
     }
 
-    /// The primary ray through the centre of pixel `(x, y)`, row 0 at the top.
+    /// The primary ray through the centre of pixel `(x, y)`, row 0 at the top (of the image
+    /// [`Camera::every_nth_pixel`] sees).
     pub fn primary_ray(&self, x: u32, y: u32) -> Ray {
+        let (x, y) = (x * self.pixel_step, y * self.pixel_step);
         let sx = (2.0 * (x as f32 + 0.5) / self.width as f32) - 1.0;
         let sy = 1.0 - (2.0 * (y as f32 + 0.5) / self.height as f32);
         let direction = (self.forward + self.right * sx + self.up * sy).normalize();

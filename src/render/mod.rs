@@ -197,7 +197,55 @@ impl<'a, 'f> Progressive<'a, 'f> {
     /// `scene`'s image with nothing traced yet, in bands of about `band_pixels` fine pixels
     /// (between bands a round may be abandoned).
     pub fn new(tracer: &'a Tracer<'f>, scene: &Scene, band_pixels: u32) -> Progressive<'a, 'f> {
-        let renderer = BandRenderer::new(tracer, &fine_scene(scene));
+        Progressive::of(
+            BandRenderer::new(tracer, &fine_scene(scene)),
+            scene,
+            band_pixels,
+        )
+    }
+
+    /// A preview of `scene`'s image: half its width and height, primary shading, each pixel
+    /// `(x, y)` the ray and shade of pixel `(2x, 2y)` of the image (of its finer image's pixel
+    /// `(2nx, 2ny)` with `antialiasing = n`), so that [`Progressive::reusing`] traces only the
+    /// other three quarters.
+    pub fn preview(tracer: &'a Tracer<'f>, scene: &Scene, band_pixels: u32) -> Progressive<'a, 'f> {
+        let fine = fine_scene(scene);
+        let (width, height) = (fine.image.width, fine.image.height);
+        let step = 2 * scene.image.antialiasing.max(1);
+        let camera = Camera::new(tracer, &fine.camera, width, height).every_nth_pixel(step);
+        let mut preview = scene.primary_only();
+        preview.image.width = scene.image.width.div_ceil(2);
+        preview.image.height = scene.image.height.div_ceil(2);
+        let renderer = BandRenderer::with_camera(tracer, &preview, camera, None);
+        Progressive::of(renderer, &preview, band_pixels)
+    }
+
+    /// [`Progressive::new`] taking the surfaces `preview` (the finished
+    /// [`Progressive::preview`] of this `scene`) traced instead of tracing their rays again:
+    /// the same image, with a quarter fewer primary rays.
+    pub fn reusing(
+        tracer: &'a Tracer<'f>,
+        scene: &Scene,
+        band_pixels: u32,
+        preview: &Progressive,
+    ) -> Progressive<'a, 'f> {
+        let fine = fine_scene(scene);
+        let camera = Camera::new(tracer, &fine.camera, fine.image.width, fine.image.height);
+        let reused = preview.traced().then(|| PreviewSurfaces {
+            width: preview.renderer.plan.width,
+            step: 2 * scene.image.antialiasing.max(1),
+            surfaces: preview
+                .bands
+                .iter()
+                .flat_map(|band| band.surfaces.iter().copied())
+                .collect(),
+        });
+        let renderer = BandRenderer::with_camera(tracer, &fine, camera, reused);
+        Progressive::of(renderer, scene, band_pixels)
+    }
+
+    /// The image `renderer` renders of `scene`, with nothing traced yet.
+    fn of(renderer: BandRenderer<'a, 'f>, scene: &Scene, band_pixels: u32) -> Progressive<'a, 'f> {
         let effects = renderer.effects();
         let (width, height) = (renderer.plan.width, renderer.plan.height);
         let factor = scene.image.antialiasing.max(1);
@@ -343,13 +391,33 @@ fn averaged(samples: &[[f32; 3]], fine_width: u32, factor: u32) -> Vec<[f32; 3]>
 }
 
 /// What every band of one image shares: the scene, the plan, the camera, the attributes the
-/// shading uses.
+/// shading uses, the surfaces a preview traced already.
 struct BandRenderer<'a, 'f> {
     tracer: &'a Tracer<'f>,
     scene: Scene,
     plan: Plan,
     camera: Camera,
     used: AttributeUse,
+    reused: Option<PreviewSurfaces>,
+}
+
+/// The surfaces of a finished preview ([`Progressive::preview`]): those of the image's pixels
+/// at every `step`-th column and row, `width` of them across.
+struct PreviewSurfaces {
+    width: u32,
+    step: u32,
+    surfaces: Vec<Option<Surface>>,
+}
+
+impl PreviewSurfaces {
+    /// The surface of the image's pixel `(x, y)` when the preview traced its ray.
+    fn at(&self, x: u32, y: u32) -> Option<Option<Surface>> {
+        if !x.is_multiple_of(self.step) || !y.is_multiple_of(self.step) {
+            return None;
+        }
+        let index = (y / self.step) as usize * self.width as usize + (x / self.step) as usize;
+        self.surfaces.get(index).copied()
+    }
 }
 
 /// A band's per-pixel state after its passes: surfaces, visibility per light, and the AO rays
@@ -382,14 +450,25 @@ impl BandSamples {
 impl<'a, 'f> BandRenderer<'a, 'f> {
     /// The renderer of one sample per pixel of `scene`'s image.
     fn new(tracer: &'a Tracer<'f>, scene: &Scene) -> BandRenderer<'a, 'f> {
+        let (width, height) = (scene.image.width, scene.image.height);
+        let camera = Camera::new(tracer, &scene.camera, width, height);
+        BandRenderer::with_camera(tracer, scene, camera, None)
+    }
+
+    /// The renderer of `scene`'s image seen by `camera`, taking the `reused` surfaces rather
+    /// than tracing their rays.
+    fn with_camera(
+        tracer: &'a Tracer<'f>,
+        scene: &Scene,
+        camera: Camera,
+        reused: Option<PreviewSurfaces>,
+    ) -> BandRenderer<'a, 'f> {
         let file = tracer.file();
         let header = file.header();
         let bounds = Aabb {
             min: header.bounds_min,
             max: header.bounds_max,
         };
-        let (width, height) = (scene.image.width, scene.image.height);
-        let camera = Camera::new(tracer, &scene.camera, width, height);
         let plan = Plan::new(scene, &bounds, &camera);
         let used = AttributeUse::new(file.attributes(), &scene.shading);
         BandRenderer {
@@ -398,6 +477,7 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             plan,
             camera,
             used,
+            reused,
         }
     }
 
@@ -430,8 +510,9 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
         let (tracer, plan) = (self.tracer, &self.plan);
         let band = Band::new(plan.width, rows.clone());
         let started = Instant::now();
-        let surfaces = primary_pass(tracer, &self.camera, &band, self.used);
-        account(&mut effects[0], band.pixel_count() as u64, started);
+        let reused = self.reused.as_ref();
+        let (surfaces, rays) = primary_pass(tracer, &self.camera, &band, self.used, reused);
+        account(&mut effects[0], rays, started);
 
         let mut visibility = vec![Vec::new(); plan.lights.len()];
         for (pass, &light) in plan.shadow_lights.iter().enumerate() {
@@ -617,27 +698,38 @@ where
     pixels
 }
 
+/// The surface each pixel of `band` sees, and the rays traced: the `reused` surfaces of a
+/// preview are taken as they are, the other pixels' rays traced tile by tile, in the tile's
+/// order (packets of neighbouring pixels).
 fn primary_pass(
     tracer: &Tracer,
     camera: &Camera,
     band: &Band,
     used: AttributeUse,
-) -> Vec<Option<Surface>> {
+    reused: Option<&PreviewSurfaces>,
+) -> (Vec<Option<Surface>>, u64) {
     let (file, width) = (tracer.file(), band.width);
-    over_tiles(band, |tile| {
+    let known = |p: u32| reused.and_then(|reused| reused.at(p % width, p / width));
+    let per_pixel = over_tiles(band, |tile| {
         let rays: Vec<Ray> = tile
             .iter()
+            .filter(|&&p| known(p).is_none())
             .map(|&p| camera.primary_ray(p % width, p / width))
             .collect();
         let hits = tracer.intersect_chunk(&rays);
-        rays.iter()
-            .zip(hits)
-            .map(|(ray, hit)| {
-                let hit = hit?;
-                Some(Surface::at_hit(file, ray, &hit)?.with_attributes(file, &hit, used))
+        let mut traced = rays.iter().zip(hits).map(|(ray, hit)| {
+            let hit = hit?;
+            Some(Surface::at_hit(file, ray, &hit)?.with_attributes(file, &hit, used))
+        });
+        tile.iter()
+            .map(|&p| match known(p) {
+                Some(surface) => (surface, 0),
+                None => (traced.next().flatten(), 1),
             })
             .collect()
-    })
+    });
+    let rays = per_pixel.iter().map(|&(_, traced)| traced).sum();
+    (per_pixel.into_iter().map(|(s, _)| s).collect(), rays)
 }
 
 /// The shadow ray from a surface to a light, if the surface faces the light by its geometric
@@ -958,6 +1050,53 @@ mod tests {
             let report = progressive.report();
             assert_eq!(report.total_rays, whole_report.total_rays);
             assert_eq!(report.effects.len(), whole_report.effects.len());
+        }
+        std::fs::remove_file(&path).expect("remove");
+    }
+
+    /// A preview's pixels are the full image's even pixels shaded with primary shading, and the
+    /// image that reuses the preview's surfaces is the image rendered at once, bit for bit, with
+    /// only the other pixels' primary rays traced; with antialiasing or without, even and odd
+    /// sizes.
+    #[test]
+    fn an_image_reusing_its_preview_is_the_image_rendered_at_once() {
+        let (path, file) = bumpy_file("preview");
+        let tracer = Tracer::new(&file, TraceOptions::default());
+        for (size, antialiasing) in [((37, 29), 1u32), ((36, 30), 2)] {
+            let scene = lit_scene(size, antialiasing, true, 2);
+            let (whole, whole_report) = render(&tracer, &scene);
+            let mut preview = Progressive::preview(&tracer, &scene, 1);
+            let shown = preview.refine(1, || Ok::<(), ()>(())).expect("preview");
+            let (width, height) = (size.0.div_ceil(2), size.1.div_ceil(2));
+            assert_eq!((shown.width, shown.height), (width, height));
+            assert_eq!(preview.rays_traced().0, u64::from(width * height));
+
+            let mut primary = scene.primary_only();
+            let fine = antialiasing as usize;
+            (primary.image.width, primary.image.height) =
+                (size.0 * antialiasing, size.1 * antialiasing);
+            let (primary_frame, _) = render(&tracer, &primary);
+            let fine_width = primary.image.width as usize;
+            for (index, pixel) in shown.pixels.iter().enumerate() {
+                let (x, y) = (index % width as usize, index / width as usize);
+                let expected = primary_frame.pixels[2 * fine * (y * fine_width + x)];
+                assert_eq!(pixel, &expected, "preview pixel {x},{y}");
+            }
+
+            let mut image = Progressive::reusing(&tracer, &scene, 1, &preview);
+            let frame = image.refine(2, || Ok::<(), ()>(())).expect("refined");
+            assert_eq!(frame, whole, "antialiasing {antialiasing}");
+            let report = image.report();
+            let fine_pixels = u64::from(size.0 * size.1 * antialiasing * antialiasing);
+            assert_eq!(
+                report.rays_of("primary"),
+                whole_report.rays_of("primary") - u64::from(width * height)
+            );
+            assert_eq!(whole_report.rays_of("primary"), fine_pixels);
+            assert_eq!(
+                report.total_rays - report.rays_of("primary"),
+                whole_report.total_rays - fine_pixels
+            );
         }
         std::fs::remove_file(&path).expect("remove");
     }

@@ -355,6 +355,20 @@ impl Scene {
         }
     }
 
+    /// This scene with its primary shading only: no shadows, no AO, one sample per pixel.
+    pub fn primary_only(&self) -> Scene {
+        let mut primary = self.clone();
+        primary.ambient_occlusion = None;
+        primary.image.antialiasing = 1;
+        for light in &mut primary.directional_light {
+            light.cast_shadows = false;
+        }
+        for light in &mut primary.point_light {
+            light.cast_shadows = false;
+        }
+        primary
+    }
+
     /// The semantic checks, for a scene changed after parsing: the offending key and why.
     pub fn check(&self) -> Result<(), (&'static str, String)> {
         let image = &self.image;

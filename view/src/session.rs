@@ -32,10 +32,13 @@ enum PageMessage {
         x: u32,
         y: u32,
     },
-    /// The first cameras framed for the page's canvas.
+    /// The first camera framed for the page's canvas: for the model's up axis `up`, or for
+    /// either axis when the page names none.
     Framing {
         width: u32,
         height: u32,
+        #[serde(default)]
+        up: Option<UpAxis>,
     },
 }
 
@@ -44,11 +47,11 @@ enum PageMessage {
 #[derive(Serialize)]
 #[serde(tag = "type", rename_all = "lowercase")]
 enum ServerMessage {
+    /// Sent at once: no camera, since framing one reads the model, and the page asks for
+    /// the one framed for its canvas anyway.
     Hello {
-        /// The command line's up axis, and the first camera for either axis.
+        /// The command line's up axis.
         up: UpAxis,
-        camera: CameraView,
-        cameras: Cameras,
         triangles: u64,
         file_bytes: u64,
         /// The scene's effects, and those the file can show.
@@ -58,7 +61,7 @@ enum ServerMessage {
     Pick {
         pick: Option<Pick>,
     },
-    /// The first camera for either axis, framed for the size the page asked for.
+    /// The first camera for the axes asked for, framed for the size the page asked for.
     Framing {
         cameras: Cameras,
     },
@@ -66,8 +69,10 @@ enum ServerMessage {
 
 #[derive(Serialize)]
 struct Cameras {
-    y: CameraView,
-    z: CameraView,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    y: Option<CameraView>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    z: Option<CameraView>,
 }
 
 fn send(socket: &mut WebSocket<TcpStream>, message: &ServerMessage) -> SocketResult {
@@ -200,11 +205,6 @@ fn exchange(socket: &mut WebSocket<TcpStream>, shared: &Shared, viewer: &Viewer)
     let (effects, available) = viewer.scene_effects();
     let hello = ServerMessage::Hello {
         up: viewer.up,
-        camera: viewer.initial_camera(viewer.up),
-        cameras: Cameras {
-            y: viewer.initial_camera(UpAxis::Y),
-            z: viewer.initial_camera(UpAxis::Z),
-        },
         effects,
         available,
         triangles: file.header().triangle_count,
@@ -246,10 +246,14 @@ fn answer(
             let pick = viewer.pick(&view, x, y);
             send(socket, &ServerMessage::Pick { pick })?;
         }
-        Ok(PageMessage::Framing { width, height }) => {
+        Ok(PageMessage::Framing { width, height, up }) => {
+            let framed = |axis: UpAxis| {
+                let asked = up.is_none_or(|up| up == axis);
+                asked.then(|| viewer.framed_camera(axis, width, height))
+            };
             let cameras = Cameras {
-                y: viewer.framed_camera(UpAxis::Y, width, height),
-                z: viewer.framed_camera(UpAxis::Z, width, height),
+                y: framed(UpAxis::Y),
+                z: framed(UpAxis::Z),
             };
             send(socket, &ServerMessage::Framing { cameras })?;
         }

@@ -166,13 +166,6 @@ impl Viewer {
         }
     }
 
-    /// The camera the page starts from for a model whose up axis is `up`: the scene's, framed as
-    /// `reducem render` frames it for the scene's image size.
-    pub fn initial_camera(&self, up: UpAxis) -> CameraView {
-        let image = &self.scene(up).image;
-        self.framed_camera(up, image.width, image.height)
-    }
-
     /// The scene's camera for a model whose up axis is `up`, framed for a `width` × `height`
     /// image (the page's canvas) as `reducem render` frames its own image.
     pub fn framed_camera(&self, up: UpAxis, width: u32, height: u32) -> CameraView {
@@ -228,7 +221,8 @@ impl Viewer {
     }
 
     /// The frames of `view` in the order the page shows them: a coarse one of a quarter of the
-    /// pixels with primary shading, then the full-size image in rounds, as `reducem render`
+    /// pixels with primary shading (the rays of the full image's even pixels, which it then
+    /// reuses), then the full-size image in rounds, as `reducem render`
     /// makes it: the first with primary shading and shadows, each further one with twice the AO
     /// samples, until the scene's count. Each goes to `deliver` as soon as it is ready; work
     /// stops when `generation` leaves `current`.
@@ -246,15 +240,14 @@ impl Viewer {
             true => Ok(()),
             false => Err(Stale),
         };
-        let mut coarse = primary_only(&scene);
-        coarse.image.width = scene.image.width.div_ceil(2);
-        coarse.image.height = scene.image.height.div_ceil(2);
-        let mut coarse_image = Progressive::new(self.tracer, &coarse, band_pixels(&coarse));
-        let frame = coarse_image.refine(1, is_current)?;
-        let rays = Rays::of(&coarse_image);
+        // A quarter of the pixels: bands of as many rows as the full image's.
+        let mut coarse = Progressive::preview(self.tracer, &scene, band_pixels(&scene) / 4);
+        let frame = coarse.refine(1, is_current)?;
+        let rays = Rays::of(&coarse);
         deliver(self.encode(frame, rays, view.camera, current, 0.25));
 
-        let mut image = Progressive::new(self.tracer, &scene, band_pixels(&scene));
+        let bands = band_pixels(&scene);
+        let mut image = Progressive::reusing(self.tracer, &scene, bands, &coarse);
         let (mut ao_samples, mut before) = (1, Rays::default());
         loop {
             let frame = image.refine(ao_samples, is_current)?;
@@ -417,7 +410,7 @@ fn switch_effects(scene: &mut Scene, effects: Effects) {
     }
     // The normals view shows no light: its image is the primary one, with no samples to add.
     if effects.normals_view {
-        *scene = primary_only(scene);
+        *scene = scene.primary_only();
     }
 }
 
@@ -426,18 +419,4 @@ fn casts_shadows(scene: &Scene) -> bool {
     let directional = scene.directional_light.iter().map(|l| l.cast_shadows);
     let point = scene.point_light.iter().map(|l| l.cast_shadows);
     directional.chain(point).any(|casts| casts)
-}
-
-/// `scene` with its primary shading only: no shadows, no AO, one sample per pixel.
-fn primary_only(scene: &Scene) -> Scene {
-    let mut primary = scene.clone();
-    primary.ambient_occlusion = None;
-    primary.image.antialiasing = 1;
-    for light in &mut primary.directional_light {
-        light.cast_shadows = false;
-    }
-    for light in &mut primary.point_light {
-        light.cast_shadows = false;
-    }
-    primary
 }

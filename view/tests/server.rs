@@ -188,6 +188,21 @@ fn send(socket: &mut WebSocket<TcpStream>, message: Value) {
         .expect("send");
 }
 
+/// The first camera framed for a `width` × `height` canvas and a model whose up axis is `up`.
+fn first_camera(socket: &mut WebSocket<TcpStream>, up: &str, width: u32, height: u32) -> Value {
+    let framing =
+        serde_json::json!({ "type": "framing", "width": width, "height": height, "up": up });
+    send(socket, framing);
+    let answer = text(socket);
+    assert_eq!(answer["type"], "framing");
+    assert_eq!(
+        answer["cameras"].as_object().map(|c| c.len()),
+        Some(1),
+        "{answer}"
+    );
+    answer["cameras"][up].clone()
+}
+
 #[test]
 fn only_the_token_and_the_own_origin_open_the_page_and_its_socket() {
     let file = model("token");
@@ -269,15 +284,12 @@ fn a_view_gets_a_coarse_frame_then_the_full_one_and_picks_and_images_match_the_l
     let hello = text(&mut socket);
     assert_eq!(hello["type"], "hello");
     assert_eq!(hello["triangles"], 1152);
+    assert_eq!(hello["up"], "z");
     assert_eq!(
-        (hello["up"].as_str(), &hello["cameras"]["z"]),
-        (Some("z"), &hello["camera"])
-    );
-    assert_eq!(
-        hello["cameras"]["y"]["up"],
+        first_camera(&mut socket, "y", 64, 48)["up"],
         serde_json::json!([0.0, 1.0, 0.0])
     );
-    let camera = hello["camera"].clone();
+    let camera = first_camera(&mut socket, "z", 64, 48);
     let mut view = view_message(&camera, 64, 48);
     view["type"] = "view".into();
     send(&mut socket, view);
@@ -379,7 +391,8 @@ fn a_page_that_leaves_mid_frame_leaves_the_server_serving_others() {
     let file = model("leave");
     let server = Server::start(&file, &["--up", "z", "--threads", "1"]);
     let mut socket = server.page_socket();
-    let camera = text(&mut socket)["camera"].clone();
+    text(&mut socket);
+    let camera = first_camera(&mut socket, "z", 16, 16);
     let mut large = view_message(&camera, 4096, 4096);
     large["type"] = "view".into();
     send(&mut socket, large);
@@ -405,13 +418,14 @@ fn a_view_with_effects_switched_on_accumulates_its_samples_and_its_scene_file_re
     let hello = text(&mut socket);
     assert_eq!(hello["effects"]["ambient_occlusion"], false);
     assert_eq!(hello["available"]["stored_normals"], false);
+    let camera = first_camera(&mut socket, "y", 40, 30);
     let effects = serde_json::json!({
         "stored_normals": false, "colors": false, "ambient_occlusion": true, "shadows": true
     });
     let query = format!(
         "?token={}&width=40&height=30&camera={}&effects={}",
         server.token,
-        escaped(&hello["camera"]),
+        escaped(&camera),
         escaped(&effects)
     );
     let (status, toml) = server.get(&format!("/scene.toml{query}"));
@@ -432,7 +446,7 @@ fn a_view_with_effects_switched_on_accumulates_its_samples_and_its_scene_file_re
     assert!(report.rays_of("ambient_occlusion") > 0 && report.rays_of("shadows") > 0);
     assert!(png == expected, "the scene file renders the saved image");
 
-    let mut view = view_message(&hello["camera"], 40, 30);
+    let mut view = view_message(&camera, 40, 30);
     (view["type"], view["effects"]) = ("view".into(), effects);
     send(&mut socket, view);
     let mut spp = Vec::new();
