@@ -48,6 +48,13 @@ pub fn advise_scattered_reads(map: &Mmap) {
     let _ = map.advise(memmap2::Advice::Random);
 }
 
+/// Advises the kernel that `map` will be read as it would be by default (madvise normal): page
+/// faults read the read-around window again.
+pub fn advise_default_reads(map: &Mmap) {
+    // A hint only, as above.
+    let _ = map.advise(memmap2::Advice::Normal);
+}
+
 /// The memory the kernel reports it could give without swapping (`MemAvailable` of
 /// `/proc/meminfo`, free pages plus reclaimable page cache), or `None` where there is no such
 /// file (not Linux) or it does not say.

@@ -4,7 +4,8 @@
 //! `direction` so, and the viewer starts (and resets) there.
 //!
 //! The side comes from a sample of whole strips spread evenly over the file, never every
-//! triangle, so a 300M-triangle file costs the same few thousand block reads as a small one. The
+//! triangle, so a 300M-triangle file costs the same few thousand block reads as a small one
+//! (read page by page where the file is large: read-around windows would pull it all in). The
 //! distance comes from low-resolution hit masks: the model's true silhouette, not its bounding
 //! box, decides how much of the image it fills; the image's own border pixels then check that
 //! the model stays inside it.
@@ -139,17 +140,19 @@ fn sampled_area_normals(tracer: &Tracer) -> Vec<Vec3> {
     let file = tracer.file();
     let strips = file.strip_count();
     let sampled = strips.min(SAMPLED_STRIPS);
-    let mut normals = Vec::new();
-    for index in (0..sampled).map(|i| i * strips / sampled) {
-        let strip = file.strip(index);
-        for window in 0..strip.window_count() {
-            if let Some([a, b, c]) = strip.window_points(window) {
-                let (a, b, c) = (Vec3::from(a), Vec3::from(b), Vec3::from(c));
-                normals.push((b - a).cross(c - a));
+    file.with_scattered_reads(sampled, || {
+        let mut normals = Vec::new();
+        for index in (0..sampled).map(|i| i * strips / sampled) {
+            let strip = file.strip(index);
+            for window in 0..strip.window_count() {
+                if let Some([a, b, c]) = strip.window_points(window) {
+                    let (a, b, c) = (Vec3::from(a), Vec3::from(b), Vec3::from(c));
+                    normals.push((b - a).cross(c - a));
+                }
             }
         }
-    }
-    normals
+        normals
+    })
 }
 
 /// The hit mask's size: [`MASK_SIDE`] along the image's longer side, the image's aspect.

@@ -95,6 +95,7 @@ pub(super) fn open(
         model,
         checks,
         parts: PartTable::new(header.leaf_windows as usize, layout.boxes()),
+        scattered: Default::default(),
     };
     let windows = Windows { opened: &opened };
     windows.check_strip_count()?;
