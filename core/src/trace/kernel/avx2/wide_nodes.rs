@@ -3,13 +3,16 @@
 
 use std::arch::x86_64::*;
 
+use super::packets::Avx2Planes;
 use crate::format::WideNode;
 use crate::trace::kernel::{ChildBoxes, WideClip};
+use crate::trace::lanes::Lanes;
 use crate::trace::prepared::{PreparedRay, FAR_INFLATION};
 
 /// Codes `q` of one plane of eight children decoded: `origin + (q as f32) * scale` per lane,
 /// the exact conversion, the exact product and one rounded sum, as [`WideNode::decode`].
 #[target_feature(enable = "avx2,bmi2")]
+#[inline]
 fn decode_plane(codes: &[u8; 8], origin: __m256, scale: __m256) -> __m256 {
     let codes = _mm_set_epi64x(0, i64::from_le_bytes(*codes));
     let codes = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(codes));
@@ -32,6 +35,62 @@ pub(super) fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
     planes.map(|[min, max]| (min, max))
 }
 
+/// The codes of `axis`'s entry and exit planes: the minima unless the direction is negative.
+#[inline(always)]
+fn entry_exit_codes(node: &WideNode, axis: usize, negative: bool) -> (&[u8; 8], &[u8; 8]) {
+    match negative {
+        true => (&node.max[axis], &node.min[axis]),
+        false => (&node.min[axis], &node.max[axis]),
+    }
+}
+
+/// [`TraceKernel::wide_planes`](crate::trace::kernel::TraceKernel::wide_planes): only the
+/// planes the packet's signs pick are decoded, each once for all eight slots.
+#[target_feature(enable = "avx2,bmi2")]
+pub(super) fn wide_planes(lanes: &Lanes, node: &WideNode) -> Avx2Planes {
+    let negative = lanes.negative();
+    // Axis by axis, not through `array::map`, whose closure may stay a call.
+    let axis = |axis: usize| {
+        let (entry, exit) = entry_exit_codes(node, axis, negative[axis]);
+        let origin = _mm256_set1_ps(node.origin[axis]);
+        let scale = _mm256_set1_ps(node.scale(axis));
+        (
+            decode_plane(entry, origin, scale),
+            decode_plane(exit, origin, scale),
+        )
+    };
+    let ((entry_x, exit_x), (entry_y, exit_y), (entry_z, exit_z)) = (axis(0), axis(1), axis(2));
+    Avx2Planes {
+        entry: [entry_x, entry_y, entry_z],
+        exit: [exit_x, exit_y, exit_z],
+    }
+}
+
+/// [`TraceKernel::wide_order_keys`](crate::trace::kernel::TraceKernel::wide_order_keys):
+/// `order_keys`' operations in its order on eight lanes (each centre `min + max`, summed into
+/// the key from zero axis by axis, a NaN key made `-inf`).
+#[target_feature(enable = "avx2,bmi2")]
+pub(super) fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; 8] {
+    let mut key = _mm256_setzero_ps();
+    for (axis, &negative) in negative.iter().enumerate() {
+        let origin = _mm256_set1_ps(node.origin[axis]);
+        let scale = _mm256_set1_ps(node.scale(axis));
+        let min = decode_plane(&node.min[axis], origin, scale);
+        let max = decode_plane(&node.max[axis], origin, scale);
+        let centre = _mm256_add_ps(min, max);
+        key = match negative {
+            true => _mm256_sub_ps(key, centre),
+            false => _mm256_add_ps(key, centre),
+        };
+    }
+    let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(key, key);
+    bytemuck::cast(_mm256_blendv_ps(
+        key,
+        _mm256_set1_ps(f32::NEG_INFINITY),
+        nan,
+    ))
+}
+
 /// [`TraceKernel::clip_wide`](crate::trace::kernel::TraceKernel::clip_wide): per lane the
 /// portable kernel's operations in its order (decode: the exact u8 → f32 conversion, the exact
 /// product, one rounded sum; clip: `WideRay::clip_boxes`), so the same bits.
@@ -44,10 +103,7 @@ pub(super) fn clip_wide(
     let mut near = _mm256_set1_ps(t_near);
     let mut far = _mm256_set1_ps(t_far);
     for axis in 0..3 {
-        let (entry_codes, exit_codes) = match ray.negative[axis] {
-            true => (&node.max[axis], &node.min[axis]),
-            false => (&node.min[axis], &node.max[axis]),
-        };
+        let (entry_codes, exit_codes) = entry_exit_codes(node, axis, ray.negative[axis]);
         let origin = _mm256_set1_ps(node.origin[axis]);
         let scale = _mm256_set1_ps(node.scale(axis));
         let decode = |codes: &[u8; 8]| decode_plane(codes, origin, scale);
@@ -145,6 +201,13 @@ mod tests {
                     )
                 })
             };
+            let negative = ray.direction.map(|d| d.is_sign_negative());
+            // SAFETY: as above.
+            let keys = unsafe { wide_order_keys(&node, &negative) };
+            assert_eq!(
+                keys.map(f32::to_bits),
+                Portable::wide_order_keys(&node, &negative).map(f32::to_bits)
+            );
             // SAFETY: as above.
             let decoded = unsafe { decode_wide(&node) };
             assert_eq!(
