@@ -137,10 +137,13 @@ pub(super) fn clip_wide(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::trace::kernel::avx2::packets::clip_slot;
     use crate::trace::kernel::portable::Portable;
     use crate::trace::kernel::TraceKernel;
+    use crate::trace::lanes::PACKET_WIDTH;
     use crate::trace::prepared::WideRay;
     use crate::trace::ray::Ray;
+    use wide::f32x8;
 
     /// A xorshift generator.
     struct Bits(u64);
@@ -163,6 +166,20 @@ mod tests {
         }
     }
 
+    /// A node of random codes in frames from tiny to huge.
+    fn random_node(bits: &mut Bits) -> WideNode {
+        let mut node = WideNode::EMPTY;
+        for axis in 0..3 {
+            node.origin[axis] = bits.coordinate();
+            node.exponent[axis] = bits.pick(&[1, 100, 120, 127, 140, 254]);
+            for slot in 0..8 {
+                node.min[axis][slot] = bits.next() as u8;
+                node.max[axis][slot] = bits.next() as u8;
+            }
+        }
+        node
+    }
+
     #[test]
     fn eight_lanes_decode_and_clip_as_the_portable_groups_of_four() {
         if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("bmi2")) {
@@ -170,15 +187,7 @@ mod tests {
         }
         let mut bits = Bits(0x243f_6a88_85a3_08d3);
         for _ in 0..100_000 {
-            let mut node = WideNode::EMPTY;
-            for axis in 0..3 {
-                node.origin[axis] = bits.coordinate();
-                node.exponent[axis] = bits.pick(&[1, 100, 120, 127, 140, 254]);
-                for slot in 0..8 {
-                    node.min[axis][slot] = bits.next() as u8;
-                    node.max[axis][slot] = bits.next() as u8;
-                }
-            }
+            let node = random_node(&mut bits);
             let ray = Ray {
                 origin: [0; 3].map(|_| bits.coordinate()),
                 direction: [0; 3].map(|_| bits.pick(&[0.0, -0.0, 1.0, -0.5, 1e-30, 3.0])),
@@ -214,6 +223,40 @@ mod tests {
                 boxes_bits(decoded),
                 boxes_bits(Portable::decode_wide(&node))
             );
+        }
+    }
+
+    #[test]
+    fn packet_planes_decode_and_clip_as_the_portable_kernel() {
+        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("bmi2")) {
+            return;
+        }
+        let mut bits = Bits(0x1319_8a2e_0370_7344);
+        for _ in 0..20_000 {
+            let node = random_node(&mut bits);
+            let signs = [0; 3].map(|_| bits.pick(&[1.0f32, -1.0]));
+            let rays: Vec<Ray> = (0..PACKET_WIDTH)
+                .map(|_| Ray {
+                    origin: [0; 3].map(|_| bits.coordinate()),
+                    direction: signs.map(|sign| sign * bits.pick(&[0.0, 1.0, 0.5, 1e-30, 3.0])),
+                    tmin: bits.pick(&[0.0, 1.0]),
+                    tmax: bits.pick(&[f32::INFINITY, 10.0]),
+                })
+                .collect();
+            let lanes = Portable::lanes(&rays, &Portable::prepared_rays(&rays));
+            let portable = Portable::wide_planes(&lanes, &node);
+            // SAFETY: the CPU has AVX2 and BMI2, checked above.
+            let avx2 = unsafe { wide_planes(&lanes, &node) };
+            for slot in 0..8 {
+                let as_bits = |(near, far, mask): (f32x8, f32x8, u32)| {
+                    let each = |v: f32x8| v.to_array().map(f32::to_bits);
+                    (each(near), each(far), mask)
+                };
+                let expected = Portable::clip_slot(&lanes, &portable, slot, lanes.tmax);
+                // SAFETY: as above.
+                let clipped = unsafe { clip_slot(&lanes, &avx2, slot, lanes.tmax) };
+                assert_eq!(as_bits(clipped), as_bits(expected), "{node:?} {rays:?}");
+            }
         }
     }
 }
