@@ -25,7 +25,9 @@
 //! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children in
 //! slot order, unsorted, which costs fewer instructions than either sorted order; and a subtree
 //! that only one lane of an occlusion packet enters is walked by that lane alone (the single-ray
-//! walk), where one clip tests all four children.
+//! walk), where one clip tests all of a node's children.
+//!
+//! [`order_keys`]: super::top::order_keys
 
 use arrayvec::ArrayVec;
 use wide::f32x8;
@@ -37,8 +39,7 @@ use super::lanes::{LaneRays, Lanes, PACKET_WIDTH};
 use super::prepared::min_not_nan_x8;
 use super::ray::Ray;
 use super::top::{
-    for_each_bit, order_keys, trace_nodes, DeferStack, Deferred, NodeGridLanes, RayWalk, TraceNode,
-    GROUP_WIDTH, MAX_GROUPS, MAX_WIDTH,
+    for_each_bit, trace_nodes, DeferStack, Deferred, NodeGridLanes, RayWalk, TraceNode, MAX_WIDTH,
 };
 use super::Tracer;
 use crate::format::reader::TopNodes;
@@ -51,8 +52,9 @@ const MIN_PACKET_LANES: usize = 6;
 
 /// Most lanes of an occlusion packet that walk a subtree each alone rather than together: a
 /// packet's node test costs a clip per child for all its lanes, a single ray's one clip of all
-/// four children.
-const MAX_SOLO_LANES: usize = 1;
+/// of a node's children (eight at once with AVX2). Occlusion rays from neighbouring hit points
+/// share their origins' region, not their directions, and soon part.
+const MAX_SOLO_LANES: usize = 4;
 
 /// A child deferred for some lanes of the packet.
 #[derive(Clone, Copy, Default)]
@@ -160,7 +162,7 @@ impl Lanes {
         slot: usize,
         (active, limit): (u32, f32x8),
     ) -> Option<PacketDeferred> {
-        let (t_near, t_far, mask) = C::clip_slot(self, planes, slot % GROUP_WIDTH, limit);
+        let (t_near, t_far, mask) = C::clip_slot(self, planes, slot, limit);
         let mask = mask & active;
         if mask == 0 {
             return None;
@@ -177,29 +179,14 @@ impl Lanes {
         })
     }
 
-    /// For occlusion: pushes child `slot` onto `stack` if it is one of the `occupied` first
-    /// slots and some lane enters it ([`Lanes::clip_child`]).
-    #[inline(always)]
-    fn defer_child<N: TraceNode, C: TraceKernel>(
-        &self,
-        clipped: (&N, &C::Planes, &Targets<N>),
-        slot: usize,
-        occupied: usize,
-        bounds: (u32, f32x8),
-        stack: &mut DeferStack<PacketDeferred>,
-    ) {
-        if slot < occupied {
-            if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
-                stack.push(child);
-            }
-        }
-    }
-
     /// Clips the `active` lanes against `node`'s occupied slots; returns the child to visit
     /// first (for closest hits) and defers the others, so that they come off the stack in
     /// visiting order: [`order_keys`] order for closest hits, slot order for occlusion
     /// (`ANY_HIT`). Empty slots are skipped (by their link: a grid node's empty box is not
-    /// missed by construction); validated nodes hold their occupied slots first.
+    /// missed by construction); validated nodes hold their occupied slots first. The planes
+    /// come straight from the node ([`TraceNode::planes`]): a format 4 node's eight at once.
+    ///
+    /// [`order_keys`]: super::top::order_keys
     #[inline(always)]
     fn enter_children<N: TraceNode, C: TraceKernel, const ANY_HIT: bool>(
         &self,
@@ -210,22 +197,17 @@ impl Lanes {
         limit: f32x8,
         stack: &mut DeferStack<PacketDeferred>,
     ) -> Option<PacketDeferred> {
-        let occupied = node.occupied_mask().trailing_ones() as usize;
-        let groups = occupied.div_ceil(GROUP_WIDTH);
-        let boxes = node.group_boxes::<C>(decoder);
+        let occupied = (node.occupied_mask().trailing_ones() as usize).min(MAX_WIDTH);
+        let planes = node.planes::<C>(decoder, self);
+        let clipped = (node, &planes, targets);
+        let bounds = (active, limit);
         if ANY_HIT {
             // Slot order is known before clipping: the slots are clipped last to first and
-            // each child entered goes straight onto the stack, the first one too. Unrolled by
-            // hand: as a loop over the slots it stayed one, with the slot in a register.
-            let bounds = (active, limit);
-            for group in (0..groups).rev() {
-                let planes = C::planes(self, &boxes[group % MAX_GROUPS]);
-                let clipped = (node, &planes, targets);
-                let first = group * GROUP_WIDTH;
-                self.defer_child::<N, C>(clipped, first + 3, occupied, bounds, stack);
-                self.defer_child::<N, C>(clipped, first + 2, occupied, bounds, stack);
-                self.defer_child::<N, C>(clipped, first + 1, occupied, bounds, stack);
-                self.defer_child::<N, C>(clipped, first, occupied, bounds, stack);
+            // each child entered goes straight onto the stack, the first one too.
+            for slot in (0..occupied).rev() {
+                if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
+                    stack.push(child);
+                }
             }
             return None;
         }
@@ -233,27 +215,17 @@ impl Lanes {
         // pushes.
         let mut entered = ArrayVec::<PacketDeferred, MAX_WIDTH>::new();
         let mut slots = [0; MAX_WIDTH];
-        let mut keys = [0.0; MAX_WIDTH];
-        for group in 0..groups {
-            let boxes = &boxes[group % MAX_GROUPS];
-            let planes = C::planes(self, boxes);
-            let clipped = (node, &planes, targets);
-            let before = entered.len();
-            for slot in group * GROUP_WIDTH..occupied.min((group + 1) * GROUP_WIDTH) {
-                if let Some(child) = self.clip_child::<N, C>(clipped, slot, (active, limit)) {
-                    slots[entered.len()] = slot;
-                    entered.push(child);
-                }
-            }
-            if entered.len() > before {
-                let group_keys = order_keys(&boxes.0, &boxes.1, &self.negative());
-                keys[group * GROUP_WIDTH..(group + 1) * GROUP_WIDTH].copy_from_slice(&group_keys);
+        for slot in 0..occupied {
+            if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
+                slots[entered.len() % MAX_WIDTH] = slot;
+                entered.push(child);
             }
         }
         // The entries' indices are sorted, not the entries.
         let mut order = [0, 1, 2, 3, 4, 5, 6, 7];
         let order = &mut order[..entered.len()];
         if order.len() > 1 {
+            let keys = node.order_keys::<C>(decoder, &self.negative());
             sort_by_keys(order, &slots.map(|slot| keys[slot % MAX_WIDTH]));
         }
         for &index in order.iter().skip(1).rev() {
@@ -268,6 +240,8 @@ impl Lanes {
 /// the children a single ray enters. The keys are never NaN ([`order_keys`]), so this order of
 /// the children any lane entered, restricted to those a lane entered, is that lane's order
 /// alone.
+///
+/// [`order_keys`]: super::top::order_keys
 #[inline(always)]
 fn sort_by_keys(indices: &mut [usize], keys: &[f32; MAX_WIDTH]) {
     // The remainder spares the bounds checks.
@@ -283,6 +257,7 @@ fn sort_by_keys(indices: &mut [usize], keys: &[f32; MAX_WIDTH]) {
 
 /// The culling bound ([`Closest::reach`]) of every lane; finished lanes (occlusion found) get
 /// `-inf` so that nothing is entered for them any more.
+#[inline(always)]
 fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> f32x8 {
     f32x8::from(std::array::from_fn::<f32, PACKET_WIDTH, _>(|lane| {
         if finished & (1 << lane) != 0 {
@@ -419,7 +394,7 @@ fn occlude_alone<N: TraceNode, C: TraceKernel, P: LaneRays>(
             t_far: t_far[lane],
         };
         let query = tracer.query(prepared.ray(lanes, lane), true);
-        if trace_nodes::<N, C>(tracer.file(), nodes, &query, start, &mut closest[lane]) {
+        if trace_nodes::<N, C, true>(tracer.file(), nodes, &query, start, &mut closest[lane]) {
             found |= 1 << lane;
         }
     });

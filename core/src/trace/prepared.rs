@@ -183,22 +183,33 @@ impl WideRay {
         t_near: f32,
         t_far: f32,
     ) -> (f32x4, f32x4, u32) {
-        let mut near = f32x4::splat(t_near);
-        let mut far = f32x4::splat(t_far);
+        let mut interval = (f32x4::splat(t_near), f32x4::splat(t_far));
         for axis in 0..3 {
             let (entry, exit) = if self.negative[axis] {
                 (max[axis], min[axis])
             } else {
                 (min[axis], max[axis])
             };
-            let entry = (f32x4::from(entry) - self.origin[axis]) * self.entry_reciprocal[axis];
-            let exit = (f32x4::from(exit) - self.origin[axis])
-                * self.exit_reciprocal[axis]
-                * f32x4::splat(FAR_INFLATION);
-            near = max_not_nan_x4(near, entry);
-            far = min_not_nan_x4(far, exit);
+            let planes = (f32x4::from(entry), f32x4::from(exit));
+            interval = self.clip_axis(axis, planes, interval);
         }
+        let (near, far) = interval;
         (near, far, near.simd_le(far).to_bitmask())
+    }
+
+    /// One axis of [`WideRay::clip_boxes`]: the intervals `(near, far)` narrowed to the slabs
+    /// between the boxes' `entry` and `exit` planes on `axis`.
+    #[inline(always)]
+    pub fn clip_axis(
+        &self,
+        axis: usize,
+        (entry, exit): (f32x4, f32x4),
+        (near, far): (f32x4, f32x4),
+    ) -> (f32x4, f32x4) {
+        let entry = (entry - self.origin[axis]) * self.entry_reciprocal[axis];
+        let exit =
+            (exit - self.origin[axis]) * self.exit_reciprocal[axis] * f32x4::splat(FAR_INFLATION);
+        (max_not_nan_x4(near, entry), min_not_nan_x4(far, exit))
     }
 }
 

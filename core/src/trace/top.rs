@@ -2,14 +2,15 @@
 //!
 //! Depth-first over the mapped node array (format 4's [`WideNode`]s, or format 3's
 //! [`TopNode`]s and [`GridNode`]s, each decoded to f32 boxes, see [`TraceNode`]; traversal is
-//! generic over the records and monomorphized). At a node the ray is clipped against its child
-//! boxes four at a time ([`WideRay::clip_boxes`], SIMD); of the children it enters, the first in
-//! visiting order is entered at once and the others deferred on a stack with their entry
-//! distance, so that each is dropped if a nearer hit is found meanwhile. The visiting order is
-//! near to far: along the octant's diagonal for closest-hit queries (the same for every ray of
-//! a packet, see [`order_keys`]), by entry distance for occlusion queries (see
-//! `enter_children`). At a leaf each strip's kd-tree is traversed within the leaf box's
-//! parameter interval.
+//! generic over the records and monomorphized). At a node the ray is clipped against all its
+//! child boxes at once ([`WideRay::clip_boxes`], SIMD; a format 4 node's eight in one 256-bit
+//! test with AVX2); of the children it enters, the first in visiting order is entered at once
+//! and the others deferred on a stack with their entry distance. One skeleton serves both
+//! queries, compiled for each (`ANY_HIT`), the node step apart: closest hits visit near to far
+//! along the octant's diagonal (the same for every ray of a packet, see [`order_keys`]) and
+//! drop a deferred child if a nearer hit was found meanwhile; occlusion visits in slot order,
+//! unsorted, and ends at the first hit (see `enter_any`). At a leaf each strip's kd-tree is
+//! traversed within the leaf box's parameter interval.
 //!
 //! Every child is clipped over `[tmin, reach]`, not over its parent's interval: the interval of
 //! a leaf is then a function of the leaf's box and the closest hit so far alone, as it was with
@@ -22,6 +23,7 @@ use super::closest::Closest;
 use super::kernel::codes::widen_codes;
 use super::kernel::prefetch::Targets;
 use super::kernel::{ChildBoxes, TraceKernel, Walk, WideClip};
+use super::lanes::Lanes;
 use super::prepared::{PreparedRay, WideRay};
 use super::strip::StripQuery;
 use crate::format::grid::NodeGrid;
@@ -48,11 +50,28 @@ pub trait TraceNode: NodeRecord {
     /// Bit `i` set when slot `i` is occupied.
     fn occupied_mask(&self) -> u32;
 
-    /// Every group's boxes, decoded on the kernel's lanes; groups past [`TraceNode::GROUPS`]
-    /// repeat the last.
+    /// [`order_keys`] of every slot for a direction of signs `negative`.
     #[inline(always)]
-    fn group_boxes<K: TraceKernel>(&self, decoder: &Self::Decoder) -> [ChildBoxes; MAX_GROUPS] {
-        std::array::from_fn(|group| self.boxes(decoder, group.min(Self::GROUPS - 1)))
+    fn order_keys<K: TraceKernel>(
+        &self,
+        decoder: &Self::Decoder,
+        negative: &[bool; 3],
+    ) -> [f32; MAX_WIDTH] {
+        let mut keys = [0.0; MAX_WIDTH];
+        for group in 0..Self::GROUPS {
+            let (min, max) = self.boxes(decoder, group);
+            let lanes = group * GROUP_WIDTH..(group + 1) * GROUP_WIDTH;
+            keys[lanes].copy_from_slice(&order_keys(&min, &max, negative));
+        }
+        keys
+    }
+
+    /// The planes of every child box through which a packet's lanes enter and leave it
+    /// ([`TraceKernel::planes`]); four-wide records by default.
+    #[inline(always)]
+    fn planes<K: TraceKernel>(&self, decoder: &Self::Decoder, lanes: &Lanes) -> K::Planes {
+        const { assert!(Self::GROUPS == 1) };
+        K::planes(lanes, &self.boxes(decoder, 0))
     }
 
     /// The ray's interval in each child box within `[t_near, t_far]` and the mask of the boxes
@@ -177,8 +196,13 @@ impl TraceNode for WideNode {
     }
 
     #[inline(always)]
-    fn group_boxes<K: TraceKernel>(&self, _: &()) -> [ChildBoxes; MAX_GROUPS] {
-        K::decode_wide(self)
+    fn order_keys<K: TraceKernel>(&self, _: &(), negative: &[bool; 3]) -> [f32; MAX_WIDTH] {
+        K::wide_order_keys(self, negative)
+    }
+
+    #[inline(always)]
+    fn planes<K: TraceKernel>(&self, _: &(), lanes: &Lanes) -> K::Planes {
+        K::wide_planes(lanes, self)
     }
 
     /// All eight at once on the kernel's widest lanes.
@@ -297,26 +321,41 @@ fn trace_ray<K: TraceKernel>(
     query: &StripQuery,
     closest: &mut Closest,
 ) -> bool {
+    if query.any_hit {
+        trace_file::<K, true>(file, query, closest)
+    } else {
+        trace_file::<K, false>(file, query, closest)
+    }
+}
+
+/// [`trace_ray`] for occlusion (`ANY_HIT`) or closest hits.
+#[inline(always)]
+fn trace_file<K: TraceKernel, const ANY_HIT: bool>(
+    file: &ReducemFile,
+    query: &StripQuery,
+    closest: &mut Closest,
+) -> bool {
+    let root = Deferred::root(query.ray);
     match file.top_nodes() {
         TopNodes::F32(nodes) => {
-            let root = Deferred::root(query.ray);
-            trace_nodes::<_, K>(file, (nodes, &()), query, root, closest)
+            trace_nodes::<_, K, ANY_HIT>(file, (nodes, &()), query, root, closest)
         }
         TopNodes::Grid(nodes, grid) => {
-            let (root, decoder) = (Deferred::root(query.ray), NodeGridLanes::new(&grid));
-            trace_nodes::<_, K>(file, (nodes, &decoder), query, root, closest)
+            let decoder = NodeGridLanes::new(&grid);
+            trace_nodes::<_, K, ANY_HIT>(file, (nodes, &decoder), query, root, closest)
         }
         TopNodes::Wide(nodes) => {
-            let root = Deferred::root(query.ray);
-            trace_nodes::<_, K>(file, (nodes, &()), query, root, closest)
+            trace_nodes::<_, K, ANY_HIT>(file, (nodes, &()), query, root, closest)
         }
     }
 }
 
-/// The walk of the subtree (or leaf) `start`, entered over its interval; true when
-/// `query.any_hit` found a hit. Packets hand it the lanes they no longer serve together.
+/// The walk of the subtree (or leaf) `start`, entered over its interval, for occlusion
+/// (`ANY_HIT`, which `query.any_hit` must match) or closest hits: one skeleton, the node step
+/// apart; true when an occluder was found. Packets hand it the lanes they no longer serve
+/// together.
 #[inline(always)]
-pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel>(
+pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel, const ANY_HIT: bool>(
     file: &ReducemFile,
     (nodes, decoder): (&[N], &N::Decoder),
     query: &StripQuery,
@@ -334,13 +373,18 @@ pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel>(
                 return false;
             };
             visits = left;
-            let node = file.top_node(nodes, current.child as usize);
-            let entered = node.and_then(|n| {
-                enter_children::<N, K>(&targets, &ray, n, decoder, query, closest, &mut stack)
-            });
-            if let Some(nearest) = entered {
-                current = nearest;
-                continue;
+            // A match rather than `Option::and_then`, whose closure stayed out of line.
+            if let Some(node) = file.top_node(nodes, current.child as usize) {
+                let walk = (&targets, &ray, query, &mut stack);
+                let entered = if ANY_HIT {
+                    enter_any::<N, K>(walk, node, decoder, closest)
+                } else {
+                    enter_children::<N, K>(walk, node, decoder, closest)
+                };
+                if let Some(nearest) = entered {
+                    current = nearest;
+                    continue;
+                }
             }
         } else if trace_leaf::<K>(file, query, &current, closest) {
             return true;
@@ -349,7 +393,8 @@ pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel>(
             let Some(next) = stack.pop() else {
                 return false;
             };
-            if next.t_near <= closest.reach {
+            // An occlusion walk's bound stays `tmax` until its first hit ends it.
+            if ANY_HIT || next.t_near <= closest.reach {
                 current = next;
                 break;
             }
@@ -357,51 +402,68 @@ pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel>(
     }
 }
 
-/// Clips the ray against `node`'s children; returns the first one entered in visiting order
-/// and defers the others, last first, so that they come off the stack in order.
-///
-/// Closest-hit queries visit in [`order_keys`] order, which packets reproduce lane by lane.
-/// Occlusion queries visit nearest entry first, which finds an occluder soonest: their answer
-/// does not depend on the order, since the culling bound stays `tmax` until the first hit ends
-/// the traversal.
+/// What a node step of the single-ray walk works with: the prefetch targets, the ray in lanes,
+/// the query and the stack of deferred children.
+type RayStep<'w, 'a, 'q, N> = (
+    &'w Targets<'a, N>,
+    &'w WideRay,
+    &'w StripQuery<'q>,
+    &'w mut DeferStack<Deferred>,
+);
+
+/// The ray clipped against `node`'s occupied children: their intervals and the mask of those
+/// entered.
 #[inline(always)]
-fn enter_children<N: TraceNode, K: TraceKernel>(
-    targets: &Targets<N>,
-    ray: &WideRay,
+fn clip_node<N: TraceNode, K: TraceKernel>(
+    (ray, wide): (&PreparedRay, &WideRay),
     node: &N,
     decoder: &N::Decoder,
-    query: &StripQuery,
     closest: &Closest,
-    stack: &mut DeferStack<Deferred>,
-) -> Option<Deferred> {
-    let rays = (query.ray, ray);
+) -> WideClip {
     let (near, far, mut mask) =
-        node.clip_children::<K>(decoder, rays, (query.ray.tmin, closest.reach));
+        node.clip_children::<K>(decoder, (ray, wide), (ray.tmin, closest.reach));
     if !N::EMPTY_BOXES_MISS {
         mask &= node.occupied_mask();
     }
-    let entry = |slot: usize| {
-        let (child, kind) = node.link(slot);
-        targets.child((child, kind));
-        Deferred {
-            child,
-            kind,
-            t_near: near[slot],
-            t_far: far[slot],
-        }
-    };
-    if mask.is_power_of_two() {
-        return Some(entry(mask.trailing_zeros() as usize));
+    (near, far, mask)
+}
+
+/// Child `slot` of `node` entered over `(near, far)`, its first loads asked for.
+#[inline(always)]
+fn defer<N: TraceNode>(targets: &Targets<N>, node: &N, slot: usize, clip: &WideClip) -> Deferred {
+    let (child, kind) = node.link(slot);
+    targets.child((child, kind));
+    Deferred {
+        child,
+        kind,
+        t_near: clip.0[slot % MAX_WIDTH],
+        t_far: clip.1[slot % MAX_WIDTH],
     }
-    let keys = if query.any_hit {
-        near
-    } else {
-        node_order_keys::<N, K>(node, decoder, &ray.negative)
-    };
+}
+
+/// For closest hits: clips the ray against `node`'s children; returns the first one entered
+/// in [`order_keys`] order (which packets reproduce lane by lane) and defers the others, last
+/// first, so that they come off the stack in order.
+#[inline(always)]
+fn enter_children<N: TraceNode, K: TraceKernel>(
+    (targets, ray, query, stack): RayStep<N>,
+    node: &N,
+    decoder: &N::Decoder,
+    closest: &Closest,
+) -> Option<Deferred> {
+    let clip = clip_node::<N, K>((query.ray, ray), node, decoder, closest);
+    let mask = clip.2;
+    if mask.is_power_of_two() {
+        return Some(defer(targets, node, mask.trailing_zeros() as usize, &clip));
+    }
+    if mask == 0 {
+        return None;
+    }
+    let keys = node.order_keys::<K>(decoder, &ray.negative);
     let mut entered = [(0.0, Deferred::default()); MAX_WIDTH];
     let mut count = 0;
     for_each_bit(mask, |slot| {
-        entered[count] = (keys[slot], entry(slot));
+        entered[count] = (keys[slot], defer(targets, node, slot, &clip));
         count += 1;
     });
     let entered = &mut entered[..count];
@@ -410,20 +472,26 @@ fn enter_children<N: TraceNode, K: TraceKernel>(
     entered.first().map(|e| e.1)
 }
 
-/// [`order_keys`] of every slot of `node`.
+/// For occlusion: clips the ray against `node`'s children; returns the first one it enters in
+/// slot order and defers the others, unsorted. The answer does not depend on the order, since
+/// the culling bound stays `tmax` until the first hit ends the walk; sorting the children (by
+/// entry distance, or picking the nearest) cost more than the occluders it found sooner.
 #[inline(always)]
-fn node_order_keys<N: TraceNode, K: TraceKernel>(
+fn enter_any<N: TraceNode, K: TraceKernel>(
+    (targets, ray, query, stack): RayStep<N>,
     node: &N,
     decoder: &N::Decoder,
-    negative: &[bool; 3],
-) -> [f32; MAX_WIDTH] {
-    let boxes = node.group_boxes::<K>(decoder);
-    let mut keys = [0.0; MAX_WIDTH];
-    for (group, (min, max)) in boxes.iter().enumerate().take(N::GROUPS) {
-        let lanes = group * GROUP_WIDTH..(group + 1) * GROUP_WIDTH;
-        keys[lanes].copy_from_slice(&order_keys(min, max, negative));
+    closest: &Closest,
+) -> Option<Deferred> {
+    let clip = clip_node::<N, K>((query.ray, ray), node, decoder, closest);
+    let mask = clip.2;
+    if mask == 0 {
+        return None;
     }
-    keys
+    let first = mask.trailing_zeros() as usize;
+    let others = mask & (mask - 1);
+    for_each_bit(others, |slot| stack.push(defer(targets, node, slot, &clip)));
+    Some(defer(targets, node, first, &clip))
 }
 
 /// The order in which a node's children are visited, as sort keys: each box's centre (doubled)

@@ -259,13 +259,18 @@ pub(super) trait TraceKernel {
     /// steps rather than one returning both, which copied them on every packet.
     fn lanes(rays: &[Ray], prepared: &Self::PreparedRays) -> Lanes;
 
-    /// A node's child box planes as [`TraceKernel::clip_slot`] reads them.
+    /// A node's child box planes (up to [`WIDE_WIDTH`] slots) as [`TraceKernel::clip_slot`]
+    /// reads them.
     type Planes;
 
-    /// The planes of `boxes` through which the lanes enter and leave each child box: per axis
-    /// the minima or the maxima by the direction's sign (shared by all lanes), picked once per
-    /// node rather than once per slot.
+    /// The planes of `boxes` (slots 0..4) through which the lanes enter and leave each child
+    /// box: per axis the minima or the maxima by the direction's sign (shared by all lanes),
+    /// picked once per node rather than once per slot.
     fn planes(lanes: &Lanes, boxes: &ChildBoxes) -> Self::Planes;
+
+    /// [`TraceKernel::planes`] of all eight children of `node`, decoded as
+    /// [`WideNode::decode`] decodes them, straight into the kernel's planes.
+    fn wide_planes(lanes: &Lanes, node: &WideNode) -> Self::Planes;
 
     /// The lanes' interval in child `slot` of the node whose planes are `planes` within
     /// `[tmin, t_far]` (`PreparedRay::clip_box`'s operations in its order on each lane), and
@@ -293,6 +298,10 @@ pub(super) trait TraceKernel {
         node: &WideNode,
         interval: (f32, f32),
     ) -> WideClip;
+
+    /// [`order_keys`](crate::trace::top::order_keys) of `node`'s eight children for a
+    /// direction of signs `negative`, each box decoded as [`WideNode::decode`] decodes it.
+    fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; WIDE_WIDTH];
 
     /// What the kernel makes of the packet's lanes once for
     /// [`TraceKernel::trace_strip_together`].

@@ -11,7 +11,7 @@ use super::{
 use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
 use crate::format::references::References;
 use crate::format::vertices::VertexAccess;
-use crate::format::{WideNode, TOP_WIDTH};
+use crate::format::{WideNode, TOP_WIDTH, WIDE_WIDTH};
 use crate::trace::closest::Closest;
 use crate::trace::lanes::{prepare, Lanes, PACKET_WIDTH};
 use crate::trace::prepared::{
@@ -19,7 +19,7 @@ use crate::trace::prepared::{
     PreparedRay, WideRay, FAR_INFLATION,
 };
 use crate::trace::ray::Ray;
-use crate::trace::top::TraceNode;
+use crate::trace::top::order_keys;
 use crate::trace::watertight::{candidate_lanes, edge_lanes, RaySpace};
 
 /// The portable kernel.
@@ -123,17 +123,21 @@ impl TraceKernel for Portable {
 
     #[inline(always)]
     fn planes(lanes: &Lanes, (min, max): &ChildBoxes) -> SlotPlanes {
+        let mut planes = SlotPlanes::default();
+        for axis in 0..3 {
+            planes.set(axis, 0, lanes.negative()[axis], (&min[axis], &max[axis]));
+        }
+        planes
+    }
+
+    #[inline(always)]
+    fn wide_planes(lanes: &Lanes, node: &WideNode) -> SlotPlanes {
         let negative = lanes.negative();
-        let pick = |axis: usize, entry: bool| {
-            if negative[axis] == entry {
-                max[axis]
-            } else {
-                min[axis]
-            }
-        };
+        let planes = [0, 1, 2].map(|axis| wide_axis_planes(node, axis, negative[axis]));
+        let slots = |lanes: [f32x4; 2]| -> [f32; WIDE_WIDTH] { bytemuck::cast(lanes) };
         SlotPlanes {
-            entry: [0, 1, 2].map(|axis| pick(axis, true)),
-            exit: [0, 1, 2].map(|axis| pick(axis, false)),
+            entry: planes.map(|(entry, _)| slots(entry)),
+            exit: planes.map(|(_, exit)| slots(exit)),
         }
     }
 
@@ -144,6 +148,8 @@ impl TraceKernel for Portable {
         slot: usize,
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32) {
+        // The remainder spares the bounds checks.
+        let slot = slot % WIDE_WIDTH;
         let mut near = lanes.tmin;
         let mut far = t_far;
         for axis in 0..3 {
@@ -173,7 +179,8 @@ impl TraceKernel for Portable {
         boxes
     }
 
-    /// Two groups of four boxes, each decoded and clipped as the single-ray walk does.
+    /// Two groups of four boxes, each decoded and clipped as the single-ray walk does; each
+    /// plane's eight codes widened once.
     #[inline(always)]
     fn clip_wide(
         _ray: &PreparedRay,
@@ -181,15 +188,29 @@ impl TraceKernel for Portable {
         node: &WideNode,
         (t_near, t_far): (f32, f32),
     ) -> WideClip {
+        let mut intervals = [(f32x4::splat(t_near), f32x4::splat(t_far)); 2];
+        for axis in 0..3 {
+            let (entry, exit) = wide_axis_planes(node, axis, wide.negative[axis]);
+            for (group, interval) in intervals.iter_mut().enumerate() {
+                *interval = wide.clip_axis(axis, (entry[group], exit[group]), *interval);
+            }
+        }
         let mut clip: WideClip = Default::default();
-        for group in 0..2 {
-            let (min, max) = node.boxes(&(), group);
-            let (near, far, mask) = wide.clip_boxes(&min, &max, t_near, t_far);
+        for (group, (near, far)) in intervals.into_iter().enumerate() {
             clip.0[group * TOP_WIDTH..][..TOP_WIDTH].copy_from_slice(&near.to_array());
             clip.1[group * TOP_WIDTH..][..TOP_WIDTH].copy_from_slice(&far.to_array());
-            clip.2 |= mask << (group * TOP_WIDTH);
+            clip.2 |= near.simd_le(far).to_bitmask() << (group * TOP_WIDTH);
         }
         clip
+    }
+
+    #[inline(always)]
+    fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; WIDE_WIDTH] {
+        let mut keys = [0.0; WIDE_WIDTH];
+        for (group, (min, max)) in Portable::decode_wide(node).iter().enumerate() {
+            keys[group * TOP_WIDTH..][..TOP_WIDTH].copy_from_slice(&order_keys(min, max, negative));
+        }
+        keys
     }
 
     #[inline(always)]
@@ -216,12 +237,44 @@ impl TraceKernel for Portable {
     }
 }
 
+/// The entry and exit planes of `axis` of a format 4 node's eight children, in two groups of
+/// four: the minima unless the direction is negative, decoded as [`WideNode::decode`].
+#[inline(always)]
+fn wide_axis_planes(node: &WideNode, axis: usize, negative: bool) -> ([f32x4; 2], [f32x4; 2]) {
+    let (entry, exit) = match negative {
+        true => (&node.max[axis], &node.min[axis]),
+        false => (&node.min[axis], &node.max[axis]),
+    };
+    let (origin, scale) = (
+        f32x4::splat(node.origin[axis]),
+        f32x4::splat(node.scale(axis)),
+    );
+    let decode = |codes: &[u8; WIDE_WIDTH]| widen_codes(codes).map(|q| origin + q * scale);
+    (decode(entry), decode(exit))
+}
+
 /// A node's child box planes as a packet sees them (see [`TraceKernel::planes`]),
 /// `[axis][slot]`.
+#[derive(Default)]
 pub(super) struct SlotPlanes {
-    entry: [[f32; TOP_WIDTH]; 3],
-    exit: [[f32; TOP_WIDTH]; 3],
+    entry: [[f32; WIDE_WIDTH]; 3],
+    exit: [[f32; WIDE_WIDTH]; 3],
 }
+
+impl SlotPlanes {
+    /// Slots `first..first + 4` of `axis` from their minima and maxima: the entry planes are
+    /// the minima unless the direction is negative.
+    #[inline(always)]
+    fn set(&mut self, axis: usize, first: usize, negative: bool, planes: ChildPlanes) {
+        let (min, max) = planes;
+        let (entry, exit) = if negative { (max, min) } else { (min, max) };
+        self.entry[axis][first..][..TOP_WIDTH].copy_from_slice(entry);
+        self.exit[axis][first..][..TOP_WIDTH].copy_from_slice(exit);
+    }
+}
+
+/// The minima and maxima of four slots on one axis.
+type ChildPlanes<'a> = (&'a [f32; TOP_WIDTH], &'a [f32; TOP_WIDTH]);
 
 /// Lanes `shift..shift + BLOCK` of `values`.
 #[inline(always)]

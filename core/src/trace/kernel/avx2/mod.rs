@@ -117,6 +117,12 @@ impl TraceKernel for Avx2 {
     }
 
     #[inline(always)]
+    fn wide_planes(lanes: &Lanes, node: &WideNode) -> packets::Avx2Planes {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { wide_nodes::wide_planes(lanes, node) }
+    }
+
+    #[inline(always)]
     fn clip_slot(
         lanes: &Lanes,
         planes: &packets::Avx2Planes,
@@ -142,6 +148,12 @@ impl TraceKernel for Avx2 {
     ) -> WideClip {
         // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
         unsafe { wide_nodes::clip_wide(ray, node, interval) }
+    }
+
+    #[inline(always)]
+    fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; 8] {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { wide_nodes::wide_order_keys(node, negative) }
     }
 
     #[inline(always)]

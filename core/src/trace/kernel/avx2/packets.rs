@@ -31,8 +31,8 @@ pub(super) fn clip_slot(
     let mut near = wide(lanes.tmin);
     let mut far = wide(t_far);
     for axis in 0..3 {
-        let entry = _mm256_permutevar_ps(planes.entry[axis], pick);
-        let exit = _mm256_permutevar_ps(planes.exit[axis], pick);
+        let entry = _mm256_permutevar8x32_ps(planes.entry[axis], pick);
+        let exit = _mm256_permutevar8x32_ps(planes.exit[axis], pick);
         let origin = wide(lanes.origin[axis]);
         let entry = _mm256_mul_ps(
             _mm256_sub_ps(entry, origin),
@@ -61,12 +61,12 @@ pub(super) fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
     _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(a, b)) as u32
 }
 
-/// A node's child box planes for [`clip_slot`]: per axis the four slots' entry and exit
-/// planes, each in both 128-bit halves, so that one in-lane permute (`vpermilps`) spreads a
-/// slot's plane over all eight lanes.
+/// A node's child box planes for [`clip_slot`]: per axis the eight slots' entry and exit
+/// planes (a four-wide node's four in both 128-bit halves), so that one permute (`vpermps`)
+/// spreads a slot's plane over all eight lanes.
 pub(in crate::trace) struct Avx2Planes {
-    entry: [__m256; 3],
-    exit: [__m256; 3],
+    pub(super) entry: [__m256; 3],
+    pub(super) exit: [__m256; 3],
 }
 
 /// `TraceKernel::planes`: the minima or maxima of each axis picked by the direction's sign

@@ -3,13 +3,16 @@
 
 use std::arch::x86_64::*;
 
+use super::packets::Avx2Planes;
 use crate::format::WideNode;
 use crate::trace::kernel::{ChildBoxes, WideClip};
+use crate::trace::lanes::Lanes;
 use crate::trace::prepared::{PreparedRay, FAR_INFLATION};
 
 /// Codes `q` of one plane of eight children decoded: `origin + (q as f32) * scale` per lane,
 /// the exact conversion, the exact product and one rounded sum, as [`WideNode::decode`].
 #[target_feature(enable = "avx2,bmi2")]
+#[inline]
 fn decode_plane(codes: &[u8; 8], origin: __m256, scale: __m256) -> __m256 {
     let codes = _mm_set_epi64x(0, i64::from_le_bytes(*codes));
     let codes = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(codes));
@@ -32,6 +35,62 @@ pub(super) fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
     planes.map(|[min, max]| (min, max))
 }
 
+/// The codes of `axis`'s entry and exit planes: the minima unless the direction is negative.
+#[inline(always)]
+fn entry_exit_codes(node: &WideNode, axis: usize, negative: bool) -> (&[u8; 8], &[u8; 8]) {
+    match negative {
+        true => (&node.max[axis], &node.min[axis]),
+        false => (&node.min[axis], &node.max[axis]),
+    }
+}
+
+/// [`TraceKernel::wide_planes`](crate::trace::kernel::TraceKernel::wide_planes): only the
+/// planes the packet's signs pick are decoded, each once for all eight slots.
+#[target_feature(enable = "avx2,bmi2")]
+pub(super) fn wide_planes(lanes: &Lanes, node: &WideNode) -> Avx2Planes {
+    let negative = lanes.negative();
+    // Axis by axis, not through `array::map`, whose closure may stay a call.
+    let axis = |axis: usize| {
+        let (entry, exit) = entry_exit_codes(node, axis, negative[axis]);
+        let origin = _mm256_set1_ps(node.origin[axis]);
+        let scale = _mm256_set1_ps(node.scale(axis));
+        (
+            decode_plane(entry, origin, scale),
+            decode_plane(exit, origin, scale),
+        )
+    };
+    let ((entry_x, exit_x), (entry_y, exit_y), (entry_z, exit_z)) = (axis(0), axis(1), axis(2));
+    Avx2Planes {
+        entry: [entry_x, entry_y, entry_z],
+        exit: [exit_x, exit_y, exit_z],
+    }
+}
+
+/// [`TraceKernel::wide_order_keys`](crate::trace::kernel::TraceKernel::wide_order_keys):
+/// `order_keys`' operations in its order on eight lanes (each centre `min + max`, summed into
+/// the key from zero axis by axis, a NaN key made `-inf`).
+#[target_feature(enable = "avx2,bmi2")]
+pub(super) fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; 8] {
+    let mut key = _mm256_setzero_ps();
+    for (axis, &negative) in negative.iter().enumerate() {
+        let origin = _mm256_set1_ps(node.origin[axis]);
+        let scale = _mm256_set1_ps(node.scale(axis));
+        let min = decode_plane(&node.min[axis], origin, scale);
+        let max = decode_plane(&node.max[axis], origin, scale);
+        let centre = _mm256_add_ps(min, max);
+        key = match negative {
+            true => _mm256_sub_ps(key, centre),
+            false => _mm256_add_ps(key, centre),
+        };
+    }
+    let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(key, key);
+    bytemuck::cast(_mm256_blendv_ps(
+        key,
+        _mm256_set1_ps(f32::NEG_INFINITY),
+        nan,
+    ))
+}
+
 /// [`TraceKernel::clip_wide`](crate::trace::kernel::TraceKernel::clip_wide): per lane the
 /// portable kernel's operations in its order (decode: the exact u8 → f32 conversion, the exact
 /// product, one rounded sum; clip: `WideRay::clip_boxes`), so the same bits.
@@ -44,10 +103,7 @@ pub(super) fn clip_wide(
     let mut near = _mm256_set1_ps(t_near);
     let mut far = _mm256_set1_ps(t_far);
     for axis in 0..3 {
-        let (entry_codes, exit_codes) = match ray.negative[axis] {
-            true => (&node.max[axis], &node.min[axis]),
-            false => (&node.min[axis], &node.max[axis]),
-        };
+        let (entry_codes, exit_codes) = entry_exit_codes(node, axis, ray.negative[axis]);
         let origin = _mm256_set1_ps(node.origin[axis]);
         let scale = _mm256_set1_ps(node.scale(axis));
         let decode = |codes: &[u8; 8]| decode_plane(codes, origin, scale);
@@ -81,10 +137,13 @@ pub(super) fn clip_wide(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::trace::kernel::avx2::packets::clip_slot;
     use crate::trace::kernel::portable::Portable;
     use crate::trace::kernel::TraceKernel;
+    use crate::trace::lanes::PACKET_WIDTH;
     use crate::trace::prepared::WideRay;
     use crate::trace::ray::Ray;
+    use wide::f32x8;
 
     /// A xorshift generator.
     struct Bits(u64);
@@ -107,6 +166,20 @@ mod tests {
         }
     }
 
+    /// A node of random codes in frames from tiny to huge.
+    fn random_node(bits: &mut Bits) -> WideNode {
+        let mut node = WideNode::EMPTY;
+        for axis in 0..3 {
+            node.origin[axis] = bits.coordinate();
+            node.exponent[axis] = bits.pick(&[1, 100, 120, 127, 140, 254]);
+            for slot in 0..8 {
+                node.min[axis][slot] = bits.next() as u8;
+                node.max[axis][slot] = bits.next() as u8;
+            }
+        }
+        node
+    }
+
     #[test]
     fn eight_lanes_decode_and_clip_as_the_portable_groups_of_four() {
         if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("bmi2")) {
@@ -114,15 +187,7 @@ mod tests {
         }
         let mut bits = Bits(0x243f_6a88_85a3_08d3);
         for _ in 0..100_000 {
-            let mut node = WideNode::EMPTY;
-            for axis in 0..3 {
-                node.origin[axis] = bits.coordinate();
-                node.exponent[axis] = bits.pick(&[1, 100, 120, 127, 140, 254]);
-                for slot in 0..8 {
-                    node.min[axis][slot] = bits.next() as u8;
-                    node.max[axis][slot] = bits.next() as u8;
-                }
-            }
+            let node = random_node(&mut bits);
             let ray = Ray {
                 origin: [0; 3].map(|_| bits.coordinate()),
                 direction: [0; 3].map(|_| bits.pick(&[0.0, -0.0, 1.0, -0.5, 1e-30, 3.0])),
@@ -145,12 +210,53 @@ mod tests {
                     )
                 })
             };
+            let negative = ray.direction.map(|d| d.is_sign_negative());
+            // SAFETY: as above.
+            let keys = unsafe { wide_order_keys(&node, &negative) };
+            assert_eq!(
+                keys.map(f32::to_bits),
+                Portable::wide_order_keys(&node, &negative).map(f32::to_bits)
+            );
             // SAFETY: as above.
             let decoded = unsafe { decode_wide(&node) };
             assert_eq!(
                 boxes_bits(decoded),
                 boxes_bits(Portable::decode_wide(&node))
             );
+        }
+    }
+
+    #[test]
+    fn packet_planes_decode_and_clip_as_the_portable_kernel() {
+        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("bmi2")) {
+            return;
+        }
+        let mut bits = Bits(0x1319_8a2e_0370_7344);
+        for _ in 0..20_000 {
+            let node = random_node(&mut bits);
+            let signs = [0; 3].map(|_| bits.pick(&[1.0f32, -1.0]));
+            let rays: Vec<Ray> = (0..PACKET_WIDTH)
+                .map(|_| Ray {
+                    origin: [0; 3].map(|_| bits.coordinate()),
+                    direction: signs.map(|sign| sign * bits.pick(&[0.0, 1.0, 0.5, 1e-30, 3.0])),
+                    tmin: bits.pick(&[0.0, 1.0]),
+                    tmax: bits.pick(&[f32::INFINITY, 10.0]),
+                })
+                .collect();
+            let lanes = Portable::lanes(&rays, &Portable::prepared_rays(&rays));
+            let portable = Portable::wide_planes(&lanes, &node);
+            // SAFETY: the CPU has AVX2 and BMI2, checked above.
+            let avx2 = unsafe { wide_planes(&lanes, &node) };
+            for slot in 0..8 {
+                let as_bits = |(near, far, mask): (f32x8, f32x8, u32)| {
+                    let each = |v: f32x8| v.to_array().map(f32::to_bits);
+                    (each(near), each(far), mask)
+                };
+                let expected = Portable::clip_slot(&lanes, &portable, slot, lanes.tmax);
+                // SAFETY: as above.
+                let clipped = unsafe { clip_slot(&lanes, &avx2, slot, lanes.tmax) };
+                assert_eq!(as_bits(clipped), as_bits(expected), "{node:?} {rays:?}");
+            }
         }
     }
 }
