@@ -15,7 +15,7 @@
 //!
 //! Deviation from the paper: binary BVH → 8-wide for SIMD box tests and fewer bytes. A ray
 //! tests eight boxes with one set of vector operations per node fetch, and the top level takes
-//! one 96-byte node per about six leaves instead of two 32-byte nodes per leaf.
+//! one 96-byte node per about six strips instead of two 32-byte nodes per leaf.
 //!
 //! Nodes are emitted depth-first (a node's first internal child right after it) and the strips
 //! are renumbered in leaf order, so the strips of a subtree are contiguous in the strip-data

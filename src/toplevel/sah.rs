@@ -67,7 +67,7 @@ struct Split {
 }
 
 /// Which strips of a split go left.
-#[derive(Clone, Copy, PartialEq)]
+#[derive(Clone, Copy)]
 enum Cut {
     /// Those with a centroid bin below this.
     Bin(usize),
