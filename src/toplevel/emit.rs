@@ -1,8 +1,7 @@
 //! Writes collapsed wide nodes in depth-first preorder, into one hierarchy's node array or the
 //! splice's item list.
 
-use super::collapse::Collapse;
-use super::sah::BinaryKind;
+use super::collapse::{Collapse, Slot};
 use super::NodeError;
 use crate::format::{TopSlot, WideChild, WideNode};
 use crate::geometry::Aabb;
@@ -30,10 +29,10 @@ pub(super) fn emit(
     let (file_index, handle) = out.open();
     let mut children = Vec::new();
     for child in collapse.slots(index) {
-        let (slot, bounds) = match tree[child].kind {
-            BinaryKind::Leaf { first, count } => out.leaf(first, count, &tree[child].bounds),
-            BinaryKind::Internal { .. } => {
-                let (node, bounds) = emit(collapse, child, out)?;
+        let (slot, bounds) = match child {
+            Slot::Leaf { node, first, count } => out.leaf(first, count, &tree[node].bounds),
+            Slot::Wide(node) => {
+                let (node, bounds) = emit(collapse, node, out)?;
                 (TopSlot::Internal(node), bounds)
             }
         };

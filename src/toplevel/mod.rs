@@ -1,19 +1,21 @@
 //! The global hierarchy over strips (paper 3.2: "one global high-level hierarchy whose leaf nodes
 //! contain the strip hierarchies").
 //!
-//! Built in two steps: a binned-SAH binary bounding volume hierarchy over strip bounds, then
-//! collapsed into 8-wide compressed nodes ([`WideNode`]). Each wide node is rooted at a binary
-//! internal node and takes as slots a cut of its subtree of at most eight binary nodes; the
-//! cuts are chosen by Ylitie et al. 2017's dynamic programme, which gives each binary node the
-//! least cost of covering its subtree with 1 to 8 slots, combined from its children's costs
-//! bottom-up in O(nodes × 8²), so that the wide nodes' total surface area, the SAH's expected
-//! number of node visits, is least. The binary tree's leaves stay leaves (as the paper's, with
-//! a traversal cost per node and none per leaf choice), and the cut keeps them in the binary
-//! tree's order, so the strip numbering is the binary tree's.
+//! Built in two steps: a binned-SAH binary bounding volume hierarchy over strip bounds down to
+//! one strip per leaf, then collapsed into 8-wide compressed nodes ([`WideNode`]). Each wide
+//! node is rooted at a binary internal node and takes as slots a cut of its subtree of at most
+//! eight binary nodes, each slot a wide node or a leaf of at most
+//! [`TopLevelParams::max_leaf_strips`] strips. The cuts are chosen by Ylitie et al. 2017's
+//! dynamic programme, which gives each binary node the least SAH cost of covering its subtree
+//! with 1 to 8 slots, combined from its children's costs bottom-up in O(nodes × 8²): a wide node
+//! costs its surface area times [`TopLevelParams::traversal_cost`], a leaf its surface area
+//! times its strip count (a strip test is the unit). A leaf of several strips saves a node where
+//! slots run short, at the price of strips its box does not cull. The cut keeps the binary
+//! tree's leaf order, so the strip numbering is the binary tree's.
 //!
 //! Deviation from the paper: binary BVH → 8-wide for SIMD box tests and fewer bytes. A ray
 //! tests eight boxes with one set of vector operations per node fetch, and the top level takes
-//! one 96-byte node per about six leaves instead of two 32-byte nodes per leaf.
+//! one 96-byte node per about six strips instead of two 32-byte nodes per leaf.
 //!
 //! Nodes are emitted depth-first (a node's first internal child right after it) and the strips
 //! are renumbered in leaf order, so the strips of a subtree are contiguous in the strip-data
@@ -43,20 +45,20 @@ pub use splice::{splice, SpliceItem, Subtree};
 /// Build parameters of the top-level hierarchy.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TopLevelParams {
-    /// SAH bins per axis.
+    /// SAH bins per axis, for subtrees of more strips than `sah::SWEEP_STRIPS`.
     pub bins: usize,
-    /// Most strips in one leaf; the SAH may stop earlier.
+    /// Most strips in one leaf; the collapse makes smaller leaves where the SAH prefers them.
     pub max_leaf_strips: usize,
-    /// Cost of one node traversal relative to testing one strip, for the SAH termination.
+    /// Cost of visiting one wide node relative to testing one strip, for the collapse's SAH.
     pub traversal_cost: f64,
 }
 
 impl Default for TopLevelParams {
     fn default() -> Self {
         TopLevelParams {
-            bins: 16,
+            bins: 32,
             max_leaf_strips: 4,
-            traversal_cost: 0.5,
+            traversal_cost: 1.0,
         }
     }
 }
@@ -84,7 +86,7 @@ pub fn build(bounds: &[Aabb], params: &TopLevelParams) -> Result<TopLevel, NodeE
     if binary.is_empty() {
         nodes.0.push(WideNode::EMPTY);
     } else {
-        emit(&Collapse::new(&binary), 0, &mut nodes)?;
+        emit(&Collapse::new(&binary, params), 0, &mut nodes)?;
     }
     Ok(TopLevel {
         nodes: nodes.0,
@@ -107,6 +109,7 @@ fn occupied(node: &WideNode) -> usize {
 
 #[cfg(test)]
 mod tests {
+    use super::collapse::Slot;
     use super::sah::{BinaryKind, BinaryNode};
     use super::*;
 
@@ -125,11 +128,6 @@ mod tests {
             .collect()
     }
 
-    fn count_binary(tree: &[BinaryNode], leaves: bool) -> usize {
-        let is_leaf = |n: &&BinaryNode| matches!(n.kind, BinaryKind::Leaf { .. });
-        tree.iter().filter(|n| is_leaf(n) == leaves).count()
-    }
-
     #[test]
     fn wide_tree_is_valid_and_keeps_the_binary_leaf_order() {
         for count in [0, 1, 2, 3, 5, 9, 64, 1000] {
@@ -141,28 +139,52 @@ mod tests {
         }
     }
 
-    #[test]
-    fn collapsing_fills_nodes() {
-        for count in [1000, 10_000] {
-            let bounds = boxes(count);
-            let params = TopLevelParams::default();
-            let binary = build_binary(&bounds, &params).0;
-            let (leaves, internal) = (count_binary(&binary, true), count_binary(&binary, false));
-            let top = build(&bounds, &params).unwrap();
-            // Each wide node absorbs at most seven binary internal nodes.
-            assert!(top.nodes.len() * 7 >= internal, "{}", top.nodes.len());
-            // The least-area cut of these trees takes one node per about 4.9 binary leaves (the
-            // fewest nodes any cut has is one per 5.7, at a larger area).
-            assert!(
-                top.nodes.len() * 9 <= leaves * 2,
-                "{} {leaves}",
-                top.nodes.len()
-            );
-        }
+    /// The largest leaf of `top`, in strips.
+    fn largest_leaf(top: &TopLevel) -> u32 {
+        top.nodes
+            .iter()
+            .flat_map(|node| (0..WIDE_WIDTH).map(|slot| node.slot(slot)))
+            .filter_map(|slot| match slot {
+                TopSlot::Leaf { count, .. } => Some(count),
+                _ => None,
+            })
+            .max()
+            .unwrap_or(0)
     }
 
-    /// The least total area of wide nodes under binary node `index` found by trying every
-    /// frontier of at most eight slots, given the least totals of the nodes below it.
+    #[test]
+    fn costlier_node_visits_give_fewer_nodes_and_larger_leaves() {
+        let bounds = boxes(10_000);
+        let build_with = |max_leaf_strips, traversal_cost| {
+            let params = TopLevelParams {
+                max_leaf_strips,
+                traversal_cost,
+                ..TopLevelParams::default()
+            };
+            let top = build(&bounds, &params).unwrap();
+            top.validate(&bounds).unwrap();
+            top
+        };
+        let single = build_with(1, 1.0);
+        assert_eq!(largest_leaf(&single), 1);
+        // Fewest nodes any cut of single-strip leaves has: seven new slots per node.
+        assert!(single.nodes.len() * 7 >= bounds.len());
+        let tops = [0.5, 1.0, 2.0, 4.0].map(|cost| build_with(4, cost));
+        for pair in tops.windows(2) {
+            assert!(pair[1].nodes.len() < pair[0].nodes.len());
+        }
+        assert!(tops[0].nodes.len() <= single.nodes.len());
+        assert_eq!(largest_leaf(&tops[3]), 4);
+        // Node visits four times a strip test's cost fill nodes: one per more than 9 strips.
+        assert!(
+            tops[3].nodes.len() * 9 < bounds.len(),
+            "{}",
+            tops[3].nodes.len()
+        );
+    }
+
+    /// The least total cost of the slots covering `frontier` and of any frontier of at most
+    /// eight slots opened from it, given the least cost of each binary node as one slot.
     fn exhaustive_cost(tree: &[BinaryNode], costs: &[f64], frontier: &mut Vec<usize>) -> f64 {
         let mut best: f64 = frontier.iter().map(|&n| costs[n]).sum();
         if frontier.len() == WIDE_WIDTH {
@@ -179,32 +201,57 @@ mod tests {
         best
     }
 
-    /// The total surface area of the wide nodes the collapse emits under binary node `index`.
-    fn emitted_cost(collapse: &Collapse, index: usize) -> f64 {
-        let below: f64 = collapse
+    /// The SAH cost of the slot the collapse emits for binary node `index` as a wide node.
+    fn emitted_cost(collapse: &Collapse, index: usize, params: &TopLevelParams) -> f64 {
+        let area = |node: usize| collapse.tree[node].bounds.surface_area();
+        let slots: f64 = collapse
             .slots(index)
             .into_iter()
-            .filter(|&slot| matches!(collapse.tree[slot].kind, BinaryKind::Internal { .. }))
-            .map(|slot| emitted_cost(collapse, slot))
+            .map(|slot| match slot {
+                Slot::Leaf { node, count, .. } => area(node) * count as f64,
+                Slot::Wide(node) => emitted_cost(collapse, node, params),
+            })
             .sum();
-        collapse.tree[index].bounds.surface_area() + below
+        area(index) * params.traversal_cost + slots
     }
 
     #[test]
     fn dynamic_programme_finds_the_exhaustive_optimum_and_emits_it() {
-        for (count, max_leaf_strips) in [(9, 1), (17, 1), (23, 2), (40, 1), (40, 4)] {
+        for (count, max_leaf_strips, traversal_cost) in [
+            (9, 1, 0.5),
+            (17, 1, 1.0),
+            (23, 2, 0.5),
+            (40, 1, 2.0),
+            (40, 4, 1.0),
+            (40, 4, 4.0),
+        ] {
             let params = TopLevelParams {
                 max_leaf_strips,
+                traversal_cost,
                 ..TopLevelParams::default()
             };
             let tree = build_binary(&boxes(count), &params).0;
-            let collapse = Collapse::new(&tree);
+            let collapse = Collapse::new(&tree, &params);
             let mut costs = vec![0.0; tree.len()];
+            let mut strips = vec![0; tree.len()];
             for index in (0..tree.len()).rev() {
-                if let BinaryKind::Internal { left, right } = tree[index].kind {
-                    let children = exhaustive_cost(&tree, &costs, &mut vec![left, right]);
-                    costs[index] = tree[index].bounds.surface_area() + children;
-                }
+                let area = tree[index].bounds.surface_area();
+                costs[index] = match tree[index].kind {
+                    BinaryKind::Leaf { count, .. } => {
+                        strips[index] = count as usize;
+                        area * count as f64
+                    }
+                    BinaryKind::Internal { left, right } => {
+                        strips[index] = strips[left] + strips[right];
+                        let children = exhaustive_cost(&tree, &costs, &mut vec![left, right]);
+                        let wide = area * traversal_cost + children;
+                        if strips[index] <= max_leaf_strips {
+                            wide.min(area * strips[index] as f64)
+                        } else {
+                            wide
+                        }
+                    }
+                };
             }
             let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.max(b);
             assert!(
@@ -213,7 +260,10 @@ mod tests {
                 collapse.cost(0),
                 costs[0]
             );
-            assert!(close(emitted_cost(&collapse, 0), costs[0]), "{count}");
+            assert!(
+                close(emitted_cost(&collapse, 0, &params), costs[0]),
+                "{count}"
+            );
         }
     }
 

@@ -1,5 +1,6 @@
-//! Step one of the build: a binary bounding volume hierarchy over strip bounds, binned SAH
-//! down to the leaf size, median splits below a depth limit.
+//! Step one of the build: a binary bounding volume hierarchy over strip bounds, SAH (binned
+//! for large subtrees, every position for small ones) down to one strip per leaf (the collapse
+//! chooses which subtrees become leaves), median splits below a depth limit.
 
 use super::TopLevelParams;
 use crate::geometry::Aabb;
@@ -36,7 +37,7 @@ pub(super) fn build_binary(
             .iter()
             .map(|b| [0, 1, 2].map(|a| b.centroid(a)))
             .collect(),
-        nodes: Vec::with_capacity(bounds.len().max(1) * 2 / params.max_leaf_strips.max(1) + 1),
+        nodes: Vec::with_capacity(bounds.len() * 2),
     };
     let mut order: Vec<u32> = (0..bounds.len() as u32).collect();
     if !order.is_empty() {
@@ -52,17 +53,28 @@ struct Builder<'a> {
     nodes: Vec<BinaryNode>,
 }
 
+/// Subtrees of at most this many strips try every split position instead of binning: the
+/// exact sweep's tighter boxes cost a sort per axis, cheap on a subtree this small.
+pub(super) const SWEEP_STRIPS: usize = 4096;
 /// Below this depth splits are SAH; deeper ones are median splits, which bound the depth at
 /// `SAH_DEPTH_LIMIT + log2(strips)`, well inside the reader's [`crate::format::MAX_TOP_DEPTH`].
 const SAH_DEPTH_LIMIT: usize = 48;
-/// `Split::bin` value of a median split.
-const MEDIAN_SPLIT: usize = usize::MAX;
 
 struct Split {
     axis: usize,
-    /// Strips going left: those with a centroid bin below this.
-    bin: usize,
+    cut: Cut,
     cost: f64,
+}
+
+/// Which strips of a split go left.
+#[derive(Clone, Copy)]
+enum Cut {
+    /// Those with a centroid bin below this.
+    Bin(usize),
+    /// The first this many in centroid order along the axis.
+    Sorted(usize),
+    /// The lower half in centroid order along the axis.
+    Median,
 }
 
 impl Builder<'_> {
@@ -77,9 +89,6 @@ impl Builder<'_> {
         } else {
             self.median_split(strips)
         };
-        let leaf_cost = strips.len() as f64;
-        let must_split = strips.len() > self.params.max_leaf_strips;
-        let split = split.filter(|s| must_split || s.cost < leaf_cost);
         let leaf = BinaryKind::Leaf {
             first: first as u32,
             count: strips.len() as u32,
@@ -98,16 +107,23 @@ impl Builder<'_> {
         };
     }
 
-    /// The cheapest binned SAH split, or a median split when all centroids share a bin.
+    /// The cheapest SAH split, or a median split when all centroids share a bin.
     fn best_split(&self, strips: &[u32], bounds: &Aabb) -> Option<Split> {
         if strips.len() < 2 {
             return None;
         }
         let centroid_bounds =
             Aabb::from_points(strips.iter().map(|&s| &self.centroids[s as usize]));
+        let sweep = strips.len() <= SWEEP_STRIPS;
         let best = (0..3)
             .filter(|&axis| centroid_bounds.extent(axis) > 0.0)
-            .filter_map(|axis| self.best_split_on_axis(strips, axis, &centroid_bounds, bounds))
+            .filter_map(|axis| {
+                if sweep {
+                    self.best_sweep_on_axis(strips, axis, bounds)
+                } else {
+                    self.best_split_on_axis(strips, axis, &centroid_bounds, bounds)
+                }
+            })
             .min_by(|a, b| a.cost.total_cmp(&b.cost));
         best.or_else(|| self.median_split(strips))
     }
@@ -117,7 +133,7 @@ impl Builder<'_> {
             Aabb::from_points(strips.iter().map(|&s| &self.centroids[s as usize]));
         (strips.len() >= 2).then(|| Split {
             axis: centroid_bounds.longest_axis(),
-            bin: MEDIAN_SPLIT,
+            cut: Cut::Median,
             cost: f64::INFINITY,
         })
     }
@@ -155,14 +171,58 @@ impl Builder<'_> {
             if count == 0 || right_count[bin] == 0 {
                 continue;
             }
-            let cost = self.params.traversal_cost
-                + (acc.surface_area() * count as f64 + right_area[bin] * right_count[bin] as f64)
-                    / parent_area;
+            let cost = (acc.surface_area() * count as f64
+                + right_area[bin] * right_count[bin] as f64)
+                / parent_area;
             if best.as_ref().is_none_or(|b| cost < b.cost) {
-                best = Some(Split { axis, bin, cost });
+                best = Some(Split {
+                    axis,
+                    cut: Cut::Bin(bin),
+                    cost,
+                });
             }
         }
         best
+    }
+
+    /// The cheapest split of `strips` in centroid order along `axis`, every position tried.
+    fn best_sweep_on_axis(&self, strips: &[u32], axis: usize, bounds: &Aabb) -> Option<Split> {
+        let mut sorted = strips.to_vec();
+        self.sort_along(&mut sorted, axis);
+        let mut right_area = vec![0.0; sorted.len()];
+        let mut acc = Aabb::EMPTY;
+        for i in (1..sorted.len()).rev() {
+            acc.grow(&self.bounds[sorted[i] as usize]);
+            right_area[i] = acc.surface_area();
+        }
+        let parent_area = bounds.surface_area().max(f64::MIN_POSITIVE);
+        let mut acc = Aabb::EMPTY;
+        let mut best: Option<Split> = None;
+        for left in 1..sorted.len() {
+            acc.grow(&self.bounds[sorted[left - 1] as usize]);
+            let right = sorted.len() - left;
+            let cost =
+                (acc.surface_area() * left as f64 + right_area[left] * right as f64) / parent_area;
+            if best.as_ref().is_none_or(|b| cost < b.cost) {
+                best = Some(Split {
+                    axis,
+                    cut: Cut::Sorted(left),
+                    cost,
+                });
+            }
+        }
+        best
+    }
+
+    /// Sorts by centroid along `axis`, ties broken by strip id.
+    fn sort_along(&self, strips: &mut [u32], axis: usize) {
+        strips.sort_unstable_by(|&a, &b| {
+            let (ca, cb) = (
+                self.centroids[a as usize][axis],
+                self.centroids[b as usize][axis],
+            );
+            ca.total_cmp(&cb).then(a.cmp(&b))
+        });
     }
 
     fn bin_of(&self, strip: u32, axis: usize, centroids: &Aabb, bins: usize) -> usize {
@@ -173,14 +233,19 @@ impl Builder<'_> {
 
     /// Reorders `strips` so the left side comes first and returns its length.
     fn partition(&self, strips: &mut [u32], split: &Split) -> usize {
-        if split.bin == MEDIAN_SPLIT {
-            return self.median_partition(strips, split.axis);
-        }
+        let bin = match split.cut {
+            Cut::Median => return self.median_partition(strips, split.axis),
+            Cut::Sorted(left) => {
+                self.sort_along(strips, split.axis);
+                return left;
+            }
+            Cut::Bin(bin) => bin,
+        };
         let centroids = Aabb::from_points(strips.iter().map(|&s| &self.centroids[s as usize]));
         let bins = self.params.bins.max(2);
         let mut left = 0;
         for i in 0..strips.len() {
-            if self.bin_of(strips[i], split.axis, &centroids, bins) < split.bin {
+            if self.bin_of(strips[i], split.axis, &centroids, bins) < bin {
                 strips.swap(i, left);
                 left += 1;
             }

@@ -60,7 +60,7 @@ pub fn splice(subtrees: &[Subtree], params: &TopLevelParams) -> Result<Vec<Splic
             out.leaf(0, 1, &bounds[0]);
         }
         _ => {
-            emit(&Collapse::new(&upper), 0, &mut out)?;
+            emit(&Collapse::new(&upper, &upper_params), 0, &mut out)?;
         }
     }
     Ok(out.items)
