@@ -54,7 +54,7 @@ const MIN_PACKET_LANES: usize = 6;
 /// packet's node test costs a clip per child for all its lanes, a single ray's one clip of all
 /// of a node's children (eight at once with AVX2). Occlusion rays from neighbouring hit points
 /// share their origins' region, not their directions, and soon part.
-const MAX_SOLO_LANES: usize = 4;
+const MAX_SOLO_LANES: usize = 1;
 
 /// A child deferred for some lanes of the packet.
 #[derive(Clone, Copy, Default)]
