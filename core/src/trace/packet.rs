@@ -51,9 +51,8 @@ use crate::format::INTERNAL_CHILD;
 const MIN_PACKET_LANES: usize = 6;
 
 /// Most lanes of an occlusion packet that walk a subtree each alone rather than together: a
-/// packet's node test costs a clip per child for all its lanes, a single ray's one clip of all
-/// of a node's children (eight at once with AVX2). Occlusion rays from neighbouring hit points
-/// share their origins' region, not their directions, and soon part.
+/// lone lane pays a packet's clip per child for nothing. More lanes alone cost the benchmark's
+/// AO rays more than they save, since single rays test strips one ray at a time.
 const MAX_SOLO_LANES: usize = 1;
 
 /// A child deferred for some lanes of the packet.
