@@ -8,6 +8,11 @@
 # MODEL.ply is the mesh MODEL.rdm was converted from (its vertices place the rays). NEW_MODEL.rdm,
 # when given, is what the new binary answers on (the same mesh converted by it, e.g. in a newer
 # format). The answers of both binaries are compared byte for byte.
+#
+# The AO-like rays start at random vertices in random directions, spread over the whole model.
+# AO_RAYS=FILE takes the first 100k rays of a ray file instead, e.g. scripts/bench_trace.sh's
+# rays-scan-N/ao.rays (16 per camera hit, neighbours in origin): the two sets have ranked walk
+# variants differently, so a tracer change should be measured on both.
 set -euo pipefail
 old=$1 new=$2 ply=$3 model=$4 new_model=${5:-$4}
 dir=$(mktemp -d)
@@ -44,6 +49,9 @@ with open(ao_path, "wb") as out:
         out.write(struct.pack("<8f", *points[3 * i:3 * i + 3], *direction,
                               1e-4 * diagonal, 0.05 * diagonal))
 PY
+if [[ -n ${AO_RAYS-} ]]; then
+    head -c $((100000 * 32)) "$AO_RAYS" > "$dir/ao.rays"
+fi
 instructions() {
     local binary=$1 model=$2 kernel=$3 rays=$4 answers=$5
     shift 5
