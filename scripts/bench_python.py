@@ -24,6 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from decoded_mesh import read_decoded  # noqa: E402
+
 import reducem
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -59,19 +62,6 @@ def prepare(triangles, work):
     if not decoded.exists():
         run(release / "reducem", "decode", model, "-o", decoded)
     return release / "reducem", model, decoded
-
-
-def read_decoded(path):
-    """`reducem decode`'s PLY (float x, y, z; list uchar int) as numpy arrays."""
-    with open(path, "rb") as f:
-        counts = {}
-        while (line := f.readline().strip()) != b"end_header":
-            words = line.split()
-            if words[:1] == [b"element"]:
-                counts[words[1].decode()] = int(words[2])
-        vertices = np.fromfile(f, "<f4", counts["vertex"] * 3).reshape(-1, 3)
-        faces = np.fromfile(f, [("n", "u1"), ("i", "<i4", 3)], counts["face"])
-    return vertices, np.ascontiguousarray(faces["i"]).astype(np.uint32)
 
 
 def camera_rays(low, high, side):
@@ -144,6 +134,7 @@ def main():
         o3d = None
     if o3d is not None:
         vertices, faces = read_decoded(decoded)
+        faces = faces.astype(np.uint32)
         peer = o3d.t.geometry.RaycastingScene(nthreads=threads)
         peer.add_triangles(o3d.core.Tensor(vertices), o3d.core.Tensor(faces))
         peer.cast_rays(o3d.core.Tensor(camera[:1, :1]), nthreads=threads)  # builds the BVH

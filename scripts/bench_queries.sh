@@ -35,22 +35,8 @@ decoded=$WORK/scan$TRIANGLES.decoded.ply
 [[ -f $model ]] || target/release/pipeline convert "$mesh" -o "$model" --log-format plain 2>/dev/null
 [[ -f $decoded ]] || target/release/reducem decode "$model" -o "$decoded"
 
-# The decoded PLY (`reducem decode`: float x, y, z; list uchar int) as numpy arrays.
-cat >"$WORK/mesh.py" <<'EOF'
-import numpy as np
-
-
-def read_decoded(path):
-    with open(path, "rb") as f:
-        counts = {}
-        while (line := f.readline().strip()) != b"end_header":
-            words = line.split()
-            if words[:1] == [b"element"]:
-                counts[words[1].decode()] = int(words[2])
-        vertices = np.fromfile(f, "<f4", counts["vertex"] * 3).reshape(-1, 3)
-        faces = np.fromfile(f, [("n", "u1"), ("i", "<i4", 3)], counts["face"])
-    return vertices, np.ascontiguousarray(faces["i"])
-EOF
+# The decoded PLY as numpy arrays, for the Python parts below.
+cp scripts/decoded_mesh.py "$WORK/mesh.py"
 
 cat >"$WORK/points.py" <<'EOF'
 """Writes POINTS points, each on a random triangle offset by up to 1% of the diagonal."""

@@ -53,20 +53,40 @@ impl GridNode {
                 out.min[axis][slot] = low.min(high);
                 out.max[axis][slot] = high;
             }
-            let (tag, index) = match node.slot(slot) {
-                TopSlot::Internal(child) => (GRID_LINK_INTERNAL, child),
-                TopSlot::Leaf { first, count } if (1..=MAX_GRID_LEAF_STRIPS).contains(&count) => {
-                    (count, first)
-                }
-                other => return Err(format!("slot {slot} holds {other:?}: no grid node link")),
-            };
-            if index > GRID_LINK_INDEX {
-                return Err(format!(
-                    "index {index} of slot {slot} needs more than 28 bits"
-                ));
-            }
-            out.link[slot] = tag << GRID_LINK_INDEX_BITS | index;
+            out.link[slot] = pack_link(slot, node.slot(slot))?;
         }
         Ok(out)
     }
+}
+
+/// What a one-word link ([`GridNode`]'s and [`WideNode`](super::WideNode)'s) holds.
+pub fn unpack_link(link: u32) -> TopSlot {
+    let index = link & GRID_LINK_INDEX;
+    match link >> GRID_LINK_INDEX_BITS {
+        0 if link == 0 => TopSlot::Empty,
+        0 => TopSlot::Invalid(link),
+        GRID_LINK_INTERNAL => TopSlot::Internal(index),
+        count => TopSlot::Leaf {
+            first: index,
+            count,
+        },
+    }
+}
+
+/// `link`, the content of `slot`, as a one-word link; an error naming the slot when it is no
+/// child or leaf, holds more strips than a tag counts or an index beyond 28 bits.
+pub fn pack_link(slot: usize, link: TopSlot) -> Result<u32, String> {
+    let (tag, index) = match link {
+        TopSlot::Internal(child) => (GRID_LINK_INTERNAL, child),
+        TopSlot::Leaf { first, count } if (1..=MAX_GRID_LEAF_STRIPS).contains(&count) => {
+            (count, first)
+        }
+        other => return Err(format!("slot {slot} holds {other:?}: no one-word link")),
+    };
+    if index > GRID_LINK_INDEX {
+        return Err(format!(
+            "slot {slot}: index {index} needs more than 28 bits"
+        ));
+    }
+    Ok(tag << GRID_LINK_INDEX_BITS | index)
 }

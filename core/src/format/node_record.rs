@@ -6,7 +6,7 @@ use bytemuck::Pod;
 use wide::i32x4;
 
 use super::{
-    GridNode, TopNode, TopSlot, WideNode, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS,
+    unpack_link, GridNode, TopNode, TopSlot, WideNode, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS,
     GRID_LINK_INTERNAL, INTERNAL_CHILD, TOP_WIDTH, WIDE_WIDTH,
 };
 
@@ -208,17 +208,7 @@ impl NodeRecord for GridNode {
     const EMPTY_SLOT: &'static str = "all zero bytes";
 
     fn slot(&self, slot: usize) -> TopSlot {
-        let link = self.link[slot];
-        let index = link & GRID_LINK_INDEX;
-        match link >> GRID_LINK_INDEX_BITS {
-            0 if link == 0 => TopSlot::Empty,
-            0 => TopSlot::Invalid(link),
-            GRID_LINK_INTERNAL => TopSlot::Internal(index),
-            count => TopSlot::Leaf {
-                first: index,
-                count,
-            },
-        }
+        unpack_link(self.link[slot])
     }
 
     fn is_exactly_empty(&self, slot: usize) -> bool {

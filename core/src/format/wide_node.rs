@@ -5,13 +5,13 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{TopSlot, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS, GRID_LINK_INTERNAL};
+use super::{pack_link, unpack_link, TopSlot, MAX_GRID_LEAF_STRIPS};
 
 /// Child slots of a [`WideNode`].
 pub const WIDE_WIDTH: usize = 8;
 
 /// Most strips in one leaf of a [`WideNode`]: the link tags below the internal one.
-pub const MAX_WIDE_LEAF_STRIPS: u32 = GRID_LINK_INTERNAL - 1;
+pub const MAX_WIDE_LEAF_STRIPS: u32 = MAX_GRID_LEAF_STRIPS;
 
 /// Largest plane code.
 const TOP_CODE: u8 = u8::MAX;
@@ -115,17 +115,7 @@ impl WideNode {
 
     /// What `slot` holds.
     pub fn slot(&self, slot: usize) -> TopSlot {
-        let link = self.link[slot];
-        let index = link & GRID_LINK_INDEX;
-        match link >> GRID_LINK_INDEX_BITS {
-            0 if link == 0 => TopSlot::Empty,
-            0 => TopSlot::Invalid(link),
-            GRID_LINK_INTERNAL => TopSlot::Internal(index),
-            count => TopSlot::Leaf {
-                first: index,
-                count,
-            },
-        }
+        unpack_link(self.link[slot])
     }
 
     /// The scale of `axis`: `2^(exponent - 127)`.
@@ -147,23 +137,6 @@ impl WideNode {
             [0, 1, 2].map(|axis| self.decode(axis, self.max[axis][slot])),
         )
     }
-}
-
-/// `slot`'s link word.
-fn pack_link(slot: usize, link: TopSlot) -> Result<u32, String> {
-    let (tag, index) = match link {
-        TopSlot::Internal(child) => (GRID_LINK_INTERNAL, child),
-        TopSlot::Leaf { first, count } if (1..=MAX_WIDE_LEAF_STRIPS).contains(&count) => {
-            (count, first)
-        }
-        other => return Err(format!("slot {slot} holds {other:?}: no wide node link")),
-    };
-    if index > GRID_LINK_INDEX {
-        return Err(format!(
-            "slot {slot}: index {index} needs more than 28 bits"
-        ));
-    }
-    Ok(tag << GRID_LINK_INDEX_BITS | index)
 }
 
 /// One axis of a node's frame while encoding.
@@ -240,6 +213,7 @@ impl AxisFrame {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::format::GRID_LINK_INDEX;
 
     /// A xorshift generator of coordinates of assorted magnitudes.
     struct Coordinates(u64);
