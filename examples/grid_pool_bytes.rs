@@ -235,32 +235,41 @@ fn leaves(file: &ReducemFile) -> Vec<(usize, usize)> {
 }
 
 /// Greedy runs of consecutive units (strip ranges) whose pool holds at most `cap` points; a
-/// unit that alone exceeds `cap` is split strip by strip (never happens at 64 and above on
-/// strips of at most 20 triangles).
+/// unit whose own pool exceeds `cap` is taken strip by strip.
 fn greedy(
     strips: &[Strip],
     units: &[(usize, usize)],
     cap: usize,
     part: StripPart,
 ) -> Vec<(usize, usize)> {
+    let fitting = units.iter().flat_map(|&(first, end)| {
+        let whole = pool_size(&strips[first..end], part) <= cap;
+        let pieces: Vec<(usize, usize)> = match whole {
+            true => vec![(first, end)],
+            false => (first..end).map(|s| (s, s + 1)).collect(),
+        };
+        pieces
+    });
     let mut groups = Vec::new();
-    let mut start: Option<(usize, usize)> = None;
-    for &(first, end) in units {
-        start = match start {
+    let mut open: Option<(usize, usize)> = None;
+    for (first, end) in fitting {
+        open = match open {
             Some((s, _)) if pool_size(&strips[s..end], part) <= cap => Some((s, end)),
-            Some(open) => {
-                groups.push(open);
+            Some(full) => {
+                groups.push(full);
                 Some((first, end))
             }
             None => Some((first, end)),
         };
-        let (s, e) = start.unwrap();
+    }
+    groups.extend(open);
+    for &(first, end) in &groups {
+        let size = pool_size(&strips[first..end], part);
         assert!(
-            pool_size(&strips[s..e], part) <= cap || e - s > 1,
-            "a strip beyond {cap}"
+            size <= cap,
+            "strips {first}..{end}: a pool of {size} points"
         );
     }
-    groups.extend(start);
     groups
 }
 
