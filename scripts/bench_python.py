@@ -22,12 +22,16 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
+# numpy's BLAS threads spin after building the rays and take cores from the calls timed (as
+# scripts/bench_queries.sh runs its Python rows).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from decoded_mesh import read_decoded  # noqa: E402
 
-import reducem
+import reducem  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -10,6 +10,7 @@
 
 #![deny(unsafe_code)]
 
+mod answers;
 mod convert;
 mod crossings;
 mod errors;

@@ -16,11 +16,11 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use rayon::prelude::*;
 use rayon::ThreadPool;
-use reducem_core::format::attributes::{AttributeSet, NormalEncoding};
 use reducem_core::format::reader::ReducemFile;
 use reducem_core::query::occupancy::inside_rays;
-use reducem_core::trace::{surface_attributes, Hit, HitAttributes, Kernel, TraceOptions, Tracer};
+use reducem_core::trace::{surface_attributes, Kernel, TraceOptions, Tracer};
 
+use crate::answers::{AnswerArrays, AnswerBuffers, Answers};
 use crate::crossings;
 use crate::errors::{format_error, reducem_error};
 use crate::order::{self, Chunk, ChunkOrder};
@@ -55,115 +55,6 @@ pub fn open(py: Python<'_>, path: PathBuf) -> PyResult<Scene> {
     })
 }
 
-/// The answers of `cast_rays`, flat, in ray order: allocated zeroed (pages untouched until
-/// the tracing threads write them) and handed to numpy without a copy.
-struct Answers {
-    t: Vec<f32>,
-    ids: Vec<u32>,
-    /// 0 on a hit (a file is one geometry), [`NO_PRIMITIVE`] on a miss, as Open3D's.
-    geometry_ids: Vec<u32>,
-    uvs: Vec<f32>,
-    normals: Vec<f32>,
-    /// Interpolated stored normals, three per ray; empty when the file has none.
-    shading_normals: Vec<f32>,
-    /// Interpolated RGBA8 colours, four per ray; empty when the file has none.
-    colors: Vec<u8>,
-}
-
-/// The answers of one chunk of consecutive rays.
-struct AnswerChunk<'a> {
-    t: &'a mut [f32],
-    ids: &'a mut [u32],
-    geometry_ids: &'a mut [u32],
-    uvs: &'a mut [f32],
-    normals: &'a mut [f32],
-    shading_normals: Option<&'a mut [f32]>,
-    colors: Option<&'a mut [u8]>,
-}
-
-impl Answers {
-    fn zeroed(rays: usize, attributes: AttributeSet) -> Answers {
-        let per_ray = |present: bool, count: usize| if present { count * rays } else { 0 };
-        Answers {
-            t: vec![0.0; rays],
-            ids: vec![0; rays],
-            geometry_ids: vec![0; rays],
-            uvs: vec![0.0; 2 * rays],
-            normals: vec![0.0; 3 * rays],
-            shading_normals: vec![0.0; per_ray(attributes.normals != NormalEncoding::None, 3)],
-            colors: vec![0; per_ray(attributes.colors, 4)],
-        }
-    }
-
-    /// The answers cut into chunks of `rays` rays.
-    fn chunks(&mut self, rays: usize) -> Vec<AnswerChunk<'_>> {
-        let mut shading_normals = self.shading_normals.chunks_mut(3 * rays);
-        let mut colors = self.colors.chunks_mut(4 * rays);
-        self.t
-            .chunks_mut(rays)
-            .zip(self.ids.chunks_mut(rays))
-            .zip(self.geometry_ids.chunks_mut(rays))
-            .zip(self.uvs.chunks_mut(2 * rays))
-            .zip(self.normals.chunks_mut(3 * rays))
-            .map(|((((t, ids), geometry_ids), uvs), normals)| AnswerChunk {
-                t,
-                ids,
-                geometry_ids,
-                uvs,
-                normals,
-                shading_normals: shading_normals.next(),
-                colors: colors.next(),
-            })
-            .collect()
-    }
-
-    /// These answers of the valid rays at `positions` of `total` rays, misses elsewhere.
-    fn placed(self, positions: &[usize], total: usize, attributes: AttributeSet) -> Answers {
-        let mut all = Answers::zeroed(total, attributes);
-        all.t.fill(f32::INFINITY);
-        all.ids.fill(NO_PRIMITIVE);
-        all.geometry_ids.fill(NO_PRIMITIVE);
-        for (k, &at) in positions.iter().enumerate() {
-            all.t[at] = self.t[k];
-            all.ids[at] = self.ids[k];
-            all.geometry_ids[at] = self.geometry_ids[k];
-            all.uvs[2 * at..2 * at + 2].copy_from_slice(&self.uvs[2 * k..2 * k + 2]);
-            all.normals[3 * at..3 * at + 3].copy_from_slice(&self.normals[3 * k..3 * k + 3]);
-            if !self.shading_normals.is_empty() {
-                all.shading_normals[3 * at..3 * at + 3]
-                    .copy_from_slice(&self.shading_normals[3 * k..3 * k + 3]);
-            }
-            if !self.colors.is_empty() {
-                all.colors[4 * at..4 * at + 4].copy_from_slice(&self.colors[4 * k..4 * k + 4]);
-            }
-        }
-        all
-    }
-}
-
-impl AnswerChunk<'_> {
-    /// Writes ray `k`'s answer: every element, a miss's too (the buffers start zeroed).
-    fn write(&mut self, k: usize, hit: Option<&Hit>, id: u32, read: Option<HitAttributes>) {
-        let Some(hit) = hit else {
-            self.t[k] = f32::INFINITY;
-            self.ids[k] = NO_PRIMITIVE;
-            self.geometry_ids[k] = NO_PRIMITIVE;
-            return;
-        };
-        self.t[k] = hit.t;
-        self.ids[k] = id;
-        self.uvs[2 * k..2 * k + 2].copy_from_slice(&[hit.u, hit.v]);
-        self.normals[3 * k..3 * k + 3].copy_from_slice(&hit.normal);
-        let Some(read) = read else { return };
-        if let Some(normals) = self.shading_normals.as_deref_mut() {
-            normals[3 * k..3 * k + 3].copy_from_slice(&read.shading_normal);
-        }
-        if let (Some(colors), Some(color)) = (self.colors.as_deref_mut(), read.color) {
-            colors[4 * k..4 * k + 4].copy_from_slice(&color);
-        }
-    }
-}
-
 #[pymethods]
 impl Scene {
     /// Closest hits of `rays` (`(..., 6)`: origin, direction; float32 or float64, traced in
@@ -191,25 +82,22 @@ impl Scene {
     ) -> PyResult<Bound<'py, PyDict>> {
         check_ids_fit(&self.file)?;
         let query = RayQuery::new(tnear, tfar, nthreads, invalid)?;
-        let (shape, answers) = self.trace(py, rays, query, Scene::cast)?;
-        let result = PyDict::new(py);
-        let with = |extra: &[usize]| [&shape[..], extra].concat();
-        result.set_item("t_hit", ndarray(py, answers.t, &shape)?)?;
-        result.set_item("primitive_ids", ndarray(py, answers.ids, &shape)?)?;
-        result.set_item("geometry_ids", ndarray(py, answers.geometry_ids, &shape)?)?;
-        result.set_item("primitive_uvs", ndarray(py, answers.uvs, &with(&[2]))?)?;
-        result.set_item(
-            "primitive_normals",
-            ndarray(py, answers.normals, &with(&[3]))?,
-        )?;
-        if !answers.shading_normals.is_empty() {
-            let normals = ndarray(py, answers.shading_normals, &with(&[3]))?;
-            result.set_item("shading_normals", normals)?;
-        }
-        if !answers.colors.is_empty() {
-            result.set_item("colors", ndarray(py, answers.colors, &with(&[4]))?)?;
-        }
-        Ok(result)
+        let attributes = self.file.attributes();
+        let arrays = rays::with_components(rays, |shape, components| {
+            let arrays = AnswerArrays::empty(py, &shape, attributes)?;
+            let mut borrowed = arrays.borrow();
+            let mut out = borrowed.slices()?;
+            // A retry with the valid rays alone (`invalid="miss"`) writes every answer again.
+            let cast = |scene: &Scene, rays: &Rays, shape: &[usize], kernel| {
+                scene.cast(rays, shape, kernel, &mut out)
+            };
+            py.detach(|| self.answer_rays(components, &shape, query, cast))
+                .map_err(PyValueError::new_err)?;
+            drop(borrowed);
+            Ok(arrays)
+        })?;
+        self.complete()?;
+        arrays.into_dict(py)
     }
 
     /// Whether each ray of `rays` (as for `cast_rays`) hits anything on `[tnear, tfar]`:
@@ -496,8 +384,25 @@ impl Scene {
         py: Python<'_>,
         rays: &Bound<'_, PyAny>,
         query: RayQuery,
-        answer: impl Fn(&Scene, &Rays, &[usize], Kernel) -> Result<T, usize> + Sync,
+        answer: impl FnMut(&Scene, &Rays, &[usize], Kernel) -> Result<T, usize> + Send,
     ) -> PyResult<(Vec<usize>, T)> {
+        let traced = rays::with_components(rays, |shape, components| {
+            let answers = py.detach(|| self.answer_rays(components, &shape, query, answer));
+            Ok((shape, answers.map_err(PyValueError::new_err)?))
+        })?;
+        self.complete()?;
+        Ok(traced)
+    }
+
+    /// `answer` of the rays `components` (leading shape `shape`) on the query's threads; for
+    /// `invalid="miss"`, once more on the valid ones alone when it met an invalid ray.
+    fn answer_rays<T: Send>(
+        &self,
+        components: Components<'_>,
+        shape: &[usize],
+        query: RayQuery,
+        mut answer: impl FnMut(&Scene, &Rays, &[usize], Kernel) -> Result<T, usize> + Send,
+    ) -> Result<T, String> {
         let RayQuery {
             tnear,
             tfar,
@@ -505,36 +410,29 @@ impl Scene {
             invalid,
             kernel,
         } = query;
-        let traced = rays::with_components(rays, |shape, components| {
-            let answers = py.detach(|| {
-                in_pool(nthreads, || {
-                    let all = Rays::All {
-                        components,
-                        tnear,
-                        tfar,
-                    };
-                    let first_invalid = match answer(self, &all, &shape, kernel) {
-                        Ok(answers) => return Ok(answers),
-                        Err(index) => index,
-                    };
-                    if invalid == InvalidRays::Raise {
-                        let interval = (tnear, tfar);
-                        return Err(rays::describe_invalid(
-                            first_invalid,
-                            components,
-                            interval,
-                            &shape,
-                        ));
-                    }
-                    let valid = rays::valid_only(components, tnear, tfar);
-                    answer(self, &valid, &shape, kernel)
-                        .map_err(|index| format!("ray {index} is invalid after filtering"))
-                })
-            });
-            Ok((shape, answers.map_err(PyValueError::new_err)?))
-        })?;
-        self.complete()?;
-        Ok(traced)
+        in_pool(nthreads, || {
+            let all = Rays::All {
+                components,
+                tnear,
+                tfar,
+            };
+            let first_invalid = match answer(self, &all, shape, kernel) {
+                Ok(answers) => return Ok(answers),
+                Err(index) => index,
+            };
+            if invalid == InvalidRays::Raise {
+                let interval = (tnear, tfar);
+                return Err(rays::describe_invalid(
+                    first_invalid,
+                    components,
+                    interval,
+                    shape,
+                ));
+            }
+            let valid = rays::valid_only(components, tnear, tfar);
+            answer(self, &valid, shape, kernel)
+                .map_err(|index| format!("ray {index} is invalid after filtering"))
+        })
     }
 
     /// Closest points of `query_points` without the GIL on `nthreads` threads, and their
@@ -617,23 +515,46 @@ impl Scene {
             .map_or(Ok(()), |defect| Err(format_error(defect)))
     }
 
-    /// Closest hits of `rays` (leading shape `shape`), or the index of the first invalid ray
-    /// among them.
-    fn cast(&self, rays: &Rays, shape: &[usize], kernel: Kernel) -> Result<Answers, usize> {
+    /// Writes the closest hits of `rays` (leading shape `shape`) into `out`, or gives the index
+    /// of the first invalid ray among them. Rays in their own order or in bands are answered
+    /// straight into `out`; rays gathered in another order into buffers, then placed.
+    fn cast(
+        &self,
+        rays: &Rays,
+        shape: &[usize],
+        kernel: Kernel,
+        out: &mut Answers,
+    ) -> Result<(), usize> {
         let (sorted, order) = trace_order(rays, shape)?;
         let rays = sorted.as_ref().unwrap_or(rays);
+        let Rays::Gathered { positions, .. } = rays else {
+            return self.cast_into(rays, &order, kernel, out);
+        };
+        let mut traced = AnswerBuffers::new(rays.traced(), self.file.attributes());
+        self.cast_into(rays, &order, kernel, &mut traced.answers())?;
+        out.place(&traced, positions);
+        Ok(())
+    }
+
+    /// Writes the closest hits of `rays`, cut into chunks by `order`, into `out` (one answer
+    /// per traced ray).
+    fn cast_into(
+        &self,
+        rays: &Rays,
+        order: &ChunkOrder,
+        kernel: Kernel,
+        out: &mut Answers,
+    ) -> Result<(), usize> {
         let tracer = Tracer::new(&self.file, trace_options(kernel));
         let ids = self.primitive_ids();
         let attributes = self.file.attributes();
-        let mut answers = Answers::zeroed(rays.traced(), attributes);
         let chunk_rays = order.chunk_rays();
         let first_invalid = AtomicUsize::new(usize::MAX);
-        answers
-            .chunks(chunk_rays)
+        out.chunks(chunk_rays)
             .into_par_iter()
             .enumerate()
             .for_each_init(Chunk::default, |traced, (chunk, mut out)| {
-                let range = chunk * chunk_rays..chunk * chunk_rays + out.t.len();
+                let range = chunk * chunk_rays..chunk * chunk_rays + out.len();
                 if let Some(invalid) = order.read(rays, range, traced) {
                     first_invalid.fetch_min(invalid, Ordering::Relaxed);
                     return;
@@ -648,13 +569,7 @@ impl Scene {
                     out.write(traced.places[k] as usize, hit.as_ref(), id, read);
                 });
             });
-        check_valid(first_invalid)?;
-        Ok(match rays {
-            Rays::Gathered {
-                positions, total, ..
-            } => answers.placed(positions, *total, attributes),
-            Rays::All { .. } => answers,
-        })
+        check_valid(first_invalid)
     }
 
     /// Whether each of `rays` (leading shape `shape`) is occluded, or the index of the first

@@ -43,6 +43,8 @@ CAMERAS = {
     "two images (2, h, w, 6)": lambda scene: np.stack([camera_rays(scene, 21, 18)] * 2),
     "float64 (h, w, 6)": lambda scene: camera_rays(scene, 48, 40).astype(np.float64),
     "float64 flat": lambda scene: camera_rays(scene, 48, 40).reshape(-1, 6).astype(np.float64),
+    "every other column, not contiguous": lambda scene: camera_rays(scene, 96, 40)[:, ::2],
+    "float64 every other row": lambda scene: camera_rays(scene, 48, 80).astype(np.float64)[::2],
 }
 
 
@@ -52,6 +54,7 @@ def test_camera_rays_answer_as_one_call_per_ray_and_reducem_query(
 ):
     _, path, scene = model
     rays = CAMERAS[camera](scene)
+    assert "contiguous" not in camera or not rays.flags.c_contiguous
     hits = scene.cast_rays(rays)
     assert hits["t_hit"].shape == rays.shape[:-1]
     assert np.isfinite(hits["t_hit"]).sum() > hits["t_hit"].size // 10, "too few hits"
