@@ -2,10 +2,10 @@
 
 use std::ops::Range;
 
-use crate::format::block_boxes::EXPONENTS;
+use crate::format::block_boxes::{BlockBoxes, EXPONENTS};
 use crate::format::quantized::{vertex_part_bytes, AxisWord};
 use crate::format::reader::{
-    view_block, FormatError, PartTable, ReducemFile, StripView, VertexLayout,
+    try_view_block, view_block, FormatError, PartTable, ReducemFile, StripView, VertexLayout,
 };
 use crate::format::references::References;
 use crate::format::{
@@ -152,10 +152,45 @@ impl BlockShape<'_> {
     /// strip's first view needs, in one pass over the block.
     ///
     /// References are checked a load of them at a time ([`References::first_at_least`]), and
-    /// the view is the one traversal then gets: at 1,388 instructions per first view before
-    /// (callgrind, 1M primary rays on the 1M scan, 41,583 first views), the triangle count
-    /// and the block's second view were a third of it.
+    /// the view is the one traversal then gets. A sound lossless block is viewed once, straight
+    /// from the section ([`BlockShape::sound_view`]); any other takes the checks that name
+    /// its defect.
     pub(super) fn checked_view<'a>(
+        &self,
+        data: &'a [u8],
+        record: &StripRecord,
+    ) -> Result<StripView<'a>, StripDefect> {
+        if let Some(view) = self.sound_view(data, record) {
+            return Ok(view);
+        }
+        self.view_or_defect(data, record)
+    }
+
+    /// The view of a lossless block in `data` (the strip-data section) that passes every check
+    /// of [`BlockShape::view_or_defect`], viewed in place as a valid strip is: the block's
+    /// bounds are those of its view's slices, so its length is not computed apart. `None` for
+    /// a grid block (whose axis words are checked before its vertices can be viewed) or a
+    /// defect.
+    #[inline(always)]
+    fn sound_view<'a>(&self, data: &'a [u8], record: &StripRecord) -> Option<StripView<'a>> {
+        if !matches!(self.layout, VertexLayout::F32 { .. }) {
+            return None;
+        }
+        let nodes = self.nodes(record).ok()?;
+        let parts = self.parts.lengths(record.reference_count as usize);
+        let view = try_view_block(data, record, parts, &self.layout)?;
+        let sound = view
+            .references
+            .first_at_least(view.vertices.len())
+            .is_none()
+            && first_axis_3(view.axes, nodes).is_none()
+            && sound_exponents(&view.boxes);
+        sound.then_some(view)
+    }
+
+    /// [`BlockShape::checked_view`] with every check apart, each naming its defect.
+    #[inline(never)]
+    fn view_or_defect<'a>(
         &self,
         data: &'a [u8],
         record: &StripRecord,
@@ -242,10 +277,7 @@ impl CheckedBlock<'_> {
             let detail = format!("node {node} has split axis 3");
             return Err((Some(axes_start), Defect::BadEncoding, detail));
         }
-        let exponents = view
-            .boxes
-            .exponents()
-            .unwrap_or([EXPONENTS.start().to_owned(); 3]);
+        let exponents = stored_exponents(&view.boxes);
         if let Some(axis) = (0..3).find(|&axis| !EXPONENTS.contains(&exponents[axis])) {
             let detail = format!(
                 "block box exponent {} on axis {axis} outside {EXPONENTS:?}",
@@ -255,6 +287,19 @@ impl CheckedBlock<'_> {
         }
         Ok(())
     }
+}
+
+/// The box exponents of a block, or valid stand-ins for a block without boxes.
+fn stored_exponents(boxes: &BlockBoxes) -> [u8; 3] {
+    boxes.exponents().unwrap_or([*EXPONENTS.start(); 3])
+}
+
+/// Whether every box exponent of a block is in range.
+#[inline(always)]
+fn sound_exponents(boxes: &BlockBoxes) -> bool {
+    stored_exponents(boxes)
+        .iter()
+        .all(|exponent| EXPONENTS.contains(exponent))
 }
 
 /// The first of the `nodes` split axes stored in `axes` (2 bits each) that is 3, four per byte.
