@@ -45,8 +45,24 @@ pub(super) struct BlockShape<'a> {
 }
 
 impl BlockShape<'_> {
+    /// The kd-tree's internal node count of a record whose counts pass [`BlockShape::nodes`],
+    /// else `None`: inlined into a first view, where the sound case needs no message.
+    #[inline(always)]
+    fn sound_nodes(&self, record: &StripRecord) -> Option<usize> {
+        let vertices = record.vertex_count as usize;
+        let references = record.reference_count as usize;
+        if !(3..=MAX_STRIP_VERTICES).contains(&vertices) || references < 3 {
+            return None;
+        }
+        let nodes = self.parts.nodes(references);
+        (2 * nodes <= vertices).then_some(nodes)
+    }
+
     /// Checks a record's counts and returns its kd-tree's internal node count.
     pub(super) fn nodes(&self, record: &StripRecord) -> Result<usize, StripDefect> {
+        if let Some(nodes) = self.sound_nodes(record) {
+            return Ok(nodes);
+        }
         let vertices = record.vertex_count as usize;
         let references = record.reference_count as usize;
         if !(3..=MAX_STRIP_VERTICES).contains(&vertices) || references < 3 {
@@ -57,14 +73,11 @@ impl BlockShape<'_> {
             ));
         }
         let nodes = self.parts.nodes(references);
-        if 2 * nodes > vertices {
-            let detail = format!(
-                "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
-                2 * nodes
-            );
-            return Err((None, Defect::CountMismatch, detail));
-        }
-        Ok(nodes)
+        let detail = format!(
+            "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
+            2 * nodes
+        );
+        Err((None, Defect::CountMismatch, detail))
     }
 
     /// Bytes of the block with vertices of `vertex_bytes`.
@@ -176,7 +189,7 @@ impl BlockShape<'_> {
         if !matches!(self.layout, VertexLayout::F32 { .. }) {
             return None;
         }
-        let nodes = self.nodes(record).ok()?;
+        let nodes = self.sound_nodes(record)?;
         let parts = self.parts.lengths(record.reference_count as usize);
         let view = try_view_block(data, record, parts, &self.layout)?;
         let sound = view
