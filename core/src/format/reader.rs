@@ -661,7 +661,7 @@ pub(super) fn view_block<'a>(
 /// [`view_block`], or `None` when the block does not fit `data` or has fewer than three
 /// references: only a record changed after its validation (or never validated) gets there.
 #[inline(always)]
-fn try_view_block<'a>(
+pub(super) fn try_view_block<'a>(
     data: &'a [u8],
     record: &StripRecord,
     parts: (usize, usize),

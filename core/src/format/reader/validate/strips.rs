@@ -2,10 +2,10 @@
 
 use std::ops::Range;
 
-use crate::format::block_boxes::EXPONENTS;
+use crate::format::block_boxes::{BlockBoxes, EXPONENTS};
 use crate::format::quantized::{vertex_part_bytes, AxisWord};
 use crate::format::reader::{
-    view_block, FormatError, PartTable, ReducemFile, StripView, VertexLayout,
+    try_view_block, view_block, FormatError, PartTable, ReducemFile, StripView, VertexLayout,
 };
 use crate::format::references::References;
 use crate::format::{
@@ -45,8 +45,24 @@ pub(super) struct BlockShape<'a> {
 }
 
 impl BlockShape<'_> {
+    /// The kd-tree's internal node count of a record whose counts pass [`BlockShape::nodes`],
+    /// else `None`: inlined into a first view, where the sound case needs no message.
+    #[inline(always)]
+    fn sound_nodes(&self, record: &StripRecord) -> Option<usize> {
+        let vertices = record.vertex_count as usize;
+        let references = record.reference_count as usize;
+        if !(3..=MAX_STRIP_VERTICES).contains(&vertices) || references < 3 {
+            return None;
+        }
+        let nodes = self.parts.nodes(references);
+        (2 * nodes <= vertices).then_some(nodes)
+    }
+
     /// Checks a record's counts and returns its kd-tree's internal node count.
     pub(super) fn nodes(&self, record: &StripRecord) -> Result<usize, StripDefect> {
+        if let Some(nodes) = self.sound_nodes(record) {
+            return Ok(nodes);
+        }
         let vertices = record.vertex_count as usize;
         let references = record.reference_count as usize;
         if !(3..=MAX_STRIP_VERTICES).contains(&vertices) || references < 3 {
@@ -57,14 +73,11 @@ impl BlockShape<'_> {
             ));
         }
         let nodes = self.parts.nodes(references);
-        if 2 * nodes > vertices {
-            let detail = format!(
-                "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
-                2 * nodes
-            );
-            return Err((None, Defect::CountMismatch, detail));
-        }
-        Ok(nodes)
+        let detail = format!(
+            "{nodes} kd-tree nodes need {} bound vertices, it has {vertices}",
+            2 * nodes
+        );
+        Err((None, Defect::CountMismatch, detail))
     }
 
     /// Bytes of the block with vertices of `vertex_bytes`.
@@ -152,10 +165,45 @@ impl BlockShape<'_> {
     /// strip's first view needs, in one pass over the block.
     ///
     /// References are checked a load of them at a time ([`References::first_at_least`]), and
-    /// the view is the one traversal then gets: at 1,388 instructions per first view before
-    /// (callgrind, 1M primary rays on the 1M scan, 41,583 first views), the triangle count
-    /// and the block's second view were a third of it.
+    /// the view is the one traversal then gets. A sound lossless block is viewed once, straight
+    /// from the section ([`BlockShape::sound_view`]); any other takes the checks that name
+    /// its defect.
     pub(super) fn checked_view<'a>(
+        &self,
+        data: &'a [u8],
+        record: &StripRecord,
+    ) -> Result<StripView<'a>, StripDefect> {
+        if let Some(view) = self.sound_view(data, record) {
+            return Ok(view);
+        }
+        self.view_or_defect(data, record)
+    }
+
+    /// The view of a lossless block in `data` (the strip-data section) that passes every check
+    /// of [`BlockShape::view_or_defect`], viewed in place as a valid strip is: the block's
+    /// bounds are those of its view's slices, so its length is not computed apart. `None` for
+    /// a grid block (whose axis words are checked before its vertices can be viewed) or a
+    /// defect.
+    #[inline(always)]
+    fn sound_view<'a>(&self, data: &'a [u8], record: &StripRecord) -> Option<StripView<'a>> {
+        if !matches!(self.layout, VertexLayout::F32 { .. }) {
+            return None;
+        }
+        let nodes = self.sound_nodes(record)?;
+        let parts = self.parts.lengths(record.reference_count as usize);
+        let view = try_view_block(data, record, parts, &self.layout)?;
+        let sound = view
+            .references
+            .first_at_least(view.vertices.len())
+            .is_none()
+            && first_axis_3(view.axes, nodes).is_none()
+            && sound_exponents(&view.boxes);
+        sound.then_some(view)
+    }
+
+    /// [`BlockShape::checked_view`] with every check apart, each naming its defect.
+    #[inline(never)]
+    fn view_or_defect<'a>(
         &self,
         data: &'a [u8],
         record: &StripRecord,
@@ -242,10 +290,7 @@ impl CheckedBlock<'_> {
             let detail = format!("node {node} has split axis 3");
             return Err((Some(axes_start), Defect::BadEncoding, detail));
         }
-        let exponents = view
-            .boxes
-            .exponents()
-            .unwrap_or([EXPONENTS.start().to_owned(); 3]);
+        let exponents = stored_exponents(&view.boxes);
         if let Some(axis) = (0..3).find(|&axis| !EXPONENTS.contains(&exponents[axis])) {
             let detail = format!(
                 "block box exponent {} on axis {axis} outside {EXPONENTS:?}",
@@ -255,6 +300,19 @@ impl CheckedBlock<'_> {
         }
         Ok(())
     }
+}
+
+/// The box exponents of a block, or valid stand-ins for a block without boxes.
+fn stored_exponents(boxes: &BlockBoxes) -> [u8; 3] {
+    boxes.exponents().unwrap_or([*EXPONENTS.start(); 3])
+}
+
+/// Whether every box exponent of a block is in range.
+#[inline(always)]
+fn sound_exponents(boxes: &BlockBoxes) -> bool {
+    stored_exponents(boxes)
+        .iter()
+        .all(|exponent| EXPONENTS.contains(exponent))
 }
 
 /// The first of the `nodes` split axes stored in `axes` (2 bits each) that is 3, four per byte.
