@@ -201,6 +201,34 @@ fn slots_of_width_pass(
         & (exactly_empty | occupied == all)
 }
 
+/// Whether `slot`'s box is all zero codes in boxes stored lane by lane (`min[axis][slot]`), as
+/// [`GridNode`]'s u16 and [`WideNode`]'s u8 codes are.
+fn lane_box_is_zero<T: Copy + Default + PartialEq, const W: usize>(
+    min: &[[T; W]; 3],
+    max: &[[T; W]; 3],
+    slot: usize,
+) -> bool {
+    (0..3).all(|axis| min[axis][slot] == T::default() && max[axis][slot] == T::default())
+}
+
+/// The first axis on which `slot`'s lane-stored box is inverted, with the byte offset of its
+/// minimum in the node (`min_field`: the offset of the `min` array).
+fn lane_box_inverted_axis<T: Copy + PartialOrd, const W: usize>(
+    min: &[[T; W]; 3],
+    max: &[[T; W]; 3],
+    slot: usize,
+    min_field: usize,
+) -> Option<(usize, u64)> {
+    (0..3)
+        .find(|&axis| min[axis][slot] > max[axis][slot])
+        .map(|axis| {
+            (
+                axis,
+                (min_field + (axis * W + slot) * size_of::<T>()) as u64,
+            )
+        })
+}
+
 impl NodeRecord for GridNode {
     const WIDTH: usize = TOP_WIDTH;
     const CHILD_FIELD: u64 = offset_of!(GridNode, link) as u64;
@@ -212,19 +240,13 @@ impl NodeRecord for GridNode {
     }
 
     fn is_exactly_empty(&self, slot: usize) -> bool {
-        (0..3).all(|axis| self.min[axis][slot] == 0 && self.max[axis][slot] == 0)
-            && self.link[slot] == 0
+        lane_box_is_zero(&self.min, &self.max, slot) && self.link[slot] == 0
     }
 
     /// An inverted u16 box need not be missed (traversal relies on the link to skip empty
     /// slots only), and no writer rounds outward to one: rejected.
     fn inverted_axis(&self, slot: usize) -> Option<(usize, u64)> {
-        (0..3)
-            .find(|&axis| self.min[axis][slot] > self.max[axis][slot])
-            .map(|axis| {
-                let lane = (axis * TOP_WIDTH + slot) * size_of::<u16>();
-                (axis, (offset_of!(GridNode, min) + lane) as u64)
-            })
+        lane_box_inverted_axis(&self.min, &self.max, slot, offset_of!(GridNode, min))
     }
 
     #[inline]
@@ -259,18 +281,12 @@ impl NodeRecord for WideNode {
     }
 
     fn is_exactly_empty(&self, slot: usize) -> bool {
-        (0..3).all(|axis| self.min[axis][slot] == 0 && self.max[axis][slot] == 0)
-            && self.link[slot] == 0
+        lane_box_is_zero(&self.min, &self.max, slot) && self.link[slot] == 0
     }
 
     /// As [`GridNode`]'s: no writer rounds outward to an inverted box.
     fn inverted_axis(&self, slot: usize) -> Option<(usize, u64)> {
-        (0..3)
-            .find(|&axis| self.min[axis][slot] > self.max[axis][slot])
-            .map(|axis| {
-                let lane = axis * WIDE_WIDTH + slot;
-                (axis, (offset_of!(WideNode, min) + lane) as u64)
-            })
+        lane_box_inverted_axis(&self.min, &self.max, slot, offset_of!(WideNode, min))
     }
 
     /// A finite origin and exponents in 1..=254 decode every code to a finite value or an
