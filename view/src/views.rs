@@ -487,6 +487,9 @@ mod tests {
         pace.full_frame(side(512), Duration::from_millis(61));
         assert!(pace.needs_coarse_frame(side(512)));
         pace.full_frame(side(1024), Duration::from_millis(200));
-        assert!(!pace.needs_coarse_frame(side(256)), "a sixteenth of the pixels");
+        assert!(
+            !pace.needs_coarse_frame(side(256)),
+            "a sixteenth of the pixels"
+        );
     }
 }
