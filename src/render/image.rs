@@ -44,8 +44,8 @@ fn extend_srgb(bytes: &mut Vec<u8>, pixels: &[[f32; 3]]) {
 /// Linear value in `[0, 1]` (clamped; NaN as 0) to an 8-bit sRGB code: [`srgb_formula`]'s
 /// code, looked up (its `powf` was a tenth of a viewer frame's instructions).
 fn encode_srgb(linear: f32) -> u8 {
-    // Also NaN, -0.0 and negative values, which the formula takes as 0.
-    if !(linear > 0.0) {
+    // -0.0 too, whose bits would fall outside the table.
+    if linear.is_nan() || linear <= 0.0 {
         return 0;
     }
     SrgbCodes::get().code(linear.min(1.0))

@@ -6,7 +6,7 @@
 //! its frame in a one-frame outbox, so a frame the socket has not taken yet is replaced by a
 //! newer one rather than queued. A new view moves the generation on, which abandons the
 //! renderer's image at its next band (a coarse frame waits for the socket only while its view is
-//! the latest, so every view shows one). The socket thread polls only while a frame may come;
+//! the latest, so every view that has one shows it). The socket thread polls only while a frame may come;
 //! otherwise both threads sleep, so a page that is idle, or gone, costs no CPU.
 
 use std::net::TcpStream;
@@ -126,7 +126,7 @@ impl Shared {
     }
 
     /// Leaves `frame` for the socket, replacing a frame of an older view; a frame of its own
-    /// view (the coarse one) is waited for to go first, so that every view shows it.
+    /// view (the coarse one) is waited for to go first, so that every view with one shows it.
     fn deliver(&self, mut frame: EncodedFrame) {
         let generation = frame.header.generation;
         let mut state = self.state();
