@@ -82,7 +82,7 @@ fn own_coarse_frame(tracer: &Tracer, scene: &Scene, bands: u32) -> u64 {
 
 /// Rays of the full image's preview, then of the full frame reusing it.
 fn reused_coarse_frame(tracer: &Tracer, scene: &Scene, bands: u32) -> u64 {
-    let mut preview = Progressive::preview(tracer, scene, bands / 4);
+    let mut preview = Progressive::preview(tracer, scene, 2, bands / 4);
     let rays = refined(&mut preview);
     let mut image = Progressive::reusing(tracer, scene, bands, &preview);
     rays + refined(&mut image)

@@ -96,13 +96,28 @@ pub struct FrameHeader {
     pub generation: u64,
     pub width: u32,
     pub height: u32,
-    /// Samples per pixel of the image (a quarter for the coarse frame).
+    /// Samples per pixel of the image (a quarter or less for the coarse frame).
     pub spp: f32,
     pub camera: CameraView,
     pub rays: u64,
     pub seconds: f64,
     pub triangles: u64,
     pub resident_bytes: Option<u64>,
+}
+
+/// Pixels a coarse frame has at most, unless a quarter of the view's are more: its latency grows
+/// with them, and a 256² frame shows a view well enough while it moves.
+const COARSE_FRAME_PIXELS: u64 = 1 << 16;
+
+/// The step of `view`'s coarse frame between the full image's pixels: 2 (a quarter of them),
+/// or the power of two that leaves at most [`COARSE_FRAME_PIXELS`].
+fn coarse_step(view: &View) -> u32 {
+    let mut step = 2;
+    let pixels = |step: u32| u64::from(view.width.div_ceil(step) * view.height.div_ceil(step));
+    while pixels(step) > COARSE_FRAME_PIXELS && step < 64 {
+        step *= 2;
+    }
+    step
 }
 
 /// How long after its view arrived a page's last full frame was ready, and of how many pixels:
@@ -253,11 +268,11 @@ impl Viewer {
     }
 
     /// The frames of `view` in the order the page shows them: when `pace` expects a slow full
-    /// frame, a coarse one of a quarter of the pixels with primary shading (the rays of the full
-    /// image's even pixels, which it then reuses); then the full-size image in rounds, as
-    /// `reducem render` makes it: the first with primary shading and shadows, each further one
-    /// with twice the AO samples, until the scene's count. Each goes to `deliver` as soon as it
-    /// is ready; work stops when `generation` leaves `current`.
+    /// frame, a coarse one of a quarter of the pixels or fewer ([`coarse_step`]) with primary
+    /// shading (the rays of some of the full image's pixels, which it then reuses); then the
+    /// full-size image in rounds, as `reducem render` makes it: the first with primary shading
+    /// and shadows, each further one with twice the AO samples, until the scene's count. Each
+    /// goes to `deliver` as soon as it is ready; work stops when `generation` leaves `current`.
     pub fn render_progressively(
         &self,
         view: &View,
@@ -277,13 +292,16 @@ impl Viewer {
         let pixels = u64::from(view.width) * u64::from(view.height);
         let mut image = match pace.needs_coarse_frame(pixels) {
             true => {
-                // A quarter of the pixels: bands of as many rows as the full image's.
-                let mut coarse = Progressive::preview(self.tracer, &scene, bands / 4);
+                let every = coarse_step(view);
+                // Bands of as many rows as the full image's.
+                let coarse_bands = bands / (every * every);
+                let mut coarse = Progressive::preview(self.tracer, &scene, every, coarse_bands);
                 let mut stages = Stages::since(received);
                 let frame = coarse.refine(1, is_current)?;
                 stages.end("traced");
                 let rays = Rays::of(&coarse);
-                deliver(self.encode(frame, rays, view.camera, current, 0.25, stages));
+                let spp = 1.0 / (every * every) as f32;
+                deliver(self.encode(frame, rays, view.camera, current, spp, stages));
                 Progressive::reusing(self.tracer, &scene, bands, &coarse)
             }
             false => Progressive::new(self.tracer, &scene, bands),
@@ -474,6 +492,32 @@ fn casts_shadows(scene: &Scene) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_coarse_frame_has_a_quarter_of_the_pixels_or_at_most_256_squared() {
+        let view = |width, height| View {
+            camera: CameraView {
+                position: [0.0, -1.0, 0.0],
+                look_at: [0.0; 3],
+                up: [0.0, 0.0, 1.0],
+                fov: 40.0,
+            },
+            width,
+            height,
+            effects: None,
+            up: None,
+        };
+        let steps = [
+            (64, 48),
+            (512, 512),
+            (513, 512),
+            (1024, 768),
+            (1024, 1024),
+            (4096, 16),
+        ];
+        let steps = steps.map(|(width, height)| coarse_step(&view(width, height)));
+        assert_eq!(steps, [2, 2, 4, 4, 4, 2]);
+    }
 
     #[test]
     fn a_coarse_frame_comes_first_unless_the_last_full_frame_scaled_to_the_view_came_fast() {
