@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
 # `reducem view` driven headless (Chromium through selenium): for each image size, full frames
 # per second while the page orbits the model (each full frame's arrival moves the camera, so the
-# figure includes the coarse frame every move renders first), and the median latency from a
-# camera change to its first coarse frame; then the time from starting the viewer on a model
-# with a cold page cache to the page's first frame. Primary shading (configs/scenes/primary.toml).
+# figure includes the coarse frame a move renders first when full frames are slow), and the
+# median latency from a camera change to its first frame (coarse, or full when it came without
+# one), with the page's medians of when a move's frames were taken up, decoded
+# (createImageBitmap) and drawn; then the time from starting the viewer on a model with a cold
+# page cache to the page's first frame. Primary shading (configs/scenes/primary.toml).
+# VIEW_LOG=FILE keeps the viewer's standard error there; with REDUCEM_VIEW_STAGES=1 it has the
+# server's stages of every frame (docs/VIEWER.md, "Frames").
 # As a reference for the load of a shared machine, the same run also times `reducem query` on the
 # camera rays of a 512² view (the first camera, in the renderer's 8×8-tile order), THREADS threads,
 # median of 3.
@@ -106,8 +110,9 @@ def reference_rate(camera, side):
     return (f"reference: reducem query, {side}x{side} camera rays, {threads} threads: {rate:.1f} Mrays/s "
             f"(whole process, median of 3), load average {os.getloadavg()[0]:.1f}")
 started = time.monotonic()
+log = open(os.environ["VIEW_LOG"], "w") if os.environ.get("VIEW_LOG") else subprocess.DEVNULL
 viewer = subprocess.Popen(["target/release/reducem", "view", model, "--up", "z", "--threads", threads],
-                          stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+                          stdout=subprocess.PIPE, stderr=log, text=True)
 url = viewer.stdout.readline().strip()
 options = webdriver.ChromeOptions()
 for argument in ("--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1200,1200"):
@@ -124,29 +129,62 @@ try:
         const [side, seconds, done] = arguments;
         const canvas = document.getElementById("view");
         canvas.style.width = canvas.style.height = side + "px";
-        const original = drawFrame;
-        let fullFrames = 0, movedAt = null, latencies = [], start = null;
-        const move = () => { movedAt = performance.now(); orbit(4, 0); };
+        const original = drawFrame, decode = window.createImageBitmap;
+        let fullFrames = 0, movedAt = null, movedFrom = 0, latencies = [], start = null;
+        let decoded = null, stages = [];
+        window.createImageBitmap = async (...image) => {
+            const bitmap = await decode(...image);
+            decoded = performance.now();
+            return bitmap;
+        };
+        const move = () => { movedAt = performance.now(); movedFrom = lastHeader.generation; orbit(4, 0); };
         window.drawFrame = async buffer => {
+            // A frame is taken up as it arrives unless the page is still drawing the one before.
+            const arrival = performance.now();
             await original(buffer);
             const now = performance.now();
-            if (lastHeader.spp < 1 && movedAt !== null) { latencies.push(now - movedAt); movedAt = null; }
+            if (movedAt !== null && lastHeader.generation > movedFrom) {
+                latencies.push(now - movedAt);
+                stages.push({ moved: movedAt, arrival, decoded, drawn: now, full: lastHeader.spp >= 1 });
+                movedAt = null;
+            } else if (stages.length) {
+                Object.assign(stages[stages.length - 1], { fullArrival: arrival, fullDecoded: decoded, fullDrawn: now });
+            }
             if (lastHeader.spp >= 1 && lastHeader.width === side) {
                 if (start === null) start = now; else fullFrames += 1;
                 if (now - start < seconds * 1000) move();
-                else { window.drawFrame = original; done({ fullFrames, elapsed: now - start, latencies }); }
+                else {
+                    window.drawFrame = original;
+                    window.createImageBitmap = decode;
+                    done({ fullFrames, elapsed: now - start, latencies, stages });
+                }
             }
         };
         move();
     """
     driver.set_script_timeout(seconds + 120)
+    def median_ms(pairs):
+        """The median of `later - earlier` over the pairs both of whose times the page took."""
+        values = [later - earlier for later, earlier in pairs if later is not None and earlier is not None]
+        return f"{statistics.median(values):.1f}" if values else "-"
     for side in (512, 1024):
         result = driver.execute_async_script(orbit, side, seconds)
         fps = result["fullFrames"] / (result["elapsed"] / 1000)
         latency = statistics.median(result["latencies"])
         print(f"{side}x{side}: {fps:.1f} full frames/s over {result['elapsed'] / 1000:.1f} s, "
-              f"camera change to coarse frame median {latency:.0f} ms ({len(result['latencies'])} moves), "
+              f"camera change to first frame median {latency:.0f} ms ({len(result['latencies'])} moves), "
               f"{threads} threads")
+        # A move's frames on the page: its first (coarse, unless skipped) and the full one after it.
+        stages = result["stages"]
+        first = [s for s in stages if not s["full"] and "fullDrawn" in s]
+        print(f"  page, medians in ms after the camera was sent ({len(stages)} moves, "
+              f"{len(stages) - len(first)} without a coarse frame): "
+              f"coarse taken up {median_ms([(s['arrival'], s['moved']) for s in first])}, "
+              f"decoded {median_ms([(s['decoded'], s['moved']) for s in first])}, "
+              f"drawn {median_ms([(s['drawn'], s['moved']) for s in first])}; "
+              f"full taken up {median_ms([(s.get('fullArrival', s['arrival']), s['moved']) for s in stages])}, "
+              f"decoded {median_ms([(s.get('fullDecoded', s['decoded']), s['moved']) for s in stages])}, "
+              f"drawn {median_ms([(s.get('fullDrawn', s['drawn']), s['moved']) for s in stages])}")
     camera = json.loads(driver.execute_script("return document.documentElement.dataset.camera"))
     print(reference_rate(camera, 512))
 finally:

@@ -22,8 +22,8 @@ pub struct Camera {
     up: Vec3,
     width: u32,
     height: u32,
-    /// Image pixels from one of this camera's pixels to the next: 1, or 2 for a preview whose
-    /// pixel `(x, y)` is the image's pixel `(2x, 2y)`, its ray through that pixel's centre.
+    /// Image pixels from one of this camera's pixels to the next: 1, or n for a preview whose
+    /// pixel `(x, y)` is the image's pixel `(nx, ny)`, its ray through that pixel's centre.
     pixel_step: u32,
 }
 

@@ -41,19 +41,81 @@ fn extend_srgb(bytes: &mut Vec<u8>, pixels: &[[f32; 3]]) {
     bytes.extend(pixels.iter().flat_map(|pixel| pixel.map(encode_srgb)));
 }
 
-/// Linear value in `[0, 1]` (clamped) to an 8-bit sRGB code.
+/// Linear value in `[0, 1]` (clamped; NaN as 0) to an 8-bit sRGB code: [`srgb_formula`]'s
+/// code, looked up (its `powf` was a tenth of a viewer frame's instructions).
 fn encode_srgb(linear: f32) -> u8 {
-    let x = if linear.is_nan() {
-        0.0
-    } else {
-        linear.clamp(0.0, 1.0)
-    };
+    // -0.0 too, whose bits would fall outside the table.
+    if linear.is_nan() || linear <= 0.0 {
+        return 0;
+    }
+    SrgbCodes::get().code(linear.min(1.0))
+}
+
+/// The sRGB curve's 8-bit code of a linear value in `[0, 1]`.
+fn srgb_formula(x: f32) -> u8 {
     let encoded = if x <= 0.003_130_8 {
         12.92 * x
     } else {
         1.055 * x.powf(1.0 / 2.4) - 0.055
     };
     (encoded * 255.0 + 0.5) as u8
+}
+
+/// [`srgb_formula`] as a table: where each code starts, and the code at the start of each
+/// bucket of consecutive `f32` bit patterns, from which a value's code is at most a step or
+/// two up (the curve rises less than one code over a bucket).
+struct SrgbCodes {
+    /// `starts[c]`: the smallest value whose code is `c` or more.
+    starts: [f32; 256],
+    bucket_codes: Vec<u8>,
+}
+
+/// Bits of an `f32` below its bucket number: buckets of 2^16 bit patterns, 16,257 of them up
+/// to 1.0.
+const SRGB_BUCKET_SHIFT: u32 = 16;
+
+impl SrgbCodes {
+    fn get() -> &'static SrgbCodes {
+        static CODES: std::sync::OnceLock<SrgbCodes> = std::sync::OnceLock::new();
+        CODES.get_or_init(SrgbCodes::new)
+    }
+
+    fn new() -> SrgbCodes {
+        let one = 1.0f32.to_bits();
+        let mut starts = [0.0f32; 256];
+        for (code, start) in starts.iter_mut().enumerate().skip(1) {
+            // The formula rises with its value, and the bit patterns of positive floats with it.
+            let (mut below, mut at) = (0, one);
+            while at - below > 1 {
+                let middle = below + (at - below) / 2;
+                match usize::from(srgb_formula(f32::from_bits(middle))) >= code {
+                    true => at = middle,
+                    false => below = middle,
+                }
+            }
+            *start = f32::from_bits(at);
+        }
+        let buckets = (one >> SRGB_BUCKET_SHIFT) + 1;
+        let bucket_codes = (0..buckets)
+            .map(|bucket| {
+                let first = f32::from_bits(bucket << SRGB_BUCKET_SHIFT);
+                (starts[1..].partition_point(|&start| start <= first)) as u8
+            })
+            .collect();
+        SrgbCodes {
+            starts,
+            bucket_codes,
+        }
+    }
+
+    /// The code of `x` in `(0, 1]`.
+    fn code(&self, x: f32) -> u8 {
+        let mut code = self.bucket_codes[(x.to_bits() >> SRGB_BUCKET_SHIFT) as usize];
+        while code < 255 && x >= self.starts[usize::from(code) + 1] {
+            code += 1;
+        }
+        code
+    }
 }
 
 pub fn write_png(frame: &Frame, out: &Path) -> Result<(), ImageError> {
@@ -157,6 +219,46 @@ pub fn render_into(
             render_rows(tracer, scene, RowOrder::BandsBottomUp, |rows| {
                 write_pfm_rows(rows, width, &mut *out)
             })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The formula's code of any value, as `encode_srgb` takes it.
+    fn formula_of(linear: f32) -> u8 {
+        srgb_formula(if linear.is_nan() {
+            0.0
+        } else {
+            linear.clamp(0.0, 1.0)
+        })
+    }
+
+    #[test]
+    fn srgb_codes_are_the_formulas_around_every_code_start_and_across_the_range() {
+        let codes = SrgbCodes::get();
+        let one = 1.0f32.to_bits();
+        let near_starts = codes.starts[1..].iter().flat_map(|start| {
+            let bits = start.to_bits();
+            bits.saturating_sub(2048)..(bits + 2048).min(one + 1)
+        });
+        let across = (0..=one).step_by(4093).chain([one]);
+        for bits in near_starts.chain(across) {
+            let x = f32::from_bits(bits);
+            assert_eq!(encode_srgb(x), srgb_formula(x), "{x:e} ({bits:#x})");
+        }
+        for x in [
+            f32::NAN,
+            -0.0,
+            -1.0,
+            f32::NEG_INFINITY,
+            1.5,
+            f32::INFINITY,
+            f32::MIN_POSITIVE,
+        ] {
+            assert_eq!(encode_srgb(x), formula_of(x), "{x}");
         }
     }
 }

@@ -191,6 +191,8 @@ pub struct Progressive<'a, 'f> {
     scene: Scene,
     bands: Vec<BandSamples>,
     effects: Vec<EffectReport>,
+    /// Fine pixels from one of this image's pixels to the next: 1, or a preview's step.
+    pixel_step: u32,
 }
 
 impl<'a, 'f> Progressive<'a, 'f> {
@@ -204,25 +206,34 @@ impl<'a, 'f> Progressive<'a, 'f> {
         )
     }
 
-    /// A preview of `scene`'s image: half its width and height, primary shading, each pixel
-    /// `(x, y)` the ray and shade of pixel `(2x, 2y)` of the image (of its finer image's pixel
-    /// `(2nx, 2ny)` with `antialiasing = n`), so that [`Progressive::reusing`] traces only the
-    /// other three quarters.
-    pub fn preview(tracer: &'a Tracer<'f>, scene: &Scene, band_pixels: u32) -> Progressive<'a, 'f> {
+    /// A preview of `scene`'s image: every `every`-th pixel each way (2: half its width and
+    /// height), primary shading, each pixel `(x, y)` the ray and shade of pixel `(every x, every
+    /// y)` of the image (of its finer image's pixel `(every n x, every n y)` with `antialiasing
+    /// = n`), so that [`Progressive::reusing`] traces only the other pixels.
+    pub fn preview(
+        tracer: &'a Tracer<'f>,
+        scene: &Scene,
+        every: u32,
+        band_pixels: u32,
+    ) -> Progressive<'a, 'f> {
         let fine = fine_scene(scene);
         let (width, height) = (fine.image.width, fine.image.height);
-        let step = 2 * scene.image.antialiasing.max(1);
+        let every = every.max(1);
+        let step = every * scene.image.antialiasing.max(1);
         let camera = Camera::new(tracer, &fine.camera, width, height).every_nth_pixel(step);
         let mut preview = scene.primary_only();
-        preview.image.width = scene.image.width.div_ceil(2);
-        preview.image.height = scene.image.height.div_ceil(2);
+        preview.image.width = scene.image.width.div_ceil(every);
+        preview.image.height = scene.image.height.div_ceil(every);
         let renderer = BandRenderer::with_camera(tracer, &preview, camera, None);
-        Progressive::of(renderer, &preview, band_pixels)
+        Progressive {
+            pixel_step: step,
+            ..Progressive::of(renderer, &preview, band_pixels)
+        }
     }
 
     /// [`Progressive::new`] taking the surfaces `preview` (the finished
     /// [`Progressive::preview`] of this `scene`) traced instead of tracing their rays again:
-    /// the same image, with a quarter fewer primary rays.
+    /// the same image, with the preview's primary rays fewer.
     pub fn reusing(
         tracer: &'a Tracer<'f>,
         scene: &Scene,
@@ -233,7 +244,7 @@ impl<'a, 'f> Progressive<'a, 'f> {
         let camera = Camera::new(tracer, &fine.camera, fine.image.width, fine.image.height);
         let reused = preview.traced().then(|| PreviewSurfaces {
             width: preview.renderer.plan.width,
-            step: 2 * scene.image.antialiasing.max(1),
+            step: preview.pixel_step,
             surfaces: preview
                 .bands
                 .iter()
@@ -258,6 +269,7 @@ impl<'a, 'f> Progressive<'a, 'f> {
             scene: scene.clone(),
             bands,
             effects,
+            pixel_step: 1,
         }
     }
 
@@ -1054,20 +1066,26 @@ mod tests {
         std::fs::remove_file(&path).expect("remove");
     }
 
-    /// A preview's pixels are the full image's even pixels shaded with primary shading, and the
-    /// image that reuses the preview's surfaces is the image rendered at once, bit for bit, with
-    /// only the other pixels' primary rays traced; with antialiasing or without, even and odd
-    /// sizes.
+    /// A preview's pixels are the full image's every second (or fourth) pixels shaded with
+    /// primary shading, and the image that reuses the preview's surfaces is the image rendered
+    /// at once, bit for bit, with only the other pixels' primary rays traced; with antialiasing
+    /// or without, even and odd sizes.
     #[test]
     fn an_image_reusing_its_preview_is_the_image_rendered_at_once() {
         let (path, file) = bumpy_file("preview");
         let tracer = Tracer::new(&file, TraceOptions::default());
-        for (size, antialiasing) in [((37, 29), 1u32), ((36, 30), 2)] {
+        let cases = [
+            ((37, 29), 1u32, 2u32),
+            ((36, 30), 2, 2),
+            ((37, 29), 1, 4),
+            ((36, 30), 2, 4),
+        ];
+        for (size, antialiasing, every) in cases {
             let scene = lit_scene(size, antialiasing, true, 2);
             let (whole, whole_report) = render(&tracer, &scene);
-            let mut preview = Progressive::preview(&tracer, &scene, 1);
+            let mut preview = Progressive::preview(&tracer, &scene, every, 1);
             let shown = preview.refine(1, || Ok::<(), ()>(())).expect("preview");
-            let (width, height) = (size.0.div_ceil(2), size.1.div_ceil(2));
+            let (width, height) = (size.0.div_ceil(every), size.1.div_ceil(every));
             assert_eq!((shown.width, shown.height), (width, height));
             assert_eq!(preview.rays_traced().0, u64::from(width * height));
 
@@ -1079,13 +1097,13 @@ mod tests {
             let fine_width = primary.image.width as usize;
             for (index, pixel) in shown.pixels.iter().enumerate() {
                 let (x, y) = (index % width as usize, index / width as usize);
-                let expected = primary_frame.pixels[2 * fine * (y * fine_width + x)];
+                let expected = primary_frame.pixels[every as usize * fine * (y * fine_width + x)];
                 assert_eq!(pixel, &expected, "preview pixel {x},{y}");
             }
 
             let mut image = Progressive::reusing(&tracer, &scene, 1, &preview);
             let frame = image.refine(2, || Ok::<(), ()>(())).expect("refined");
-            assert_eq!(frame, whole, "antialiasing {antialiasing}");
+            assert_eq!(frame, whole, "antialiasing {antialiasing}, every {every}");
             let report = image.report();
             let fine_pixels = u64::from(size.0 * size.1 * antialiasing * antialiasing);
             assert_eq!(

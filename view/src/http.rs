@@ -90,6 +90,8 @@ fn answer(stream: TcpStream, viewer: &'static Viewer) -> io::Result<()> {
                  Sec-WebSocket-Accept: {accept}\r\n\r\n"
             )?;
             stream.flush()?;
+            // A frame goes out as soon as it is written, not held for the page's acknowledgement.
+            stream.set_nodelay(true)?;
             session::run(
                 WebSocket::from_raw_socket(stream, Role::Server, None),
                 viewer,

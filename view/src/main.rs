@@ -4,6 +4,7 @@
 
 mod http;
 mod session;
+mod stages;
 mod views;
 
 use std::io::Write;

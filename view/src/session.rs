@@ -6,21 +6,22 @@
 //! its frame in a one-frame outbox, so a frame the socket has not taken yet is replaced by a
 //! newer one rather than queued. A new view moves the generation on, which abandons the
 //! renderer's image at its next band (a coarse frame waits for the socket only while its view is
-//! the latest, so every view shows one). The socket thread polls only while a frame may come;
+//! the latest, so every view that has one shows it). The socket thread polls only while a frame may come;
 //! otherwise both threads sleep, so a page that is idle, or gone, costs no CPU.
 
 use std::net::TcpStream;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 use tungstenite::{Message, WebSocket};
 
-use crate::views::{CameraView, Effects, EncodedFrame, Pick, UpAxis, View, Viewer};
+use crate::views::{CameraView, Effects, EncodedFrame, Pace, Pick, UpAxis, View, Viewer};
 
-/// How long a read waits before the socket thread looks into the outbox.
-const POLL: Duration = Duration::from_millis(5);
+/// How long a read waits before the socket thread looks into the outbox: a frame waits for
+/// its send half of this on average, and a frame comes every few tens of milliseconds.
+const POLL: Duration = Duration::from_millis(1);
 
 /// What the page sends.
 #[derive(Deserialize)]
@@ -94,7 +95,8 @@ struct Shared {
 
 #[derive(Default)]
 struct State {
-    latest: Option<(u64, View)>,
+    /// The latest view not yet rendered, with its generation and when it arrived.
+    latest: Option<(u64, View, Instant)>,
     outbox: Option<EncodedFrame>,
     /// The renderer is rendering a view.
     rendering: bool,
@@ -112,7 +114,7 @@ impl Shared {
 
     fn ask(&self, view: View) {
         let generation = self.generation.fetch_add(1, Ordering::AcqRel) + 1;
-        self.state().latest = Some((generation, view));
+        self.state().latest = Some((generation, view, Instant::now()));
         self.wake.notify_all();
     }
 
@@ -124,8 +126,8 @@ impl Shared {
     }
 
     /// Leaves `frame` for the socket, replacing a frame of an older view; a frame of its own
-    /// view (the coarse one) is waited for to go first, so that every view shows it.
-    fn deliver(&self, frame: EncodedFrame) {
+    /// view (the coarse one) is waited for to go first, so that every view with one shows it.
+    fn deliver(&self, mut frame: EncodedFrame) {
         let generation = frame.header.generation;
         let mut state = self.state();
         while state
@@ -136,6 +138,7 @@ impl Shared {
         {
             state = self.wake.wait(state).unwrap_or_else(|p| p.into_inner());
         }
+        frame.stages.end("delivered");
         state.outbox = Some(frame);
     }
 
@@ -155,7 +158,7 @@ impl Shared {
     }
 
     /// The next view to render, waiting for one; `None` once the page is gone.
-    fn next_view(&self) -> Option<(u64, View)> {
+    fn next_view(&self) -> Option<(u64, View, Instant)> {
         let mut state = self.state();
         state.rendering = false;
         loop {
@@ -192,10 +195,11 @@ pub fn run(mut socket: WebSocket<TcpStream>, viewer: &'static Viewer) {
 }
 
 fn render_views(shared: &Shared, viewer: &Viewer) {
-    while let Some((generation, view)) = shared.next_view() {
-        let _ = viewer.render_progressively(&view, generation, &shared.generation, |frame| {
-            shared.deliver(frame)
-        });
+    let mut pace = Pace::default();
+    while let Some((generation, view, received)) = shared.next_view() {
+        let current = (generation, &shared.generation);
+        let deliver = |frame| shared.deliver(frame);
+        let _ = viewer.render_progressively(&view, received, current, &mut pace, deliver);
     }
 }
 
@@ -224,8 +228,13 @@ fn exchange(socket: &mut WebSocket<TcpStream>, shared: &Shared, viewer: &Viewer)
             Err(tungstenite::Error::ConnectionClosed) => return Ok(()),
             Err(error) => return Err(error.into()),
         }
-        if let Some(frame) = shared.take_frame() {
+        if let Some(mut frame) = shared.take_frame() {
             socket.send(Message::binary(framed(&frame)))?;
+            frame.stages.end("sent");
+            let header = &frame.header;
+            frame
+                .stages
+                .log(header.generation, header.spp, header.seconds);
         }
         // Reads block while no frame can come, so an idle page costs no CPU.
         let poll = (!shared.idle()).then_some(POLL);

@@ -15,6 +15,8 @@ use reducem::trace::ray_file::{trace_hits_as, HitFormat};
 use reducem::trace::Tracer;
 use serde::{Deserialize, Serialize};
 
+use crate::stages::Stages;
+
 /// The largest image side the page may ask for, as `reducem render` allows.
 const MAX_SIDE: u32 = 16384;
 
@@ -86,6 +88,7 @@ pub struct Viewer {
 pub struct EncodedFrame {
     pub header: FrameHeader,
     pub jpeg: Vec<u8>,
+    pub stages: Stages,
 }
 
 #[derive(Debug, Serialize)]
@@ -93,13 +96,57 @@ pub struct FrameHeader {
     pub generation: u64,
     pub width: u32,
     pub height: u32,
-    /// Samples per pixel of the image (a quarter for the coarse frame).
+    /// Samples per pixel of the image (a quarter or less for the coarse frame).
     pub spp: f32,
     pub camera: CameraView,
     pub rays: u64,
     pub seconds: f64,
     pub triangles: u64,
     pub resident_bytes: Option<u64>,
+}
+
+/// Pixels a coarse frame has at most, unless a quarter of the view's are more: its latency grows
+/// with them, and a 256² frame shows a view well enough while it moves.
+const COARSE_FRAME_PIXELS: u64 = 1 << 16;
+
+/// The step of `view`'s coarse frame between the full image's pixels: 2 (a quarter of them),
+/// or the power of two that leaves at most [`COARSE_FRAME_PIXELS`].
+fn coarse_step(view: &View) -> u32 {
+    let mut step = 2;
+    let pixels = |step: u32| u64::from(view.width.div_ceil(step) * view.height.div_ceil(step));
+    while pixels(step) > COARSE_FRAME_PIXELS && step < 64 {
+        step *= 2;
+    }
+    step
+}
+
+/// How long after its view arrived a page's last full frame was ready, and of how many pixels:
+/// a coarse frame comes first only when the next full frame is expected later than
+/// [`COARSE_FRAME_AFTER`], since it delays the full frame (its own encoding and sending, and the
+/// holes its pixels leave in the full frame's packets).
+#[derive(Default)]
+pub struct Pace {
+    last_full_frame: Option<(u64, Duration)>,
+}
+
+/// A full frame expected later than this after its view gets a coarse frame first: the page
+/// should show something of a new camera within 100 ms.
+const COARSE_FRAME_AFTER: Duration = Duration::from_millis(60);
+
+impl Pace {
+    /// A full frame of `pixels` is expected later than [`COARSE_FRAME_AFTER`]: the last one,
+    /// scaled by the pixels, was (or none came yet).
+    fn needs_coarse_frame(&self, pixels: u64) -> bool {
+        self.last_full_frame.is_none_or(|(last_pixels, took)| {
+            let scale = pixels as f64 / last_pixels.max(1) as f64;
+            took.mul_f64(scale) > COARSE_FRAME_AFTER
+        })
+    }
+
+    /// A full frame of `pixels` was ready `took` after its view arrived.
+    fn full_frame(&mut self, pixels: u64, took: Duration) {
+        self.last_full_frame = Some((pixels, took));
+    }
 }
 
 /// A view's image was abandoned: the page asked for another view meanwhile.
@@ -220,17 +267,18 @@ impl Viewer {
         (sized && scene.check().is_ok()).then_some(scene)
     }
 
-    /// The frames of `view` in the order the page shows them: a coarse one of a quarter of the
-    /// pixels with primary shading (the rays of the full image's even pixels, which it then
-    /// reuses), then the full-size image in rounds, as `reducem render`
-    /// makes it: the first with primary shading and shadows, each further one with twice the AO
-    /// samples, until the scene's count. Each goes to `deliver` as soon as it is ready; work
-    /// stops when `generation` leaves `current`.
+    /// The frames of `view` in the order the page shows them: when `pace` expects a slow full
+    /// frame, a coarse one of a quarter of the pixels or fewer ([`coarse_step`]) with primary
+    /// shading (the rays of some of the full image's pixels, which it then reuses); then the
+    /// full-size image in rounds, as `reducem render` makes it: the first with primary shading
+    /// and shadows, each further one with twice the AO samples, until the scene's count. Each
+    /// goes to `deliver` as soon as it is ready; work stops when `generation` leaves `current`.
     pub fn render_progressively(
         &self,
         view: &View,
-        current: u64,
-        generation: &AtomicU64,
+        received: Instant,
+        (current, generation): (u64, &AtomicU64),
+        pace: &mut Pace,
         mut deliver: impl FnMut(EncodedFrame),
     ) -> Result<(), Stale> {
         let Some(scene) = self.scene_of(view) else {
@@ -240,20 +288,35 @@ impl Viewer {
             true => Ok(()),
             false => Err(Stale),
         };
-        // A quarter of the pixels: bands of as many rows as the full image's.
-        let mut coarse = Progressive::preview(self.tracer, &scene, band_pixels(&scene) / 4);
-        let frame = coarse.refine(1, is_current)?;
-        let rays = Rays::of(&coarse);
-        deliver(self.encode(frame, rays, view.camera, current, 0.25));
-
         let bands = band_pixels(&scene);
-        let mut image = Progressive::reusing(self.tracer, &scene, bands, &coarse);
+        let pixels = u64::from(view.width) * u64::from(view.height);
+        let mut image = match pace.needs_coarse_frame(pixels) {
+            true => {
+                let every = coarse_step(view);
+                // Bands of as many rows as the full image's.
+                let coarse_bands = bands / (every * every);
+                let mut coarse = Progressive::preview(self.tracer, &scene, every, coarse_bands);
+                let mut stages = Stages::since(received);
+                let frame = coarse.refine(1, is_current)?;
+                stages.end("traced");
+                let rays = Rays::of(&coarse);
+                let spp = 1.0 / (every * every) as f32;
+                deliver(self.encode(frame, rays, view.camera, current, spp, stages));
+                Progressive::reusing(self.tracer, &scene, bands, &coarse)
+            }
+            false => Progressive::new(self.tracer, &scene, bands),
+        };
         let (mut ao_samples, mut before) = (1, Rays::default());
         loop {
+            let mut stages = Stages::since(received);
             let frame = image.refine(ao_samples, is_current)?;
+            stages.end("traced");
             let rays = Rays::of(&image).since(before);
             let spp = image.samples_per_pixel() as f32;
-            deliver(self.encode(frame, rays, view.camera, current, spp));
+            deliver(self.encode(frame, rays, view.camera, current, spp, stages));
+            if ao_samples == 1 {
+                pace.full_frame(pixels, received.elapsed());
+            }
             if image.is_complete() {
                 return Ok(());
             }
@@ -282,11 +345,14 @@ impl Viewer {
         camera: CameraView,
         generation: u64,
         spp: f32,
+        mut stages: Stages,
     ) -> EncodedFrame {
+        let srgb = srgb_bytes(&frame);
+        stages.end("srgb");
         let mut jpeg = Vec::new();
         let encoder = jpeg_encoder::Encoder::new(&mut jpeg, JPEG_QUALITY);
         let encoded = encoder.encode(
-            &srgb_bytes(&frame),
+            &srgb,
             frame.width as u16,
             frame.height as u16,
             jpeg_encoder::ColorType::Rgb,
@@ -294,6 +360,7 @@ impl Viewer {
         if let Err(error) = encoded {
             eprintln!("reducem view: encoding a frame: {error}");
         }
+        stages.end("jpeg");
         EncodedFrame {
             header: FrameHeader {
                 generation,
@@ -307,6 +374,7 @@ impl Viewer {
                 resident_bytes: self.resident_bytes(),
             },
             jpeg,
+            stages,
         }
     }
 
@@ -419,4 +487,53 @@ fn casts_shadows(scene: &Scene) -> bool {
     let directional = scene.directional_light.iter().map(|l| l.cast_shadows);
     let point = scene.point_light.iter().map(|l| l.cast_shadows);
     directional.chain(point).any(|casts| casts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_coarse_frame_has_a_quarter_of_the_pixels_or_at_most_256_squared() {
+        let view = |width, height| View {
+            camera: CameraView {
+                position: [0.0, -1.0, 0.0],
+                look_at: [0.0; 3],
+                up: [0.0, 0.0, 1.0],
+                fov: 40.0,
+            },
+            width,
+            height,
+            effects: None,
+            up: None,
+        };
+        let steps = [
+            (64, 48),
+            (512, 512),
+            (513, 512),
+            (1024, 768),
+            (1024, 1024),
+            (4096, 16),
+        ];
+        let steps = steps.map(|(width, height)| coarse_step(&view(width, height)));
+        assert_eq!(steps, [2, 2, 4, 4, 4, 2]);
+    }
+
+    #[test]
+    fn a_coarse_frame_comes_first_unless_the_last_full_frame_scaled_to_the_view_came_fast() {
+        let mut pace = Pace::default();
+        let side = |pixels: u64| pixels * pixels;
+        assert!(pace.needs_coarse_frame(side(512)), "no full frame yet");
+        pace.full_frame(side(512), Duration::from_millis(40));
+        assert!(!pace.needs_coarse_frame(side(512)));
+        assert!(!pace.needs_coarse_frame(side(256)));
+        assert!(pace.needs_coarse_frame(side(1024)), "four times the pixels");
+        pace.full_frame(side(512), Duration::from_millis(61));
+        assert!(pace.needs_coarse_frame(side(512)));
+        pace.full_frame(side(1024), Duration::from_millis(200));
+        assert!(
+            !pace.needs_coarse_frame(side(256)),
+            "a sixteenth of the pixels"
+        );
+    }
 }

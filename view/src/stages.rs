@@ -1,0 +1,50 @@
+//! When each frame's stages ended, counted from the moment its view arrived: with
+//! `REDUCEM_VIEW_STAGES=1` in the environment, one line per frame sent on standard error, so
+//! that a frame cycle's time can be split without a profiler.
+
+use std::sync::OnceLock;
+use std::time::Instant;
+
+/// The stages a frame has passed, each with the moment it ended.
+pub struct Stages {
+    received: Instant,
+    ends: Vec<(&'static str, Instant)>,
+}
+
+impl Stages {
+    /// A frame of the view that arrived at `received`.
+    pub fn since(received: Instant) -> Stages {
+        Stages {
+            received,
+            ends: Vec::with_capacity(8),
+        }
+    }
+
+    /// The stage `name` ends now.
+    pub fn end(&mut self, name: &'static str) {
+        self.ends.push((name, Instant::now()));
+    }
+
+    /// The stages on standard error when logging is on: milliseconds since the view arrived.
+    pub fn log(&self, generation: u64, spp: f32, trace_seconds: f64) {
+        if !logging() {
+            return;
+        }
+        let ms = |at: Instant| at.duration_since(self.received).as_secs_f64() * 1e3;
+        let stages: Vec<String> = self
+            .ends
+            .iter()
+            .map(|&(name, at)| format!("{name} {:.1}", ms(at)))
+            .collect();
+        eprintln!(
+            "reducem view: stages ms: view {generation} spp {spp}: {} (rays {:.1})",
+            stages.join(", "),
+            trace_seconds * 1e3
+        );
+    }
+}
+
+fn logging() -> bool {
+    static LOGGING: OnceLock<bool> = OnceLock::new();
+    *LOGGING.get_or_init(|| std::env::var_os("REDUCEM_VIEW_STAGES").is_some_and(|v| v != "0"))
+}
