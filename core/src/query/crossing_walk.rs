@@ -215,6 +215,7 @@ impl CrossingWalk {
 
 /// The frame `view`'s block boxes are decoded in; `None` when it cannot be read (only in a
 /// corrupt strip, which validation reports).
+#[inline(always)]
 pub(super) fn box_frame(view: &StripView) -> Option<BoxFrame> {
     let anchor = match view.vertices {
         StripVertices::F32(vertices) => vertices.point(0),
