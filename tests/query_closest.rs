@@ -283,6 +283,14 @@ fn every_kernel_and_the_spatial_order_answer_as_one_point_at_a_time() {
                     })
                 };
                 assert_eq!(bits(alone), bits(batch[k]), "{name} {kernel}: point {k}");
+                // Without a previous point to bound the search.
+                let fresh =
+                    ClosestPointSearch::with_kernel(&file, kernel).closest(point, f32::INFINITY);
+                assert_eq!(
+                    bits(fresh),
+                    bits(batch[k]),
+                    "{name} {kernel}: point {k} alone"
+                );
                 assert_eq!(
                     alone.map(|a| (a.u.to_bits(), a.v.to_bits())),
                     batch[k].map(|a| (a.u.to_bits(), a.v.to_bits()))

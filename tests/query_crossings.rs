@@ -21,7 +21,10 @@ use reducem::format::model::Closedness;
 use reducem::format::reader::ReducemFile;
 use reducem::geometry::Point;
 use reducem::mesh::Mesh;
-use reducem::query::crossings::{all_hits_on, count_crossings_on, crossing, RayHit};
+use reducem::query::crossings::{
+    all_hits_on, count_crossings_on, crossing, for_each_crossing_of_packet, RayHit, PACKET_RAYS,
+};
+use reducem::query::occupancy::point_inside;
 use reducem::query::{all_hits, count_crossings, occupancy, signed_closest_points, FaceIds};
 use reducem::trace::watertight::RaySpace;
 use reducem::trace::{Kernel, Ray};
@@ -281,7 +284,62 @@ fn assert_kernels_equal_the_scalar_rule(what: &str, file: &ReducemFile) {
             );
         }
     }
+    assert_packets_list_what_single_rays_list(what, file, &rays, &expected);
     assert!(file.defect().is_none(), "{what}");
+}
+
+/// Rays walked in packets of several sizes up to [`PACKET_RAYS`] (with an invalid ray among
+/// them when there is room), on every kernel, find exactly the hits each ray finds alone
+/// (`expected`).
+fn assert_packets_list_what_single_rays_list(
+    what: &str,
+    file: &ReducemFile,
+    rays: &[Ray],
+    expected: &[Vec<RayHit>],
+) {
+    let face_ids = FaceIds::of(file);
+    let invalid = Ray {
+        origin: [f32::NAN, 0.0, 0.0],
+        direction: [1.0, 0.0, 0.0],
+        tmin: 0.0,
+        tmax: f32::INFINITY,
+    };
+    for kernel in Kernel::supported() {
+        for valid in [1, 3, PACKET_RAYS - 1, PACKET_RAYS] {
+            for (chunk, first) in rays.chunks(valid).zip((0..).step_by(valid)) {
+                let mut packet = chunk.to_vec();
+                let hole = (packet.len() < PACKET_RAYS).then_some(packet.len() / 2);
+                if let Some(hole) = hole {
+                    packet.insert(hole, invalid);
+                }
+                let mut hits = vec![Vec::new(); packet.len()];
+                for_each_crossing_of_packet(file, &packet, kernel, |lane, strip, window, hit| {
+                    hits[lane].push(RayHit {
+                        t: hit.t,
+                        face_id: face_ids.id(file, strip, window).unwrap(),
+                        u: hit.weights[1],
+                        v: hit.weights[2],
+                    })
+                });
+                if let Some(hole) = hole {
+                    let skipped = hits.remove(hole);
+                    assert!(
+                        skipped.is_empty(),
+                        "{what} {kernel}: an invalid ray crosses"
+                    );
+                }
+                for (lane, mut lane_hits) in hits.into_iter().enumerate() {
+                    lane_hits.sort_by(|a, b| a.t.total_cmp(&b.t).then(a.face_id.cmp(&b.face_id)));
+                    let index = first + lane;
+                    assert_eq!(
+                        hit_bits(&lane_hits),
+                        hit_bits(&expected[index]),
+                        "{what} {kernel}: {valid} rays to a packet, ray {index}"
+                    );
+                }
+            }
+        }
+    }
 }
 
 #[test]
@@ -480,6 +538,16 @@ fn open_meshes_vote_and_say_they_are_not_exact() {
     let answers = occupancy(&file, &points, 5);
     assert!(!answers.exact);
     assert_eq!(answers.inside.len(), points.len());
+    // The packets' votes are each point's own.
+    for (k, point) in points.iter().enumerate() {
+        assert_eq!(
+            answers.inside[k],
+            point_inside(&file, point, 5),
+            "point {k}"
+        );
+    }
+    assert!(answers.inside.iter().any(|&inside| inside));
+    assert!(answers.inside.iter().any(|&inside| !inside));
 }
 
 /// Boundary and non-manifold edges of `mesh`'s non-degenerate triangles by a hash map of

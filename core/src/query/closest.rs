@@ -52,6 +52,10 @@ pub struct ClosestPointSearch<'f> {
     pending: BinaryHeap<Reverse<Pending>>,
     spans: Vec<Span>,
     views: Vec<StripView<'f>>,
+    /// The closest point found for the previous query, a point of the surface: its distance
+    /// bounds the next query's (points come in spatial order), so that the first descent
+    /// already skips far boxes.
+    previous: Option<[f64; 3]>,
 }
 
 /// A query point, and in f64 for the bounds.
@@ -98,6 +102,7 @@ impl<'f> ClosestPointSearch<'f> {
             pending: BinaryHeap::new(),
             spans: Vec::new(),
             views: Vec::new(),
+            previous: None,
         }
     }
 
@@ -108,7 +113,7 @@ impl<'f> ClosestPointSearch<'f> {
     pub fn closest(&mut self, point: &Point, max_distance: f32) -> Option<ClosestPoint> {
         let max = f64::from(max_distance);
         let mut best = Best {
-            limit: max * max,
+            limit: (max * max).min(self.previous_bound(point)),
             found: None,
         };
         match self.file.top_nodes() {
@@ -116,6 +121,7 @@ impl<'f> ClosestPointSearch<'f> {
             TopNodes::Grid(nodes, grid) => self.walk(nodes, &grid, point, &mut best),
             TopNodes::Wide(nodes) => self.walk(nodes, &(), point, &mut best),
         }
+        self.previous = best.found.map(|(_, _, found)| found.point);
         let (strip, window, found) = best.found?;
         Some(ClosestPoint {
             distance: found.distance_squared.sqrt() as f32,
@@ -125,6 +131,23 @@ impl<'f> ClosestPointSearch<'f> {
             u: found.u as f32,
             v: found.v as f32,
         })
+    }
+
+    /// A squared distance at least that of `point`'s closest triangle as computed: the
+    /// distance to the previous query's closest point (which lies on a triangle up to f64
+    /// rounding), grown far beyond the roundings of both computations; infinite without one.
+    fn previous_bound(&self, point: &Point) -> f64 {
+        let Some(previous) = self.previous else {
+            return f64::INFINITY;
+        };
+        let wide = point.map(f64::from);
+        let squared: f64 = (0..3).map(|k| (wide[k] - previous[k]).powi(2)).sum();
+        let scale = (0..3).fold(0.0f64, |m, k| m.max(wide[k].abs()).max(previous[k].abs()));
+        let reach = squared.sqrt() * (1.0 + PREVIOUS_MARGIN) + scale * PREVIOUS_MARGIN;
+        match reach.is_finite() {
+            true => reach * reach,
+            false => f64::INFINITY,
+        }
     }
 
     /// Best-first over the top level, except that a node's nearest child that may beat `best`
@@ -201,6 +224,10 @@ impl<'f> ClosestPointSearch<'f> {
         self.pending.push(Reverse((bound.to_bits(), child, kind)));
     }
 }
+
+/// Relative growth of the previous closest point's distance ([`ClosestPointSearch::closest`]):
+/// far above f64 roundings, far below any distance that matters for pruning.
+const PREVIOUS_MARGIN: f64 = 1.0 / (1u64 << 30) as f64;
 
 /// Windows of one strip that a leaf's search tests together: a block with its box's bound, or
 /// a whole strip without block boxes with its leaf's. Small, for the sort: the strip's view is

@@ -32,10 +32,10 @@ use crate::trace::Ray;
 const MARGIN: f32 = 1.0 / 65_536.0;
 
 /// Boxes tested together, in the lanes of one register.
-const BOX_LANES: usize = 4;
+pub(super) const BOX_LANES: usize = 4;
 
 /// Four boxes axis by axis: `min[axis][box]`, `max[axis][box]`.
-type FourBoxes = ([[f32; BOX_LANES]; 3], [[f32; BOX_LANES]; 3]);
+pub(super) type FourBoxes = ([[f32; BOX_LANES]; 3], [[f32; BOX_LANES]; 3]);
 
 /// A valid ray (finite, non-zero direction, `0 <= tmin <= tmax`) ready for the walk.
 pub(super) struct CrossingWalk {
@@ -101,7 +101,7 @@ impl CrossingWalk {
         if nodes.is_empty() {
             return;
         }
-        let mut stack = NodeStack::default();
+        let mut stack = NodeStack::<u32>::default();
         stack.push(0);
         let mut visits = file.node_visits();
         while let Some(index) = stack.pop() {
@@ -147,14 +147,27 @@ impl CrossingWalk {
                 true => u64::MAX >> (MASK_BLOCKS - count),
                 false => self.entered_blocks(&view, first_block, count),
             };
-            if mask != 0 {
-                let blocks = StripBlocks {
-                    view: &view,
-                    mask,
-                    first_block,
-                };
-                for_each_candidate(self.kernel, &self.space, self.range, blocks, &mut candidate);
-            }
+            self.candidates(&view, first_block, mask, &mut candidate);
+        }
+    }
+
+    /// Calls `each(window, corners)` for the candidate windows of the blocks of `mask` (bit
+    /// `k`: block `first_block + k`) of `view`.
+    #[inline(always)]
+    pub(super) fn candidates(
+        &self,
+        view: &StripView,
+        first_block: usize,
+        mask: u64,
+        each: &mut impl FnMut(usize, [RayPoint; 3]),
+    ) {
+        if mask != 0 {
+            let blocks = StripBlocks {
+                view,
+                mask,
+                first_block,
+            };
+            for_each_candidate(self.kernel, &self.space, self.range, blocks, each);
         }
     }
 
@@ -162,12 +175,8 @@ impl CrossingWalk {
     /// the boxes cannot be framed or read: only in a corrupt strip, which validation reports),
     /// four blocks to a node's test: a strip's few blocks cost one or two of them.
     fn entered_blocks(&self, view: &StripView, first_block: usize, count: usize) -> u64 {
-        let anchor = match view.vertices {
-            StripVertices::F32(vertices) => vertices.point(0),
-            StripVertices::Grid(vertices) => vertices.point(0),
-        };
         let all = u64::MAX >> (MASK_BLOCKS - count);
-        let Some(frame) = view.boxes.frame(anchor) else {
+        let Some(frame) = box_frame(view) else {
             return all;
         };
         let mut mask = 0u64;
@@ -182,7 +191,7 @@ impl CrossingWalk {
     /// The boxes the ray may meet within its grown interval, each grown by [`MARGIN`] (module
     /// documentation), as a bit mask. A NaN plane (only in a corrupt box) is entered.
     #[inline(always)]
-    fn entered(&self, (min, max): &FourBoxes) -> u32 {
+    pub(super) fn entered(&self, (min, max): &FourBoxes) -> u32 {
         let low = [0, 1, 2].map(|axis| f32x4::from(min[axis]) - self.origin[axis]);
         let high = [0, 1, 2].map(|axis| f32x4::from(max[axis]) - self.origin[axis]);
         let reach = |axis: usize| low[axis].abs() + high[axis].abs();
@@ -204,12 +213,23 @@ impl CrossingWalk {
     }
 }
 
+/// The frame `view`'s block boxes are decoded in; `None` when it cannot be read (only in a
+/// corrupt strip, which validation reports).
+#[inline(always)]
+pub(super) fn box_frame(view: &StripView) -> Option<BoxFrame> {
+    let anchor = match view.vertices {
+        StripVertices::F32(vertices) => vertices.point(0),
+        StripVertices::Grid(vertices) => vertices.point(0),
+    };
+    view.boxes.frame(anchor)
+}
+
 /// Blocks `first .. first + lanes` of a strip's boxes (`lanes <= 4`) decoded in `frame` axis
 /// by axis, as [`crate::format::block_boxes::decode_plane`] does, bit for bit (the code minus
 /// the bias and its product by the power-of-two scale are exact, the sum rounds once); and the
 /// lanes whose box cannot be read (bit `k` for block `first + k`).
 #[inline(always)]
-fn block_boxes(
+pub(super) fn block_boxes(
     boxes: &BlockBoxes,
     frame: &BoxFrame,
     first: usize,
@@ -243,16 +263,17 @@ fn block_boxes(
     )
 }
 
-/// Nodes pending in a walk: inline, then on the heap (only in trees deeper than any built).
+/// Nodes pending in a walk (a node index, or one with what enters it): inline, then on the heap
+/// (only in trees deeper than any built).
 #[derive(Default)]
-struct NodeStack {
-    inline: ArrayVec<u32, 64>,
-    spill: Vec<u32>,
+pub(super) struct NodeStack<T> {
+    inline: ArrayVec<T, 64>,
+    spill: Vec<T>,
 }
 
-impl NodeStack {
+impl<T> NodeStack<T> {
     #[inline(always)]
-    fn push(&mut self, node: u32) {
+    pub(super) fn push(&mut self, node: T) {
         if let Err(full) = self.inline.try_push(node) {
             self.spill.push(full.element());
         }
@@ -260,14 +281,14 @@ impl NodeStack {
 
     /// The node pushed last: spilled ones are newer than every inline one.
     #[inline(always)]
-    fn pop(&mut self) -> Option<u32> {
+    pub(super) fn pop(&mut self) -> Option<T> {
         self.spill.pop().or_else(|| self.inline.pop())
     }
 }
 
 /// A top-level node record's child boxes four at a time, axis by axis, as f32, whatever its
 /// layout: the walk's one view of the nodes.
-trait NodeBoxes: NodeRecord {
+pub(super) trait NodeBoxes: NodeRecord {
     /// What decoding the boxes takes besides the node.
     type Grid;
     /// The boxes of slots `4 group .. 4 group + 4`.

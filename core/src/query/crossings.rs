@@ -20,6 +20,8 @@
 
 use rayon::prelude::*;
 
+use super::crossing_packet::CrossingPacket;
+pub use super::crossing_packet::PACKET_RAYS;
 use super::crossing_walk::CrossingWalk;
 use super::FaceIds;
 use crate::format::reader::ReducemFile;
@@ -156,17 +158,39 @@ pub fn for_each_crossing_on(
     if !valid(ray) {
         return;
     }
-    let (tmin, tmax) = (ray.tmin, ray.tmax);
     CrossingWalk::new(ray, kernel).run(file, &mut |strip, window, corners| {
-        // Odd windows are wound the other way (`strip_windows::window_corners`).
-        let c = match window % 2 {
-            0 => corners,
-            _ => [corners[1], corners[0], corners[2]],
-        };
-        if let Some(hit) = settle(&c, tmin, tmax) {
+        if let Some(hit) = settle_window(window, corners, ray) {
             each(strip, window as u16, hit);
         }
     });
+}
+
+/// [`for_each_crossing_on`] of up to [`PACKET_RAYS`] rays walked together (worth it when they
+/// are coherent): `each(k, strip, window, hit)` for every crossing of `rays[k]`, the same
+/// crossings as `rays[k]` alone finds, in another order.
+pub fn for_each_crossing_of_packet(
+    file: &ReducemFile,
+    rays: &[Ray],
+    kernel: Kernel,
+    mut each: impl FnMut(usize, u32, u16, TriangleHit),
+) {
+    CrossingPacket::new(rays, kernel, valid).run(file, &mut |lane, strip, window, corners| {
+        if let Some(hit) = settle_window(window, corners, &rays[lane]) {
+            each(lane, strip, window as u16, hit);
+        }
+    });
+}
+
+/// The crossing of `ray` with candidate `window` whose ray-space corners in strip order are
+/// `corners`.
+#[inline(always)]
+fn settle_window(window: usize, corners: [RayPoint; 3], ray: &Ray) -> Option<TriangleHit> {
+    // Odd windows are wound the other way (`strip_windows::window_corners`).
+    let c = match window % 2 {
+        0 => corners,
+        _ => [corners[1], corners[0], corners[2]],
+    };
+    settle(&c, ray.tmin, ray.tmax)
 }
 
 fn valid(ray: &Ray) -> bool {

@@ -9,6 +9,7 @@
 
 mod child_box;
 pub mod closest;
+mod crossing_packet;
 mod crossing_walk;
 pub mod crossings;
 pub mod occupancy;
@@ -23,7 +24,7 @@ pub use closest::{ClosestPoint, ClosestPointSearch};
 pub use crossings::{
     all_hits, all_hits_on, count_crossings, count_crossings_on, AllHits, RayHit, NO_FACE,
 };
-pub use occupancy::{occupancy, Occupancy};
+pub use occupancy::{occupancy, points_inside, Occupancy};
 pub use signed::{signed_closest_points, SignedClosest};
 
 /// How a query names the triangle it answers with: the input face id when the file stores face

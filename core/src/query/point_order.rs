@@ -28,7 +28,40 @@ where
         .par_iter()
         .map_init(init, |state, &index| answer(state, &points[index as usize]))
         .collect();
-    let mut rank = vec![0u32; points.len()];
+    in_input_order(&order, sorted)
+}
+
+/// `answer(group, answers)` for runs of up to `group_size` consecutive points along the curve
+/// (so that one group's queries can share their walk), in parallel on rayon's current pool;
+/// the answers returned in input order.
+pub(crate) fn answer_groups_in_spatial_order<T, F>(
+    points: &[Point],
+    group_size: usize,
+    answer: F,
+) -> Vec<T>
+where
+    T: Copy + Default + Send + Sync,
+    F: Fn(&[Point], &mut [T]) + Sync + Send,
+{
+    let order = spatial_order(points);
+    let sorted_points: Vec<Point> = match &order {
+        Some(order) => order.par_iter().map(|&i| points[i as usize]).collect(),
+        None => points.to_vec(),
+    };
+    let mut sorted = vec![T::default(); points.len()];
+    sorted
+        .par_chunks_mut(group_size)
+        .zip(sorted_points.par_chunks(group_size))
+        .for_each(|(answers, group)| answer(group, answers));
+    match order {
+        Some(order) => in_input_order(&order, sorted),
+        None => sorted,
+    }
+}
+
+/// `sorted[k]`, the answer of point `order[k]`, back in the points' order.
+fn in_input_order<T: Copy + Send + Sync>(order: &[u32], sorted: Vec<T>) -> Vec<T> {
+    let mut rank = vec![0u32; order.len()];
     for (position, &index) in order.iter().enumerate() {
         rank[index as usize] = position as u32;
     }
@@ -106,5 +139,14 @@ mod tests {
         let answers = answer_in_spatial_order(&points, || (), |_, p| p.map(f32::to_bits));
         let expected: Vec<_> = points.iter().map(|p| p.map(f32::to_bits)).collect();
         assert_eq!(answers, expected);
+        for group_size in [1, 8] {
+            let grouped = answer_groups_in_spatial_order(&points, group_size, |group, answers| {
+                assert!(group.len() <= group_size);
+                for (answer, p) in answers.iter_mut().zip(group) {
+                    *answer = p.map(f32::to_bits);
+                }
+            });
+            assert_eq!(grouped, expected);
+        }
     }
 }

@@ -1,0 +1,178 @@
+//! Up to eight rays walked together to every window each may cross: one visit of a node, one
+//! view of a strip and one decoding of its block boxes serve every ray that reaches them, while
+//! each ray keeps its own box tests and edge tests ([`CrossingWalk`]). A ray is offered exactly
+//! the candidates its own walk would find, so its crossings are the same bits on any kernel.
+//!
+//! It pays where the rays are coherent: occupancy rays share a direction and leave nearby
+//! points (answered along a Morton curve), so they reach mostly the same nodes and strips.
+
+use arrayvec::ArrayVec;
+
+use super::crossing_walk::{block_boxes, box_frame, CrossingWalk, NodeBoxes, NodeStack, BOX_LANES};
+use crate::format::block_boxes::BOX_WINDOWS;
+use crate::format::reader::{ReducemFile, StripView, TopNodes};
+use crate::format::{TopSlot, WIDE_WIDTH};
+use crate::trace::kernel::crossing_blocks::MASK_BLOCKS;
+use crate::trace::kernel::Kernel;
+use crate::trace::watertight::RayPoint;
+use crate::trace::Ray;
+
+/// Rays walked together.
+pub const PACKET_RAYS: usize = 8;
+
+/// A bit per ray of a packet.
+type Lanes = u32;
+
+/// The walks of a packet's rays; lane `k` is ray `k`.
+pub(super) struct CrossingPacket {
+    walks: ArrayVec<CrossingWalk, PACKET_RAYS>,
+    /// The lanes whose ray is valid: the others cross nothing and are never walked.
+    valid: Lanes,
+}
+
+impl CrossingPacket {
+    /// The packet of `rays` (at most [`PACKET_RAYS`]); `valid(ray)` says which are walked.
+    pub(super) fn new(rays: &[Ray], kernel: Kernel, valid: impl Fn(&Ray) -> bool) -> Self {
+        // An invalid ray's lane holds a harmless ray it never walks.
+        let stand_in = Ray {
+            origin: [0.0; 3],
+            direction: [1.0, 0.0, 0.0],
+            tmin: 0.0,
+            tmax: 0.0,
+        };
+        let mut packet = CrossingPacket {
+            walks: ArrayVec::new(),
+            valid: 0,
+        };
+        for (lane, ray) in rays.iter().take(PACKET_RAYS).enumerate() {
+            let walked = valid(ray);
+            packet.valid |= Lanes::from(walked) << lane;
+            let ray = if walked { ray } else { &stand_in };
+            packet.walks.push(CrossingWalk::new(ray, kernel));
+        }
+        packet
+    }
+
+    /// Calls `each(lane, strip, window, corners)` for every candidate window of every valid
+    /// lane's ray, as [`CrossingWalk::run`] of that ray calls it (in another order).
+    pub(super) fn run(
+        &self,
+        file: &ReducemFile,
+        each: &mut impl FnMut(usize, u32, usize, [RayPoint; 3]),
+    ) {
+        match file.top_nodes() {
+            TopNodes::F32(nodes) => self.nodes(file, nodes, &(), each),
+            TopNodes::Grid(nodes, grid) => self.nodes(file, nodes, &grid, each),
+            TopNodes::Wide(nodes) => self.nodes(file, nodes, &(), each),
+        }
+    }
+
+    fn nodes<N: NodeBoxes>(
+        &self,
+        file: &ReducemFile,
+        nodes: &[N],
+        grid: &N::Grid,
+        each: &mut impl FnMut(usize, u32, usize, [RayPoint; 3]),
+    ) {
+        if nodes.is_empty() || self.valid == 0 {
+            return;
+        }
+        let mut stack = NodeStack::<(u32, Lanes)>::default();
+        stack.push((0, self.valid));
+        let mut visits = file.node_visits();
+        while let Some((index, lanes)) = stack.pop() {
+            // A file changed in place after its validation may link nodes in circles.
+            visits = match visits.checked_sub(1) {
+                Some(left) => left,
+                None => return,
+            };
+            let Some(node) = file.top_node(nodes, index as usize) else {
+                continue;
+            };
+            let mut by_slot = [0 as Lanes; WIDE_WIDTH];
+            let mut entered_any = 0u32;
+            for_each_lane(lanes, |lane| {
+                let mut entered = node.entered_children(&self.walks[lane], grid);
+                entered_any |= entered;
+                while entered != 0 {
+                    by_slot[entered.trailing_zeros() as usize] |= 1 << lane;
+                    entered &= entered - 1;
+                }
+            });
+            while entered_any != 0 {
+                let slot = entered_any.trailing_zeros() as usize;
+                entered_any &= entered_any - 1;
+                match node.slot(slot) {
+                    TopSlot::Internal(child) => stack.push((child, by_slot[slot])),
+                    TopSlot::Leaf { first, count } => {
+                        for strip in file.leaf_strips(first, count) {
+                            self.strip(file, strip, by_slot[slot], each);
+                        }
+                    }
+                    TopSlot::Empty | TopSlot::Invalid(_) => {}
+                }
+            }
+        }
+    }
+
+    /// The candidate windows of strip `strip` for the rays of `lanes`: the strip viewed once,
+    /// each group of its block boxes decoded once and tested by every lane.
+    fn strip(
+        &self,
+        file: &ReducemFile,
+        strip: u32,
+        lanes: Lanes,
+        each: &mut impl FnMut(usize, u32, usize, [RayPoint; 3]),
+    ) {
+        let view = file.strip(strip as usize);
+        let blocks = view.window_count().div_ceil(BOX_WINDOWS);
+        for first_block in (0..blocks).step_by(MASK_BLOCKS) {
+            let count = (blocks - first_block).min(MASK_BLOCKS);
+            let masks = self.entered_blocks(&view, lanes, first_block, count);
+            for_each_lane(lanes, |lane| {
+                let mut candidate =
+                    |window: usize, corners: [RayPoint; 3]| each(lane, strip, window, corners);
+                self.walks[lane].candidates(&view, first_block, masks[lane], &mut candidate);
+            });
+        }
+    }
+
+    /// Per lane of `lanes`, the blocks of `first_block .. first_block + count` its ray may
+    /// meet, as [`CrossingWalk`]'s own test finds them (every block when the strip stores no
+    /// boxes or their frame cannot be read).
+    fn entered_blocks(
+        &self,
+        view: &StripView,
+        lanes: Lanes,
+        first_block: usize,
+        count: usize,
+    ) -> [u64; PACKET_RAYS] {
+        let all = u64::MAX >> (MASK_BLOCKS - count);
+        let frame = match view.boxes.is_empty() {
+            true => None,
+            false => box_frame(view),
+        };
+        let Some(frame) = frame else {
+            return [all; PACKET_RAYS];
+        };
+        let mut masks = [0u64; PACKET_RAYS];
+        for first in (0..count).step_by(BOX_LANES) {
+            let group = (count - first).min(BOX_LANES);
+            let (boxes, unreadable) = block_boxes(&view.boxes, &frame, first_block + first, group);
+            for_each_lane(lanes, |lane| {
+                let entered = self.walks[lane].entered(&boxes) | unreadable;
+                masks[lane] |= u64::from(entered) << first;
+            });
+        }
+        masks.map(|mask| mask & all)
+    }
+}
+
+/// Calls `each(lane)` for every bit of `lanes`, lowest first.
+#[inline(always)]
+fn for_each_lane(mut lanes: Lanes, mut each: impl FnMut(usize)) {
+    while lanes != 0 {
+        each(lanes.trailing_zeros() as usize);
+        lanes &= lanes - 1;
+    }
+}
