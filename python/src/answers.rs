@@ -133,7 +133,7 @@ fn flat<'a, T: numpy::Element>(array: &'a mut PyReadwriteArrayDyn<'_, T>) -> PyR
         .map_err(|error| PyValueError::new_err(error.to_string()))
 }
 
-/// Answers of rays, flat, in ray order; `shading_normals` and `colors` are empty when the file
+/// Answers of rays (a batch or a chunk of it), flat, in ray order; `shading_normals` and `colors` are empty when the file
 /// has none.
 pub struct Answers<'a> {
     t: &'a mut [f32],
@@ -152,7 +152,7 @@ impl Answers<'_> {
     }
 
     /// The answers cut into chunks of `rays` consecutive rays.
-    pub fn chunks(&mut self, rays: usize) -> Vec<AnswerChunk<'_>> {
+    pub fn chunks(&mut self, rays: usize) -> Vec<Answers<'_>> {
         let mut shading_normals = self.shading_normals.chunks_mut(3 * rays);
         let mut colors = self.colors.chunks_mut(4 * rays);
         self.t
@@ -161,7 +161,7 @@ impl Answers<'_> {
             .zip(self.geometry_ids.chunks_mut(rays))
             .zip(self.uvs.chunks_mut(2 * rays))
             .zip(self.normals.chunks_mut(3 * rays))
-            .map(|((((t, ids), geometry_ids), uvs), normals)| AnswerChunk {
+            .map(|((((t, ids), geometry_ids), uvs), normals)| Answers {
                 t,
                 ids,
                 geometry_ids,
@@ -232,23 +232,7 @@ impl AnswerBuffers {
     }
 }
 
-/// The answers of one chunk of consecutive rays.
-pub struct AnswerChunk<'a> {
-    t: &'a mut [f32],
-    ids: &'a mut [u32],
-    geometry_ids: &'a mut [u32],
-    uvs: &'a mut [f32],
-    normals: &'a mut [f32],
-    shading_normals: &'a mut [f32],
-    colors: &'a mut [u8],
-}
-
-impl AnswerChunk<'_> {
-    /// Rays of the chunk.
-    pub fn len(&self) -> usize {
-        self.t.len()
-    }
-
+impl Answers<'_> {
     /// Writes every element of ray `k`'s answer: `hit` named `id` with its attributes `read`
     /// (when the file has per-vertex ones), or a miss (`t` inf, ids 4294967295, zeros).
     pub fn write(&mut self, k: usize, hit: Option<&Hit>, id: u32, read: Option<HitAttributes>) {
