@@ -10,8 +10,9 @@ use super::Kernel;
 use crate::format::WideNode;
 
 /// A ray as the crossing walk's box test needs it: the slab test's precomputed planes and the
-/// grown interval.
+/// grown interval. Only the AVX2 test reads it (so other architectures leave it unread).
 #[derive(Clone, Copy, Debug)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) struct WidenedRay {
     pub origin: [f32; 3],
     pub entry_reciprocal: [f32; 3],
@@ -28,6 +29,7 @@ pub(crate) struct WidenedRay {
 /// The children of `node` whose grown box the ray may meet, as a bit mask (bit `k`: slot `k`);
 /// `None` on a kernel without eight-lane registers, whose walk tests four boxes at a time.
 #[inline(always)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
 pub(crate) fn entered_wide(kernel: Kernel, ray: &WidenedRay, node: &WideNode) -> Option<u32> {
     match kernel {
         #[cfg(target_arch = "x86_64")]
