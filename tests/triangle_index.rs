@@ -28,16 +28,23 @@ fn check_positions(file: &ReducemFile) {
         }
     }
     assert!(swaps > 0, "the file should have swap windows to skip");
+    let longest = (0..file.strip_count())
+        .map(|s| file.strip(s).window_count())
+        .max();
+    assert!(
+        longest > Some(128),
+        "a strip should span several of the index's reads of 64 windows"
+    );
     assert_eq!(index.position(file, file.strip_count() as u32, 0), None);
 }
 
 #[test]
 fn positions_are_decode_rows_on_f32_files() {
-    check_positions(&open_with_long_strips(&torus(24, 16), "index_f32.rdm", 60));
+    check_positions(&open_with_long_strips(&torus(24, 16), "index_f32.rdm", 150));
 }
 
 #[test]
 fn positions_are_decode_rows_on_grid_files() {
-    let file = open_with_long_strips_on_grid(&torus(24, 16), "index_grid.rdm", 60, 12);
+    let file = open_with_long_strips_on_grid(&torus(24, 16), "index_grid.rdm", 150, 12);
     check_positions(&file);
 }
