@@ -29,7 +29,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from decoded_mesh import read_decoded  # noqa: E402
+from bench_inputs import camera_rays, incoherent_rays, read_decoded, write_ray_file  # noqa: E402
 
 import reducem  # noqa: E402
 
@@ -66,36 +66,6 @@ def prepare(triangles, work):
     if not decoded.exists():
         run(release / "reducem", "decode", model, "-o", decoded)
     return release / "reducem", model, decoded
-
-
-def camera_rays(low, high, side):
-    """A 60° pinhole camera framing the bounds, `(side, side, 6)` float32, row by row."""
-    centre, size = (low + high) / 2, float(np.linalg.norm(high - low))
-    eye = centre + np.array([0.3, 0.5, 1.0]) / np.linalg.norm([0.3, 0.5, 1.0]) * size
-    forward = (centre - eye) / np.linalg.norm(centre - eye)
-    right = np.cross(forward, [0.0, 1.0, 0.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
-    half = np.tan(np.radians(30.0))
-    ys, xs = np.meshgrid(np.linspace(half, -half, side), np.linspace(-half, half, side),
-                         indexing="ij")
-    directions = forward + xs[..., None] * right + ys[..., None] * up
-    origins = np.broadcast_to(eye, directions.shape)
-    return np.concatenate([origins, directions], -1).astype(np.float32)
-
-
-def incoherent_rays(low, high, count):
-    """Uniform origins in the bounds, directions uniform on the sphere, `(count, 6)` float32."""
-    rng = np.random.default_rng(1)
-    origins = low + rng.random((count, 3)) * (high - low)
-    return np.concatenate([origins, rng.normal(size=(count, 3))], -1).astype(np.float32)
-
-
-def write_ray_file(rays, path):
-    records = np.zeros((rays.size // 6, 8), "<f4")
-    records[:, :6] = rays.reshape(-1, 6)
-    records[:, 7] = np.inf
-    records.tofile(path)
 
 
 def seconds(call):

@@ -36,7 +36,7 @@ decoded=$WORK/scan$TRIANGLES.decoded.ply
 [[ -f $decoded ]] || target/release/reducem decode "$model" -o "$decoded"
 
 # The decoded PLY as numpy arrays, for the Python parts below.
-cp scripts/decoded_mesh.py "$WORK/mesh.py"
+cp scripts/bench_inputs.py "$WORK/bench_inputs.py"
 
 cat >"$WORK/points.py" <<'EOF'
 """Writes POINTS points, each on a random triangle offset by up to 1% of the diagonal."""
@@ -44,7 +44,7 @@ import sys
 
 import numpy as np
 
-from mesh import read_decoded
+from bench_inputs import read_decoded
 
 decoded, count, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 vertices, faces = read_decoded(decoded)
@@ -69,7 +69,7 @@ import time
 
 import numpy as np
 
-from mesh import read_decoded
+from bench_inputs import read_decoded
 
 name, decoded, points_path, threads, out = sys.argv[1:6]
 threads = int(threads)
@@ -171,7 +171,7 @@ import sys
 
 import numpy as np
 
-from mesh import read_decoded
+from bench_inputs import read_decoded
 
 decoded, out, count = sys.argv[1], sys.argv[2], int(sys.argv[3])
 vertices, _ = read_decoded(decoded)
@@ -192,7 +192,7 @@ import time
 
 import numpy as np
 
-from mesh import read_decoded
+from bench_inputs import read_decoded
 
 name, kind, decoded, source, threads, out = sys.argv[1:7]
 threads = int(threads)
@@ -296,7 +296,7 @@ import sys
 
 import numpy as np
 
-from mesh import read_decoded
+from bench_inputs import read_decoded
 
 vertices, faces = read_decoded(sys.argv[1])
 wide = vertices.astype(np.float64)
@@ -322,7 +322,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, sys.argv[1])
-from mesh import read_decoded
+from bench_inputs import read_decoded
 
 work = sys.argv[1]
 counts = {"reducem": np.fromfile(f"{work}/hard.reducem", "<u4")}
@@ -365,43 +365,18 @@ import time
 import numpy as np
 
 import reducem
-from mesh import read_decoded
+from bench_inputs import camera_rays, incoherent_rays, read_decoded, write_ray_file
 
 model, decoded, points_path, threads, runs, work = sys.argv[1:7]
 threads, runs = int(threads), int(runs)
 scene = reducem.open(model)
 low, high = (np.asarray(b, np.float64) for b in scene.bounds)
-centre, size = (low + high) / 2, float(np.linalg.norm(high - low))
-
-# A pinhole camera as Open3D's create_rays_pinhole orders its rays: (height, width, 6), row by row.
 side = 1024
-eye = centre + np.array([0.3, 0.5, 1.0]) / np.linalg.norm([0.3, 0.5, 1.0]) * size
-forward = (centre - eye) / np.linalg.norm(centre - eye)
-right = np.cross(forward, [0.0, 1.0, 0.0])
-right /= np.linalg.norm(right)
-up = np.cross(right, forward)
-half = np.tan(np.radians(30.0))
-ys, xs = np.meshgrid(np.linspace(half, -half, side), np.linspace(-half, half, side), indexing="ij")
-directions = forward + xs[..., None] * right + ys[..., None] * up
-camera = np.concatenate([np.broadcast_to(eye, directions.shape), directions], -1).astype(np.float32)
-
-rng = np.random.default_rng(1)
+camera = camera_rays(low, high, side)
 count = side * side
-origins = low + rng.random((count, 3)) * (high - low)
-spread = rng.normal(size=(count, 3))
-incoherent = np.concatenate([origins, spread], -1).astype(np.float32)
-
-
-def ray_file(rays, path):
-    flat = rays.reshape(-1, 6)
-    records = np.zeros((len(flat), 8), "<f4")
-    records[:, :6] = flat
-    records[:, 7] = np.inf
-    records.tofile(path)
-
-
-ray_file(camera, f"{work}/camera.rays")
-ray_file(incoherent, f"{work}/incoherent.rays")
+incoherent = incoherent_rays(low, high, count)
+write_ray_file(camera, f"{work}/camera.rays")
+write_ray_file(incoherent, f"{work}/incoherent.rays")
 
 
 def rate(call, queries=count):

@@ -443,17 +443,9 @@ impl Scene {
         query_points: &Bound<'_, PyAny>,
         nthreads: usize,
     ) -> PyResult<(Vec<usize>, ClosestAnswers)> {
-        let found = points::with_points(py, query_points, |shape, components| {
-            let answers = py.detach(|| {
-                in_pool(nthreads, || {
-                    let ids = self.primitive_ids();
-                    Ok(points::closest_points(&self.file, ids, components))
-                })
-            });
-            Ok((shape, answers.map_err(PyValueError::new_err)?))
-        })?;
-        self.complete()?;
-        Ok(found)
+        self.per_point(py, query_points, nthreads, |file, components| {
+            points::closest_points(file, self.primitive_ids(), components)
+        })
     }
 
     /// `answer` for `query_points` without the GIL on `nthreads` threads, and their leading
