@@ -118,8 +118,10 @@ const SPARSEST_COARSE_STEP: u32 = 64;
 
 /// A coarse frame later than this after its view arrived makes the next one sparser (every
 /// second pixel of it each way), so that coarse frames still come within 100 ms while the
-/// model's pages are read from disk; one within a quarter of it makes the next one denser again.
-const COARSE_FRAME_BUDGET: Duration = Duration::from_millis(50);
+/// model's pages are read from disk; one within half of it makes the next one denser again
+/// (not a quarter: a small frame's time is mostly not its rays', and under load a sparser
+/// frame would then stay).
+const COARSE_FRAME_BUDGET: Duration = Duration::from_millis(70);
 
 /// Pixels of `view`'s coarse frame of every `step`-th pixel each way.
 fn coarse_pixels(view: &View, step: u32) -> u64 {
@@ -179,7 +181,7 @@ impl Pace {
                 .max(1)
                 .ilog2();
             self.coarse_doublings = (self.coarse_doublings + 1).min(most);
-        } else if took < COARSE_FRAME_BUDGET / 4 {
+        } else if took < COARSE_FRAME_BUDGET / 2 {
             self.coarse_doublings = self.coarse_doublings.saturating_sub(1);
         }
     }
@@ -576,15 +578,15 @@ mod tests {
         let steps = |pace: &Pace| (pace.coarse_step(&full), pace.coarse_step(&quarter));
         assert_eq!(steps(&pace), (4, 2), "no coarse frame yet");
         let ms = Duration::from_millis;
-        pace.coarse_frame(&full, ms(50));
+        pace.coarse_frame(&full, ms(70));
         assert_eq!(steps(&pace), (4, 2));
-        pace.coarse_frame(&full, ms(51));
+        pace.coarse_frame(&full, ms(71));
         assert_eq!(steps(&pace), (8, 4));
-        pace.coarse_frame(&full, ms(13));
+        pace.coarse_frame(&full, ms(35));
         assert_eq!(steps(&pace), (8, 4), "neither late nor fast");
-        pace.coarse_frame(&full, ms(12));
+        pace.coarse_frame(&full, ms(34));
         assert_eq!(steps(&pace), (4, 2));
-        pace.coarse_frame(&full, ms(12));
+        pace.coarse_frame(&full, ms(34));
         assert_eq!(steps(&pace), (4, 2), "the densest");
         for _ in 0..10 {
             pace.coarse_frame(&full, ms(900));
