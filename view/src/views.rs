@@ -2,7 +2,6 @@
 //! its progressive frames, its images and its picks.
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use glam::Vec3;
@@ -10,11 +9,12 @@ use reducem::format::attributes::NormalEncoding;
 use reducem::render::camera::{placement, Camera};
 use reducem::render::image::srgb_bytes;
 use reducem::render::scene::{Scene, ShadingMode};
-use reducem::render::{residency, Frame, Progressive};
+use reducem::render::{Frame, Progressive};
 use reducem::trace::ray_file::{trace_hits_as, HitFormat};
 use reducem::trace::Tracer;
 use serde::{Deserialize, Serialize};
 
+use crate::resident::ResidentBytes;
 use crate::stages::Stages;
 
 /// The largest image side the page may ask for, as `reducem render` allows.
@@ -80,8 +80,7 @@ pub struct Viewer {
     y_up_scene: Scene,
     pub up: UpAxis,
     pub token: String,
-    /// When the file's resident bytes were last measured, and the figure.
-    resident: Mutex<(Instant, Option<u64>)>,
+    resident: ResidentBytes,
 }
 
 /// One image of a view, encoded, with what the page shows about it.
@@ -217,10 +216,6 @@ impl Rays {
     }
 }
 
-/// How long a measure of the file's resident memory is shown before it is taken again: it
-/// reads the process's whole memory map, work that grows with the pages resident.
-const RESIDENCY_INTERVAL: Duration = Duration::from_millis(500);
-
 /// Fine pixels of a band of `scene`'s image: eight rows, so that a stale camera's leftover work
 /// is a few milliseconds.
 fn band_pixels(scene: &Scene) -> u32 {
@@ -244,7 +239,7 @@ impl Viewer {
             y_up_scene,
             up,
             token,
-            resident: Mutex::new((Instant::now(), residency::mapping_rss(tracer.file().path()))),
+            resident: ResidentBytes::of(tracer.file().path().to_path_buf()),
         }
     }
 
@@ -359,30 +354,11 @@ impl Viewer {
             if ao_samples == 1 {
                 pace.full_frame(pixels, received.elapsed());
             }
-            self.measure_residency_when_due();
+            self.resident.refresh_when_due();
             if image.is_complete() {
                 return Ok(());
             }
             (ao_samples, before) = (ao_samples * 2, Rays::of(&image));
-        }
-    }
-
-    /// The file's resident bytes as last measured.
-    fn resident_bytes(&self) -> Option<u64> {
-        self.resident.lock().unwrap_or_else(|p| p.into_inner()).1
-    }
-
-    /// Measures the file's resident bytes again once the last measure is
-    /// [`RESIDENCY_INTERVAL`] old; called after a full frame is delivered, so that the measure
-    /// (it reads the process's whole memory map: hundreds of milliseconds with gigabytes of the
-    /// file resident) delays no frame.
-    fn measure_residency_when_due(&self) {
-        let mut last = self.resident.lock().unwrap_or_else(|p| p.into_inner());
-        if last.0.elapsed() >= RESIDENCY_INTERVAL {
-            *last = (
-                Instant::now(),
-                residency::mapping_rss(self.tracer.file().path()),
-            );
         }
     }
 
@@ -419,7 +395,7 @@ impl Viewer {
                 rays: rays.rays,
                 seconds: rays.seconds,
                 triangles: self.tracer.file().header().triangle_count,
-                resident_bytes: self.resident_bytes(),
+                resident_bytes: self.resident.last(),
             },
             jpeg,
             stages,
