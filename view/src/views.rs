@@ -145,7 +145,8 @@ fn densest_coarse_step(view: &View) -> u32 {
 #[derive(Default)]
 pub struct Pace {
     last_full_frame: Option<(u64, Duration)>,
-    /// Doublings of the coarse frame's step beyond [`densest_coarse_step`].
+    /// Doublings of the coarse frame's step beyond [`densest_coarse_step`]: at most
+    /// log2([`SPARSEST_COARSE_STEP`] / 2).
     coarse_doublings: u32,
 }
 
@@ -166,11 +167,7 @@ impl Pace {
     /// The step of `view`'s coarse frame: [`densest_coarse_step`] doubled as the last coarse
     /// frames' times asked, at most [`SPARSEST_COARSE_STEP`].
     fn coarse_step(&self, view: &View) -> u32 {
-        let densest = densest_coarse_step(view);
-        let sparsest = SPARSEST_COARSE_STEP.max(densest);
-        densest
-            .checked_shl(self.coarse_doublings)
-            .map_or(sparsest, |step| step.min(sparsest))
+        (densest_coarse_step(view) << self.coarse_doublings).min(SPARSEST_COARSE_STEP)
     }
 
     /// A coarse frame of `view` was ready `took` after its view arrived.
