@@ -16,6 +16,8 @@
 #   scripts/bench_view.sh /tmp/scan10m.rdm 2 10
 #
 # Needs chromium, chromium-driver and python3 with selenium (pip install selenium).
+# REDUCEM_BIN=DIR runs DIR/reducem (and the reducem-view beside it) instead of building
+# target/release, so that two builds can be run alternately.
 #
 # With --first-picture, the first picture instead: `reducem render` of each shipped scene with its
 # automatic camera and the file's stored up axis, at SIZE² (default 512), and for each the fill
@@ -63,14 +65,15 @@ fi
 model=$1
 threads=${2:-2}
 seconds=${3:-10}
-cargo build --release --quiet -p reducem -p reducem-view --bins
+bin=${REDUCEM_BIN:-target/release}
+[ -n "${REDUCEM_BIN:-}" ] || cargo build --release --quiet -p reducem -p reducem-view --bins
 python3 -c "import os,sys; fd=os.open(sys.argv[1], os.O_RDONLY); os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_DONTNEED); os.close(fd)" "$model"
-exec "${PYTHON:-python3}" - "$model" "$threads" "$seconds" <<'EOF'
+exec "${PYTHON:-python3}" - "$model" "$threads" "$seconds" "$bin/reducem" <<'EOF'
 import json, math, os, statistics, struct, subprocess, sys, tempfile, time
 from selenium import webdriver
 from selenium.webdriver.chrome.service import Service
 
-model, threads, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
+model, threads, seconds, reducem = sys.argv[1], sys.argv[2], float(sys.argv[3]), sys.argv[4]
 
 def camera_rays(camera, side):
     """The primary rays of a side² view of `camera`, 8x8 tiles in 4x2 packet blocks."""
@@ -103,7 +106,7 @@ def reference_rate(camera, side):
         runs = []
         for _ in range(3):
             began = time.monotonic()
-            subprocess.run(["target/release/reducem", "query", model, "--rays", rays, "-o", hits],
+            subprocess.run([reducem, "query", model, "--rays", rays, "-o", hits],
                            check=True, env=environment, stderr=subprocess.DEVNULL)
             runs.append(time.monotonic() - began)
     rate = side * side / statistics.median(runs) / 1e6
@@ -111,7 +114,7 @@ def reference_rate(camera, side):
             f"(whole process, median of 3), load average {os.getloadavg()[0]:.1f}")
 started = time.monotonic()
 log = open(os.environ["VIEW_LOG"], "w") if os.environ.get("VIEW_LOG") else subprocess.DEVNULL
-viewer = subprocess.Popen(["target/release/reducem", "view", model, "--up", "z", "--threads", threads],
+viewer = subprocess.Popen([reducem, "view", model, "--up", "z", "--threads", threads],
                           stdout=subprocess.PIPE, stderr=log, text=True)
 url = viewer.stdout.readline().strip()
 options = webdriver.ChromeOptions()

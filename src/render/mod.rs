@@ -191,8 +191,6 @@ pub struct Progressive<'a, 'f> {
     scene: Scene,
     bands: Vec<BandSamples>,
     effects: Vec<EffectReport>,
-    /// Fine pixels from one of this image's pixels to the next: 1, or a preview's step.
-    pixel_step: u32,
 }
 
 impl<'a, 'f> Progressive<'a, 'f> {
@@ -209,7 +207,7 @@ impl<'a, 'f> Progressive<'a, 'f> {
     /// A preview of `scene`'s image: every `every`-th pixel each way (2: half its width and
     /// height), primary shading, each pixel `(x, y)` the ray and shade of pixel `(every x, every
     /// y)` of the image (of its finer image's pixel `(every n x, every n y)` with `antialiasing
-    /// = n`), so that [`Progressive::reusing`] traces only the other pixels.
+    /// = n`): a coarse frame that shows the image's own pixels.
     pub fn preview(
         tracer: &'a Tracer<'f>,
         scene: &Scene,
@@ -224,35 +222,8 @@ impl<'a, 'f> Progressive<'a, 'f> {
         let mut preview = scene.primary_only();
         preview.image.width = scene.image.width.div_ceil(every);
         preview.image.height = scene.image.height.div_ceil(every);
-        let renderer = BandRenderer::with_camera(tracer, &preview, camera, None);
-        Progressive {
-            pixel_step: step,
-            ..Progressive::of(renderer, &preview, band_pixels)
-        }
-    }
-
-    /// [`Progressive::new`] taking the surfaces `preview` (the finished
-    /// [`Progressive::preview`] of this `scene`) traced instead of tracing their rays again:
-    /// the same image, with the preview's primary rays fewer.
-    pub fn reusing(
-        tracer: &'a Tracer<'f>,
-        scene: &Scene,
-        band_pixels: u32,
-        preview: &Progressive,
-    ) -> Progressive<'a, 'f> {
-        let fine = fine_scene(scene);
-        let camera = Camera::new(tracer, &fine.camera, fine.image.width, fine.image.height);
-        let reused = preview.traced().then(|| PreviewSurfaces {
-            width: preview.renderer.plan.width,
-            step: preview.pixel_step,
-            surfaces: preview
-                .bands
-                .iter()
-                .flat_map(|band| band.surfaces.iter().copied())
-                .collect(),
-        });
-        let renderer = BandRenderer::with_camera(tracer, &fine, camera, reused);
-        Progressive::of(renderer, scene, band_pixels)
+        let renderer = BandRenderer::with_camera(tracer, &preview, camera);
+        Progressive::of(renderer, &preview, band_pixels)
     }
 
     /// The image `renderer` renders of `scene`, with nothing traced yet.
@@ -269,7 +240,6 @@ impl<'a, 'f> Progressive<'a, 'f> {
             scene: scene.clone(),
             bands,
             effects,
-            pixel_step: 1,
         }
     }
 
@@ -403,33 +373,13 @@ fn averaged(samples: &[[f32; 3]], fine_width: u32, factor: u32) -> Vec<[f32; 3]>
 }
 
 /// What every band of one image shares: the scene, the plan, the camera, the attributes the
-/// shading uses, the surfaces a preview traced already.
+/// shading uses.
 struct BandRenderer<'a, 'f> {
     tracer: &'a Tracer<'f>,
     scene: Scene,
     plan: Plan,
     camera: Camera,
     used: AttributeUse,
-    reused: Option<PreviewSurfaces>,
-}
-
-/// The surfaces of a finished preview ([`Progressive::preview`]): those of the image's pixels
-/// at every `step`-th column and row, `width` of them across.
-struct PreviewSurfaces {
-    width: u32,
-    step: u32,
-    surfaces: Vec<Option<Surface>>,
-}
-
-impl PreviewSurfaces {
-    /// The surface of the image's pixel `(x, y)` when the preview traced its ray.
-    fn at(&self, x: u32, y: u32) -> Option<Option<Surface>> {
-        if !x.is_multiple_of(self.step) || !y.is_multiple_of(self.step) {
-            return None;
-        }
-        let index = (y / self.step) as usize * self.width as usize + (x / self.step) as usize;
-        self.surfaces.get(index).copied()
-    }
 }
 
 /// A band's per-pixel state after its passes: surfaces, visibility per light, and the AO rays
@@ -464,17 +414,11 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
     fn new(tracer: &'a Tracer<'f>, scene: &Scene) -> BandRenderer<'a, 'f> {
         let (width, height) = (scene.image.width, scene.image.height);
         let camera = Camera::new(tracer, &scene.camera, width, height);
-        BandRenderer::with_camera(tracer, scene, camera, None)
+        BandRenderer::with_camera(tracer, scene, camera)
     }
 
-    /// The renderer of `scene`'s image seen by `camera`, taking the `reused` surfaces rather
-    /// than tracing their rays.
-    fn with_camera(
-        tracer: &'a Tracer<'f>,
-        scene: &Scene,
-        camera: Camera,
-        reused: Option<PreviewSurfaces>,
-    ) -> BandRenderer<'a, 'f> {
+    /// The renderer of `scene`'s image seen by `camera`.
+    fn with_camera(tracer: &'a Tracer<'f>, scene: &Scene, camera: Camera) -> BandRenderer<'a, 'f> {
         let file = tracer.file();
         let header = file.header();
         let bounds = Aabb {
@@ -489,7 +433,6 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             plan,
             camera,
             used,
-            reused,
         }
     }
 
@@ -522,8 +465,7 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
         let (tracer, plan) = (self.tracer, &self.plan);
         let band = Band::new(plan.width, rows.clone());
         let started = Instant::now();
-        let reused = self.reused.as_ref();
-        let (surfaces, rays) = primary_pass(tracer, &self.camera, &band, self.used, reused);
+        let (surfaces, rays) = primary_pass(tracer, &self.camera, &band, self.used);
         account(&mut effects[0], rays, started);
 
         let mut visibility = vec![Vec::new(); plan.lights.len()];
@@ -710,38 +652,30 @@ where
     pixels
 }
 
-/// The surface each pixel of `band` sees, and the rays traced: the `reused` surfaces of a
-/// preview are taken as they are, the other pixels' rays traced tile by tile, in the tile's
-/// order (packets of neighbouring pixels).
+/// The surface each pixel of `band` sees, and the rays traced: every pixel's ray, tile by tile
+/// in the tile's order (packets of neighbouring pixels).
 fn primary_pass(
     tracer: &Tracer,
     camera: &Camera,
     band: &Band,
     used: AttributeUse,
-    reused: Option<&PreviewSurfaces>,
 ) -> (Vec<Option<Surface>>, u64) {
     let (file, width) = (tracer.file(), band.width);
-    let known = |p: u32| reused.and_then(|reused| reused.at(p % width, p / width));
-    let per_pixel = over_tiles(band, |tile| {
+    let surfaces = over_tiles(band, |tile| {
         let rays: Vec<Ray> = tile
             .iter()
-            .filter(|&&p| known(p).is_none())
             .map(|&p| camera.primary_ray(p % width, p / width))
             .collect();
         let hits = tracer.intersect_chunk(&rays);
-        let mut traced = rays.iter().zip(hits).map(|(ray, hit)| {
-            let hit = hit?;
-            Some(Surface::at_hit(file, ray, &hit)?.with_attributes(file, &hit, used))
-        });
-        tile.iter()
-            .map(|&p| match known(p) {
-                Some(surface) => (surface, 0),
-                None => (traced.next().flatten(), 1),
+        rays.iter()
+            .zip(hits)
+            .map(|(ray, hit)| {
+                let hit = hit?;
+                Some(Surface::at_hit(file, ray, &hit)?.with_attributes(file, &hit, used))
             })
             .collect()
     });
-    let rays = per_pixel.iter().map(|&(_, traced)| traced).sum();
-    (per_pixel.into_iter().map(|(s, _)| s).collect(), rays)
+    (surfaces, band.pixel_count() as u64)
 }
 
 /// The shadow ray from a surface to a light, if the surface faces the light by its geometric
@@ -1067,11 +1001,9 @@ mod tests {
     }
 
     /// A preview's pixels are the full image's every second (or fourth) pixels shaded with
-    /// primary shading, and the image that reuses the preview's surfaces is the image rendered
-    /// at once, bit for bit, with only the other pixels' primary rays traced; with antialiasing
-    /// or without, even and odd sizes.
+    /// primary shading, bit for bit; with antialiasing or without, even and odd sizes.
     #[test]
-    fn an_image_reusing_its_preview_is_the_image_rendered_at_once() {
+    fn a_preview_shows_every_nth_pixel_of_the_primary_image() {
         let (path, file) = bumpy_file("preview");
         let tracer = Tracer::new(&file, TraceOptions::default());
         let cases = [
@@ -1082,7 +1014,6 @@ mod tests {
         ];
         for (size, antialiasing, every) in cases {
             let scene = lit_scene(size, antialiasing, true, 2);
-            let (whole, whole_report) = render(&tracer, &scene);
             let mut preview = Progressive::preview(&tracer, &scene, every, 1);
             let shown = preview.refine(1, || Ok::<(), ()>(())).expect("preview");
             let (width, height) = (size.0.div_ceil(every), size.1.div_ceil(every));
@@ -1100,21 +1031,6 @@ mod tests {
                 let expected = primary_frame.pixels[every as usize * fine * (y * fine_width + x)];
                 assert_eq!(pixel, &expected, "preview pixel {x},{y}");
             }
-
-            let mut image = Progressive::reusing(&tracer, &scene, 1, &preview);
-            let frame = image.refine(2, || Ok::<(), ()>(())).expect("refined");
-            assert_eq!(frame, whole, "antialiasing {antialiasing}, every {every}");
-            let report = image.report();
-            let fine_pixels = u64::from(size.0 * size.1 * antialiasing * antialiasing);
-            assert_eq!(
-                report.rays_of("primary"),
-                whole_report.rays_of("primary") - u64::from(width * height)
-            );
-            assert_eq!(whole_report.rays_of("primary"), fine_pixels);
-            assert_eq!(
-                report.total_rays - report.rays_of("primary"),
-                whole_report.total_rays - fine_pixels
-            );
         }
         std::fs::remove_file(&path).expect("remove");
     }

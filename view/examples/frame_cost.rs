@@ -1,23 +1,21 @@
-//! The viewer's work per camera change without the browser: a coarse frame of a quarter of the
-//! pixels, then the full primary frame, each turned into sRGB and JPEG as the viewer sends it,
-//! FRAMES times over, and the primary rays traced; in bands of BAND_ROWS rows (default 8, the
-//! viewer's). For comparing the ways of making the coarse frame, or of making none, by
-//! instruction counts (valgrind --tool=callgrind), which a shared machine's load does not
-//! change:
+//! The viewer's work per camera change without the browser: a coarse frame, then the full
+//! primary frame, each turned into sRGB and JPEG as the viewer sends it, FRAMES times over; in
+//! bands of BAND_ROWS rows (default 8, the viewer's). Prints the time per change and of each
+//! frame, and the primary rays traced. For comparing the ways of making the coarse frame, or of
+//! making none, by instruction counts (valgrind --tool=callgrind), which a shared machine's load
+//! does not change:
 //!
 //!   cargo build --release -p reducem-view --example frame_cost
-//!   valgrind --tool=callgrind target/release/examples/frame_cost MODEL 512 4 own
-//!   valgrind --tool=callgrind target/release/examples/frame_cost MODEL 512 4 reused
+//!   valgrind --tool=callgrind target/release/examples/frame_cost MODEL 512 4 preview4
 //!   valgrind --tool=callgrind target/release/examples/frame_cost MODEL 512 4 none
 //!
-//! `own`: the coarse frame is an image of its own (its pixel centres fall between the full
-//! image's) and the full frame traces every pixel; `reused`: the coarse frame is the full image's
-//! preview (`render::Progressive::preview`) and the full frame reuses its surfaces; `none`: no
-//! coarse frame, the full frame traces every pixel (as the viewer does when full frames come
-//! fast).
+//! `own`: the coarse frame is an image of its own at half the size (its pixel centres fall
+//! between the full image's); `previewN`: the coarse frame is the full image's preview of every
+//! Nth pixel each way (`render::Progressive::preview`), as the viewer makes it (N = 4 at 512²);
+//! `none`: no coarse frame. The full frame traces every pixel.
 
 use std::path::Path;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use reducem::format::reader::ReducemFile;
 use reducem::render::camera::placement;
@@ -33,29 +31,63 @@ fn main() -> anyhow::Result<()> {
         rest => (rest, 8),
     };
     let [model, side, frames, mode] = arguments else {
-        anyhow::bail!("usage: frame_cost MODEL SIDE FRAMES own|reused|none [BAND_ROWS]");
+        anyhow::bail!("usage: frame_cost MODEL SIDE FRAMES own|previewN|none [BAND_ROWS]");
     };
     let (side, frames): (u32, u32) = (side.parse()?, frames.parse()?);
     let bands = side * band_rows;
     let file = ReducemFile::open(Path::new(model))?;
     let tracer = Tracer::new(&file, TraceOptions::default());
     let scene = primary_view(&tracer, side)?;
-    let started = Instant::now();
-    let mut rays = 0;
+    let name = mode.trim_end_matches(|c: char| c.is_ascii_digit());
+    let mut cost = Cost::default();
     for _ in 0..frames {
-        rays += match mode.as_str() {
-            "own" => own_coarse_frame(&tracer, &scene, bands),
-            "reused" => reused_coarse_frame(&tracer, &scene, bands),
-            "none" => refined(&mut Progressive::new(&tracer, &scene, bands)),
+        match name {
+            "own" => own_coarse_frame(&tracer, &scene, bands, &mut cost),
+            "preview" => {
+                let step: u32 = mode[name.len()..].parse()?;
+                let coarse_bands = bands / (step * step);
+                cost.coarse += refined(&mut Progressive::preview(
+                    &tracer,
+                    &scene,
+                    step,
+                    coarse_bands,
+                ));
+                cost.full += refined(&mut Progressive::new(&tracer, &scene, bands));
+            }
+            "none" => cost.full += refined(&mut Progressive::new(&tracer, &scene, bands)),
             other => anyhow::bail!("unknown mode {other}"),
-        };
+        }
     }
-    let seconds = started.elapsed().as_secs_f64();
+    let per_change = |phase: Phase| phase.time.as_secs_f64() * 1e3 / f64::from(frames);
     println!(
-        "{mode}: {frames} camera changes at {side}x{side}, {rays} primary rays, {:.3} s per change",
-        seconds / f64::from(frames)
+        "{mode}: {frames} camera changes at {side}x{side}, {} primary rays; ms per change: \
+         {:.1} (coarse frame {:.1}, full frame {:.1})",
+        cost.coarse.rays + cost.full.rays,
+        per_change(cost.coarse) + per_change(cost.full),
+        per_change(cost.coarse),
+        per_change(cost.full),
     );
     Ok(())
+}
+
+/// Primary rays traced and the time taken, by the coarse frames and by the full ones.
+#[derive(Default)]
+struct Cost {
+    coarse: Phase,
+    full: Phase,
+}
+
+#[derive(Clone, Copy, Default)]
+struct Phase {
+    rays: u64,
+    time: Duration,
+}
+
+impl std::ops::AddAssign for Phase {
+    fn add_assign(&mut self, other: Phase) {
+        self.rays += other.rays;
+        self.time += other.time;
+    }
 }
 
 /// The shipped primary scene at `side`², its automatic camera placed once.
@@ -70,26 +102,18 @@ fn primary_view(tracer: &Tracer, side: u32) -> anyhow::Result<Scene> {
     Ok(scene)
 }
 
-/// Rays of a coarse frame of its own at half the size, then of the full frame.
-fn own_coarse_frame(tracer: &Tracer, scene: &Scene, bands: u32) -> u64 {
+/// A coarse frame of its own at half the size, then the full frame.
+fn own_coarse_frame(tracer: &Tracer, scene: &Scene, bands: u32, cost: &mut Cost) {
     let mut coarse = scene.primary_only();
     coarse.image.width = scene.image.width.div_ceil(2);
     coarse.image.height = scene.image.height.div_ceil(2);
-    let mut coarse_image = Progressive::new(tracer, &coarse, bands / 4);
-    let mut image = Progressive::new(tracer, scene, bands);
-    refined(&mut coarse_image) + refined(&mut image)
+    cost.coarse += refined(&mut Progressive::new(tracer, &coarse, bands / 4));
+    cost.full += refined(&mut Progressive::new(tracer, scene, bands));
 }
 
-/// Rays of the full image's preview, then of the full frame reusing it.
-fn reused_coarse_frame(tracer: &Tracer, scene: &Scene, bands: u32) -> u64 {
-    let mut preview = Progressive::preview(tracer, scene, 2, bands / 4);
-    let rays = refined(&mut preview);
-    let mut image = Progressive::reusing(tracer, scene, bands, &preview);
-    rays + refined(&mut image)
-}
-
-/// The image's first round, encoded as the viewer sends it, and the rays it traced.
-fn refined(image: &mut Progressive) -> u64 {
+/// The image's first round, encoded as the viewer sends it: the rays it traced and the time.
+fn refined(image: &mut Progressive) -> Phase {
+    let started = Instant::now();
     if let Ok(frame) = image.refine(1, || Ok::<(), ()>(())) {
         let mut jpeg = Vec::new();
         let (width, height) = (frame.width as u16, frame.height as u16);
@@ -99,5 +123,8 @@ fn refined(image: &mut Progressive) -> u64 {
             .encode(&srgb, width, height, jpeg_encoder::ColorType::Rgb)
             .expect("a frame encodes");
     }
-    image.rays_traced().0
+    Phase {
+        rays: image.rays_traced().0,
+        time: started.elapsed(),
+    }
 }

@@ -2,7 +2,6 @@
 //! its progressive frames, its images and its picks.
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use glam::Vec3;
@@ -10,11 +9,12 @@ use reducem::format::attributes::NormalEncoding;
 use reducem::render::camera::{placement, Camera};
 use reducem::render::image::srgb_bytes;
 use reducem::render::scene::{Scene, ShadingMode};
-use reducem::render::{residency, Frame, Progressive};
+use reducem::render::{Frame, Progressive};
 use reducem::trace::ray_file::{trace_hits_as, HitFormat};
 use reducem::trace::Tracer;
 use serde::{Deserialize, Serialize};
 
+use crate::resident::ResidentBytes;
 use crate::stages::Stages;
 
 /// The largest image side the page may ask for, as `reducem render` allows.
@@ -80,8 +80,7 @@ pub struct Viewer {
     y_up_scene: Scene,
     pub up: UpAxis,
     pub token: String,
-    /// When the file's resident bytes were last measured, and the figure.
-    resident: Mutex<Option<(Instant, Option<u64>)>>,
+    resident: ResidentBytes,
 }
 
 /// One image of a view, encoded, with what the page shows about it.
@@ -105,28 +104,50 @@ pub struct FrameHeader {
     pub resident_bytes: Option<u64>,
 }
 
-/// Pixels a coarse frame has at most, unless a quarter of the view's are more: its latency grows
-/// with them, and a 256² frame shows a view well enough while it moves.
-const COARSE_FRAME_PIXELS: u64 = 1 << 16;
+/// Pixels a coarse frame has at most: the full frame traces every pixel again (reusing the
+/// coarse frame's rays left holes in its packets that cost more than the rays saved), so the
+/// coarse frame is kept small; a 128² frame shows a view well enough while it moves.
+const COARSE_FRAME_PIXELS: u64 = 1 << 14;
 
-/// The step of `view`'s coarse frame between the full image's pixels: 2 (a quarter of them),
-/// or the power of two that leaves at most [`COARSE_FRAME_PIXELS`].
-fn coarse_step(view: &View) -> u32 {
-    let mut step = 2;
-    let pixels = |step: u32| u64::from(view.width.div_ceil(step) * view.height.div_ceil(step));
-    while pixels(step) > COARSE_FRAME_PIXELS && step < 64 {
+/// The densest coarse frame takes every 2nd pixel each way (a quarter of them).
+const DENSEST_COARSE_STEP: u32 = 2;
+
+/// The sparsest coarse frame takes every 64th pixel each way.
+const SPARSEST_COARSE_STEP: u32 = 64;
+
+/// A coarse frame later than this after its view arrived makes the next one sparser (every
+/// second pixel of it each way), so that coarse frames still come within 100 ms while the
+/// model's pages are read from disk; one within half of it makes the next one denser again
+/// (not a quarter: a small frame's time is mostly not its rays', and under load a sparser
+/// frame would then stay).
+const COARSE_FRAME_BUDGET: Duration = Duration::from_millis(70);
+
+/// Pixels of `view`'s coarse frame of every `step`-th pixel each way.
+fn coarse_pixels(view: &View, step: u32) -> u64 {
+    u64::from(view.width.div_ceil(step)) * u64::from(view.height.div_ceil(step))
+}
+
+/// The step of `view`'s densest coarse frame between the full image's pixels:
+/// [`DENSEST_COARSE_STEP`], or the power of two that leaves at most [`COARSE_FRAME_PIXELS`].
+fn densest_coarse_step(view: &View) -> u32 {
+    let mut step = DENSEST_COARSE_STEP;
+    while coarse_pixels(view, step) > COARSE_FRAME_PIXELS && step < SPARSEST_COARSE_STEP {
         step *= 2;
     }
     step
 }
 
-/// How long after its view arrived a page's last full frame was ready, and of how many pixels:
-/// a coarse frame comes first only when the next full frame is expected later than
-/// [`COARSE_FRAME_AFTER`], since it delays the full frame (its own encoding and sending, and the
-/// holes its pixels leave in the full frame's packets).
+/// How long after its view arrived a page's last full frame was ready, and of how many pixels,
+/// and how much sparser than the densest its coarse frames are: a coarse frame comes first only
+/// when the next full frame is expected later than [`COARSE_FRAME_AFTER`], since it delays the
+/// full frame, and it is made sparser while coarse frames come later than
+/// [`COARSE_FRAME_BUDGET`].
 #[derive(Default)]
 pub struct Pace {
     last_full_frame: Option<(u64, Duration)>,
+    /// Doublings of the coarse frame's step beyond [`densest_coarse_step`]: at most
+    /// log2([`SPARSEST_COARSE_STEP`] / 2).
+    coarse_doublings: u32,
 }
 
 /// A full frame expected later than this after its view gets a coarse frame first: the page
@@ -141,6 +162,24 @@ impl Pace {
             let scale = pixels as f64 / last_pixels.max(1) as f64;
             took.mul_f64(scale) > COARSE_FRAME_AFTER
         })
+    }
+
+    /// The step of `view`'s coarse frame: [`densest_coarse_step`] doubled as the last coarse
+    /// frames' times asked, at most [`SPARSEST_COARSE_STEP`].
+    fn coarse_step(&self, view: &View) -> u32 {
+        (densest_coarse_step(view) << self.coarse_doublings).min(SPARSEST_COARSE_STEP)
+    }
+
+    /// A coarse frame of `view` was ready `took` after its view arrived.
+    fn coarse_frame(&mut self, view: &View, took: Duration) {
+        if took > COARSE_FRAME_BUDGET {
+            let most = (SPARSEST_COARSE_STEP / densest_coarse_step(view))
+                .max(1)
+                .ilog2();
+            self.coarse_doublings = (self.coarse_doublings + 1).min(most);
+        } else if took < COARSE_FRAME_BUDGET / 2 {
+            self.coarse_doublings = self.coarse_doublings.saturating_sub(1);
+        }
     }
 
     /// A full frame of `pixels` was ready `took` after its view arrived.
@@ -174,10 +213,6 @@ impl Rays {
     }
 }
 
-/// How long a measure of the file's resident memory is shown before it is taken again: it
-/// reads the process's whole memory map, work that grows with the pages resident.
-const RESIDENCY_INTERVAL: Duration = Duration::from_millis(500);
-
 /// Fine pixels of a band of `scene`'s image: eight rows, so that a stale camera's leftover work
 /// is a few milliseconds.
 fn band_pixels(scene: &Scene) -> u32 {
@@ -201,7 +236,7 @@ impl Viewer {
             y_up_scene,
             up,
             token,
-            resident: Mutex::new(None),
+            resident: ResidentBytes::of(tracer.file().path().to_path_buf()),
         }
     }
 
@@ -268,8 +303,8 @@ impl Viewer {
     }
 
     /// The frames of `view` in the order the page shows them: when `pace` expects a slow full
-    /// frame, a coarse one of a quarter of the pixels or fewer ([`coarse_step`]) with primary
-    /// shading (the rays of some of the full image's pixels, which it then reuses); then the
+    /// frame, a coarse one of a quarter of the pixels or fewer ([`Pace::coarse_step`]) with
+    /// primary shading (the rays of some of the full image's pixels); then the
     /// full-size image in rounds, as `reducem render` makes it: the first with primary shading
     /// and shadows, each further one with twice the AO samples, until the scene's count. Each
     /// goes to `deliver` as soon as it is ready; work stops when `generation` leaves `current`.
@@ -290,22 +325,21 @@ impl Viewer {
         };
         let bands = band_pixels(&scene);
         let pixels = u64::from(view.width) * u64::from(view.height);
-        let mut image = match pace.needs_coarse_frame(pixels) {
-            true => {
-                let every = coarse_step(view);
-                // Bands of as many rows as the full image's.
-                let coarse_bands = bands / (every * every);
-                let mut coarse = Progressive::preview(self.tracer, &scene, every, coarse_bands);
-                let mut stages = Stages::since(received);
-                let frame = coarse.refine(1, is_current)?;
-                stages.end("traced");
-                let rays = Rays::of(&coarse);
-                let spp = 1.0 / (every * every) as f32;
-                deliver(self.encode(frame, rays, view.camera, current, spp, stages));
-                Progressive::reusing(self.tracer, &scene, bands, &coarse)
-            }
-            false => Progressive::new(self.tracer, &scene, bands),
-        };
+        if pace.needs_coarse_frame(pixels) {
+            let every = pace.coarse_step(view);
+            // Bands of as many rows as the full image's.
+            let coarse_bands = bands / (every * every);
+            let mut coarse = Progressive::preview(self.tracer, &scene, every, coarse_bands);
+            let mut stages = Stages::since(received);
+            let frame = coarse.refine(1, is_current)?;
+            stages.end("traced");
+            let rays = Rays::of(&coarse);
+            let spp = 1.0 / (every * every) as f32;
+            let encoded = self.encode(frame, rays, view.camera, current, spp, stages);
+            pace.coarse_frame(view, received.elapsed());
+            deliver(encoded);
+        }
+        let mut image = Progressive::new(self.tracer, &scene, bands);
         let (mut ao_samples, mut before) = (1, Rays::default());
         loop {
             let mut stages = Stages::since(received);
@@ -317,24 +351,11 @@ impl Viewer {
             if ao_samples == 1 {
                 pace.full_frame(pixels, received.elapsed());
             }
+            self.resident.refresh_when_due();
             if image.is_complete() {
                 return Ok(());
             }
             (ao_samples, before) = (ao_samples * 2, Rays::of(&image));
-        }
-    }
-
-    /// The file's resident bytes, measured at most every [`RESIDENCY_INTERVAL`].
-    fn resident_bytes(&self) -> Option<u64> {
-        let mut last = self.resident.lock().unwrap_or_else(|p| p.into_inner());
-        match *last {
-            Some((measured, bytes)) if measured.elapsed() < RESIDENCY_INTERVAL => bytes,
-            _ => {
-                let file = self.tracer.file();
-                let bytes = residency::mapping_rss(file.path());
-                *last = Some((Instant::now(), bytes));
-                bytes
-            }
         }
     }
 
@@ -371,7 +392,7 @@ impl Viewer {
                 rays: rays.rays,
                 seconds: rays.seconds,
                 triangles: self.tracer.file().header().triangle_count,
-                resident_bytes: self.resident_bytes(),
+                resident_bytes: self.resident.last(),
             },
             jpeg,
             stages,
@@ -493,9 +514,8 @@ fn casts_shadows(scene: &Scene) -> bool {
 mod tests {
     use super::*;
 
-    #[test]
-    fn a_coarse_frame_has_a_quarter_of_the_pixels_or_at_most_256_squared() {
-        let view = |width, height| View {
+    fn view(width: u32, height: u32) -> View {
+        View {
             camera: CameraView {
                 position: [0.0, -1.0, 0.0],
                 look_at: [0.0; 3],
@@ -506,7 +526,11 @@ mod tests {
             height,
             effects: None,
             up: None,
-        };
+        }
+    }
+
+    #[test]
+    fn a_coarse_frame_has_a_quarter_of_the_pixels_or_at_most_128_squared() {
         let steps = [
             (64, 48),
             (512, 512),
@@ -514,9 +538,35 @@ mod tests {
             (1024, 768),
             (1024, 1024),
             (4096, 16),
+            (16384, 16384),
         ];
-        let steps = steps.map(|(width, height)| coarse_step(&view(width, height)));
-        assert_eq!(steps, [2, 2, 4, 4, 4, 2]);
+        let steps = steps.map(|(width, height)| densest_coarse_step(&view(width, height)));
+        assert_eq!(steps, [2, 4, 8, 8, 8, 2, 64]);
+    }
+
+    #[test]
+    fn a_coarse_frame_is_made_sparser_while_coarse_frames_come_late_and_denser_when_fast() {
+        let mut pace = Pace::default();
+        let (full, quarter) = (view(512, 512), view(256, 256));
+        let steps = |pace: &Pace| (pace.coarse_step(&full), pace.coarse_step(&quarter));
+        assert_eq!(steps(&pace), (4, 2), "no coarse frame yet");
+        let ms = Duration::from_millis;
+        pace.coarse_frame(&full, ms(70));
+        assert_eq!(steps(&pace), (4, 2));
+        pace.coarse_frame(&full, ms(71));
+        assert_eq!(steps(&pace), (8, 4));
+        pace.coarse_frame(&full, ms(35));
+        assert_eq!(steps(&pace), (8, 4), "neither late nor fast");
+        pace.coarse_frame(&full, ms(34));
+        assert_eq!(steps(&pace), (4, 2));
+        pace.coarse_frame(&full, ms(34));
+        assert_eq!(steps(&pace), (4, 2), "the densest");
+        for _ in 0..10 {
+            pace.coarse_frame(&full, ms(900));
+        }
+        assert_eq!(steps(&pace), (64, 32), "the sparsest");
+        pace.coarse_frame(&full, ms(1));
+        assert_eq!(steps(&pace), (32, 16));
     }
 
     #[test]
