@@ -13,6 +13,7 @@ use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::{TopSlot, WIDE_WIDTH};
 use crate::trace::kernel::crossing_blocks::MASK_BLOCKS;
+use crate::trace::kernel::crossing_nodes::Detected;
 use crate::trace::kernel::Kernel;
 use crate::trace::watertight::RayPoint;
 use crate::trace::Ray;
@@ -92,7 +93,7 @@ impl CrossingPacket {
             let mut by_slot = [0 as Lanes; WIDE_WIDTH];
             let mut entered_any = 0u32;
             for_each_lane(lanes, |lane| {
-                let mut entered = node.entered_children(&self.walks[lane], grid);
+                let mut entered = node.entered_children::<Detected>(&self.walks[lane], grid);
                 entered_any |= entered;
                 while entered != 0 {
                     by_slot[entered.trailing_zeros() as usize] |= 1 << lane;
