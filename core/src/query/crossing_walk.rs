@@ -373,7 +373,7 @@ impl NodeBoxes for WideNode {
     /// All eight boxes in one register where the kernel has one that wide: the same bits.
     #[inline(always)]
     fn entered_children<B: WideBoxes>(&self, walk: &CrossingWalk, _: &()) -> u32 {
-        B::entered(walk.kernel, &walk.widened, self).unwrap_or_else(|| {
+        B::entered(&walk.widened, self).unwrap_or_else(|| {
             (0..WIDE_WIDTH / TOP_WIDTH).fold(0, |entered, group| {
                 entered | walk.entered(&self.boxes(&(), group)) << (group * TOP_WIDTH)
             })

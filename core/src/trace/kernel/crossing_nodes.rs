@@ -26,33 +26,11 @@ pub(crate) struct WidenedRay {
     pub far_inflation: f32,
 }
 
-/// The children of `node` whose grown box the ray may meet, as a bit mask (bit `k`: slot `k`);
-/// `None` on a kernel without eight-lane registers, whose walk tests four boxes at a time.
-#[inline(always)]
-#[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))]
-pub(crate) fn entered_wide(kernel: Kernel, ray: &WidenedRay, node: &WideNode) -> Option<u32> {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: the CPU runs AVX2, just checked.
-        Kernel::Avx2 if super::detect::avx2() => Some(unsafe { entered_wide_avx2(ray, node) }),
-        _ => None,
-    }
-}
-
-/// How a walk tests a wide node's eight child boxes: [`entered_wide`]'s answer, decided once
-/// per walk ([`compiled`]) or per node ([`Detected`]).
+/// How a walk tests a wide node's eight child boxes: the children whose grown box the ray may
+/// meet as a bit mask (bit `k`: slot `k`), or `None` where the kernel has no eight-lane
+/// registers and the walk tests four boxes at a time. Chosen once per walk by [`compiled`].
 pub(crate) trait WideBoxes {
-    fn entered(kernel: Kernel, ray: &WidenedRay, node: &WideNode) -> Option<u32>;
-}
-
-/// The kernel and the CPU asked at every node: for walks not run through [`compiled`].
-pub(crate) struct Detected;
-
-impl WideBoxes for Detected {
-    #[inline(always)]
-    fn entered(kernel: Kernel, ray: &WidenedRay, node: &WideNode) -> Option<u32> {
-        entered_wide(kernel, ray, node)
-    }
+    fn entered(ray: &WidenedRay, node: &WideNode) -> Option<u32>;
 }
 
 /// Four boxes at a time, by the walk's own test.
@@ -60,7 +38,7 @@ struct FourLanes;
 
 impl WideBoxes for FourLanes {
     #[inline(always)]
-    fn entered(_: Kernel, _: &WidenedRay, _: &WideNode) -> Option<u32> {
+    fn entered(_: &WidenedRay, _: &WideNode) -> Option<u32> {
         None
     }
 }
@@ -73,7 +51,7 @@ struct EightLanes;
 #[cfg(target_arch = "x86_64")]
 impl WideBoxes for EightLanes {
     #[inline(always)]
-    fn entered(_: Kernel, ray: &WidenedRay, node: &WideNode) -> Option<u32> {
+    fn entered(ray: &WidenedRay, node: &WideNode) -> Option<u32> {
         // SAFETY: `EightLanes` runs only inside `compiled_for_avx2`, called once AVX2 was
         // detected.
         Some(unsafe { entered_wide_avx2(ray, node) })
