@@ -20,6 +20,7 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
 use super::child_box::ChildBox;
+use super::crossing_walk::{block_boxes, box_frame, BOX_LANES};
 use super::triangle_distance::{closest_on_triangle, TrianglePoint};
 use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
@@ -27,9 +28,7 @@ use crate::format::vertices::{StripVertices, VertexAccess};
 use crate::format::{TopSlot, INTERNAL_CHILD, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::strip_windows::window_corners;
-use crate::trace::kernel::distance_bounds::{
-    box_bound, compiled, BlockCorners, BoundLanes, PointWalk,
-};
+use crate::trace::kernel::distance_bounds::{compiled, BlockCorners, BoundLanes, PointWalk};
 use crate::trace::kernel::Kernel;
 
 /// The closest point of the surface to a query point.
@@ -295,7 +294,7 @@ impl<'f> ClosestPointSearch<'f> {
         for strip in first..first.saturating_add(count) {
             let view = self.file.strip(strip as usize);
             let at = (strip, self.views.len() as u32);
-            push_spans(&mut self.spans, &view, at, leaf_bound, query, best.limit);
+            push_spans::<L>(&mut self.spans, &view, at, leaf_bound, query, best.limit);
             self.views.push(view);
         }
         self.spans
@@ -319,8 +318,10 @@ impl<'f> ClosestPointSearch<'f> {
 }
 
 /// The spans of strip `strip` (view `view`) that may beat `limit`: one per block box when it
-/// stores them, else the whole strip at its leaf's bound.
-fn push_spans(
+/// stores them (bounded four at a time, each as `distance_bounds::box_bound` bounds it; up to the first box
+/// that cannot be read), else the whole strip at its leaf's bound.
+#[inline(always)]
+fn push_spans<L: BoundLanes>(
     spans: &mut Vec<Span>,
     strip_view: &StripView,
     (strip, view): (u32, u32),
@@ -332,7 +333,7 @@ fn push_spans(
     let boxes = &strip_view.boxes;
     let frame = match boxes.is_empty() {
         true => None,
-        false => boxes.frame(strip_view.vertices.point(0)),
+        false => box_frame(strip_view),
     };
     let Some(frame) = frame else {
         spans.push(Span {
@@ -343,19 +344,24 @@ fn push_spans(
         });
         return;
     };
-    for block in 0..boxes.count() {
-        let Some((min, max)) = boxes.decode(&frame, block) else {
-            break;
-        };
-        let bound = box_bound(&query.wide, &min, &max);
-        let first = block * BOX_WINDOWS;
-        if bound <= limit {
-            spans.push(Span {
-                bound,
-                strip,
-                view,
-                windows: (first, (first + BOX_WINDOWS).min(windows)),
-            });
+    let blocks = boxes.count();
+    for first in (0..blocks).step_by(BOX_LANES) {
+        let lanes = (blocks - first).min(BOX_LANES);
+        let ((min, max), unreadable) = block_boxes(boxes, &frame, first, lanes);
+        let bounds = L::child_bounds(&query.wide, &min, &max);
+        for (lane, &bound) in bounds.iter().enumerate().take(lanes) {
+            if unreadable >> lane & 1 != 0 {
+                return;
+            }
+            let first_window = (first + lane) * BOX_WINDOWS;
+            if bound <= limit {
+                spans.push(Span {
+                    bound,
+                    strip,
+                    view,
+                    windows: (first_window, (first_window + BOX_WINDOWS).min(windows)),
+                });
+            }
         }
     }
 }

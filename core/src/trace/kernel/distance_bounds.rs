@@ -125,6 +125,7 @@ fn compiled_for_avx2<W: PointWalk>(walk: W) -> W::Output {
 
 /// A lower bound of the squared distance from `query` to the box `min..max`, never above the
 /// true one. A NaN plane (only in a corrupt box) counts as no gap.
+#[inline(always)]
 pub(crate) fn box_bound(query: &[f64; 3], min: &[f32; 3], max: &[f32; 3]) -> f64 {
     let gaps: [f64; 3] = std::array::from_fn(|axis| {
         let below = f64::from(min[axis]) - query[axis];
@@ -158,14 +159,7 @@ fn child_lanes(
     min: &LaneBoxes<TOP_WIDTH>,
     max: &LaneBoxes<TOP_WIDTH>,
 ) -> [f64; TOP_WIDTH] {
-    let gaps = |lane: usize| -> [f64; 3] {
-        std::array::from_fn(|axis| {
-            let below = f64::from(min[axis][lane]) - query[axis];
-            let above = query[axis] - f64::from(max[axis][lane]);
-            gap(below, above)
-        })
-    };
-    std::array::from_fn(|lane| squared_bound(gaps(lane)))
+    std::array::from_fn(|lane| box_bound(query, &min.map(|a| a[lane]), &max.map(|a| a[lane])))
 }
 
 /// Each vertex's offset from the query once, then per window the smallest and largest of its
