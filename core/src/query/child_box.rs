@@ -4,8 +4,7 @@
 
 use crate::format::grid::NodeGrid;
 use crate::format::{GridNode, NodeRecord, TopNode, WideNode, TOP_WIDTH};
-use crate::trace::kernel::distance_bounds::{wide_child_boxes, LaneBoxes};
-use crate::trace::kernel::Kernel;
+use crate::trace::kernel::distance_bounds::{BoundLanes, LaneBoxes};
 
 /// A group of four child boxes by axis and slot (`[axis][slot]`): minima, maxima.
 pub(crate) type FourBoxes = (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>);
@@ -17,7 +16,7 @@ pub(crate) trait ChildBox: NodeRecord {
     /// Every slot's box in groups of four (group `g`: slots `4 g .. 4 g + 4`); slots that hold
     /// no child decode as whatever their planes store.
     type Groups: AsRef<[FourBoxes]>;
-    fn child_boxes(&self, grid: &Self::Grid, kernel: Kernel) -> Self::Groups;
+    fn child_boxes<L: BoundLanes>(&self, grid: &Self::Grid) -> Self::Groups;
 }
 
 impl ChildBox for TopNode {
@@ -25,7 +24,8 @@ impl ChildBox for TopNode {
     type Groups = [FourBoxes; 1];
 
     /// The record stores its boxes by axis and slot already.
-    fn child_boxes(&self, _: &(), _: Kernel) -> [FourBoxes; 1] {
+    #[inline(always)]
+    fn child_boxes<L: BoundLanes>(&self, _: &()) -> [FourBoxes; 1] {
         [(self.min, self.max)]
     }
 }
@@ -36,7 +36,8 @@ impl ChildBox for GridNode {
 
     /// Through [`NodeGrid::decode_axis`], the expression the writer rounded the boxes outward
     /// with.
-    fn child_boxes(&self, grid: &NodeGrid, _: Kernel) -> [FourBoxes; 1] {
+    #[inline(always)]
+    fn child_boxes<L: BoundLanes>(&self, grid: &NodeGrid) -> [FourBoxes; 1] {
         let decode = |q: &[[u16; TOP_WIDTH]; 3]| {
             std::array::from_fn(|axis| q[axis].map(|q| grid.decode_axis(q, axis)))
         };
@@ -50,7 +51,8 @@ impl ChildBox for WideNode {
 
     /// All eight at once in the kernel's lanes: [`WideNode::decode`]'s bits, the expression
     /// the writer rounded the boxes outward with.
-    fn child_boxes(&self, _: &(), kernel: Kernel) -> [FourBoxes; 2] {
-        wide_child_boxes(kernel, self)
+    #[inline(always)]
+    fn child_boxes<L: BoundLanes>(&self, _: &()) -> [FourBoxes; 2] {
+        L::wide_child_boxes(self)
     }
 }

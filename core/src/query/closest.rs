@@ -20,6 +20,7 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
 use super::child_box::ChildBox;
+use super::crossing_walk::{block_boxes, box_frame, BOX_LANES};
 use super::triangle_distance::{closest_on_triangle, TrianglePoint};
 use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
@@ -27,7 +28,7 @@ use crate::format::vertices::{StripVertices, VertexAccess};
 use crate::format::{TopSlot, INTERNAL_CHILD, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::strip_windows::window_corners;
-use crate::trace::kernel::distance_bounds::{box_bound, child_bounds, window_bounds, BlockCorners};
+use crate::trace::kernel::distance_bounds::{compiled, BlockCorners, BoundLanes, PointWalk};
 use crate::trace::kernel::Kernel;
 
 /// The closest point of the surface to a query point.
@@ -116,11 +117,14 @@ impl<'f> ClosestPointSearch<'f> {
             limit: (max * max).min(self.previous_bound(point)),
             found: None,
         };
-        match self.file.top_nodes() {
-            TopNodes::F32(nodes) => self.walk(nodes, &(), point, &mut best),
-            TopNodes::Grid(nodes, grid) => self.walk(nodes, &grid, point, &mut best),
-            TopNodes::Wide(nodes) => self.walk(nodes, &(), point, &mut best),
-        }
+        compiled(
+            self.kernel,
+            Search {
+                search: self,
+                point,
+                best: &mut best,
+            },
+        );
         self.previous = best.found.map(|(_, _, found)| found.point);
         let (strip, window, found) = best.found?;
         Some(ClosestPoint {
@@ -153,7 +157,14 @@ impl<'f> ClosestPointSearch<'f> {
     /// Best-first over the top level, except that a node's nearest child that may beat `best`
     /// is entered at once rather than through the heap: that child would most often be popped
     /// next anyway, and the answer does not depend on the order (see the module's notes).
-    fn walk<N: ChildBox>(&mut self, nodes: &[N], grid: &N::Grid, point: &Point, best: &mut Best) {
+    #[inline(always)]
+    fn walk<N: ChildBox, L: BoundLanes>(
+        &mut self,
+        nodes: &[N],
+        grid: &N::Grid,
+        point: &Point,
+        best: &mut Best,
+    ) {
         let query = Query {
             point: *point,
             wide: point.map(f64::from),
@@ -172,18 +183,19 @@ impl<'f> ClosestPointSearch<'f> {
                 break;
             }
             if kind != INTERNAL_CHILD {
-                self.search_leaf((child, kind), bound, &query, best);
+                self.search_leaf::<L>((child, kind), bound, &query, best);
                 continue;
             }
             if let Some(node) = self.file.top_node(nodes, child as usize) {
-                next = self.push_children(node, grid, &query, best.limit);
+                next = self.push_children::<N, L>(node, grid, &query, best.limit);
             }
         }
     }
 
     /// Pushes the children of `node` whose bound does not exceed `limit`, but for the nearest,
     /// returned with its bound.
-    fn push_children<N: ChildBox>(
+    #[inline(always)]
+    fn push_children<N: ChildBox, L: BoundLanes>(
         &mut self,
         node: &N,
         grid: &N::Grid,
@@ -191,12 +203,12 @@ impl<'f> ClosestPointSearch<'f> {
         limit: f64,
     ) -> Option<(f64, (u32, u32))> {
         let mut nearest: Option<(f64, (u32, u32))> = None;
-        let groups = node.child_boxes(grid, self.kernel);
+        let groups = node.child_boxes::<L>(grid);
         for (group, (min, max)) in groups.as_ref().iter().enumerate() {
             if node.slot(group * TOP_WIDTH) == TopSlot::Empty {
                 break;
             }
-            let bounds = child_bounds(self.kernel, &query.wide, min, max);
+            let bounds = L::child_bounds(&query.wide, min, max);
             for (lane, &bound) in bounds.iter().enumerate() {
                 let link = match node.slot(group * TOP_WIDTH + lane) {
                     TopSlot::Internal(index) => (index, INTERNAL_CHILD),
@@ -225,6 +237,31 @@ impl<'f> ClosestPointSearch<'f> {
     }
 }
 
+/// [`ClosestPointSearch::closest`]'s walk of one point, for [`compiled`].
+struct Search<'s, 'f> {
+    search: &'s mut ClosestPointSearch<'f>,
+    point: &'s Point,
+    best: &'s mut Best,
+}
+
+impl PointWalk for Search<'_, '_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<L: BoundLanes>(self) {
+        let Search {
+            search,
+            point,
+            best,
+        } = self;
+        match search.file.top_nodes() {
+            TopNodes::F32(nodes) => search.walk::<_, L>(nodes, &(), point, best),
+            TopNodes::Grid(nodes, grid) => search.walk::<_, L>(nodes, &grid, point, best),
+            TopNodes::Wide(nodes) => search.walk::<_, L>(nodes, &(), point, best),
+        }
+    }
+}
+
 /// Relative growth of the previous closest point's distance ([`ClosestPointSearch::closest`]):
 /// far above f64 roundings, far below any distance that matters for pruning.
 const PREVIOUS_MARGIN: f64 = 1.0 / (1u64 << 30) as f64;
@@ -244,7 +281,8 @@ impl<'f> ClosestPointSearch<'f> {
     /// Tests the windows of the leaf's strips (`first .. first + count`, the leaf's box at
     /// `leaf_bound`) that may beat `best`: the blocks of every strip nearest first, so that the
     /// limit shrinks early and farther blocks are skipped.
-    fn search_leaf(
+    #[inline(always)]
+    fn search_leaf<L: BoundLanes>(
         &mut self,
         (first, count): (u32, u32),
         leaf_bound: f64,
@@ -256,12 +294,11 @@ impl<'f> ClosestPointSearch<'f> {
         for strip in first..first.saturating_add(count) {
             let view = self.file.strip(strip as usize);
             let at = (strip, self.views.len() as u32);
-            push_spans(&mut self.spans, &view, at, leaf_bound, query, best.limit);
+            push_spans::<L>(&mut self.spans, &view, at, leaf_bound, query, best.limit);
             self.views.push(view);
         }
         self.spans
             .sort_unstable_by(|a, b| a.bound.total_cmp(&b.bound));
-        let kernel = self.kernel;
         for span in &self.spans {
             if span.bound > best.limit {
                 break;
@@ -270,10 +307,10 @@ impl<'f> ClosestPointSearch<'f> {
             // The one branch on the vertex encoding, per span.
             match view.vertices {
                 StripVertices::F32(vertices) => {
-                    search_windows(vertices, view, span, query, kernel, best)
+                    search_windows::<_, L>(vertices, view, span, query, best)
                 }
                 StripVertices::Grid(vertices) => {
-                    search_windows(vertices, view, span, query, kernel, best)
+                    search_windows::<_, L>(vertices, view, span, query, best)
                 }
             }
         }
@@ -281,8 +318,10 @@ impl<'f> ClosestPointSearch<'f> {
 }
 
 /// The spans of strip `strip` (view `view`) that may beat `limit`: one per block box when it
-/// stores them, else the whole strip at its leaf's bound.
-fn push_spans(
+/// stores them (bounded four at a time, each as `distance_bounds::box_bound` bounds it; up to the first box
+/// that cannot be read), else the whole strip at its leaf's bound.
+#[inline(always)]
+fn push_spans<L: BoundLanes>(
     spans: &mut Vec<Span>,
     strip_view: &StripView,
     (strip, view): (u32, u32),
@@ -294,7 +333,7 @@ fn push_spans(
     let boxes = &strip_view.boxes;
     let frame = match boxes.is_empty() {
         true => None,
-        false => boxes.frame(strip_view.vertices.point(0)),
+        false => box_frame(strip_view),
     };
     let Some(frame) = frame else {
         spans.push(Span {
@@ -305,31 +344,36 @@ fn push_spans(
         });
         return;
     };
-    for block in 0..boxes.count() {
-        let Some((min, max)) = boxes.decode(&frame, block) else {
-            break;
-        };
-        let bound = box_bound(&query.wide, &min, &max);
-        let first = block * BOX_WINDOWS;
-        if bound <= limit {
-            spans.push(Span {
-                bound,
-                strip,
-                view,
-                windows: (first, (first + BOX_WINDOWS).min(windows)),
-            });
+    let blocks = boxes.count();
+    for first in (0..blocks).step_by(BOX_LANES) {
+        let lanes = (blocks - first).min(BOX_LANES);
+        let ((min, max), unreadable) = block_boxes(boxes, &frame, first, lanes);
+        let bounds = L::child_bounds(&query.wide, &min, &max);
+        for (lane, &bound) in bounds.iter().enumerate().take(lanes) {
+            if unreadable >> lane & 1 != 0 {
+                return;
+            }
+            let first_window = (first + lane) * BOX_WINDOWS;
+            if bound <= limit {
+                spans.push(Span {
+                    bound,
+                    strip,
+                    view,
+                    windows: (first_window, (first_window + BOX_WINDOWS).min(windows)),
+                });
+            }
         }
     }
 }
 
 /// Tests the span's windows whose own box may beat `best` exactly, a block of windows at a
 /// time: its references and vertices read once, its windows' box bounds computed together.
-fn search_windows<V: VertexAccess>(
+#[inline(always)]
+fn search_windows<V: VertexAccess, L: BoundLanes>(
     vertices: V,
     view: &StripView,
     span: &Span,
     query: &Query,
-    kernel: Kernel,
     best: &mut Best,
 ) {
     let (first, end) = span.windows;
@@ -338,7 +382,7 @@ fn search_windows<V: VertexAccess>(
         let references: [u8; BOX_WINDOWS + 2] = view.references.read_block(block);
         let corners: BlockCorners =
             vertices.gather::<0, 1, 2, { BOX_WINDOWS + 2 }>(&references, used + 2);
-        let bounds = window_bounds(kernel, &query.wide, &corners);
+        let bounds = L::window_bounds(&query.wide, &corners);
         for (lane, &bound) in bounds.iter().enumerate().take(used) {
             if bound > best.limit {
                 continue;

@@ -13,6 +13,7 @@ use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::{TopSlot, WIDE_WIDTH};
 use crate::trace::kernel::crossing_blocks::MASK_BLOCKS;
+use crate::trace::kernel::crossing_nodes::{compiled, NodeWalk, WideBoxes};
 use crate::trace::kernel::Kernel;
 use crate::trace::watertight::RayPoint;
 use crate::trace::Ray;
@@ -25,6 +26,7 @@ type Lanes = u32;
 
 /// The walks of a packet's rays; lane `k` is ray `k`.
 pub(super) struct CrossingPacket {
+    kernel: Kernel,
     walks: ArrayVec<CrossingWalk, PACKET_RAYS>,
     /// The lanes whose ray is valid: the others cross nothing and are never walked.
     valid: Lanes,
@@ -41,6 +43,7 @@ impl CrossingPacket {
             tmax: 0.0,
         };
         let mut packet = CrossingPacket {
+            kernel,
             walks: ArrayVec::new(),
             valid: 0,
         };
@@ -60,14 +63,16 @@ impl CrossingPacket {
         file: &ReducemFile,
         each: &mut impl FnMut(usize, u32, usize, [RayPoint; 3]),
     ) {
-        match file.top_nodes() {
-            TopNodes::F32(nodes) => self.nodes(file, nodes, &(), each),
-            TopNodes::Grid(nodes, grid) => self.nodes(file, nodes, &grid, each),
-            TopNodes::Wide(nodes) => self.nodes(file, nodes, &(), each),
-        }
+        let walk = PacketWalk {
+            packet: self,
+            file,
+            each,
+        };
+        compiled(self.kernel, walk)
     }
 
-    fn nodes<N: NodeBoxes>(
+    #[inline(always)]
+    fn nodes<N: NodeBoxes, B: WideBoxes>(
         &self,
         file: &ReducemFile,
         nodes: &[N],
@@ -92,7 +97,7 @@ impl CrossingPacket {
             let mut by_slot = [0 as Lanes; WIDE_WIDTH];
             let mut entered_any = 0u32;
             for_each_lane(lanes, |lane| {
-                let mut entered = node.entered_children(&self.walks[lane], grid);
+                let mut entered = node.entered_children::<B>(&self.walks[lane], grid);
                 entered_any |= entered;
                 while entered != 0 {
                     by_slot[entered.trailing_zeros() as usize] |= 1 << lane;
@@ -117,6 +122,7 @@ impl CrossingPacket {
 
     /// The candidate windows of strip `strip` for the rays of `lanes`: the strip viewed once,
     /// each group of its block boxes decoded once and tested by every lane.
+    #[inline(always)]
     fn strip(
         &self,
         file: &ReducemFile,
@@ -140,6 +146,7 @@ impl CrossingPacket {
     /// Per lane of `lanes`, the blocks of `first_block .. first_block + count` its ray may
     /// meet, as [`CrossingWalk`]'s own test finds them (every block when the strip stores no
     /// boxes or their frame cannot be read).
+    #[inline(always)]
     fn entered_blocks(
         &self,
         view: &StripView,
@@ -174,5 +181,26 @@ fn for_each_lane(mut lanes: Lanes, mut each: impl FnMut(usize)) {
     while lanes != 0 {
         each(lanes.trailing_zeros() as usize);
         lanes &= lanes - 1;
+    }
+}
+
+/// [`CrossingPacket::run`]'s walk of one file, for [`compiled`].
+struct PacketWalk<'p, 'f, F> {
+    packet: &'p CrossingPacket,
+    file: &'f ReducemFile,
+    each: &'p mut F,
+}
+
+impl<F: FnMut(usize, u32, usize, [RayPoint; 3])> NodeWalk for PacketWalk<'_, '_, F> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<B: WideBoxes>(self) {
+        let PacketWalk { packet, file, each } = self;
+        match file.top_nodes() {
+            TopNodes::F32(nodes) => packet.nodes::<_, B>(file, nodes, &(), each),
+            TopNodes::Grid(nodes, grid) => packet.nodes::<_, B>(file, nodes, &grid, each),
+            TopNodes::Wide(nodes) => packet.nodes::<_, B>(file, nodes, &(), each),
+        }
     }
 }

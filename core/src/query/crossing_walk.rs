@@ -21,7 +21,7 @@ use crate::format::vertices::{StripVertices, VertexAccess};
 use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, WideNode, TOP_WIDTH, WIDE_WIDTH};
 use crate::geometry::Point;
 use crate::trace::kernel::crossing_blocks::{for_each_candidate, StripBlocks, MASK_BLOCKS};
-use crate::trace::kernel::crossing_nodes::{entered_wide, WidenedRay};
+use crate::trace::kernel::crossing_nodes::{compiled, NodeWalk, WideBoxes, WidenedRay};
 use crate::trace::kernel::Kernel;
 use crate::trace::prepared::{max_not_nan_x4, min_not_nan_x4, PreparedRay, FAR_INFLATION};
 use crate::trace::watertight::{RayPoint, RaySpace};
@@ -84,14 +84,18 @@ impl CrossingWalk {
     /// Calls `each(strip, window, corners)` for every candidate window of the file (see
     /// [`for_each_candidate`]); corrupt nodes reached are skipped as in tracing.
     pub(super) fn run(&self, file: &ReducemFile, each: &mut impl FnMut(u32, usize, [RayPoint; 3])) {
-        match file.top_nodes() {
-            TopNodes::F32(nodes) => self.nodes(file, nodes, &(), each),
-            TopNodes::Grid(nodes, grid) => self.nodes(file, nodes, &grid, each),
-            TopNodes::Wide(nodes) => self.nodes(file, nodes, &(), each),
-        }
+        compiled(
+            self.kernel,
+            FileWalk {
+                walk: self,
+                file,
+                each,
+            },
+        )
     }
 
-    fn nodes<N: NodeBoxes>(
+    #[inline(always)]
+    fn nodes<N: NodeBoxes, B: WideBoxes>(
         &self,
         file: &ReducemFile,
         nodes: &[N],
@@ -113,7 +117,7 @@ impl CrossingWalk {
             let Some(node) = file.top_node(nodes, index as usize) else {
                 continue;
             };
-            let mut entered = node.entered_children(self, grid);
+            let mut entered = node.entered_children::<B>(self, grid);
             while entered != 0 {
                 let slot = entered.trailing_zeros() as usize;
                 entered &= entered - 1;
@@ -132,6 +136,7 @@ impl CrossingWalk {
 
     /// The candidate windows of strip `strip` in the blocks whose box the ray may meet (every
     /// block when the strip stores no boxes).
+    #[inline(always)]
     fn strip(
         &self,
         file: &ReducemFile,
@@ -174,6 +179,7 @@ impl CrossingWalk {
     /// Of the `count` blocks from `first_block`, those whose box the ray may meet (all when
     /// the boxes cannot be framed or read: only in a corrupt strip, which validation reports),
     /// four blocks to a node's test: a strip's few blocks cost one or two of them.
+    #[inline(always)]
     fn entered_blocks(&self, view: &StripView, first_block: usize, count: usize) -> u64 {
         let all = u64::MAX >> (MASK_BLOCKS - count);
         let Some(frame) = box_frame(view) else {
@@ -210,6 +216,27 @@ impl CrossingWalk {
             far = min_not_nan_x4(far, exit);
         }
         near.simd_le(far).to_bitmask()
+    }
+}
+
+/// [`CrossingWalk::run`]'s walk of one file, for [`compiled`].
+struct FileWalk<'w, 'f, F> {
+    walk: &'w CrossingWalk,
+    file: &'f ReducemFile,
+    each: &'w mut F,
+}
+
+impl<F: FnMut(u32, usize, [RayPoint; 3])> NodeWalk for FileWalk<'_, '_, F> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<B: WideBoxes>(self) {
+        let FileWalk { walk, file, each } = self;
+        match file.top_nodes() {
+            TopNodes::F32(nodes) => walk.nodes::<_, B>(file, nodes, &(), each),
+            TopNodes::Grid(nodes, grid) => walk.nodes::<_, B>(file, nodes, &grid, each),
+            TopNodes::Wide(nodes) => walk.nodes::<_, B>(file, nodes, &(), each),
+        }
     }
 }
 
@@ -294,9 +321,10 @@ pub(super) trait NodeBoxes: NodeRecord {
     /// The boxes of slots `4 group .. 4 group + 4`.
     fn boxes(&self, grid: &Self::Grid, group: usize) -> FourBoxes;
 
-    /// The children whose box `walk`'s ray may meet ([`CrossingWalk::entered`]), as a bit mask.
+    /// The children whose box `walk`'s ray may meet ([`CrossingWalk::entered`]), as a bit mask;
+    /// `B` tests a wide node's eight boxes at once where the kernel can.
     #[inline(always)]
-    fn entered_children(&self, walk: &CrossingWalk, grid: &Self::Grid) -> u32 {
+    fn entered_children<B: WideBoxes>(&self, walk: &CrossingWalk, grid: &Self::Grid) -> u32 {
         let mut entered = 0;
         for group in 0..Self::WIDTH / TOP_WIDTH {
             entered |= walk.entered(&self.boxes(grid, group)) << (group * TOP_WIDTH);
@@ -344,8 +372,8 @@ impl NodeBoxes for WideNode {
 
     /// All eight boxes in one register where the kernel has one that wide: the same bits.
     #[inline(always)]
-    fn entered_children(&self, walk: &CrossingWalk, _: &()) -> u32 {
-        entered_wide(walk.kernel, &walk.widened, self).unwrap_or_else(|| {
+    fn entered_children<B: WideBoxes>(&self, walk: &CrossingWalk, _: &()) -> u32 {
+        B::entered(&walk.widened, self).unwrap_or_else(|| {
             (0..WIDE_WIDTH / TOP_WIDTH).fold(0, |entered, group| {
                 entered | walk.entered(&self.boxes(&(), group)) << (group * TOP_WIDTH)
             })

@@ -23,51 +23,109 @@ pub(crate) type LaneBoxes<const N: usize> = [[f32; N]; 3];
 /// vertices `k`, `k + 1` and `k + 2`.
 pub(crate) type BlockCorners = [[f32; BLOCK + 2]; 3];
 
-/// [`box_bound`] of each child box of a top-level node.
-pub(crate) fn child_bounds(
-    kernel: Kernel,
-    query: &[f64; 3],
-    min: &LaneBoxes<TOP_WIDTH>,
-    max: &LaneBoxes<TOP_WIDTH>,
-) -> [f64; TOP_WIDTH] {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: the CPU runs AVX2, just checked.
-        Kernel::Avx2 if super::detect::avx2() => unsafe { child_bounds_avx2(query, min, max) },
-        _ => child_lanes(query, min, max),
+/// The box bounds of a closest-point search in one kernel's lanes, chosen once per search by
+/// [`compiled`]; every implementation gives the same bits.
+pub(crate) trait BoundLanes {
+    /// [`box_bound`] of each child box of a top-level node.
+    fn child_bounds(
+        query: &[f64; 3],
+        min: &LaneBoxes<TOP_WIDTH>,
+        max: &LaneBoxes<TOP_WIDTH>,
+    ) -> [f64; TOP_WIDTH];
+
+    /// The eight child boxes of a format 4 node as two groups of four (`(min, max)` by axis
+    /// and slot), decoded at once: [`WideNode::decode`]'s bits (the kernels' tests).
+    fn wide_child_boxes(node: &WideNode) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2];
+
+    /// [`box_bound`] of the box of each window of a block (its corners' minima and maxima),
+    /// the bound the search tests before a window's exact distance.
+    fn window_bounds(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK];
+}
+
+/// The portable kernel's lanes.
+struct PortableLanes;
+
+impl BoundLanes for PortableLanes {
+    #[inline(always)]
+    fn child_bounds(
+        query: &[f64; 3],
+        min: &LaneBoxes<TOP_WIDTH>,
+        max: &LaneBoxes<TOP_WIDTH>,
+    ) -> [f64; TOP_WIDTH] {
+        child_lanes(query, min, max)
+    }
+
+    #[inline(always)]
+    fn wide_child_boxes(node: &WideNode) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2] {
+        super::portable::Portable::decode_wide(node)
+    }
+
+    #[inline(always)]
+    fn window_bounds(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
+        window_lanes(query, corners)
     }
 }
 
-/// The eight child boxes of a format 4 node as two groups of four (`(min, max)` by axis and
-/// slot), decoded at once by the kernel: [`WideNode::decode`]'s bits (the kernels' tests).
-pub(crate) fn wide_child_boxes(
-    kernel: Kernel,
-    node: &WideNode,
-) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2] {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 if super::detect::avx2() => super::avx2::Avx2::decode_wide(node),
-        _ => super::portable::Portable::decode_wide(node),
+/// AVX2 registers; only [`compiled`] names it, once the CPU was found to run AVX2.
+#[cfg(target_arch = "x86_64")]
+struct Avx2Lanes;
+
+// SAFETY (each call below): `Avx2Lanes` runs only inside `compiled_for_avx2`, called once
+// AVX2 and BMI2 were detected.
+#[cfg(target_arch = "x86_64")]
+impl BoundLanes for Avx2Lanes {
+    #[inline(always)]
+    fn child_bounds(
+        query: &[f64; 3],
+        min: &LaneBoxes<TOP_WIDTH>,
+        max: &LaneBoxes<TOP_WIDTH>,
+    ) -> [f64; TOP_WIDTH] {
+        // SAFETY: see the impl.
+        unsafe { child_bounds_avx2(query, min, max) }
+    }
+
+    #[inline(always)]
+    fn wide_child_boxes(node: &WideNode) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2] {
+        super::avx2::Avx2::decode_wide(node)
+    }
+
+    #[inline(always)]
+    fn window_bounds(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
+        // SAFETY: see the impl.
+        unsafe { window_bounds_avx2(query, corners) }
     }
 }
 
-/// [`box_bound`] of the box of each window of a block (its corners' minima and maxima), the
-/// bound the search tests before a window's exact distance.
-pub(crate) fn window_bounds(
-    kernel: Kernel,
-    query: &[f64; 3],
-    corners: &BlockCorners,
-) -> [f64; BLOCK] {
+/// A closest-point search generic over its bound lanes, for [`compiled`].
+pub(crate) trait PointWalk {
+    type Output;
+
+    fn run<L: BoundLanes>(self) -> Self::Output;
+}
+
+/// `walk` with its bound lanes chosen once: on AVX2 the whole search is compiled for AVX2, so
+/// the bounds are inlined into its loops, not called (and the CPU asked) at every node and
+/// block. A kernel this CPU lacks runs as the portable one.
+#[inline(always)]
+pub(crate) fn compiled<W: PointWalk>(kernel: Kernel, walk: W) -> W::Output {
     match kernel {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: the CPU runs AVX2, just checked.
-        Kernel::Avx2 if super::detect::avx2() => unsafe { window_bounds_avx2(query, corners) },
-        _ => window_lanes(query, corners),
+        // SAFETY: the CPU runs AVX2 and BMI2, just checked.
+        Kernel::Avx2 if super::detect::avx2() => unsafe { compiled_for_avx2(walk) },
+        _ => walk.run::<PortableLanes>(),
     }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,bmi2")]
+#[inline(never)]
+fn compiled_for_avx2<W: PointWalk>(walk: W) -> W::Output {
+    walk.run::<Avx2Lanes>()
 }
 
 /// A lower bound of the squared distance from `query` to the box `min..max`, never above the
 /// true one. A NaN plane (only in a corrupt box) counts as no gap.
+#[inline(always)]
 pub(crate) fn box_bound(query: &[f64; 3], min: &[f32; 3], max: &[f32; 3]) -> f64 {
     let gaps: [f64; 3] = std::array::from_fn(|axis| {
         let below = f64::from(min[axis]) - query[axis];
@@ -101,14 +159,7 @@ fn child_lanes(
     min: &LaneBoxes<TOP_WIDTH>,
     max: &LaneBoxes<TOP_WIDTH>,
 ) -> [f64; TOP_WIDTH] {
-    let gaps = |lane: usize| -> [f64; 3] {
-        std::array::from_fn(|axis| {
-            let below = f64::from(min[axis][lane]) - query[axis];
-            let above = query[axis] - f64::from(max[axis][lane]);
-            gap(below, above)
-        })
-    };
-    std::array::from_fn(|lane| squared_bound(gaps(lane)))
+    std::array::from_fn(|lane| box_bound(query, &min.map(|a| a[lane]), &max.map(|a| a[lane])))
 }
 
 /// Each vertex's offset from the query once, then per window the smallest and largest of its
@@ -135,6 +186,7 @@ fn window_lanes(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
 /// (`max_pd(a, b)` is `if a > b { a } else { b }`, `min_pd` likewise with `<`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[inline]
 fn child_bounds_avx2(
     query: &[f64; 3],
     min: &LaneBoxes<TOP_WIDTH>,
@@ -161,6 +213,7 @@ fn child_bounds_avx2(
 /// as the vertices shifted by 0, 1 and 2 positions.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[inline]
 fn window_bounds_avx2(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
     use std::arch::x86_64::*;
     let half = |first: usize| {
@@ -186,6 +239,7 @@ fn window_bounds_avx2(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] 
 /// [`gap`] lane by lane.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[inline]
 fn gap_avx2(
     below: std::arch::x86_64::__m256d,
     above: std::arch::x86_64::__m256d,
@@ -198,6 +252,7 @@ fn gap_avx2(
 /// [`squared_bound`] lane by lane.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
+#[inline]
 fn squared_bound_avx2([x, y, z]: [std::arch::x86_64::__m256d; 3]) -> [f64; 4] {
     use std::arch::x86_64::*;
     let sum = _mm256_add_pd(
@@ -240,6 +295,25 @@ mod tests {
         }
     }
 
+    /// Both bounds of one block on `kernel`, through [`compiled`] as the search runs them.
+    struct Bounds<'a> {
+        query: &'a [f64; 3],
+        boxes: (&'a LaneBoxes<TOP_WIDTH>, &'a LaneBoxes<TOP_WIDTH>),
+        corners: &'a BlockCorners,
+    }
+
+    impl PointWalk for Bounds<'_> {
+        type Output = ([f64; TOP_WIDTH], [f64; BLOCK]);
+
+        fn run<L: BoundLanes>(self) -> Self::Output {
+            let (min, max) = self.boxes;
+            (
+                L::child_bounds(self.query, min, max),
+                L::window_bounds(self.query, self.corners),
+            )
+        }
+    }
+
     #[test]
     fn every_kernel_bounds_each_lane_as_the_single_box_rule() {
         let mut seed = 5;
@@ -250,8 +324,18 @@ mod tests {
             let max: LaneBoxes<TOP_WIDTH> =
                 [[0.0; TOP_WIDTH]; 3].map(|a| a.map(|_| value(&mut seed)));
             let corners: BlockCorners = [[0.0; BLOCK + 2]; 3].map(|a| a.map(|_| value(&mut seed)));
-            let children = child_bounds(Kernel::Sse2, &query, &min, &max);
-            let windows = window_bounds(Kernel::Sse2, &query, &corners);
+            let on = |kernel: Kernel| {
+                let boxes = (&min, &max);
+                compiled(
+                    kernel,
+                    Bounds {
+                        query: &query,
+                        boxes,
+                        corners: &corners,
+                    },
+                )
+            };
+            let (children, windows) = on(Kernel::Sse2);
             for (slot, bound) in children.iter().enumerate() {
                 let expected = box_bound(&query, &min.map(|a| a[slot]), &max.map(|a| a[slot]));
                 assert_eq!(bound.to_bits(), expected.to_bits());
@@ -278,8 +362,9 @@ mod tests {
             for kernel in Kernel::supported() {
                 let same =
                     |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
-                assert!(same(&child_bounds(kernel, &query, &min, &max), &children));
-                assert!(same(&window_bounds(kernel, &query, &corners), &windows));
+                let (kernel_children, kernel_windows) = on(kernel);
+                assert!(same(&kernel_children, &children));
+                assert!(same(&kernel_windows, &windows));
             }
         }
     }
