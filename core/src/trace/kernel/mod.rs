@@ -285,6 +285,18 @@ pub(super) trait TraceKernel {
     /// The lanes where `a <= b` (false where either is NaN), as a bit mask.
     fn lanes_at_most(a: f32x8, b: f32x8) -> u32;
 
+    /// The rays of a packet's lanes `packet_mask` (lane 0 among them) bounded together, for
+    /// [`TraceKernel::frustum_slots`].
+    type Frustum;
+
+    fn frustum(lanes: &Lanes, packet_mask: u32) -> Self::Frustum;
+
+    /// The slots of `planes` that some lane of `frustum` may enter up to `reach` (the
+    /// greatest of the lanes' bounds), as a bit mask: a slot left out is one that
+    /// [`TraceKernel::clip_slot`] would find entered by none of them, so culling by it changes
+    /// no answer.
+    fn frustum_slots(frustum: &Self::Frustum, planes: &Self::Planes, reach: f32) -> u32;
+
     /// `node`'s child boxes as [`WideNode::decode`] decodes them, in two groups of four.
     fn decode_wide(node: &WideNode) -> [ChildBoxes; 2];
 

@@ -162,6 +162,24 @@ impl TraceKernel for Avx2 {
         unsafe { packets::lanes_at_most(a, b) }
     }
 
+    type Frustum = packets::Avx2Frustum;
+
+    #[inline(always)]
+    fn frustum(lanes: &Lanes, packet_mask: u32) -> packets::Avx2Frustum {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { packets::frustum(lanes, packet_mask) }
+    }
+
+    #[inline(always)]
+    fn frustum_slots(
+        frustum: &packets::Avx2Frustum,
+        planes: &packets::Avx2Planes,
+        reach: f32,
+    ) -> u32 {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { packets::frustum_slots(frustum, planes, reach) }
+    }
+
     type Together = packet_strips::LaneSpaces;
 
     #[inline(always)]
