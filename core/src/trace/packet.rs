@@ -230,7 +230,7 @@ impl Lanes {
         let mut order = [0, 1, 2, 3, 4, 5, 6, 7];
         let order = &mut order[..entered.len()];
         if order.len() > 1 {
-            let keys = node.order_keys::<C>(decoder, &self.negative());
+            let keys = C::plane_order_keys(&planes, &self.negative());
             sort_by_keys(order, &slots.map(|slot| keys[slot % MAX_WIDTH]));
         }
         for &index in order.iter().skip(1).rev() {

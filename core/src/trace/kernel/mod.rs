@@ -315,6 +315,12 @@ pub(super) trait TraceKernel {
     /// direction of signs `negative`, each box decoded as [`WideNode::decode`] decodes it.
     fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; WIDE_WIDTH];
 
+    /// [`order_keys`](crate::trace::top::order_keys) of the slots of `planes` (picked for a
+    /// direction of signs `negative`): a box's centre is the sum of its entry and exit planes
+    /// as of its minimum and maximum (addition commutes bit for bit), so the keys are those
+    /// of the decoded boxes without decoding them again.
+    fn plane_order_keys(planes: &Self::Planes, negative: &[bool; 3]) -> [f32; WIDE_WIDTH];
+
     /// What the kernel makes of the packet's lanes once for
     /// [`TraceKernel::trace_strip_together`].
     type Together;

@@ -214,6 +214,18 @@ impl TraceKernel for Portable {
     }
 
     #[inline(always)]
+    fn plane_order_keys(planes: &SlotPlanes, negative: &[bool; 3]) -> [f32; WIDE_WIDTH] {
+        let mut key = f32x8::ZERO;
+        for (axis, &negative) in negative.iter().enumerate() {
+            let centre = f32x8::from(planes.entry[axis]) + f32x8::from(planes.exit[axis]);
+            key = if negative { key - centre } else { key + centre };
+        }
+        let nan = key.simd_ne(key);
+        nan.bitselect(f32x8::splat(f32::NEG_INFINITY), key)
+            .to_array()
+    }
+
+    #[inline(always)]
     fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
         a.simd_le(b).to_bitmask()
     }

@@ -137,7 +137,9 @@ pub(super) fn clip_wide(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::trace::kernel::avx2::packets::{clip_slot, frustum, frustum_slots};
+    use crate::trace::kernel::avx2::packets::{
+        clip_slot, frustum, frustum_slots, plane_order_keys,
+    };
     use crate::trace::kernel::portable::Portable;
     use crate::trace::kernel::TraceKernel;
     use crate::trace::lanes::PACKET_WIDTH;
@@ -310,6 +312,18 @@ mod tests {
                 let clipped = unsafe { clip_slot(&lanes, &avx2, slot, lanes.tmax) };
                 assert_eq!(as_bits(clipped), as_bits(expected), "{node:?} {rays:?}");
             }
+            // The children's order from the planes, as from the decoded boxes.
+            let negative = lanes.negative();
+            let keys = Portable::wide_order_keys(&node, &negative).map(f32::to_bits);
+            let portable_keys = Portable::plane_order_keys(&portable, &negative);
+            // SAFETY: as above.
+            let avx2_keys = unsafe { plane_order_keys(&avx2, &negative) };
+            assert_eq!(
+                portable_keys.map(f32::to_bits),
+                keys,
+                "{node:?} {negative:?}"
+            );
+            assert_eq!(avx2_keys.map(f32::to_bits), keys, "{node:?} {negative:?}");
         }
     }
 }
