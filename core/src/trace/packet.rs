@@ -4,7 +4,11 @@
 //! A packet of [`PACKET_WIDTH`] rays walks the global hierarchy together, clipping all its rays
 //! against each child box of a node at once in the kernel's eight lanes (one child after the
 //! other) and carrying an active mask; the children entered are visited in [`order_keys`]
-//! order. At a leaf each active ray traverses the strips alone, unless the kernel tests a short
+//! order. Before that, the kernel bounds the packet's rays together once per packet and culls
+//! the children none of them can enter, eight at once ([`TraceKernel::frustum_slots`]): a
+//! camera packet enters under two of a node's seven or eight children, and the lanewise clips
+//! are then spent on those. The cull skips only children no lane enters, so nothing else
+//! changes. At a leaf each active ray traverses the strips alone, unless the kernel tests a short
 //! strip for all of them at once. Deviation from the paper: the low-level packet width is one
 //! ray, since strip kd-trees are small and per-ray culling there pays more than SIMD width.
 //!
@@ -189,48 +193,60 @@ impl Lanes {
     #[inline(always)]
     fn enter_children<N: TraceNode, C: TraceKernel, const ANY_HIT: bool>(
         &self,
-        targets: &Targets<N>,
+        (targets, frustum): (&Targets<N>, &C::Frustum),
         node: &N,
         decoder: &N::Decoder,
         active: u32,
-        limit: f32x8,
+        (limit, reach): (f32x8, f32),
         stack: &mut DeferStack<PacketDeferred>,
     ) -> Option<PacketDeferred> {
         let occupied = (node.occupied_mask().trailing_ones() as usize).min(MAX_WIDTH);
         let planes = node.planes::<C>(decoder, self);
+        // Only the slots the packet's frustum may enter are clipped lane by lane.
+        let candidates = C::frustum_slots(frustum, &planes, reach) & ((1 << occupied) - 1);
         let clipped = (node, &planes, targets);
         let bounds = (active, limit);
         if ANY_HIT {
             // Slot order is known before clipping: the slots are clipped last to first and
             // each child entered goes straight onto the stack, the first one too.
-            for slot in (0..occupied).rev() {
+            for_each_bit_down(candidates, |slot| {
                 if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
                     stack.push(child);
                 }
-            }
+            });
             return None;
         }
         // Not an array of defaults: zeroing eight 96-byte entries per node costs more than the
         // pushes.
         let mut entered = ArrayVec::<PacketDeferred, MAX_WIDTH>::new();
         let mut slots = [0; MAX_WIDTH];
-        for slot in 0..occupied {
+        for_each_bit(candidates, |slot| {
             if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
                 slots[entered.len() % MAX_WIDTH] = slot;
                 entered.push(child);
             }
-        }
+        });
         // The entries' indices are sorted, not the entries.
         let mut order = [0, 1, 2, 3, 4, 5, 6, 7];
         let order = &mut order[..entered.len()];
         if order.len() > 1 {
-            let keys = node.order_keys::<C>(decoder, &self.negative());
+            let keys = C::plane_order_keys(&planes, &self.negative());
             sort_by_keys(order, &slots.map(|slot| keys[slot % MAX_WIDTH]));
         }
         for &index in order.iter().skip(1).rev() {
             stack.push(entered[index]);
         }
         order.first().map(|&index| entered[index])
+    }
+}
+
+/// `f(i)` for each set bit `i` of `mask`, highest first.
+#[inline(always)]
+fn for_each_bit_down(mut mask: u32, mut f: impl FnMut(usize)) {
+    while mask != 0 {
+        let bit = 31 - mask.leading_zeros();
+        f(bit as usize);
+        mask &= !(1 << bit);
     }
 }
 
@@ -254,17 +270,22 @@ fn sort_by_keys(indices: &mut [usize], keys: &[f32; MAX_WIDTH]) {
     }
 }
 
-/// The culling bound ([`Closest::reach`]) of every lane; finished lanes (occlusion found) get
-/// `-inf` so that nothing is entered for them any more.
+/// The culling bound ([`Closest::reach`]) of every lane, finished lanes (occlusion found)
+/// `-inf` so that nothing is entered for them any more; and the greatest of them, the
+/// frustum's, where `f32::max` passes over a NaN bound (a lane with one enters nothing).
 #[inline(always)]
-fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> f32x8 {
-    f32x8::from(std::array::from_fn::<f32, PACKET_WIDTH, _>(|lane| {
+fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> (f32x8, f32) {
+    let lanes = std::array::from_fn::<f32, PACKET_WIDTH, _>(|lane| {
         if finished & (1 << lane) != 0 {
             f32::NEG_INFINITY
         } else {
             closest[lane].reach
         }
-    }))
+    });
+    (
+        f32x8::from(lanes),
+        lanes.into_iter().fold(f32::NEG_INFINITY, f32::max),
+    )
 }
 
 /// The walk of the global hierarchy with the packet's lanes, for occlusion (`ANY_HIT`) or
@@ -302,9 +323,10 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     let mut finished = 0u32;
     let mut stack = DeferStack::default();
     let together = C::together(lanes);
+    let frustum = C::frustum(lanes, packet_mask);
     let targets = Targets::new(tracer.file(), nodes);
     // The lanes' culling bounds change only at leaves: gathered once per leaf, not per node.
-    let mut limit = bounds(closest, finished);
+    let (mut limit, mut reach) = bounds(closest, finished);
     // The root has no box: every lane starts with its own interval.
     let mut current = PacketDeferred {
         child: 0,
@@ -325,7 +347,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
             );
             if found != 0 {
                 finished |= found;
-                limit = bounds(closest, finished);
+                (limit, reach) = bounds(closest, finished);
             }
         } else if current.mask != 0 {
             if current.kind == INTERNAL_CHILD {
@@ -336,11 +358,11 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
                 let node = tracer.file().top_node(nodes, current.child as usize);
                 let entered = node.and_then(|n| {
                     lanes.enter_children::<N, C, ANY_HIT>(
-                        &targets,
+                        (&targets, &frustum),
                         n,
                         decoder,
                         current.mask,
-                        limit,
+                        (limit, reach),
                         &mut stack,
                     )
                 });
@@ -354,7 +376,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
                 // An occlusion lane's bound changes only when it finishes.
                 if !ANY_HIT || found != 0 {
                     finished |= found;
-                    limit = bounds(closest, finished);
+                    (limit, reach) = bounds(closest, finished);
                 }
             }
         }

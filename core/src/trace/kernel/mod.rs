@@ -285,6 +285,18 @@ pub(super) trait TraceKernel {
     /// The lanes where `a <= b` (false where either is NaN), as a bit mask.
     fn lanes_at_most(a: f32x8, b: f32x8) -> u32;
 
+    /// The rays of a packet's lanes `packet_mask` (lane 0 among them) bounded together, for
+    /// [`TraceKernel::frustum_slots`].
+    type Frustum;
+
+    fn frustum(lanes: &Lanes, packet_mask: u32) -> Self::Frustum;
+
+    /// The slots of `planes` that some lane of `frustum` may enter up to `reach` (the
+    /// greatest of the lanes' bounds), as a bit mask: a slot left out is one that
+    /// [`TraceKernel::clip_slot`] would find entered by none of them, so culling by it changes
+    /// no answer.
+    fn frustum_slots(frustum: &Self::Frustum, planes: &Self::Planes, reach: f32) -> u32;
+
     /// `node`'s child boxes as [`WideNode::decode`] decodes them, in two groups of four.
     fn decode_wide(node: &WideNode) -> [ChildBoxes; 2];
 
@@ -302,6 +314,12 @@ pub(super) trait TraceKernel {
     /// [`order_keys`](crate::trace::top::order_keys) of `node`'s eight children for a
     /// direction of signs `negative`, each box decoded as [`WideNode::decode`] decodes it.
     fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; WIDE_WIDTH];
+
+    /// [`order_keys`](crate::trace::top::order_keys) of the slots of `planes` (picked for a
+    /// direction of signs `negative`): a box's centre is the sum of its entry and exit planes
+    /// as of its minimum and maximum (addition commutes bit for bit), so the keys are those
+    /// of the decoded boxes without decoding them again.
+    fn plane_order_keys(planes: &Self::Planes, negative: &[bool; 3]) -> [f32; WIDE_WIDTH];
 
     /// What the kernel makes of the packet's lanes once for
     /// [`TraceKernel::trace_strip_together`].

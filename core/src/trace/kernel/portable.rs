@@ -214,8 +214,56 @@ impl TraceKernel for Portable {
     }
 
     #[inline(always)]
+    fn plane_order_keys(planes: &SlotPlanes, negative: &[bool; 3]) -> [f32; WIDE_WIDTH] {
+        let mut key = f32x8::ZERO;
+        for (axis, &negative) in negative.iter().enumerate() {
+            let centre = f32x8::from(planes.entry[axis]) + f32x8::from(planes.exit[axis]);
+            key = if negative { key - centre } else { key + centre };
+        }
+        let nan = key.simd_ne(key);
+        nan.bitselect(f32x8::splat(f32::NEG_INFINITY), key)
+            .to_array()
+    }
+
+    #[inline(always)]
     fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
         a.simd_le(b).to_bitmask()
+    }
+
+    /// `None` when a lane's reciprocal is infinite or zero or its origin not finite, where
+    /// the frustum's bounds would not hold.
+    type Frustum = Option<Frustum>;
+
+    #[inline(always)]
+    fn frustum(lanes: &Lanes, packet_mask: u32) -> Option<Frustum> {
+        Frustum::new(lanes, packet_mask)
+    }
+
+    /// Per axis a lane's entry distance `(entry - o) * r` is at least the lesser of
+    /// `(entry - o') * r_low` and `(entry - o') * r_high` with `o'` the frustum's entry origin
+    /// (each rounded operation is monotone in each operand, and `r` has one sign), and its
+    /// exit distance at most the greater such product from the exit origin, inflated as the
+    /// lanes' are; a NaN bound keeps the interval's value, as in `clip_slot`, so it culls
+    /// nothing. A slot is left out only where the least entry is beyond the greatest exit.
+    #[inline(always)]
+    fn frustum_slots(frustum: &Option<Frustum>, planes: &SlotPlanes, reach: f32) -> u32 {
+        let Some(frustum) = frustum else {
+            return u32::MAX;
+        };
+        let mut near = f32x8::splat(frustum.tmin);
+        let mut far = f32x8::splat(reach);
+        for axis in 0..3 {
+            let low = f32x8::splat(frustum.reciprocal_low[axis]);
+            let high = f32x8::splat(frustum.reciprocal_high[axis]);
+            let entry = f32x8::from(planes.entry[axis]) - f32x8::splat(frustum.entry_origin[axis]);
+            let exit = f32x8::from(planes.exit[axis]) - f32x8::splat(frustum.exit_origin[axis]);
+            // Either both products are NaN or neither: which one `fast_min` keeps is moot.
+            let entry = (entry * low).fast_min(entry * high);
+            let exit = (exit * low).fast_max(exit * high) * f32x8::splat(FAR_INFLATION);
+            near = max_not_nan_x8(near, entry);
+            far = min_not_nan_x8(far, exit);
+        }
+        !near.simd_gt(far).to_bitmask()
     }
 
     type Together = ();
@@ -251,6 +299,58 @@ fn wide_axis_planes(node: &WideNode, axis: usize, negative: bool) -> ([f32x4; 2]
     );
     let decode = |codes: &[u8; WIDE_WIDTH]| widen_codes(codes).map(|q| origin + q * scale);
     (decode(entry), decode(exit))
+}
+
+/// The packet's rays bounded together, for `TraceKernel::frustum_slots`: per axis the origin
+/// that gives a plane's smallest entry distance over the lanes and the one that gives its
+/// largest exit distance, and the lanes' least and greatest reciprocal; the least `tmin`.
+pub(super) struct Frustum {
+    entry_origin: [f32; 3],
+    exit_origin: [f32; 3],
+    reciprocal_low: [f32; 3],
+    reciprocal_high: [f32; 3],
+    tmin: f32,
+}
+
+impl Frustum {
+    /// The bounds over the lanes of `packet_mask`, which share their direction signs.
+    fn new(lanes: &Lanes, packet_mask: u32) -> Option<Frustum> {
+        let in_packet = |values: f32x8| {
+            let values = values.to_array();
+            (0..PACKET_WIDTH)
+                .filter(move |&lane| packet_mask >> lane & 1 != 0)
+                .map(move |lane| values[lane])
+        };
+        let low = |values: f32x8| in_packet(values).fold(f32::INFINITY, f32::min);
+        let high = |values: f32x8| in_packet(values).fold(f32::NEG_INFINITY, f32::max);
+        let mut frustum = Frustum {
+            entry_origin: [0.0; 3],
+            exit_origin: [0.0; 3],
+            reciprocal_low: [0.0; 3],
+            reciprocal_high: [0.0; 3],
+            // `f32::min` passes over a NaN `tmin`, of a lane that enters nothing.
+            tmin: low(lanes.tmin),
+        };
+        for axis in 0..3 {
+            let usable = |r: f32| r.is_finite() && r != 0.0;
+            if !in_packet(lanes.exit_reciprocal[axis]).all(usable)
+                || !in_packet(lanes.origin[axis]).all(f32::is_finite)
+            {
+                return None;
+            }
+            let (least, greatest) = (low(lanes.origin[axis]), high(lanes.origin[axis]));
+            // A positive direction enters a plane first from the greatest origin and leaves
+            // it last from the least; a negative one the other way round.
+            (frustum.entry_origin[axis], frustum.exit_origin[axis]) =
+                match lanes.signs[axis] & 1 != 0 {
+                    true => (least, greatest),
+                    false => (greatest, least),
+                };
+            frustum.reciprocal_low[axis] = low(lanes.exit_reciprocal[axis]);
+            frustum.reciprocal_high[axis] = high(lanes.exit_reciprocal[axis]);
+        }
+        Some(frustum)
+    }
 }
 
 /// A node's child box planes as a packet sees them (see [`TraceKernel::planes`]),

@@ -157,9 +157,33 @@ impl TraceKernel for Avx2 {
     }
 
     #[inline(always)]
+    fn plane_order_keys(planes: &packets::Avx2Planes, negative: &[bool; 3]) -> [f32; 8] {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { packets::plane_order_keys(planes, negative) }
+    }
+
+    #[inline(always)]
     fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
         // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
         unsafe { packets::lanes_at_most(a, b) }
+    }
+
+    type Frustum = packets::Avx2Frustum;
+
+    #[inline(always)]
+    fn frustum(lanes: &Lanes, packet_mask: u32) -> packets::Avx2Frustum {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { packets::frustum(lanes, packet_mask) }
+    }
+
+    #[inline(always)]
+    fn frustum_slots(
+        frustum: &packets::Avx2Frustum,
+        planes: &packets::Avx2Planes,
+        reach: f32,
+    ) -> u32 {
+        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        unsafe { packets::frustum_slots(frustum, planes, reach) }
     }
 
     type Together = packet_strips::LaneSpaces;

@@ -98,3 +98,142 @@ fn axis_planes(min: __m128, max: __m128, negative: __m128) -> (__m256, __m256) {
     let exit = _mm_blendv_ps(max, min, negative);
     (_mm256_set_m128(entry, entry), _mm256_set_m128(exit, exit))
 }
+
+/// The packet's rays bounded together, for [`frustum_slots`]: per axis the origin that gives a
+/// plane's smallest entry distance over the lanes and the one that gives its largest exit
+/// distance, and the lanes' least and greatest reciprocal; the least `tmin`. `None` when a
+/// lane's reciprocal is infinite or zero or its origin not finite, where the bounds below
+/// would not hold.
+pub(in crate::trace) struct Avx2Frustum(Option<FrustumBounds>);
+
+struct FrustumBounds {
+    entry_origin: [__m256; 3],
+    exit_origin: [__m256; 3],
+    reciprocal_low: [__m256; 3],
+    reciprocal_high: [__m256; 3],
+    tmin: __m256,
+}
+
+/// The least lane of `v` in every lane.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn least(v: __m256) -> __m256 {
+    let v = _mm256_min_ps(v, _mm256_permute2f128_ps::<1>(v, v));
+    let v = _mm256_min_ps(v, _mm256_shuffle_ps::<0b01_00_11_10>(v, v));
+    _mm256_min_ps(v, _mm256_shuffle_ps::<0b10_11_00_01>(v, v))
+}
+
+/// The greatest lane of `v` in every lane.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn greatest(v: __m256) -> __m256 {
+    let v = _mm256_max_ps(v, _mm256_permute2f128_ps::<1>(v, v));
+    let v = _mm256_max_ps(v, _mm256_shuffle_ps::<0b01_00_11_10>(v, v));
+    _mm256_max_ps(v, _mm256_shuffle_ps::<0b10_11_00_01>(v, v))
+}
+
+/// `TraceKernel::frustum`: the bounds over the lanes of `packet_mask` (lane 0 among them);
+/// the other lanes take lane 0's values, so that they widen nothing.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+pub(super) fn frustum(lanes: &Lanes, packet_mask: u32) -> Avx2Frustum {
+    let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
+    let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    let in_packet = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+        _mm256_and_si256(_mm256_set1_epi32(packet_mask as i32), bits),
+        bits,
+    ));
+    let packet = |v: f32x8| {
+        let v = wide(v);
+        let first = _mm256_permutevar8x32_ps(v, _mm256_setzero_si256());
+        _mm256_blendv_ps(first, v, in_packet)
+    };
+    let magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX));
+    let mut finite = 0xFF;
+    let mut bounds = FrustumBounds {
+        entry_origin: [_mm256_setzero_ps(); 3],
+        exit_origin: [_mm256_setzero_ps(); 3],
+        reciprocal_low: [_mm256_setzero_ps(); 3],
+        reciprocal_high: [_mm256_setzero_ps(); 3],
+        // A lane whose `tmin` is NaN enters nothing: `+inf` leaves it out.
+        tmin: least(_mm256_min_ps(
+            packet(lanes.tmin),
+            _mm256_set1_ps(f32::INFINITY),
+        )),
+    };
+    for axis in 0..3 {
+        let reciprocal = packet(lanes.exit_reciprocal[axis]);
+        let size = _mm256_and_ps(reciprocal, magnitude);
+        let usable = _mm256_and_ps(
+            _mm256_cmp_ps::<_CMP_LT_OQ>(size, _mm256_set1_ps(f32::INFINITY)),
+            _mm256_cmp_ps::<_CMP_GT_OQ>(size, _mm256_setzero_ps()),
+        );
+        let origin = packet(lanes.origin[axis]);
+        let finite_origin = _mm256_cmp_ps::<_CMP_LT_OQ>(
+            _mm256_and_ps(origin, magnitude),
+            _mm256_set1_ps(f32::INFINITY),
+        );
+        finite &= _mm256_movemask_ps(_mm256_and_ps(usable, finite_origin));
+        let (low, high) = (least(origin), greatest(origin));
+        // A positive direction enters a plane first from the greatest origin and leaves it
+        // last from the least; a negative one the other way round.
+        let negative = lanes.signs[axis] & 1 != 0;
+        (bounds.entry_origin[axis], bounds.exit_origin[axis]) = match negative {
+            true => (low, high),
+            false => (high, low),
+        };
+        bounds.reciprocal_low[axis] = least(reciprocal);
+        bounds.reciprocal_high[axis] = greatest(reciprocal);
+    }
+    Avx2Frustum((finite == 0xFF).then_some(bounds))
+}
+
+/// `TraceKernel::frustum_slots`: the slots of `planes` that some lane of the frustum may enter
+/// up to `reach`. Per axis a lane's entry distance `(entry - o) * r` is at least the least of
+/// `(entry - o') * r_low` and `(entry - o') * r_high` with `o'` the frustum's entry origin
+/// (each rounded operation is monotone in each operand, and `r` has one sign), and its exit
+/// distance at most the greatest such product from the exit origin, inflated as the lanes'
+/// are; a NaN bound keeps the interval's value, as in [`clip_slot`], so it culls nothing. A
+/// slot is left out only where the least entry is beyond the greatest exit: no lane enters it.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+pub(super) fn frustum_slots(frustum: &Avx2Frustum, planes: &Avx2Planes, reach: f32) -> u32 {
+    let Some(bounds) = &frustum.0 else {
+        return 0xFF;
+    };
+    let inflation = _mm256_set1_ps(FAR_INFLATION);
+    let mut near = bounds.tmin;
+    let mut far = _mm256_set1_ps(reach);
+    for axis in 0..3 {
+        let (low, high) = (bounds.reciprocal_low[axis], bounds.reciprocal_high[axis]);
+        let entry = _mm256_sub_ps(planes.entry[axis], bounds.entry_origin[axis]);
+        let entry = _mm256_min_ps(_mm256_mul_ps(entry, low), _mm256_mul_ps(entry, high));
+        let exit = _mm256_sub_ps(planes.exit[axis], bounds.exit_origin[axis]);
+        let exit = _mm256_max_ps(_mm256_mul_ps(exit, low), _mm256_mul_ps(exit, high));
+        near = _mm256_max_ps(entry, near);
+        far = _mm256_min_ps(_mm256_mul_ps(exit, inflation), far);
+    }
+    let missed = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(near, far)) as u32;
+    !missed & 0xFF
+}
+
+/// `TraceKernel::plane_order_keys`: `order_keys`' operations in its order on eight lanes, each
+/// centre the sum of a slot's entry and exit planes.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+pub(super) fn plane_order_keys(planes: &Avx2Planes, negative: &[bool; 3]) -> [f32; 8] {
+    let mut key = _mm256_setzero_ps();
+    for (axis, &negative) in negative.iter().enumerate() {
+        let centre = _mm256_add_ps(planes.entry[axis], planes.exit[axis]);
+        key = match negative {
+            true => _mm256_sub_ps(key, centre),
+            false => _mm256_add_ps(key, centre),
+        };
+    }
+    let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(key, key);
+    bytemuck::cast(_mm256_blendv_ps(
+        key,
+        _mm256_set1_ps(f32::NEG_INFINITY),
+        nan,
+    ))
+}

@@ -137,7 +137,9 @@ pub(super) fn clip_wide(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::trace::kernel::avx2::packets::clip_slot;
+    use crate::trace::kernel::avx2::packets::{
+        clip_slot, frustum, frustum_slots, plane_order_keys,
+    };
     use crate::trace::kernel::portable::Portable;
     use crate::trace::kernel::TraceKernel;
     use crate::trace::lanes::PACKET_WIDTH;
@@ -227,6 +229,59 @@ mod tests {
     }
 
     #[test]
+    fn the_frustums_keep_every_slot_a_packet_lane_enters() {
+        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("bmi2")) {
+            return;
+        }
+        let mut bits = Bits(0xa409_3822_299f_31d0);
+        let (mut entered, mut culled) = (0, 0);
+        for _ in 0..20_000 {
+            let node = random_node(&mut bits);
+            let signs = [0; 3].map(|_| bits.pick(&[1.0f32, -1.0]));
+            // Origins near one another, as a camera's or a hit point's, or anywhere.
+            let spread = bits.pick(&[0.0, 1.0e-3, 1.0, 3.0e38]);
+            let centre = [0; 3].map(|_| bits.coordinate());
+            let rays: Vec<Ray> = (0..PACKET_WIDTH)
+                .map(|_| Ray {
+                    origin: centre.map(|c| c + spread * (bits.coordinate() / 3.0e38)),
+                    direction: signs.map(|sign| sign * bits.pick(&[0.0, 1.0, 0.5, 1e-30, 3.0])),
+                    tmin: bits.pick(&[0.0, 1.0]),
+                    tmax: bits.pick(&[f32::INFINITY, 10.0, 1.0e-3]),
+                })
+                .collect();
+            let lanes = Portable::lanes(&rays, &Portable::prepared_rays(&rays));
+            let packet_mask = 1 | (bits.next() as u32 & 0xFE);
+            let bounds = [0; PACKET_WIDTH]
+                .map(|_| bits.pick(&[f32::INFINITY, 10.0, 1.0e-3, f32::NEG_INFINITY, f32::NAN]));
+            let limit = f32x8::from(bounds);
+            // As the packet walk bounds its lanes: NaN bounds passed over.
+            let reach = bounds.into_iter().fold(f32::NEG_INFINITY, f32::max);
+            // SAFETY: the CPU has AVX2 and BMI2, checked above.
+            let (planes, kept) = unsafe {
+                let planes = wide_planes(&lanes, &node);
+                let frustum = frustum(&lanes, packet_mask);
+                let kept = frustum_slots(&frustum, &planes, reach);
+                (planes, kept)
+            };
+            let portable_planes = Portable::wide_planes(&lanes, &node);
+            let portable_frustum = Portable::frustum(&lanes, packet_mask);
+            let portable = Portable::frustum_slots(&portable_frustum, &portable_planes, reach);
+            for slot in 0..8 {
+                // SAFETY: as above.
+                let (_, _, mask) = unsafe { clip_slot(&lanes, &planes, slot, limit) };
+                if mask & packet_mask != 0 {
+                    entered += 1;
+                    assert_ne!(kept & 1 << slot, 0, "slot {slot} of {node:?} {rays:?}");
+                    assert_ne!(portable & 1 << slot, 0, "slot {slot} of {node:?} {rays:?}");
+                } else if kept & 1 << slot == 0 {
+                    culled += 1;
+                }
+            }
+        }
+        assert!(entered > 500 && culled > 5_000, "{entered} {culled}");
+    }
+
+    #[test]
     fn packet_planes_decode_and_clip_as_the_portable_kernel() {
         if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("bmi2")) {
             return;
@@ -257,6 +312,18 @@ mod tests {
                 let clipped = unsafe { clip_slot(&lanes, &avx2, slot, lanes.tmax) };
                 assert_eq!(as_bits(clipped), as_bits(expected), "{node:?} {rays:?}");
             }
+            // The children's order from the planes, as from the decoded boxes.
+            let negative = lanes.negative();
+            let keys = Portable::wide_order_keys(&node, &negative).map(f32::to_bits);
+            let portable_keys = Portable::plane_order_keys(&portable, &negative);
+            // SAFETY: as above.
+            let avx2_keys = unsafe { plane_order_keys(&avx2, &negative) };
+            assert_eq!(
+                portable_keys.map(f32::to_bits),
+                keys,
+                "{node:?} {negative:?}"
+            );
+            assert_eq!(avx2_keys.map(f32::to_bits), keys, "{node:?} {negative:?}");
         }
     }
 }
