@@ -63,7 +63,11 @@ impl ChunkLayout {
         pooling: Pooling,
     ) -> io::Result<ChunkLayout> {
         let bounds = strip_bounds(strips);
-        let top = toplevel::build(&bounds, params).map_err(io::Error::other)?;
+        let params = TopLevelParams {
+            traversal_cost: toplevel::POOLED_TRAVERSAL_COST,
+            ..params.clone()
+        };
+        let top = toplevel::build(&bounds, &params).map_err(io::Error::other)?;
         let grid = &pooling.grid;
         let stored = pool_blocks(strips, &top.strip_order, grid, pooling.leaf_windows);
         ChunkLayout::place(strips, top, &bounds, Some(stored))
