@@ -41,8 +41,8 @@ pub struct FileInfo {
     pub closedness: Option<Closedness>,
     /// The up-axis hint of the model record.
     pub up: Option<UpAxis>,
-    /// Whether the strip blocks are pooled grid parts (`vertex_encoding` 5, format 4.1), as
-    /// [`crate::conversion::pooling::pools_vertices`] decides for the build.
+    /// Whether the strip blocks are pooled grid parts (`vertex_encoding` 5, format 4.1): grid
+    /// files without attributes and with leaves of at least 8 windows.
     pub pooled: bool,
 }
 
