@@ -3,6 +3,9 @@
 //!
 //! `cargo run --release --example grid_pool_bytes -- g.rdm`
 //!
+//! Format 4.1 builds this layout (`vertex_encoding` 5); the estimate reads a `vertex_encoding` 3
+//! file (grid files with leaves below 8 windows, or written before 4.1).
+//!
 //! Reads a `vertex_encoding` 3 file through the reader, re-counts its strip blocks part by part
 //! (the first row must equal the file's strip data), then lays the same strips out with a pool
 //! per group: the pool stores each distinct grid point of its strips once (a count byte, the
@@ -23,7 +26,7 @@ use std::path::Path;
 use reducem_core::format::block_boxes;
 use reducem_core::format::reader::{ReducemFile, TopNodes};
 use reducem_core::format::vertices::StripVertices;
-use reducem_core::format::{align_up, TopSlot, SECTION_ALIGN};
+use reducem_core::format::{align_up, TopSlot, VertexEncoding, SECTION_ALIGN};
 
 /// Strip records and strip bytes of one strip as today's file holds them.
 struct Strip {
@@ -307,6 +310,11 @@ fn main() {
         .nth(1)
         .expect("usage: grid_pool_bytes FILE.rdm");
     let file = ReducemFile::open(Path::new(&path)).expect("open");
+    assert_eq!(
+        file.header().vertex_encoding,
+        VertexEncoding::GridPackedReferences as u32,
+        "{path}: the estimate re-counts per-strip grid blocks (vertex_encoding 3)"
+    );
     let grid_bits = file.precision().grid_bits;
     let strips = read_strips(&file);
     let triangles: usize = strips.iter().map(|s| s.triangles).sum();

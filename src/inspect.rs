@@ -16,6 +16,8 @@ use crate::geometry::distance;
 pub struct FileStats {
     pub format_version: String,
     pub vertex_encoding: String,
+    /// The header's `vertex_encoding` value (5: grid vertices in shared pools, format 4.1).
+    pub vertex_encoding_value: u32,
     pub triangles: u64,
     pub dropped_triangles: u64,
     pub strips: u64,
@@ -114,6 +116,7 @@ pub fn file_stats(file: &ReducemFile) -> FileStats {
     FileStats {
         format_version: format!("{}.{}", header.version_major, header.version_minor),
         vertex_encoding: encoding.name().into(),
+        vertex_encoding_value: header.vertex_encoding,
         triangles: header.triangle_count,
         dropped_triangles: header.dropped_triangle_count,
         strips: header.strip_count,

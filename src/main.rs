@@ -632,7 +632,16 @@ fn inspect(path: &std::path::Path, json: bool, verify: bool) -> anyhow::Result<(
         "  vertices stored as {}",
         match stats.grid_bits {
             0 => "f32 (lossless)".to_string(),
-            bits => format!("points of a {bits}-bit grid, cell {:e}", stats.grid_cell),
+            bits => format!(
+                "points of a {bits}-bit grid, cell {:e}{} (format {}, vertex_encoding {})",
+                stats.grid_cell,
+                match stats.vertex_encoding_value {
+                    5 => ", in pools shared by consecutive strips",
+                    _ => "",
+                },
+                stats.format_version,
+                stats.vertex_encoding_value
+            ),
         }
     );
     println!(

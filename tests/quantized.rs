@@ -43,10 +43,14 @@ fn assert_grid_round_trip(name: &str, mesh: &Mesh, bits: u32, leaf_windows: usiz
     }
     let file = convert_on_grid(mesh, &params, &format!("{name}-{bits}-{leaf_windows}.rdm"));
     let (quantized, grid) = quantized_input(mesh, bits);
-    let layout = VertexLayout::Grid {
-        grid,
-        packed: true,
-        boxes: true,
+    // Leaves of a block box's windows or more pool the grid vertices (format 4.1).
+    let layout = match leaf_windows {
+        8.. => VertexLayout::Pooled { grid },
+        _ => VertexLayout::Grid {
+            grid,
+            packed: true,
+            boxes: true,
+        },
     };
     assert_eq!(file.vertex_layout(), &layout);
     let expected = expected_triangles(&quantized);
@@ -84,6 +88,7 @@ fn grid_files_decode_to_the_quantized_input_exactly() {
     for (name, mesh) in &meshes {
         for bits in [4, 10, 16, 20, 24] {
             assert_grid_round_trip(name, mesh, bits, 2);
+            assert_grid_round_trip(name, mesh, bits, 8);
         }
     }
     for leaf_windows in [1, 4, 8] {

@@ -5,7 +5,9 @@
 
 use std::io;
 
-use super::strip_bounds;
+use super::pooling::{pool_blocks, pools_vertices};
+use super::{strip_bounds, BuildParams};
+use crate::format::grid::Grid;
 use crate::format::{StripRecord, VERSION_MAJOR};
 use crate::geometry::Aabb;
 use crate::strip_encoding::EncodedStrip;
@@ -21,6 +23,27 @@ pub struct ChunkLayout {
     pub bounds: Aabb,
     /// Bytes of the chunk's strip blocks, a multiple of 4.
     pub data_bytes: u64,
+    /// The vertices the strips' views span when their grid vertices were pooled, which the
+    /// header then counts as stored; `None` otherwise.
+    pub pooled_vertices: Option<u64>,
+}
+
+/// What pooling a chunk's grid vertices needs ([`pools_vertices`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Pooling {
+    pub grid: Grid,
+    pub leaf_windows: usize,
+}
+
+impl Pooling {
+    /// The pooling of a file built with `params` on `grid`, if it pools.
+    pub fn of(params: &BuildParams, grid: Option<&Grid>) -> Option<Pooling> {
+        let pools = pools_vertices(grid, params.attributes, params.leaf_windows);
+        grid.filter(|_| pools).map(|&grid| Pooling {
+            grid,
+            leaf_windows: params.leaf_windows,
+        })
+    }
 }
 
 impl ChunkLayout {
@@ -29,6 +52,33 @@ impl ChunkLayout {
     pub fn new(strips: &[EncodedStrip], params: &TopLevelParams) -> io::Result<ChunkLayout> {
         let bounds = strip_bounds(strips);
         let top = toplevel::build(&bounds, params).map_err(io::Error::other)?;
+        ChunkLayout::place(strips, top, &bounds, None)
+    }
+
+    /// [`ChunkLayout::new`] for a chunk whose grid vertices are pooled: the blocks of `strips`
+    /// are rewritten as pooled parts ([`pool_blocks`]) once the top level has fixed their order.
+    pub fn pooled(
+        strips: &mut [EncodedStrip],
+        params: &TopLevelParams,
+        pooling: Pooling,
+    ) -> io::Result<ChunkLayout> {
+        let bounds = strip_bounds(strips);
+        let params = TopLevelParams {
+            traversal_cost: toplevel::POOLED_TRAVERSAL_COST,
+            ..params.clone()
+        };
+        let top = toplevel::build(&bounds, &params).map_err(io::Error::other)?;
+        let grid = &pooling.grid;
+        let stored = pool_blocks(strips, &top.strip_order, grid, pooling.leaf_windows);
+        ChunkLayout::place(strips, top, &bounds, Some(stored))
+    }
+
+    fn place(
+        strips: &[EncodedStrip],
+        top: TopLevel,
+        bounds: &[Aabb],
+        pooled_vertices: Option<u64>,
+    ) -> io::Result<ChunkLayout> {
         let mut words = DataWords::default();
         let records = strip_records(&top.strip_order, strips, &mut words)?;
         Ok(ChunkLayout {
@@ -36,6 +86,7 @@ impl ChunkLayout {
             records,
             bounds: bounds.iter().fold(Aabb::EMPTY, |a, b| a.union(b)),
             data_bytes: words.bytes(),
+            pooled_vertices,
         })
     }
 

@@ -7,6 +7,7 @@
 
 mod in_memory;
 pub mod layout;
+pub mod pooling;
 
 use std::path::Path;
 
@@ -30,7 +31,7 @@ use crate::toplevel::TopLevelParams;
 pub use crate::format::counts::ChunkStats;
 pub use in_memory::write_file;
 use in_memory::write_layout;
-pub use layout::ChunkLayout;
+pub use layout::{ChunkLayout, Pooling};
 
 /// Strip kd-tree leaf size the pipeline uses unless the config sets one; [`BuildParams`] keeps
 /// the paper's 2.
@@ -313,13 +314,24 @@ pub fn write_chunk_counted(
     up: Option<UpAxis>,
     out: &Path,
 ) -> Result<ChunkStats, WriteError> {
-    let layout =
-        ChunkLayout::new(&chunk.strips, &params.top_level).map_err(|source| WriteError {
-            path: out.to_path_buf(),
-            source,
-        })?;
+    // Pooling rewrites the blocks: a copy, the chunk's own stay as encoded.
+    let mut pooled_strips = None;
+    let layout = match Pooling::of(params, chunk.grid.as_ref()) {
+        Some(pooling) => {
+            let strips = pooled_strips.insert(chunk.strips.clone());
+            ChunkLayout::pooled(strips, &params.top_level, pooling)
+        }
+        None => ChunkLayout::new(&chunk.strips, &params.top_level),
+    };
+    let layout = layout.map_err(|source| WriteError {
+        path: out.to_path_buf(),
+        source,
+    })?;
+    let pooled = layout.pooled_vertices.is_some();
+    let mut stats = chunk.stats;
+    stats.stored_vertices = layout.pooled_vertices.unwrap_or(stats.stored_vertices);
     let info = FileInfo {
-        stats: chunk.stats,
+        stats,
         leaf_windows: params.leaf_windows,
         max_strip_length: params.stripify.max_length,
         bounds: layout.bounds,
@@ -328,7 +340,13 @@ pub fn write_chunk_counted(
         attributes: params.attributes,
         closedness,
         up,
+        pooled,
     };
-    write_layout(out, &info, &layout, &chunk.strips)?;
+    write_layout(
+        out,
+        &info,
+        &layout,
+        pooled_strips.as_deref().unwrap_or(&chunk.strips),
+    )?;
     Ok(chunk.stats)
 }

@@ -19,8 +19,8 @@ use super::grid::Grid;
 use super::model::{Closedness, ModelRecord, UpAxis, MODEL_OFFSET};
 use super::{
     align_up, Header, PrecisionRecord, SectionEntry, SectionKind, VertexEncoding, WideNode,
-    ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, PRECISION_OFFSET, SECTION_ALIGN,
-    SECTION_COUNT, VERSION_MAJOR, VERSION_MINOR,
+    ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, POOLED_MINOR, PRECISION_OFFSET,
+    SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR, VERSION_MINOR,
 };
 use crate::atomic::write_atomically;
 use crate::geometry::Aabb;
@@ -41,12 +41,17 @@ pub struct FileInfo {
     pub closedness: Option<Closedness>,
     /// The up-axis hint of the model record.
     pub up: Option<UpAxis>,
+    /// Whether the strip blocks are pooled grid parts (`vertex_encoding` 5, format 4.1): grid
+    /// files without attributes and with leaves of at least 8 windows.
+    pub pooled: bool,
 }
 
 impl FileInfo {
-    /// Lossless (0) or packed grid vertices (3); the top-level nodes are [`WideNode`]s in both.
+    /// Lossless (0), pooled grid vertices (5) or packed grid vertices (3); the top-level nodes
+    /// are [`WideNode`]s in all.
     fn vertex_encoding(&self) -> VertexEncoding {
         match self.grid {
+            Some(_) if self.pooled => VertexEncoding::GridPooled,
             Some(_) => VertexEncoding::GridPackedReferences,
             None => VertexEncoding::F32,
         }
@@ -169,7 +174,10 @@ fn header(info: &FileInfo, strip_count: u64, sections: [SectionEntry; SECTION_CO
         magic: MAGIC,
         // Format 4: block boxes in every strip block and wide nodes, whatever the encoding.
         version_major: VERSION_MAJOR,
-        version_minor: VERSION_MINOR,
+        version_minor: match encoding {
+            VertexEncoding::GridPooled => POOLED_MINOR,
+            _ => VERSION_MINOR,
+        },
         endian_marker: ENDIAN_MARKER,
         header_bytes: std::mem::size_of::<Header>() as u32,
         vertex_encoding: encoding as u32,

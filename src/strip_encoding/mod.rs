@@ -29,7 +29,7 @@
 //! ([`crate::format::block_boxes`]); see there for what they cost and gain.
 
 pub(crate) mod attributes;
-mod block_boxes;
+pub(crate) mod block_boxes;
 
 use std::fmt;
 

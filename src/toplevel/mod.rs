@@ -63,6 +63,10 @@ impl Default for TopLevelParams {
     }
 }
 
+/// [`TopLevelParams::traversal_cost`] for pooled grid files: their strip data is about half a
+/// lossless file's, so the top level's bytes weigh twice as much against its cost in rays.
+pub const POOLED_TRAVERSAL_COST: f64 = 2.0;
+
 /// The built hierarchy: nodes in file order and, for each file strip position, the input strip.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TopLevel {

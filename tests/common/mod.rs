@@ -341,6 +341,7 @@ pub fn write_encoded_strips(
         attributes: Default::default(),
         closedness: None,
         up: None,
+        pooled: false,
     };
     write_file(path, &info, &top, encoded).expect("write file");
 }
@@ -364,6 +365,7 @@ pub fn write_chunk_under(
         attributes: Default::default(),
         closedness: None,
         up: None,
+        pooled: false,
     };
     write_file(path, &info, top, &chunk.strips).expect("write file");
 }

@@ -14,7 +14,7 @@ use super::{attributes, SectionEntry, SECTION_COUNT};
 /// | 8..10 | `version_major`, 10..12 `version_minor` |
 /// | 12..16 | `endian_marker` = 0x01020304 |
 /// | 16..20 | `header_bytes` = 208 |
-/// | 20..24 | `vertex_encoding` ([`VertexEncoding`]): 0 f32, 1 to 3 grid, 4 f32 with grid nodes |
+/// | 20..24 | `vertex_encoding` ([`VertexEncoding`]): 0 f32, 1 to 3 grid, 4 f32 with grid nodes, 5 pooled grid |
 /// | 24..28 | `leaf_windows`: strip kd-tree leaf size in windows (1..=255) |
 /// | 28..32 | `max_strip_length` used by the build (informational) |
 /// | 32..40 | `triangle_count`: real (non-swap) triangles |

@@ -15,6 +15,7 @@ pub mod face_ids;
 pub mod grid;
 pub mod implicit_tree;
 pub mod model;
+pub mod pool;
 pub mod quantized;
 pub mod reader;
 pub mod references;
@@ -50,7 +51,11 @@ pub const MAGIC: [u8; 8] = *b"REDUCEM\0";
 /// compressed ones ([`WideNode`]). Writers write version 4.
 pub const VERSION_MAJOR: u16 = 4;
 /// Incremented on compatible additions; readers accept any minor of a major they read.
+/// Lossless and `vertex_encoding` 3 files are written as 4.0.
 pub const VERSION_MINOR: u16 = 0;
+/// The minor of format 4 that added pooled grid files (`vertex_encoding` 5, [`pool`]), the one
+/// pooled files are written as.
+pub const POOLED_MINOR: u16 = 1;
 /// The oldest major this reader reads (version 2 files are read as before).
 pub const OLDEST_READ_MAJOR: u16 = 2;
 /// Version 2's minors: minor 1 added the [`PrecisionRecord`] and the grid vertex encoding,

@@ -251,6 +251,17 @@ impl<'a> GridVertices<'a> {
         }
     }
 
+    /// The `count` vertices from vertex `first` on: a pooled strip's vertices within its pool
+    /// ([`super::pool`]), decoded as the pool's own.
+    #[inline(always)]
+    pub fn starting_at(self, first: usize, count: usize) -> Self {
+        GridVertices {
+            base_bit: self.base_bit + (first as u32) * self.stride,
+            count: count as u32,
+            ..self
+        }
+    }
+
     pub fn len(&self) -> usize {
         self.count as usize
     }

@@ -35,6 +35,7 @@ use super::attributes::AttributeSection;
 use super::block_boxes::{self, BlockBoxes};
 use super::grid::{Grid, NodeGrid};
 use super::implicit_tree::internal_nodes;
+use super::pool::{PartHeader, PART_HEADER_BYTES, POOL_COUNT_BYTES};
 use super::quantized::{vertex_part_bytes, AxisWordLayout, GridVertices};
 use super::references::{packed_bytes, packed_width, References, MIN_PACKED_BYTES};
 use super::vertices::StripVertices;
@@ -173,6 +174,9 @@ pub enum VertexLayout {
         packed: bool,
         boxes: bool,
     },
+    /// Grid vertices in pools shared by consecutive strips (format 4.1, [`super::pool`]): packed
+    /// axis words and references, block boxes, no split axes.
+    Pooled { grid: Grid },
 }
 
 impl From<Option<Grid>> for VertexLayout {
@@ -203,6 +207,7 @@ impl VertexLayout {
     pub fn boxes(&self) -> bool {
         match *self {
             VertexLayout::F32 { boxes } | VertexLayout::Grid { boxes, .. } => boxes,
+            VertexLayout::Pooled { .. } => true,
         }
     }
 
@@ -211,7 +216,13 @@ impl VertexLayout {
         match *self {
             VertexLayout::F32 { boxes } => boxes,
             VertexLayout::Grid { packed, .. } => packed,
+            VertexLayout::Pooled { .. } => true,
         }
+    }
+
+    /// Whether blocks store their strip kd-tree's split axes (all but pooled files).
+    pub fn kd_trees(&self) -> bool {
+        !matches!(self, VertexLayout::Pooled { .. })
     }
 
     /// Bytes of a block's `count` references with `vertices` vertices.
@@ -572,14 +583,30 @@ pub fn strip_view<'a>(
     layout: &VertexLayout,
 ) -> StripView<'a> {
     let count = record.reference_count as usize;
-    let parts = part_lengths(count, leaf_windows, layout.boxes());
+    let parts = match layout.kd_trees() {
+        true => part_lengths(count, leaf_windows, layout.boxes()),
+        false => part_lengths(count, NO_TREE, true),
+    };
     view_block(data, record, parts, layout)
+}
+
+/// The leaf size that gives every strip a single leaf: how the part lengths of blocks without
+/// kd-trees (pooled files) are computed.
+pub(super) const NO_TREE: usize = usize::MAX;
+
+/// Internal kd-tree nodes of a block with `count` references (none with [`NO_TREE`]).
+#[inline(always)]
+fn tree_nodes(count: usize, leaf_windows: usize) -> usize {
+    match leaf_windows {
+        NO_TREE => 0,
+        _ => internal_nodes(count - 2, leaf_windows),
+    }
 }
 
 /// Bytes of the split axes and of the block boxes of a block with `count` references.
 #[inline(always)]
 fn part_lengths(count: usize, leaf_windows: usize, boxes: bool) -> (usize, usize) {
-    let axes = axis_bytes(internal_nodes(count - 2, leaf_windows));
+    let axes = axis_bytes(tree_nodes(count, leaf_windows));
     match boxes {
         true => (axes, block_boxes::area_bytes(count - 2)),
         false => (axes, 0),
@@ -609,7 +636,7 @@ impl PartTable {
         let entries = std::array::from_fn(|count| match count {
             0..3 => [0; 3],
             _ => {
-                let nodes = internal_nodes(count - 2, leaf_windows);
+                let nodes = tree_nodes(count, leaf_windows);
                 let (axes, box_bytes) = part_lengths(count, leaf_windows, boxes);
                 [nodes as u8, axes as u8, box_bytes as u8]
             }
@@ -626,7 +653,7 @@ impl PartTable {
     pub(super) fn nodes(&self, count: usize) -> usize {
         match self.entries.get(count) {
             Some(&[nodes, _, _]) => nodes as usize,
-            None => internal_nodes(count - 2, self.leaf_windows),
+            None => tree_nodes(count, self.leaf_windows),
         }
     }
 
@@ -695,6 +722,20 @@ pub(super) fn try_view_block<'a>(
             let block = block.get(..vertex_bytes + parts.bytes())?;
             let vertices = GridVertices::new(block, (&words, words_layout), count, &grid);
             parts.view(block.get(vertex_bytes..)?, StripVertices::Grid(vertices))
+        }
+        VertexLayout::Pooled { grid } => {
+            let header = PartHeader::read(block)?;
+            let parts = BlockParts::new(record, parts, &VertexLayout::Pooled { grid });
+            let part = block.get(PART_HEADER_BYTES..PART_HEADER_BYTES + parts.bytes())?;
+            // The pool follows the part: the vertices are read from the pool's axis words on.
+            let pool = block.get(header.pool_distance + POOL_COUNT_BYTES..)?;
+            let words_layout = AxisWordLayout::Packed {
+                grid_bits: grid.bits,
+            };
+            let words = words_layout.read(pool);
+            let vertices = GridVertices::new(pool, (&words, words_layout), 0, &grid)
+                .starting_at(header.base, count);
+            parts.view(part, StripVertices::Grid(vertices))
         }
     }
 }

@@ -25,6 +25,9 @@ pub enum VertexEncoding {
     /// geometry, so rounding them outward loses nothing; decoding them costs speed, so writers
     /// write this encoding on request only. Since format 2.4.
     F32GridNodes = 4,
+    /// Grid vertices in pools shared by consecutive strips ([`super::pool`]), references packed
+    /// at each strip's bits, no strip kd-trees. Since format 4.1.
+    GridPooled = 5,
 }
 
 impl VertexEncoding {
@@ -35,6 +38,7 @@ impl VertexEncoding {
             2 => Some(VertexEncoding::GridNodes),
             3 => Some(VertexEncoding::GridPackedReferences),
             4 => Some(VertexEncoding::F32GridNodes),
+            5 => Some(VertexEncoding::GridPooled),
             _ => None,
         }
     }
@@ -58,7 +62,8 @@ impl VertexEncoding {
         )
     }
 
-    /// The first format minor with this encoding.
+    /// The first format 2 minor with this encoding; [`VertexEncoding::GridPooled`] is no part
+    /// of format 2 (format 4.1).
     pub fn minor(self) -> u16 {
         match self {
             VertexEncoding::F32 => 0,
@@ -66,6 +71,7 @@ impl VertexEncoding {
             VertexEncoding::GridNodes => 2,
             VertexEncoding::GridPackedReferences => 3,
             VertexEncoding::F32GridNodes => 4,
+            VertexEncoding::GridPooled => super::POOLED_MINOR,
         }
     }
 }

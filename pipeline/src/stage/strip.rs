@@ -4,7 +4,7 @@
 //! about threads × one chunk ([`for_each_unit`]).
 
 use anyhow::Context;
-use reducem::conversion::{encode_chunk_on, ChunkLayout};
+use reducem::conversion::{encode_chunk_on, ChunkLayout, Pooling};
 use reducem::strip_encoding::EncodedStrip;
 use reducem::toplevel::TopLevelParams;
 
@@ -122,9 +122,15 @@ fn strip_one(job: &Job, chunked: &Chunked, chunk: usize) -> anyhow::Result<(Stri
     let params = job.config.build_params();
     // One grid over the whole model, the same for every chunk.
     let grid = params.grid(&chunked.bounds());
-    let encoded = encode_chunk_on(&mesh, &params, grid.as_ref());
+    let mut encoded = encode_chunk_on(&mesh, &params, grid.as_ref());
     drop(mesh);
-    let layout = ChunkLayout::new(&encoded.strips, &params.top_level)?;
+    let layout = match Pooling::of(&params, grid.as_ref()) {
+        Some(pooling) => ChunkLayout::pooled(&mut encoded.strips, &params.top_level, pooling)?,
+        None => ChunkLayout::new(&encoded.strips, &params.top_level)?,
+    };
+    if let Some(stored) = layout.pooled_vertices {
+        encoded.stats.stored_vertices = stored;
+    }
     let strips: Vec<&EncodedStrip> = layout.strips(&encoded.strips).collect();
     let header = StripChunkHeader::new(
         &encoded.stats,

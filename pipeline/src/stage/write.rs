@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use reducem::conversion::layout::{rebase_records, DataWords};
+use reducem::conversion::Pooling;
 use reducem::format::attribute_sections::AttributeVisit;
 use reducem::format::reader::{ReducemFile, Validation};
 use reducem::format::writer::{write_nodes, write_streaming, FileInfo, SectionSource};
@@ -51,6 +52,8 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         std::fs::create_dir_all(parent)
             .with_context(|| format!("creating {}", parent.display()))?;
     }
+    let params = job.config.build_params();
+    let pooled = Pooling::of(&params, merged.grid.as_ref()).is_some();
     let info = FileInfo {
         stats: merged.stats(),
         leaf_windows: job.config.build_params().leaf_windows,
@@ -61,6 +64,7 @@ pub fn run(job: &Job, merged: &Merged, hierarchy: &Hierarchy) -> anyhow::Result<
         attributes: job.config.build_params().attributes,
         closedness: Some(merged.edges.into()),
         up: Some(job.config.input.up_axis()),
+        pooled,
     };
     let mut source = Spliced::new(job, merged, hierarchy)?;
     let temporary = reducem::atomic::temporary_path(&output);

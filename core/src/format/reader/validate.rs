@@ -22,7 +22,7 @@ use super::super::{
 use super::lazy::{LazyChecks, Passed};
 use super::{
     section_slot, FormatError, NodeLayout, PartTable, ReducemFile, StripView, Validation,
-    EAGER_VALIDATION_BYTES,
+    EAGER_VALIDATION_BYTES, NO_TREE,
 };
 use crate::mapping::{map_file, map_range};
 use header::Checker;
@@ -94,7 +94,10 @@ pub(super) fn open(
         attributes,
         model,
         checks,
-        parts: PartTable::new(header.leaf_windows as usize, layout.boxes()),
+        parts: match layout.kd_trees() {
+            true => PartTable::new(header.leaf_windows as usize, layout.boxes()),
+            false => PartTable::new(NO_TREE, true),
+        },
         scattered: Default::default(),
     };
     let windows = Windows { opened: &opened };

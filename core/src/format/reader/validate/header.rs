@@ -5,6 +5,7 @@ use std::ops::Range;
 use std::path::Path;
 
 use super::strips::RECORD_BYTES;
+use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::grid::{Grid, NodeGrid, MAX_GRID_BITS};
 use crate::format::reader::{FormatError, NodeLayout, VertexLayout};
 use crate::format::{
@@ -152,10 +153,14 @@ impl Checker<'_> {
         precision: &PrecisionRecord,
     ) -> Result<(), FormatError> {
         let encoding = VertexEncoding::from_u32(header.vertex_encoding);
-        if !matches!(
-            encoding,
-            Some(VertexEncoding::F32 | VertexEncoding::GridPackedReferences)
-        ) {
+        let pooled = encoding == Some(VertexEncoding::GridPooled)
+            && header.version_minor >= VertexEncoding::GridPooled.minor();
+        if !pooled
+            && !matches!(
+                encoding,
+                Some(VertexEncoding::F32 | VertexEncoding::GridPackedReferences)
+            )
+        {
             let detail = format!(
                 "vertex encoding {} is not part of format 4",
                 header.vertex_encoding
@@ -211,6 +216,9 @@ impl Checker<'_> {
             ));
         }
         let boxes = header.has_block_boxes();
+        if encoding == VertexEncoding::GridPooled {
+            self.check_pooled(header)?;
+        }
         if boxes && matches!(encoding, VertexEncoding::Grid | VertexEncoding::GridNodes) {
             let detail = format!(
                 "vertex encoding {} (unpacked grid blocks) is not part of format 3",
@@ -297,14 +305,47 @@ impl Checker<'_> {
                     None
                 };
                 let packed = encoding == VertexEncoding::GridPackedReferences;
-                let layout = VertexLayout::Grid {
-                    grid,
-                    packed,
-                    boxes,
+                let layout = match encoding {
+                    VertexEncoding::GridPooled => VertexLayout::Pooled { grid },
+                    _ => VertexLayout::Grid {
+                        grid,
+                        packed,
+                        boxes,
+                    },
                 };
                 Ok((layout, node_grid))
             }
         }
+    }
+
+    /// Pooled grid files (format 4.1) have no strip kd-trees: every strip the tracer would
+    /// descend by its kd-tree must have block boxes, so leaves hold at least a box's windows.
+    fn check_pooled(&self, header: &Header) -> Result<(), FormatError> {
+        if header.version_major < 4 {
+            let detail = format!(
+                "vertex encoding {} needs format 4.1 or later",
+                header.vertex_encoding
+            );
+            return Err(self.invalid(
+                FilePart::Header,
+                offset_of!(Header, vertex_encoding) as u64,
+                Defect::BadEncoding,
+                detail,
+            ));
+        }
+        if (header.leaf_windows as usize) < BOX_WINDOWS {
+            let detail = format!(
+                "pooled grid vertices with leaves of {} windows, fewer than {BOX_WINDOWS}",
+                header.leaf_windows
+            );
+            return Err(self.invalid(
+                FilePart::Header,
+                offset_of!(Header, leaf_windows) as u64,
+                Defect::Contradiction,
+                detail,
+            ));
+        }
+        Ok(())
     }
 
     /// The node grid of a lossless file with grid nodes (vertex encoding 4): its origin and

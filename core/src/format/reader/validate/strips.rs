@@ -3,7 +3,12 @@
 use std::ops::Range;
 
 use crate::format::block_boxes::{BlockBoxes, EXPONENTS};
-use crate::format::quantized::{vertex_part_bytes, AxisWord};
+use crate::format::grid::Grid;
+use crate::format::pool::{
+    pool_bytes, pool_points, PartHeader, MAX_POOL_BYTES, MAX_POOL_DISTANCE, PART_HEADER_BYTES,
+    POOL_COUNT_BYTES,
+};
+use crate::format::quantized::{vertex_part_bytes, AxisWord, AxisWordLayout};
 use crate::format::reader::{
     try_view_block, view_block, FormatError, PartTable, ReducemFile, StripView, VertexLayout,
 };
@@ -111,6 +116,10 @@ impl BlockShape<'_> {
                 let vertex_bytes = vertex_part_bytes(count, &widest, words_layout);
                 self.length(record, nodes, vertex_bytes)
             }
+            VertexLayout::Pooled { .. } => {
+                let part = self.length(record, nodes, PART_HEADER_BYTES);
+                part + (MAX_POOL_DISTANCE + MAX_POOL_BYTES) as u64
+            }
         };
         let start = self.reaches(record, nodes, data_len)?;
         Ok(start..(start + longest).min(data_len))
@@ -133,6 +142,7 @@ impl BlockShape<'_> {
                 let words_layout = VertexLayout::axis_words(&grid, packed);
                 self.length(record, nodes, words_layout.bits().div_ceil(8))
             }
+            VertexLayout::Pooled { .. } => self.length(record, nodes, PART_HEADER_BYTES),
         };
         let start = record.data_word as u64 * 4;
         if start + shortest > data_len {
@@ -231,6 +241,9 @@ impl BlockShape<'_> {
         record: &StripRecord,
         nodes: usize,
     ) -> Result<CheckedBlock<'a>, StripDefect> {
+        if let VertexLayout::Pooled { grid } = self.layout {
+            return self.pooled_block(available, (start, data_len), record, &grid);
+        }
         let vertex_bytes = match self.layout {
             VertexLayout::F32 { .. } => record.vertex_count as usize * F32_VERTEX_BYTES,
             VertexLayout::Grid { grid, packed, .. } => {
@@ -243,6 +256,7 @@ impl BlockShape<'_> {
                 }
                 vertex_part_bytes(record.vertex_count as usize, &words, words_layout)
             }
+            VertexLayout::Pooled { .. } => PART_HEADER_BYTES,
         };
         let length = self.length(record, nodes, vertex_bytes);
         let Some(block) = available.get(..length as usize) else {
@@ -257,6 +271,70 @@ impl BlockShape<'_> {
         Ok(CheckedBlock {
             view,
             end: start + length,
+        })
+    }
+}
+
+impl BlockShape<'_> {
+    /// [`BlockShape::block`] of a pooled strip ([`crate::format::pool`]): its part, then its
+    /// pool, after the part and inside `available`, with axis words inside the grid and room
+    /// for the strip's vertices from its base.
+    fn pooled_block<'a>(
+        &self,
+        available: &'a [u8],
+        (start, data_len): (u64, u64),
+        record: &StripRecord,
+        grid: &Grid,
+    ) -> Result<CheckedBlock<'a>, StripDefect> {
+        let part_bytes = self.length(record, 0, PART_HEADER_BYTES);
+        let part = available
+            .get(..part_bytes as usize)
+            .ok_or_else(|| past_the_end(start, part_bytes, data_len))?;
+        let header = PartHeader::read(part).ok_or_else(|| past_the_end(start, 3, data_len))?;
+        if (header.pool_distance as u64) < part_bytes {
+            let detail = format!(
+                "pool {} bytes on overlaps the part of {part_bytes} bytes",
+                header.pool_distance
+            );
+            return Err((Some(start), Defect::OutOfRange, detail));
+        }
+        let pool_at = start + header.pool_distance as u64;
+        let words_layout = AxisWordLayout::Packed {
+            grid_bits: grid.bits,
+        };
+        let head_bytes = POOL_COUNT_BYTES + words_layout.bits().div_ceil(8);
+        let pool = available
+            .get(header.pool_distance..)
+            .filter(|pool| pool.len() >= head_bytes)
+            .ok_or_else(|| past_the_end(pool_at, head_bytes as u64, data_len))?;
+        let points = pool_points(pool[0]);
+        let words = words_layout.read(&pool[POOL_COUNT_BYTES..]);
+        for (axis, word) in words.iter().enumerate() {
+            let at = (POOL_COUNT_BYTES + axis * words_layout.bits() / 3 / 8) as u64;
+            word.check(grid.bits)
+                .map_err(|detail| (Some(pool_at + at), Defect::OutOfRange, detail))?;
+        }
+        let pool_length = pool_bytes(points, &words, words_layout);
+        if pool.len() < pool_length {
+            return Err(past_the_end(pool_at, pool_length as u64, data_len));
+        }
+        let vertices = record.vertex_count as usize;
+        if header.base + vertices > points {
+            let detail = format!(
+                "base {} and {vertices} vertices pass the pool's {points} points",
+                header.base
+            );
+            return Err((Some(start + 2), Defect::OutOfRange, detail));
+        }
+        let local = StripRecord {
+            data_word: 0,
+            ..*record
+        };
+        let parts = self.parts.lengths(record.reference_count as usize);
+        let view = view_block(available, &local, parts, &self.layout);
+        Ok(CheckedBlock {
+            view,
+            end: start + part_bytes,
         })
     }
 }
