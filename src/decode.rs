@@ -7,7 +7,9 @@ use std::path::Path;
 
 use crate::atomic::write_atomically;
 use crate::format::attributes::NormalEncoding;
-use crate::format::reader::ReducemFile;
+use crate::format::reader::{ReducemFile, StripView};
+use crate::format::vertices::StripVertices;
+use crate::format::VertexEncoding;
 use crate::geometry::Point;
 
 /// Every stored triangle in file order, corners in input winding.
@@ -19,20 +21,23 @@ pub fn triangles(file: &ReducemFile) -> impl Iterator<Item = [Point; 3]> + '_ {
 }
 
 /// Writes every triangle as binary little-endian PLY (`float x,y,z`; `list uchar int
-/// vertex_indices`), each strip's stored vertices once, atomically replacing `out`. A file with
-/// attributes adds them: `float nx,ny,nz` (the decoded normal) and `uchar red,green,blue,alpha`
-/// on vertices, `uint face_id` on faces after `vertex_indices`.
+/// vertex_indices`), each strip's stored vertices once (in pooled grid files, each pool's points
+/// once), atomically replacing `out`. A file with attributes adds them: `float nx,ny,nz` (the
+/// decoded normal) and `uchar red,green,blue,alpha` on vertices, `uint face_id` on faces after
+/// `vertex_indices`.
 pub fn write_ply(file: &ReducemFile, out: &Path) -> io::Result<()> {
     write_atomically(out, |out| write_ply_to(file, out))
 }
 
 /// [`write_ply`] into `out`, a stream or a file.
 pub fn write_ply_to<W: Write + ?Sized>(file: &ReducemFile, out: &mut W) -> io::Result<()> {
-    write_ply_header(file, out)?;
+    write_ply_header(file, decoded_vertex_count(file), out)?;
     let attributes = file.attributes();
     let mut record = Vec::with_capacity(28);
-    for s in 0..file.strip_count() {
-        let vertices = file.strip(s).vertices;
+    for (s, placed) in placements(file) {
+        let Some(vertices) = placed.new_vertices else {
+            continue;
+        };
         let stored = file.vertex_attributes(s);
         for (index, vertex) in vertices.iter().enumerate() {
             record.clear();
@@ -47,17 +52,15 @@ pub fn write_ply_to<W: Write + ?Sized>(file: &ReducemFile, out: &mut W) -> io::R
             out.write_all(&record)?;
         }
     }
-    let mut first_vertex = 0u64;
-    for s in 0..file.strip_count() {
-        let view = file.strip(s);
-        let windows = view.references.to_vec();
-        for k in 0..view.window_count() {
+    for (s, placed) in placements(file) {
+        let windows = placed.view.references.to_vec();
+        for k in 0..placed.view.window_count() {
             let Some(triangle) = crate::strip_windows::window_triangle(&windows, k) else {
                 continue;
             };
             out.write_all(&[3])?;
             for r in triangle {
-                let index = i32::try_from(first_vertex + r as u64)
+                let index = i32::try_from(placed.first_vertex + r as u64)
                     .map_err(|_| io::Error::other("too many vertices for PLY int indices"))?;
                 out.write_all(&index.to_le_bytes())?;
             }
@@ -65,7 +68,6 @@ pub fn write_ply_to<W: Write + ?Sized>(file: &ReducemFile, out: &mut W) -> io::R
                 out.write_all(&file.face_id(s, k).unwrap_or(u32::MAX).to_le_bytes())?;
             }
         }
-        first_vertex += view.vertices.len() as u64;
     }
     match file.defect() {
         Some(defect) => Err(io::Error::new(
@@ -76,14 +78,75 @@ pub fn write_ply_to<W: Write + ?Sized>(file: &ReducemFile, out: &mut W) -> io::R
     }
 }
 
-fn write_ply_header<W: Write + ?Sized>(file: &ReducemFile, out: &mut W) -> io::Result<()> {
+/// A strip as decoding places it among the written vertices.
+struct Placed<'a> {
+    view: StripView<'a>,
+    /// The vertices written for this strip: its own, its pool's points when it is the first
+    /// strip of its pool, or none.
+    new_vertices: Option<StripVertices<'a>>,
+    /// The written vertex that is the strip's vertex 0.
+    first_vertex: u64,
+}
+
+/// Every strip in file order, placed: a strip's stored vertices follow those of the strips
+/// before it, except in pooled grid files, whose strips of one pool share its points.
+fn placements(file: &ReducemFile) -> impl Iterator<Item = (usize, Placed<'_>)> + '_ {
+    let mut written = 0u64;
+    let mut pool: Option<(usize, u64)> = None;
+    (0..file.strip_count()).map(move |s| {
+        let view = file.strip(s);
+        let placed = match file.pool(s) {
+            Some(place) => {
+                let new_pool = pool.is_none_or(|(offset, _)| offset != place.offset);
+                if new_pool {
+                    pool = Some((place.offset, written));
+                    written += place.points.len() as u64;
+                }
+                let pool_first = pool.map_or(0, |(_, first)| first);
+                Placed {
+                    view,
+                    new_vertices: new_pool.then_some(place.points),
+                    first_vertex: pool_first + place.base as u64,
+                }
+            }
+            None => {
+                let first_vertex = written;
+                written += view.vertices.len() as u64;
+                Placed {
+                    view,
+                    new_vertices: Some(view.vertices),
+                    first_vertex,
+                }
+            }
+        };
+        (s, placed)
+    })
+}
+
+/// The vertices [`write_ply_to`] writes: the header's stored count, or in pooled grid files the
+/// points of their pools.
+fn decoded_vertex_count(file: &ReducemFile) -> u64 {
+    match file.header().vertex_encoding == VertexEncoding::GridPooled as u32 {
+        true => placements(file)
+            .filter_map(|(_, placed)| placed.new_vertices)
+            .map(|vertices| vertices.len() as u64)
+            .sum(),
+        false => file.header().stored_vertex_count,
+    }
+}
+
+fn write_ply_header<W: Write + ?Sized>(
+    file: &ReducemFile,
+    vertex_count: u64,
+    out: &mut W,
+) -> io::Result<()> {
     let header = file.header();
     let attributes = file.attributes();
     let mut text = format!(
         "ply\nformat binary_little_endian 1.0\ncomment decoded by reducem from {}\n\
          element vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
         file.path().display(),
-        header.stored_vertex_count,
+        vertex_count,
     );
     if attributes.normals != NormalEncoding::None {
         text += "property float nx\nproperty float ny\nproperty float nz\n";

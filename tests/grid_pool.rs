@@ -129,6 +129,7 @@ fn assert_same_answers(kind: Kind, triangles: u64) {
         canonical_sorted(decode::triangles(&unpooled_file)),
         "{name}: decoded triangles differ"
     );
+    assert_decoded_ply_writes_each_pool_once(&pooled_file, &unpooled_file, &name);
     let rays = temp_path(&format!("{name}.rays"));
     ray_file(&mesh, &rays);
     let points = temp_path(&format!("{name}.points"));
@@ -154,6 +155,48 @@ fn assert_same_answers(kind: Kind, triangles: u64) {
             assert!(hits > 100, "{name}: only {hits} rays hit");
         }
     }
+}
+
+/// `reducem decode`'s PLY of the pooled file: each pool's points once, fewer vertices than the
+/// 4.0 file stores, and the 4.0 file's triangles.
+fn assert_decoded_ply_writes_each_pool_once(
+    pooled: &ReducemFile,
+    unpooled: &ReducemFile,
+    name: &str,
+) {
+    let ply = temp_path(&format!("{name}-decoded.ply"));
+    decode::write_ply(pooled, &ply).expect("decode pooled");
+    let mut offsets: Vec<_> = (0..pooled.strip_count())
+        .map(|s| {
+            pooled.strip(s);
+            let place = pooled
+                .pool(s)
+                .expect("every strip of a pooled file is in a pool");
+            (place.offset, place.points.len())
+        })
+        .collect();
+    offsets.dedup();
+    let pool_points: usize = offsets.iter().map(|&(_, points)| points).sum();
+    let bytes = std::fs::read(&ply).unwrap();
+    let header = String::from_utf8_lossy(&bytes[..bytes.len().min(512)]);
+    let vertex_line = header
+        .lines()
+        .find(|line| line.starts_with("element vertex "));
+    assert_eq!(
+        vertex_line,
+        Some(format!("element vertex {pool_points}").as_str())
+    );
+    assert!((pool_points as u64) < unpooled.header().stored_vertex_count);
+    let mesh = reducem::input::read_mesh(&ply).expect("read the decoded PLY");
+    let corners = mesh
+        .triangles
+        .iter()
+        .map(|t| t.map(|v| mesh.positions[v as usize]));
+    assert_eq!(
+        canonical_sorted(corners),
+        canonical_sorted(decode::triangles(unpooled)),
+        "{name}: the decoded PLY's triangles differ"
+    );
 }
 
 #[test]

@@ -35,7 +35,7 @@ use super::attributes::AttributeSection;
 use super::block_boxes::{self, BlockBoxes};
 use super::grid::{Grid, NodeGrid};
 use super::implicit_tree::internal_nodes;
-use super::pool::{PartHeader, PART_HEADER_BYTES, POOL_COUNT_BYTES};
+use super::pool::{pool_points, PartHeader, PART_HEADER_BYTES, POOL_COUNT_BYTES};
 use super::quantized::{vertex_part_bytes, AxisWordLayout, GridVertices};
 use super::references::{packed_bytes, packed_width, References, MIN_PACKED_BYTES};
 use super::vertices::StripVertices;
@@ -232,6 +232,18 @@ impl VertexLayout {
             false => count,
         }
     }
+}
+
+/// A pooled strip's place in the vertex pool it shares with its neighbours
+/// ([`super::pool`]).
+#[derive(Clone, Copy, Debug)]
+pub struct PoolPlace<'a> {
+    /// The pool's byte offset in the strip-data section: equal for the strips sharing it.
+    pub offset: usize,
+    /// The pool point that is the strip's vertex 0.
+    pub base: usize,
+    /// Every point of the pool.
+    pub points: StripVertices<'a>,
 }
 
 /// One strip's block, viewed in place.
@@ -438,6 +450,35 @@ impl ReducemFile {
 
     pub fn strip_count(&self) -> usize {
         self.strip_records().len()
+    }
+
+    /// Strip `index`'s place in its vertex pool, in pooled grid files and once the strip has
+    /// passed validation (after [`ReducemFile::strip`]); `None` otherwise.
+    pub fn pool(&self, index: usize) -> Option<PoolPlace<'_>> {
+        let VertexLayout::Pooled { grid } = self.layout else {
+            return None;
+        };
+        if !self.checks.strips.get(index) {
+            return None;
+        }
+        let data = self.section_bytes(SectionKind::StripData);
+        let part = self.strip_records().get(index)?.data_word as usize * 4;
+        let header = PartHeader::read(data.get(part..)?)?;
+        let offset = part + header.pool_distance;
+        let pool = data.get(offset..)?;
+        let count = pool_points(*pool.first()?);
+        let pool = pool.get(POOL_COUNT_BYTES..)?;
+        let words_layout = AxisWordLayout::Packed {
+            grid_bits: grid.bits,
+        };
+        let words = words_layout.read(pool);
+        let points =
+            GridVertices::new(pool, (&words, words_layout), 0, &grid).starting_at(0, count);
+        Some(PoolPlace {
+            offset,
+            base: header.base,
+            points: StripVertices::Grid(points),
+        })
     }
 
     /// The strips of a leaf whose slot holds `first` and `count`, within the file's strips: a
