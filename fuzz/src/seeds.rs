@@ -58,6 +58,17 @@ pub fn write_seeds(corpus: &Path) -> std::io::Result<()> {
     };
     convert_mesh(&octahedron_sphere(2), &quantized, &reducem.join("grid.rdm"))
         .map_err(std::io::Error::other)?;
+    // Leaves of eight windows make the grid file pooled (format 4.1, `vertex_encoding` 5).
+    let pooled = BuildParams {
+        leaf_windows: 8,
+        ..quantized
+    };
+    convert_mesh(
+        &octahedron_sphere(3),
+        &pooled,
+        &reducem.join("grid-pooled.rdm"),
+    )
+    .map_err(std::io::Error::other)?;
     let attributes = BuildParams {
         attributes: AttributeSet {
             face_ids: true,
