@@ -222,18 +222,6 @@ pub(super) fn frustum_slots(frustum: &Avx2Frustum, planes: &Avx2Planes, reach: f
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
 pub(super) fn plane_order_keys(planes: &Avx2Planes, negative: &[bool; 3]) -> [f32; 8] {
-    let mut key = _mm256_setzero_ps();
-    for (axis, &negative) in negative.iter().enumerate() {
-        let centre = _mm256_add_ps(planes.entry[axis], planes.exit[axis]);
-        key = match negative {
-            true => _mm256_sub_ps(key, centre),
-            false => _mm256_add_ps(key, centre),
-        };
-    }
-    let nan = _mm256_cmp_ps::<_CMP_UNORD_Q>(key, key);
-    bytemuck::cast(_mm256_blendv_ps(
-        key,
-        _mm256_set1_ps(f32::NEG_INFINITY),
-        nan,
-    ))
+    let centres = std::array::from_fn(|axis| _mm256_add_ps(planes.entry[axis], planes.exit[axis]));
+    super::wide_nodes::keys_of_centres(&centres, negative)
 }

@@ -67,17 +67,26 @@ pub(super) fn wide_planes(lanes: &Lanes, node: &WideNode) -> Avx2Planes {
 }
 
 /// [`TraceKernel::wide_order_keys`](crate::trace::kernel::TraceKernel::wide_order_keys):
-/// `order_keys`' operations in its order on eight lanes (each centre `min + max`, summed into
-/// the key from zero axis by axis, a NaN key made `-inf`).
+/// `order_keys`' operations in its order on eight lanes (each centre `min + max`).
 #[target_feature(enable = "avx2,bmi2")]
 pub(super) fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; 8] {
-    let mut key = _mm256_setzero_ps();
-    for (axis, &negative) in negative.iter().enumerate() {
+    let centres = std::array::from_fn(|axis| {
         let origin = _mm256_set1_ps(node.origin[axis]);
         let scale = _mm256_set1_ps(node.scale(axis));
         let min = decode_plane(&node.min[axis], origin, scale);
         let max = decode_plane(&node.max[axis], origin, scale);
-        let centre = _mm256_add_ps(min, max);
+        _mm256_add_ps(min, max)
+    });
+    keys_of_centres(&centres, negative)
+}
+
+/// The order keys of eight boxes from their centres (`min + max` by axis): summed into the key
+/// from zero axis by axis, subtracted on negative axes, a NaN key made `-inf`.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+pub(super) fn keys_of_centres(centres: &[__m256; 3], negative: &[bool; 3]) -> [f32; 8] {
+    let mut key = _mm256_setzero_ps();
+    for (&centre, &negative) in centres.iter().zip(negative) {
         key = match negative {
             true => _mm256_sub_ps(key, centre),
             false => _mm256_add_ps(key, centre),
