@@ -4,6 +4,7 @@
 
 mod common;
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -67,8 +68,14 @@ fn turned_to_y_up(mesh: &Mesh) -> Mesh {
 fn converted_with_up(mesh: &Mesh, up: UpAxis, name: &str) -> PathBuf {
     let params = BuildParams::default();
     let path = temp_path(name);
-    write_chunk_counted(&encode_chunk(mesh, &params), &params, None, Some(up), &path)
-        .expect("write");
+    write_chunk_counted(
+        Cow::Owned(encode_chunk(mesh, &params)),
+        &params,
+        None,
+        Some(up),
+        &path,
+    )
+    .expect("write");
     path
 }
 

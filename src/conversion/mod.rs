@@ -9,6 +9,7 @@ mod in_memory;
 pub mod layout;
 pub mod pooling;
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use rayon::prelude::*;
@@ -285,7 +286,8 @@ pub fn convert_mesh(
         });
     }
     let chunk = encode_chunk(mesh, params);
-    write_chunk_counted(&chunk, params, Some(stored_edges(mesh, params)), None, out)
+    let closedness = Some(stored_edges(mesh, params));
+    write_chunk_counted(Cow::Owned(chunk), params, closedness, None, out)
 }
 
 /// The edge counts of `mesh` as stored: on the grid when vertices are quantized, since snapping
@@ -303,25 +305,28 @@ pub fn write_chunk(
     params: &BuildParams,
     out: &Path,
 ) -> Result<ChunkStats, WriteError> {
-    write_chunk_counted(chunk, params, None, None, out)
+    write_chunk_counted(Cow::Borrowed(chunk), params, None, None, out)
 }
 
 /// [`write_chunk`] with the whole model's edge counts and its up axis, when known.
 pub fn write_chunk_counted(
-    chunk: &EncodedChunk,
+    chunk: Cow<'_, EncodedChunk>,
     params: &BuildParams,
     closedness: Option<Closedness>,
     up: Option<UpAxis>,
     out: &Path,
 ) -> Result<ChunkStats, WriteError> {
-    // Pooling rewrites the blocks: a copy, the chunk's own stay as encoded.
-    let mut pooled_strips = None;
-    let layout = match Pooling::of(params, chunk.grid.as_ref()) {
+    // Pooling rewrites the blocks: an owned chunk's in place, a borrowed one's in a copy.
+    let (chunk, layout) = match Pooling::of(params, chunk.grid.as_ref()) {
         Some(pooling) => {
-            let strips = pooled_strips.insert(chunk.strips.clone());
-            ChunkLayout::pooled(strips, &params.top_level, pooling)
+            let mut chunk = chunk.into_owned();
+            let layout = ChunkLayout::pooled(&mut chunk.strips, &params.top_level, pooling);
+            (Cow::Owned(chunk), layout)
         }
-        None => ChunkLayout::new(&chunk.strips, &params.top_level),
+        None => {
+            let layout = ChunkLayout::new(&chunk.strips, &params.top_level);
+            (chunk, layout)
+        }
     };
     let layout = layout.map_err(|source| WriteError {
         path: out.to_path_buf(),
@@ -342,11 +347,6 @@ pub fn write_chunk_counted(
         up,
         pooled,
     };
-    write_layout(
-        out,
-        &info,
-        &layout,
-        pooled_strips.as_deref().unwrap_or(&chunk.strips),
-    )?;
+    write_layout(out, &info, &layout, &chunk.strips)?;
     Ok(chunk.stats)
 }
