@@ -4,7 +4,8 @@
 # rays. Meshes, converted files and ray files are cached in /tmp/reducem-bench.
 #
 # Per model size it prints:
-#   * trace only: Mrays/s for primary rays and 16-sample AO at 1024x1024 on 1 and 2 threads
+#   * trace only: Mrays/s for primary rays (1024x1024 pixels, 2x2 camera rays each: issue 33's
+#     workload; ANTIALIASING=1 for one per pixel) and 16 AO rays per hit on 1 and 2 threads
 #     (median of 3 runs), ReduceM once per tracer kernel this CPU runs (sse2, avx2), the
 #     baseline and Embree, and memory; the default conversion settings (the pipeline's);
 #   * the same for ReduceM alone on the speed setting (`[strip] max_length = FAST_LENGTH`,
@@ -97,11 +98,14 @@ instructions_per_ao_ray() {
     done
 }
 
+# Camera rays per pixel, ANTIALIASING² (default 2: issue 33's 1024² x 4 camera rays).
+antialiasing=${ANTIALIASING:-2}
 for triangles in ${TRIANGLES:-1000000 10000000}; do
-    rays_dir="$dir/rays-scan-$triangles"
-    log="$dir/bench-scan-$triangles.log"
-    "$bench" --kind scan --triangles "$triangles" --write-rays "$rays_dir" "$@" | tee "$log"
-    "$bench" --kind scan --triangles "$triangles" --reducem-only \
+    rays_dir="$dir/rays-scan-$triangles-aa$antialiasing"
+    log="$dir/bench-scan-$triangles-aa$antialiasing.log"
+    "$bench" --kind scan --triangles "$triangles" --antialiasing "$antialiasing" \
+        --write-rays "$rays_dir" "$@" | tee "$log"
+    "$bench" --kind scan --triangles "$triangles" --antialiasing "$antialiasing" --reducem-only \
         --max-strip-length "${FAST_LENGTH:-16}" "$@"
     model=$(sed -n 's/^  model: //p' "$log")
     whole_process "$model" "$rays_dir"

@@ -128,7 +128,18 @@ impl RaySet {
     /// The rays the renderer traces for `ao_scene(size, ao_per_hit)` on `file`, the shadowless
     /// light aside.
     pub fn new(file: &ReducemFile, size: u32, ao_per_hit: u32) -> RaySet {
-        let scene = ao_scene(size, ao_per_hit);
+        RaySet::supersampled(file, size, ao_per_hit, 1)
+    }
+
+    /// [`RaySet::new`] with `antialiasing`² camera rays per pixel: the rays of the finer image
+    /// the renderer traces for `[image] antialiasing`, `size × antialiasing` pixels each way.
+    pub fn supersampled(
+        file: &ReducemFile,
+        size: u32,
+        ao_per_hit: u32,
+        antialiasing: u32,
+    ) -> RaySet {
+        let scene = ao_scene(size * antialiasing, ao_per_hit);
         let rays = RendererRays::of(file, &scene).expect("the AO scene plans ambient occlusion");
         RaySet {
             primary: rays.primary,
