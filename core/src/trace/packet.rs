@@ -40,7 +40,7 @@ use super::closest::Closest;
 use super::kernel::prefetch::Targets;
 use super::kernel::{dispatch, LeafLanes, LeafStrip, TraceKernel, Walk};
 use super::lanes::{LaneRays, Lanes, PACKET_WIDTH};
-use super::prepared::min_not_nan_x8;
+use super::prepared::{max_not_nan, min_not_nan_x8};
 use super::ray::Ray;
 use super::top::{
     for_each_bit, trace_nodes, DeferStack, Deferred, NodeGridLanes, RayWalk, TraceNode, MAX_WIDTH,
@@ -183,7 +183,7 @@ impl Lanes {
     }
 
     /// Clips the `active` lanes against `node`'s occupied slots; returns the child to visit
-    /// first (for closest hits) and defers the others, so that they come off the stack in
+    /// first and defers the others, so that they come off the stack in
     /// visiting order: [`order_keys`] order for closest hits, slot order for occlusion
     /// (`ANY_HIT`). Empty slots are skipped (by their link: a grid node's empty box is not
     /// missed by construction); validated nodes hold their occupied slots first. The planes
@@ -207,14 +207,18 @@ impl Lanes {
         let clipped = (node, &planes, targets);
         let bounds = (active, limit);
         if ANY_HIT {
-            // Slot order is known before clipping: the slots are clipped last to first and
-            // each child entered goes straight onto the stack, the first one too.
+            // Slot order is known before clipping: the slots are clipped last to first, each
+            // child entered deferred once a lower one is, the lowest visited at once (its
+            // lanes are within their bounds, which only a leaf changes).
+            let mut lowest = None;
             for_each_bit_down(candidates, |slot| {
                 if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
-                    stack.push(child);
+                    if let Some(higher) = lowest.replace(child) {
+                        stack.push(higher);
+                    }
                 }
             });
-            return None;
+            return lowest;
         }
         // Not an array of defaults: zeroing eight 96-byte entries per node costs more than the
         // pushes.
@@ -272,7 +276,9 @@ fn sort_by_keys(indices: &mut [usize], keys: &[f32; MAX_WIDTH]) {
 
 /// The culling bound ([`Closest::reach`]) of every lane, finished lanes (occlusion found)
 /// `-inf` so that nothing is entered for them any more; and the greatest of them, the
-/// frustum's, where `f32::max` passes over a NaN bound (a lane with one enters nothing).
+/// frustum's, passing over a NaN bound (a lane with one enters nothing) with one compare per
+/// lane, not `f32::max`'s NaN fix-ups. Of two zeros it may keep either: the frustum's bound
+/// only picks the slots clipped lane by lane, and no comparison tells the zeros apart.
 #[inline(always)]
 fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> (f32x8, f32) {
     let lanes = std::array::from_fn::<f32, PACKET_WIDTH, _>(|lane| {
@@ -284,7 +290,7 @@ fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> (f32x8, f32) {
     });
     (
         f32x8::from(lanes),
-        lanes.into_iter().fold(f32::NEG_INFINITY, f32::max),
+        lanes.into_iter().fold(f32::NEG_INFINITY, max_not_nan),
     )
 }
 

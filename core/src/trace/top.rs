@@ -362,6 +362,11 @@ pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel, const ANY_HIT: bool>(
     start: Deferred,
     closest: &mut Closest,
 ) -> bool {
+    // Most subtrees a packet hands to a lone lane are leaves: no node, stack or prefetch
+    // targets to set up for them.
+    if start.kind != INTERNAL_CHILD {
+        return trace_leaf::<K>(file, query, &start, closest);
+    }
     let ray = WideRay::new(query.ray);
     let mut stack = DeferStack::default();
     let mut current = start;
