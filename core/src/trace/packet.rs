@@ -341,7 +341,8 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
         t_near: lanes.tmin,
         t_far: limit,
     };
-    let mut visits = tracer.file().node_visits();
+    // `ReducemFile::node_visits`, from the nodes at hand rather than a second look-up.
+    let mut visits = nodes.len();
     loop {
         if ANY_HIT && current.mask.count_ones() as usize <= MAX_SOLO_LANES {
             let found = occlude_alone::<N, C, P>(

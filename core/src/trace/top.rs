@@ -371,7 +371,8 @@ pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel, const ANY_HIT: bool>(
     let mut stack = DeferStack::default();
     let mut current = start;
     let targets = Targets::new(file, nodes);
-    let mut visits = file.node_visits();
+    // `ReducemFile::node_visits`, from the nodes at hand rather than a second look-up.
+    let mut visits = nodes.len();
     loop {
         if current.kind == INTERNAL_CHILD {
             let Some(left) = visits.checked_sub(1) else {
