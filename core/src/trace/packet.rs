@@ -138,7 +138,7 @@ fn trace_lanes<C: TraceKernel, P: LaneRays>(
     for_each_bit(!packet_mask & ((1 << count) - 1), |lane| {
         let ray = prepared.ray(lanes, lane);
         C::compiled(RayWalk {
-            file: tracer.file(),
+            tracer,
             query: &tracer.query(ray, any_hit),
             closest: &mut closest[lane],
         });
@@ -235,7 +235,7 @@ impl Lanes {
         let order = &mut order[..entered.len()];
         if order.len() > 1 {
             let keys = C::plane_order_keys(&planes, &self.negative());
-            sort_by_keys(order, &slots.map(|slot| keys[slot % MAX_WIDTH]));
+            sort_by_keys(order, &slots, &keys);
         }
         for &index in order.iter().skip(1).rev() {
             stack.push(entered[index]);
@@ -254,17 +254,18 @@ fn for_each_bit_down(mut mask: u32, mut f: impl FnMut(usize)) {
     }
 }
 
-/// Insertion sort of the indices of the at most eight children entered (in slot order) by
-/// their keys; stable, so equal keys keep slot order, as [`super::top::sort_by_key`] orders
-/// the children a single ray enters. The keys are never NaN ([`order_keys`]), so this order of
-/// the children any lane entered, restricted to those a lane entered, is that lane's order
-/// alone.
+/// Insertion sort of the indices of the at most eight children entered (in slot order, entry
+/// `i` from slot `slots[i]`) by their slots' keys; stable, so equal keys keep slot order, as
+/// [`super::top::sort_by_key`] orders the children a single ray enters. The keys are never
+/// NaN ([`order_keys`]), so this order of the children any lane entered, restricted to those a
+/// lane entered, is that lane's order alone.
 ///
 /// [`order_keys`]: super::top::order_keys
 #[inline(always)]
-fn sort_by_keys(indices: &mut [usize], keys: &[f32; MAX_WIDTH]) {
-    // The remainder spares the bounds checks.
-    let key = |index: usize| keys[index % MAX_WIDTH];
+fn sort_by_keys(indices: &mut [usize], slots: &[usize; MAX_WIDTH], keys: &[f32; MAX_WIDTH]) {
+    // Each entry's key looked up by its slot as compared, not the eight slots' keys gathered
+    // first; the remainders spare the bounds checks.
+    let key = |index: usize| keys[slots[index % MAX_WIDTH] % MAX_WIDTH];
     for i in 1..indices.len() {
         let mut j = i;
         while j > 0 && key(indices[j]) < key(indices[j - 1]) {
@@ -330,7 +331,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     let mut stack = DeferStack::default();
     let together = C::together(lanes);
     let frustum = C::frustum(lanes, packet_mask);
-    let targets = Targets::new(tracer.file(), nodes);
+    let targets = Targets::new(tracer.strip_sections(), nodes);
     // The lanes' culling bounds change only at leaves: gathered once per leaf, not per node.
     let (mut limit, mut reach) = bounds(closest, finished);
     // The root has no box: every lane starts with its own interval.
@@ -422,7 +423,7 @@ fn occlude_alone<N: TraceNode, C: TraceKernel, P: LaneRays>(
             t_far: t_far[lane],
         };
         let query = tracer.query(prepared.ray(lanes, lane), true);
-        if trace_nodes::<N, C, true>(tracer.file(), nodes, &query, start, &mut closest[lane]) {
+        if trace_nodes::<N, C, true>(tracer, nodes, &query, start, &mut closest[lane]) {
             found |= 1 << lane;
         }
     });
