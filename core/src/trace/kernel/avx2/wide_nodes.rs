@@ -129,11 +129,9 @@ pub(super) fn clip_wide(
 ) -> WideClip {
     let mut near = _mm256_set1_ps(t_near);
     let mut far = _mm256_set1_ps(t_far);
-    let scales = scales(node);
-    for axis in 0..3 {
+    for (axis, &scale) in scales(node).iter().enumerate() {
         let (entry_codes, exit_codes) = entry_exit_codes(node, axis, ray.negative[axis]);
         let origin = _mm256_set1_ps(node.origin[axis]);
-        let scale = scales[axis];
         let decode = |codes: &[u8; 8]| decode_plane(codes, origin, scale);
         let ray_origin = _mm256_set1_ps(ray.origin[axis]);
         let entry = _mm256_mul_ps(
