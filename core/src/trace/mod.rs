@@ -40,6 +40,7 @@ use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
 pub use attributes::{hit_attributes, surface_attributes, HitAttributes};
 use closest::Closest;
+use kernel::prefetch::StripSections;
 pub use kernel::{Kernel, KernelError, KERNEL_VARIABLE};
 use lanes::PACKET_WIDTH;
 use prepared::PreparedRay;
@@ -80,15 +81,26 @@ pub const BATCH_RAYS: usize = 4096;
 pub struct Tracer<'f> {
     file: &'f ReducemFile,
     options: TraceOptions,
+    strips: StripSections<'f>,
 }
 
 impl<'f> Tracer<'f> {
     pub fn new(file: &'f ReducemFile, options: TraceOptions) -> Tracer<'f> {
-        Tracer { file, options }
+        let strips = StripSections::new(file);
+        Tracer {
+            file,
+            options,
+            strips,
+        }
     }
 
     pub fn file(&self) -> &'f ReducemFile {
         self.file
+    }
+
+    /// What the walks prefetch strips from.
+    fn strip_sections(&self) -> &StripSections<'f> {
+        &self.strips
     }
 
     pub fn options(&self) -> &TraceOptions {
@@ -113,7 +125,7 @@ impl<'f> Tracer<'f> {
     /// The single-ray walk on the options' kernel; true when `any_hit` found a hit.
     fn trace_ray(&self, ray: &PreparedRay, any_hit: bool, closest: &mut Closest) -> bool {
         let walk = RayWalk {
-            file: self.file,
+            tracer: self,
             query: &self.query(ray, any_hit),
             closest,
         };

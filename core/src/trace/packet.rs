@@ -40,7 +40,7 @@ use super::closest::Closest;
 use super::kernel::prefetch::Targets;
 use super::kernel::{dispatch, LeafLanes, LeafStrip, TraceKernel, Walk};
 use super::lanes::{LaneRays, Lanes, PACKET_WIDTH};
-use super::prepared::min_not_nan_x8;
+use super::prepared::{max_not_nan, min_not_nan_x8};
 use super::ray::Ray;
 use super::top::{
     for_each_bit, trace_nodes, DeferStack, Deferred, NodeGridLanes, RayWalk, TraceNode, MAX_WIDTH,
@@ -138,7 +138,7 @@ fn trace_lanes<C: TraceKernel, P: LaneRays>(
     for_each_bit(!packet_mask & ((1 << count) - 1), |lane| {
         let ray = prepared.ray(lanes, lane);
         C::compiled(RayWalk {
-            file: tracer.file(),
+            tracer,
             query: &tracer.query(ray, any_hit),
             closest: &mut closest[lane],
         });
@@ -183,7 +183,7 @@ impl Lanes {
     }
 
     /// Clips the `active` lanes against `node`'s occupied slots; returns the child to visit
-    /// first (for closest hits) and defers the others, so that they come off the stack in
+    /// first and defers the others, so that they come off the stack in
     /// visiting order: [`order_keys`] order for closest hits, slot order for occlusion
     /// (`ANY_HIT`). Empty slots are skipped (by their link: a grid node's empty box is not
     /// missed by construction); validated nodes hold their occupied slots first. The planes
@@ -207,14 +207,18 @@ impl Lanes {
         let clipped = (node, &planes, targets);
         let bounds = (active, limit);
         if ANY_HIT {
-            // Slot order is known before clipping: the slots are clipped last to first and
-            // each child entered goes straight onto the stack, the first one too.
+            // Slot order is known before clipping: the slots are clipped last to first, each
+            // child entered deferred once a lower one is, the lowest visited at once (its
+            // lanes are within their bounds, which only a leaf changes).
+            let mut lowest = None;
             for_each_bit_down(candidates, |slot| {
                 if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
-                    stack.push(child);
+                    if let Some(higher) = lowest.replace(child) {
+                        stack.push(higher);
+                    }
                 }
             });
-            return None;
+            return lowest;
         }
         // Not an array of defaults: zeroing eight 96-byte entries per node costs more than the
         // pushes.
@@ -231,7 +235,7 @@ impl Lanes {
         let order = &mut order[..entered.len()];
         if order.len() > 1 {
             let keys = C::plane_order_keys(&planes, &self.negative());
-            sort_by_keys(order, &slots.map(|slot| keys[slot % MAX_WIDTH]));
+            sort_by_keys(order, &slots, &keys);
         }
         for &index in order.iter().skip(1).rev() {
             stack.push(entered[index]);
@@ -250,17 +254,18 @@ fn for_each_bit_down(mut mask: u32, mut f: impl FnMut(usize)) {
     }
 }
 
-/// Insertion sort of the indices of the at most eight children entered (in slot order) by
-/// their keys; stable, so equal keys keep slot order, as [`super::top::sort_by_key`] orders
-/// the children a single ray enters. The keys are never NaN ([`order_keys`]), so this order of
-/// the children any lane entered, restricted to those a lane entered, is that lane's order
-/// alone.
+/// Insertion sort of the indices of the at most eight children entered (in slot order, entry
+/// `i` from slot `slots[i]`) by their slots' keys; stable, so equal keys keep slot order, as
+/// [`super::top::sort_by_key`] orders the children a single ray enters. The keys are never
+/// NaN ([`order_keys`]), so this order of the children any lane entered, restricted to those a
+/// lane entered, is that lane's order alone.
 ///
 /// [`order_keys`]: super::top::order_keys
 #[inline(always)]
-fn sort_by_keys(indices: &mut [usize], keys: &[f32; MAX_WIDTH]) {
-    // The remainder spares the bounds checks.
-    let key = |index: usize| keys[index % MAX_WIDTH];
+fn sort_by_keys(indices: &mut [usize], slots: &[usize; MAX_WIDTH], keys: &[f32; MAX_WIDTH]) {
+    // Each entry's key looked up by its slot as compared, not the eight slots' keys gathered
+    // first; the remainders spare the bounds checks.
+    let key = |index: usize| keys[slots[index % MAX_WIDTH] % MAX_WIDTH];
     for i in 1..indices.len() {
         let mut j = i;
         while j > 0 && key(indices[j]) < key(indices[j - 1]) {
@@ -272,7 +277,9 @@ fn sort_by_keys(indices: &mut [usize], keys: &[f32; MAX_WIDTH]) {
 
 /// The culling bound ([`Closest::reach`]) of every lane, finished lanes (occlusion found)
 /// `-inf` so that nothing is entered for them any more; and the greatest of them, the
-/// frustum's, where `f32::max` passes over a NaN bound (a lane with one enters nothing).
+/// frustum's, passing over a NaN bound (a lane with one enters nothing) with one compare per
+/// lane, not `f32::max`'s NaN fix-ups. Of two zeros it may keep either: the frustum's bound
+/// only picks the slots clipped lane by lane, and no comparison tells the zeros apart.
 #[inline(always)]
 fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> (f32x8, f32) {
     let lanes = std::array::from_fn::<f32, PACKET_WIDTH, _>(|lane| {
@@ -284,7 +291,7 @@ fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> (f32x8, f32) {
     });
     (
         f32x8::from(lanes),
-        lanes.into_iter().fold(f32::NEG_INFINITY, f32::max),
+        lanes.into_iter().fold(f32::NEG_INFINITY, max_not_nan),
     )
 }
 
@@ -324,7 +331,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     let mut stack = DeferStack::default();
     let together = C::together(lanes);
     let frustum = C::frustum(lanes, packet_mask);
-    let targets = Targets::new(tracer.file(), nodes);
+    let targets = Targets::new(tracer.strip_sections(), nodes);
     // The lanes' culling bounds change only at leaves: gathered once per leaf, not per node.
     let (mut limit, mut reach) = bounds(closest, finished);
     // The root has no box: every lane starts with its own interval.
@@ -335,7 +342,8 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
         t_near: lanes.tmin,
         t_far: limit,
     };
-    let mut visits = tracer.file().node_visits();
+    // `ReducemFile::node_visits`, from the nodes at hand rather than a second look-up.
+    let mut visits = nodes.len();
     loop {
         if ANY_HIT && current.mask.count_ones() as usize <= MAX_SOLO_LANES {
             let found = occlude_alone::<N, C, P>(
@@ -415,7 +423,7 @@ fn occlude_alone<N: TraceNode, C: TraceKernel, P: LaneRays>(
             t_far: t_far[lane],
         };
         let query = tracer.query(prepared.ray(lanes, lane), true);
-        if trace_nodes::<N, C, true>(tracer.file(), nodes, &query, start, &mut closest[lane]) {
+        if trace_nodes::<N, C, true>(tracer, nodes, &query, start, &mut closest[lane]) {
             found |= 1 << lane;
         }
     });

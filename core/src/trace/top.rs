@@ -26,6 +26,7 @@ use super::kernel::{ChildBoxes, TraceKernel, Walk, WideClip};
 use super::lanes::Lanes;
 use super::prepared::{PreparedRay, WideRay};
 use super::strip::StripQuery;
+use super::Tracer;
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, TopNodes};
 use crate::format::{
@@ -301,7 +302,7 @@ impl<T> DeferStack<T> {
 /// The walk of the whole file for one ray, as a [`Walk`] for the kernels to run; true when
 /// `query.any_hit` found a hit.
 pub(super) struct RayWalk<'a, 'q> {
-    pub file: &'a ReducemFile,
+    pub tracer: &'a Tracer<'a>,
     pub query: &'a StripQuery<'q>,
     pub closest: &'a mut Closest,
 }
@@ -311,41 +312,37 @@ impl Walk for RayWalk<'_, '_> {
 
     #[inline(always)]
     fn run<K: TraceKernel>(self) -> bool {
-        trace_ray::<K>(self.file, self.query, self.closest)
+        trace_ray::<K>(self.tracer, self.query, self.closest)
     }
 }
 
 /// Traverses the whole file for one ray; returns true when `query.any_hit` found a hit.
-fn trace_ray<K: TraceKernel>(
-    file: &ReducemFile,
-    query: &StripQuery,
-    closest: &mut Closest,
-) -> bool {
+fn trace_ray<K: TraceKernel>(tracer: &Tracer, query: &StripQuery, closest: &mut Closest) -> bool {
     if query.any_hit {
-        trace_file::<K, true>(file, query, closest)
+        trace_file::<K, true>(tracer, query, closest)
     } else {
-        trace_file::<K, false>(file, query, closest)
+        trace_file::<K, false>(tracer, query, closest)
     }
 }
 
 /// [`trace_ray`] for occlusion (`ANY_HIT`) or closest hits.
 #[inline(always)]
 fn trace_file<K: TraceKernel, const ANY_HIT: bool>(
-    file: &ReducemFile,
+    tracer: &Tracer,
     query: &StripQuery,
     closest: &mut Closest,
 ) -> bool {
     let root = Deferred::root(query.ray);
-    match file.top_nodes() {
+    match tracer.file().top_nodes() {
         TopNodes::F32(nodes) => {
-            trace_nodes::<_, K, ANY_HIT>(file, (nodes, &()), query, root, closest)
+            trace_nodes::<_, K, ANY_HIT>(tracer, (nodes, &()), query, root, closest)
         }
         TopNodes::Grid(nodes, grid) => {
             let decoder = NodeGridLanes::new(&grid);
-            trace_nodes::<_, K, ANY_HIT>(file, (nodes, &decoder), query, root, closest)
+            trace_nodes::<_, K, ANY_HIT>(tracer, (nodes, &decoder), query, root, closest)
         }
         TopNodes::Wide(nodes) => {
-            trace_nodes::<_, K, ANY_HIT>(file, (nodes, &()), query, root, closest)
+            trace_nodes::<_, K, ANY_HIT>(tracer, (nodes, &()), query, root, closest)
         }
     }
 }
@@ -356,17 +353,24 @@ fn trace_file<K: TraceKernel, const ANY_HIT: bool>(
 /// together.
 #[inline(always)]
 pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel, const ANY_HIT: bool>(
-    file: &ReducemFile,
+    tracer: &Tracer,
     (nodes, decoder): (&[N], &N::Decoder),
     query: &StripQuery,
     start: Deferred,
     closest: &mut Closest,
 ) -> bool {
+    let file = tracer.file();
+    // Most subtrees a packet hands to a lone lane are leaves: no node, stack or prefetch
+    // targets to set up for them.
+    if start.kind != INTERNAL_CHILD {
+        return trace_leaf::<K>(file, query, &start, closest);
+    }
     let ray = WideRay::new(query.ray);
     let mut stack = DeferStack::default();
     let mut current = start;
-    let targets = Targets::new(file, nodes);
-    let mut visits = file.node_visits();
+    let targets = Targets::new(tracer.strip_sections(), nodes);
+    // `ReducemFile::node_visits`, from the nodes at hand rather than a second look-up.
+    let mut visits = nodes.len();
     loop {
         if current.kind == INTERNAL_CHILD {
             let Some(left) = visits.checked_sub(1) else {

@@ -23,6 +23,22 @@ const MAX_LINES: usize = 8;
 /// take (22 packed references of 5 bits, one byte of axes, 12 bytes of boxes).
 const BLOCK_TAIL_BYTES: usize = 48;
 
+/// A file's strip records and strip data, looked up once per tracer rather than per walk.
+#[derive(Clone, Copy)]
+pub(in crate::trace) struct StripSections<'a> {
+    records: &'a [StripRecord],
+    data: &'a [u8],
+}
+
+impl<'a> StripSections<'a> {
+    pub(in crate::trace) fn new(file: &'a ReducemFile) -> StripSections<'a> {
+        StripSections {
+            records: file.strip_records(),
+            data: file.section_bytes(SectionKind::StripData),
+        }
+    }
+}
+
 /// What a walk over `nodes` (one file's top-level nodes) prefetches from.
 pub(in crate::trace) struct Targets<'a, N> {
     nodes: &'a [N],
@@ -31,11 +47,11 @@ pub(in crate::trace) struct Targets<'a, N> {
 }
 
 impl<'a, N> Targets<'a, N> {
-    pub(in crate::trace) fn new(file: &'a ReducemFile, nodes: &'a [N]) -> Targets<'a, N> {
+    pub(in crate::trace) fn new(strips: &StripSections<'a>, nodes: &'a [N]) -> Targets<'a, N> {
         Targets {
             nodes,
-            records: file.strip_records(),
-            data: file.section_bytes(SectionKind::StripData),
+            records: strips.records,
+            data: strips.data,
         }
     }
 
