@@ -33,7 +33,10 @@ use crate::trace::watertight::{resolve, RayPoint};
 /// One lane's ray: what its box test reads, and its ray space with each quantity in every
 /// SIMD lane (the origin on the ray-space axes, the shears, the depth scale).
 struct LoneRay {
-    boxes: BoxRay,
+    origin_model: [f32; 3],
+    entry_reciprocal: [f32; 3],
+    exit_reciprocal: [f32; 3],
+    negative: [bool; 3],
     axes: [usize; 3],
     origin: [__m256; 3],
     shear: [__m256; 2],
@@ -56,17 +59,28 @@ impl LoneRay {
             .map(|a| (a.as_array()[lane] as usize).min(2));
         let one = |values: &wide::f32x8| _mm256_set1_ps(values.as_array()[lane]);
         LoneRay {
-            boxes: BoxRay {
-                origin,
-                entry_reciprocal: at(&lanes.entry_reciprocal),
-                exit_reciprocal: at(&lanes.exit_reciprocal),
-                negative: lanes.negative(),
-            },
+            origin_model: origin,
+            entry_reciprocal: at(&lanes.entry_reciprocal),
+            exit_reciprocal: at(&lanes.exit_reciprocal),
+            negative: lanes.negative(),
             axes,
             origin: axes.map(|axis| _mm256_set1_ps(origin[axis])),
             shear: [one(&lanes.shear[0]), one(&lanes.shear[1])],
             scale_z: one(&lanes.scale_z),
             tmin: lanes.tmin.as_array()[lane],
+        }
+    }
+}
+
+impl LoneRay {
+    /// What the box test reads.
+    #[inline(always)]
+    fn boxes(&self) -> BoxRay<'_> {
+        BoxRay {
+            origin: &self.origin_model,
+            entry_reciprocal: &self.entry_reciprocal,
+            exit_reciprocal: &self.exit_reciprocal,
+            negative: &self.negative,
         }
     }
 }
@@ -106,7 +120,7 @@ pub(super) fn trace_strip_alone(
     let entered = match view.boxes.frame(points[0]) {
         Some(frame) => {
             let interval = (leaf.t_near[lane], t_far);
-            entered_boxes(&ray.boxes, view.boxes.bytes(), &frame, 0, interval)
+            entered_boxes(ray.boxes(), view.boxes.bytes(), &frame, 0, interval)
         }
         // A strip without boxes is one kd leaf, whose blocks the walk tests without culling.
         None => EnteredBoxes {
