@@ -13,8 +13,6 @@
 //!
 //! [`block_edges`]: super::blocks::block_edges
 
-#![allow(unsafe_code)]
-
 use std::arch::x86_64::*;
 
 use super::blocks::{
@@ -30,10 +28,11 @@ use crate::trace::kernel::{EnteredBoxes, LeafLanes, TraceKernel, BLOCK, BOX_GROU
 use crate::trace::lanes::{Lanes, PACKET_WIDTH};
 use crate::trace::watertight::{resolve, RayPoint};
 
-/// One lane's ray: what its box test reads, and its ray space with each quantity in every
-/// SIMD lane (the origin on the ray-space axes, the shears, the depth scale).
+/// One lane's ray: what its box test reads (origin and reciprocals per model axis, direction
+/// signs), and its ray space with each quantity in every SIMD lane (the origin on the ray-space
+/// axes, the shears, the depth scale).
 struct LoneRay {
-    origin_model: [f32; 3],
+    model_origin: [f32; 3],
     entry_reciprocal: [f32; 3],
     exit_reciprocal: [f32; 3],
     negative: [bool; 3],
@@ -52,14 +51,14 @@ impl LoneRay {
         let lane = lane % PACKET_WIDTH;
         let at = |values: &[wide::f32x8; 3]| values.each_ref().map(|v| v.as_array()[lane]);
         let origin = at(&lanes.origin);
-        // Validated ray-space axes are model axes 0 to 2; saying so spares the bounds checks.
+        // Ray-space axes are model axes 0 to 2; saying so spares the bounds checks.
         let axes = lanes
             .space_axes
             .each_ref()
             .map(|a| (a.as_array()[lane] as usize).min(2));
         let one = |values: &wide::f32x8| _mm256_set1_ps(values.as_array()[lane]);
         LoneRay {
-            origin_model: origin,
+            model_origin: origin,
             entry_reciprocal: at(&lanes.entry_reciprocal),
             exit_reciprocal: at(&lanes.exit_reciprocal),
             negative: lanes.negative(),
@@ -70,14 +69,12 @@ impl LoneRay {
             tmin: lanes.tmin.as_array()[lane],
         }
     }
-}
 
-impl LoneRay {
     /// What the box test reads.
     #[inline(always)]
     fn boxes(&self) -> BoxRay<'_> {
         BoxRay {
-            origin: &self.origin_model,
+            origin: &self.model_origin,
             entry_reciprocal: &self.entry_reciprocal,
             exit_reciprocal: &self.exit_reciprocal,
             negative: &self.negative,
