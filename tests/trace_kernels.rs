@@ -35,20 +35,29 @@ fn renderer_rays(file: &ReducemFile) -> (Vec<Ray>, Vec<Ray>) {
     (rays.primary, rays.ambient_occlusion)
 }
 
-/// Camera rays, 4 AO rays per hit and rays aimed at a few hundred vertices and edge midpoints.
+/// Camera rays, 4 AO rays per hit, rays aimed at a few hundred vertices and edge midpoints,
+/// and rays aimed at targets far apart, so that a packet's lanes part and one or two of them
+/// reach each strip (which AVX2 packets test for each such lane alone).
 fn probe_rays(file: &ReducemFile, mesh: &reducem::mesh::Mesh) -> Vec<Ray> {
     let (primary, ambient_occlusion) = renderer_rays(file);
     let (min, max) = (file.header().bounds_min, file.header().bounds_max);
     let outside: [f32; 3] = std::array::from_fn(|a| max[a] + (max[a] - min[a]) + 1.0);
-    let aimed = vertex_and_edge_targets(mesh)
-        .into_iter()
+    let targets = vertex_and_edge_targets(mesh);
+    let aimed = targets
+        .iter()
         .step_by(7)
         .take(600)
-        .map(|target| ray_towards(outside, target));
+        .map(|&target| ray_towards(outside, target));
+    let scattered = targets
+        .iter()
+        .step_by(97)
+        .take(400)
+        .map(|&target| ray_towards(outside, target));
     primary
         .into_iter()
         .chain(ambient_occlusion)
         .chain(aimed)
+        .chain(scattered)
         .collect()
 }
 

@@ -23,6 +23,28 @@ use crate::trace::kernel::{BlockEdges, EnteredBoxes, BLOCK, BOX_GROUP};
 use crate::trace::prepared::{PreparedRay, FAR_INFLATION};
 use crate::trace::watertight::RaySpace;
 
+/// What a ray's block box test reads of it (`PreparedRay`'s fields, or a packet lane's), by
+/// reference: copied, the single-ray walk's fields cost it instructions per strip.
+#[derive(Clone, Copy)]
+pub(super) struct BoxRay<'a> {
+    pub origin: &'a [f32; 3],
+    pub entry_reciprocal: &'a [f32; 3],
+    pub exit_reciprocal: &'a [f32; 3],
+    pub negative: &'a [bool; 3],
+}
+
+impl<'a> From<&'a PreparedRay> for BoxRay<'a> {
+    #[inline(always)]
+    fn from(ray: &'a PreparedRay) -> BoxRay<'a> {
+        BoxRay {
+            origin: &ray.origin,
+            entry_reciprocal: &ray.entry_reciprocal,
+            exit_reciprocal: &ray.exit_reciprocal,
+            negative: &ray.negative,
+        }
+    }
+}
+
 /// `TraceKernel::entered_boxes` for up to four boxes in one pass: lanes 0-3 hold the boxes'
 /// entry planes on an axis and lanes 4-7 their exit planes (which nibble is which follows the
 /// ray's direction), so one decode and one distance computation per axis serve every box.
@@ -36,7 +58,7 @@ use crate::trace::watertight::RaySpace;
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
 pub(super) fn entered_boxes(
-    ray: &PreparedRay,
+    ray: BoxRay,
     area: &[u8],
     frame: &BoxFrame,
     group: usize,
@@ -216,7 +238,7 @@ pub(super) fn block_edges<
 /// candidate with `t` just below `tmin`, and this is where it is rejected.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], (tmin, tmax): (f32, f32)) -> u32 {
+pub(super) fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], (tmin, tmax): (f32, f32)) -> u32 {
     in_range_lanes_between(w, z, _mm256_set1_ps(tmin), _mm256_set1_ps(tmax))
 }
 
@@ -242,7 +264,7 @@ pub(super) fn spread_references(stream: u64, width: u32) -> [u8; BLOCK + 2] {
 /// shifted by one and two positions, in one register.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
+pub(super) fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
     let (head, tail) = references.split_at(8);
     let head = i64::from_le_bytes(head.try_into().expect("eight references"));
     let tail = i16::from_le_bytes(tail.try_into().expect("two references"));
@@ -261,7 +283,11 @@ fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
 /// ray-space z axis (which `RaySpace::depth_as` scales).
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn transform(model: [__m256; 3], origin: &[__m256; 3], shear: &[__m256; 2]) -> [__m256; 3] {
+pub(super) fn transform(
+    model: [__m256; 3],
+    origin: &[__m256; 3],
+    shear: &[__m256; 2],
+) -> [__m256; 3] {
     let [x, y, z] = model;
     let ax = _mm256_sub_ps(x, origin[0]);
     let ay = _mm256_sub_ps(y, origin[1]);
@@ -287,7 +313,7 @@ enum Offsets {
 /// values are those positions' bits, so every lane is what transforming per shift gives.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn shifted_corners(head: [__m256; 2], tail: [__m256; 2]) -> [[__m256; 2]; 3] {
+pub(super) fn shifted_corners(head: [__m256; 2], tail: [__m256; 2]) -> [[__m256; 2]; 3] {
     let (x1, x2) = shift_lanes(head[0], tail[0]);
     let (y1, y2) = shift_lanes(head[1], tail[1]);
     [head, [x1, y1], [x2, y2]]
@@ -296,7 +322,7 @@ fn shifted_corners(head: [__m256; 2], tail: [__m256; 2]) -> [[__m256; 2]; 3] {
 /// Lanes `k + 1` and `k + 2` of the ten values `head` (lanes 0-7) and `tail` (lanes 0 and 1).
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn shift_lanes(head: __m256, tail: __m256) -> (__m256, __m256) {
+pub(super) fn shift_lanes(head: __m256, tail: __m256) -> (__m256, __m256) {
     let one = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 7);
     let two = _mm256_setr_epi32(2, 3, 4, 5, 6, 7, 7, 7);
     let tail_high = _mm256_setr_epi32(0, 0, 0, 0, 0, 0, 0, 1);
@@ -317,7 +343,7 @@ fn shift_lanes(head: __m256, tail: __m256) -> (__m256, __m256) {
 /// is one 16-byte load, transposed in registers.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn transpose_positions<const KX: usize, const KY: usize, const KZ: usize>(
+pub(super) fn transpose_positions<const KX: usize, const KY: usize, const KZ: usize>(
     points: &[[f32; 3]],
     references: &[u8; BLOCK + 2],
 ) -> ([__m256; 3], [__m256; 3]) {

@@ -16,6 +16,7 @@ mod packet_strips;
 mod packets;
 mod setup;
 mod simd;
+mod strip_alone;
 mod wide_nodes;
 
 use wide::f32x8;
@@ -90,7 +91,7 @@ impl TraceKernel for Avx2 {
     ) -> EnteredBoxes {
         let (bytes, interval) = (boxes.bytes(), (t_near, t_far));
         // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
-        unsafe { blocks::entered_boxes(ray, bytes, frame, group, interval) }
+        unsafe { blocks::entered_boxes(ray.into(), bytes, frame, group, interval) }
     }
 
     /// Each lane's `PreparedRay`, for the lane-by-lane strip walk and rays traced alone, is

@@ -1,8 +1,9 @@
 //! A short strip tested against all the rays of a packet at once: lanes are rays, and the
 //! strip's windows are walked one after the other, each tested against every lane in one pass.
 //! The packet walk offers each strip of a leaf here (`TraceKernel::trace_strip_together`); a
-//! lossless strip of at most [`MAX_WINDOWS`] windows that at least [`MIN_LANES`] lanes reach is
-//! tested this way, any other strip lane by lane.
+//! lossless strip of at most [`MAX_WINDOWS`] windows that more than [`most_alone`] lanes reach
+//! is tested this way, one that fewer reach by each lane alone ([`super::strip_alone`]), any
+//! other strip by the lane-by-lane walk.
 //!
 //! Deviation from the paper, which keeps packets small at the low level: several lanes of a
 //! packet (about five for ambient-occlusion rays) reach each short strip, so each position of
@@ -30,18 +31,17 @@ use wide::{f32x8, i32x8};
 use super::simd::{
     candidate_lanes, edge, in_range_lanes_between, lanes as lanes_of, load, load_vertex,
 };
+use super::strip_alone::trace_strip_alone;
+use super::Avx2;
 use crate::format::block_boxes::{BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
 use crate::format::reader::StripView;
 use crate::format::vertices::StripVertices;
 use crate::trace::closest::Closest;
-use crate::trace::kernel::{LeafLanes, LeafStrip, BLOCK};
+use crate::trace::kernel::{LeafLanes, LeafStrip, TraceKernel, BLOCK};
 use crate::trace::lanes::{Lanes, PACKET_WIDTH};
 use crate::trace::prepared::FAR_INFLATION;
 use crate::trace::watertight::{resolve, RayPoint};
 
-/// Fewest lanes for which a strip is tested for all lanes at once (two pays since the packet's
-/// ray spaces are made once per packet, not per leaf).
-pub(super) const MIN_LANES: u32 = 2;
 /// Most windows of a strip tested for all lanes at once: longer strips keep their block boxes.
 pub(super) const MAX_WINDOWS: usize = 24;
 
@@ -128,10 +128,11 @@ pub(super) struct StripLanes<'a> {
     pub closest: &'a mut [Closest; PACKET_WIDTH],
 }
 
-/// Tests strip `strip` for all the `active` lanes at once when at least [`MIN_LANES`] reach it,
-/// it is lossless, has at most [`MAX_WINDOWS`] windows and its lane-by-lane walk culls by block
-/// boxes or has a single kd leaf; returns the lanes done (an occluder found with `any_hit`), or
-/// `None` for the lane-by-lane walk. `spaces` are the lanes' ray spaces, made once per packet.
+/// Tests strip `strip` for the `active` lanes when it is lossless, has at most [`MAX_WINDOWS`]
+/// windows and its lane-by-lane walk culls by block boxes or has a single kd leaf: for all of
+/// them at once when more than [`most_alone`] reach it, else for each alone. Returns the lanes
+/// done (an occluder found with `any_hit`), or `None` for the lane-by-lane walk. `spaces` are
+/// the lanes' ray spaces, made once per packet.
 #[target_feature(enable = "avx2,bmi2")]
 pub(super) fn trace_strip_together(
     (spaces, lanes): (&LaneSpaces, &Lanes),
@@ -148,8 +149,20 @@ pub(super) fn trace_strip_together(
     // The lane-by-lane walk culls blocks by their boxes, or descends a kd-tree when the strip
     // has more than one leaf and no boxes (format 2): the latter stays lane by lane.
     let culled_alike = !view.boxes.is_empty() || windows <= offered.leaf_windows;
-    if leaf.active.count_ones() < MIN_LANES || windows > MAX_WINDOWS || !culled_alike {
+    if windows > MAX_WINDOWS || !culled_alike {
         return None;
+    }
+    if leaf.active.count_ones() <= most_alone(any_hit) {
+        let mut done = 0;
+        let mut active = leaf.active;
+        while active != 0 {
+            let lane = active.trailing_zeros() as usize;
+            active &= active - 1;
+            let closest = &mut closest[lane % PACKET_WIDTH];
+            let strip_at = (view, strip, points);
+            done |= trace_strip_alone((lanes, lane), leaf, strip_at, any_hit, closest);
+        }
+        return Some(done);
     }
     let blocks = entered_blocks(lanes, leaf, view, points, closest);
     let strip_lanes = StripLanes {
@@ -159,6 +172,17 @@ pub(super) fn trace_strip_together(
         closest,
     };
     Some(trace_strip(spaces, (view, points), &blocks, strip_lanes))
+}
+
+/// Most lanes reaching a strip that test it each alone: below that, a pass of the packet per
+/// window serves too few lanes. Measured on the 10M scan: two for closest hits, where each
+/// strip view of a camera packet serves few lanes; one for occlusion, whose strips serve more.
+fn most_alone(any_hit: bool) -> u32 {
+    if any_hit {
+        1
+    } else {
+        2
+    }
 }
 
 /// Per block of [`BLOCK`] windows, the lanes whose lane-by-lane walk would test it (all of
@@ -292,13 +316,7 @@ fn trace_strip(
     mut lanes: StripLanes,
 ) -> u32 {
     let count = view.window_count().min(MAX_WINDOWS);
-    let mut references = [0u8; MAX_WINDOWS + 2];
-    view.references.read_into(0, &mut references[..count + 2]);
     let flat = points.as_flattened();
-    let position = |k: usize| {
-        let [x, y, _] = spaces.transform(load_vertex(flat, usize::from(references[k])));
-        [x, y]
-    };
     let mut finished = 0;
     for (block, first) in (0..count).step_by(BLOCK).enumerate() {
         // As the lane-by-lane walk: a block whose box a lane enters is tested unless a hit
@@ -314,17 +332,23 @@ fn trace_strip(
         if testing == 0 {
             continue;
         }
-        let mut corner0 = position(first);
-        let mut corner1 = position(first + 1);
+        // Only the references of the blocks tested are spread, as the lane-by-lane walk does.
+        let references = Avx2::references(&view.references, first);
+        let position = |k: usize| {
+            let [x, y, _] = spaces.transform(load_vertex(flat, usize::from(references[k])));
+            [x, y]
+        };
+        let mut corner0 = position(0);
+        let mut corner1 = position(1);
         // Window `k`'s third weight, edge(c0, c1), is window `k - 1`'s first.
         let mut edge01 = edge(&corner0, &corner1);
-        for window in first..count.min(first + BLOCK) {
-            let corner2 = position(window + 2);
+        for k in 0..BLOCK.min(count - first) {
+            let corner2 = position(k + 2);
             let weights = [edge(&corner1, &corner2), edge(&corner2, &corner0), edge01];
             let candidates = candidate_lanes(&weights) & testing;
-            if candidates != 0 && is_real(&references[window..window + 3]) {
-                let corners = [0, 1, 2].map(|k| references[window + k]);
-                let hit = (candidates, window, points, corners);
+            if candidates != 0 && is_real(&references[k..k + 3]) {
+                let corners = [0, 1, 2].map(|c| references[k + c]);
+                let hit = (candidates, first + k, points, corners);
                 let done = resolve_lanes(spaces, &weights, hit, &mut lanes);
                 finished |= done;
                 lanes.active &= !done;

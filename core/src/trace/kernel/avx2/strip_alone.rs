@@ -1,0 +1,203 @@
+//! A short strip tested for a lane of a packet as that lane's ray alone would test it: its
+//! block boxes four to a pass ([`entered_boxes`]), then each block entered, eight windows at a
+//! time. For the one or two lanes that reach most strips of camera packets this costs less
+//! than the strip's windows one after the other for all eight rays of the packet
+//! ([`super::packet_strips`]), and less than the single-ray walk, which would first make the
+//! lane's `PreparedRay` and pick the strip walk compiled for its axes.
+//!
+//! The lane's ray is read from the packet's lanes (which hold `PreparedRay::new`'s bits), so
+//! no `PreparedRay` is made for it; the block's corners and edge functions are
+//! [`block_edges`]'s lossless arm with the ray-space axes picked at run time (the lane's, not
+//! the walk's constants): the same operations on the same positions, so every box decision,
+//! weight, candidate and hit has the single-ray walk's bits.
+//!
+//! [`block_edges`]: super::blocks::block_edges
+
+use std::arch::x86_64::*;
+
+use super::blocks::{
+    entered_boxes, in_range_lanes, shift_lanes, shifted_corners, swap_lanes, transform,
+    transpose_positions, BoxRay,
+};
+use super::packet_strips::MAX_WINDOWS;
+use super::simd::{candidate_lanes, edge, lanes as lanes_of};
+use super::Avx2;
+use crate::format::reader::StripView;
+use crate::trace::closest::Closest;
+use crate::trace::kernel::{EnteredBoxes, LeafLanes, TraceKernel, BLOCK, BOX_GROUP};
+use crate::trace::lanes::{Lanes, PACKET_WIDTH};
+use crate::trace::watertight::{resolve, RayPoint};
+
+/// One lane's ray: what its box test reads (origin and reciprocals per model axis, direction
+/// signs), and its ray space with each quantity in every SIMD lane (the origin on the ray-space
+/// axes, the shears, the depth scale).
+struct LoneRay {
+    model_origin: [f32; 3],
+    entry_reciprocal: [f32; 3],
+    exit_reciprocal: [f32; 3],
+    negative: [bool; 3],
+    axes: [usize; 3],
+    origin: [__m256; 3],
+    shear: [__m256; 2],
+    scale_z: __m256,
+    tmin: f32,
+}
+
+impl LoneRay {
+    /// Lane `lane`'s ray, read from `lanes`.
+    #[target_feature(enable = "avx2,bmi2")]
+    #[inline]
+    fn new(lanes: &Lanes, lane: usize) -> LoneRay {
+        let lane = lane % PACKET_WIDTH;
+        let at = |values: &[wide::f32x8; 3]| values.each_ref().map(|v| v.as_array()[lane]);
+        let origin = at(&lanes.origin);
+        // Ray-space axes are model axes 0 to 2; saying so spares the bounds checks.
+        let axes = lanes
+            .space_axes
+            .each_ref()
+            .map(|a| (a.as_array()[lane] as usize).min(2));
+        let one = |values: &wide::f32x8| _mm256_set1_ps(values.as_array()[lane]);
+        LoneRay {
+            model_origin: origin,
+            entry_reciprocal: at(&lanes.entry_reciprocal),
+            exit_reciprocal: at(&lanes.exit_reciprocal),
+            negative: lanes.negative(),
+            axes,
+            origin: axes.map(|axis| _mm256_set1_ps(origin[axis])),
+            shear: [one(&lanes.shear[0]), one(&lanes.shear[1])],
+            scale_z: one(&lanes.scale_z),
+            tmin: lanes.tmin.as_array()[lane],
+        }
+    }
+
+    /// What the box test reads.
+    #[inline(always)]
+    fn boxes(&self) -> BoxRay<'_> {
+        BoxRay {
+            origin: &self.model_origin,
+            entry_reciprocal: &self.entry_reciprocal,
+            exit_reciprocal: &self.exit_reciprocal,
+            negative: &self.negative,
+        }
+    }
+}
+
+/// A block's candidate windows for the lone lane, with each corner's ray-space x, y and depth
+/// and the windows' edge functions, per window lane.
+struct LoneEdges {
+    candidates: u32,
+    x: [[f32; BLOCK]; 3],
+    y: [[f32; BLOCK]; 3],
+    z: [[f32; BLOCK]; 3],
+    weights: [[f32; BLOCK]; 3],
+}
+
+/// Tests the lossless strip `view` (number `strip`, with `points`, at most [`MAX_WINDOWS`]
+/// windows) for lane `lane` of the leaf alone, as the single-ray walk does: its boxes against
+/// the lane's interval (clipped to its culling bound for closest hits), the blocks entered in
+/// strip order, each skipped when a hit found since is nearer than its box. Returns the lane's
+/// bit when it found a hit and `any_hit` is set (it is done).
+#[target_feature(enable = "avx2,bmi2")]
+pub(super) fn trace_strip_alone(
+    (lanes, lane): (&Lanes, usize),
+    leaf: &LeafLanes,
+    (view, strip, points): (&StripView, u32, &[[f32; 3]]),
+    any_hit: bool,
+    closest: &mut Closest,
+) -> u32 {
+    let ray = LoneRay::new(lanes, lane);
+    let lane = lane % PACKET_WIDTH;
+    let t_far = if any_hit {
+        leaf.t_far[lane]
+    } else {
+        leaf.t_far[lane].min(closest.reach)
+    };
+    let count = view.window_count().min(MAX_WINDOWS);
+    let blocks = (1 << count.div_ceil(BLOCK)) - 1;
+    let entered = match view.boxes.frame(points[0]) {
+        Some(frame) => {
+            let interval = (leaf.t_near[lane], t_far);
+            entered_boxes(ray.boxes(), view.boxes.bytes(), &frame, 0, interval)
+        }
+        // A strip without boxes is one kd leaf, whose blocks the walk tests without culling.
+        None => EnteredBoxes {
+            mask: blocks,
+            near: [f32::NEG_INFINITY; BOX_GROUP],
+        },
+    };
+    let mut mask = entered.mask & blocks;
+    while mask != 0 {
+        let block = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        if entered.near[block % BOX_GROUP] > closest.reach {
+            continue;
+        }
+        let first = block * BLOCK;
+        let references = Avx2::references(&view.references, first);
+        let block_at = (&references, BLOCK.min(count - first));
+        let Some(edges) = lone_edges(&ray, points, block_at, closest.t) else {
+            continue;
+        };
+        let mut candidates = edges.candidates;
+        while candidates != 0 {
+            let k = candidates.trailing_zeros() as usize;
+            candidates &= candidates - 1;
+            let c: [RayPoint; 3] = std::array::from_fn(|corner| RayPoint {
+                x: edges.x[corner][k],
+                y: edges.y[corner][k],
+                z: edges.z[corner][k],
+            });
+            let w = edges.weights.map(|w| w[k]);
+            if let Some(hit) = resolve(&c, w, ray.tmin, closest.t) {
+                let corners = [0, 1, 2].map(|c| references[k + c]);
+                let window = (strip, (first + k) as u16);
+                closest.offer(hit.t, window, hit.weights, (points, corners));
+                if any_hit {
+                    return 1 << lane;
+                }
+            }
+        }
+    }
+    0
+}
+
+/// The candidate windows of the block whose `BLOCK + 2` references are `references`
+/// (`windows` of them real) for the lone lane within `[tmin, tmax]`, or `None`: the
+/// single-ray block's candidates ([`super::blocks::block_edges`]), its depths computed for
+/// every lane as its in-range test computes them.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn lone_edges(
+    ray: &LoneRay,
+    points: &[[f32; 3]],
+    (references, windows): (&[u8; BLOCK + 2], usize),
+    tmax: f32,
+) -> Option<LoneEdges> {
+    let (head, tail) = transpose_positions::<0, 1, 2>(points, references);
+    let [a, b, c] = ray.axes;
+    let [hx, hy, hz] = transform([head[a], head[b], head[c]], &ray.origin, &ray.shear);
+    let [tx, ty, tz] = transform([tail[a], tail[b], tail[c]], &ray.origin, &ray.shear);
+    let corners = shifted_corners([hx, hy], [tx, ty]);
+    let weights = [
+        edge(&corners[1], &corners[2]),
+        edge(&corners[2], &corners[0]),
+        edge(&corners[0], &corners[1]),
+    ];
+    let candidates = candidate_lanes(&weights) & ((1 << windows) - 1) & !swap_lanes(references);
+    if candidates == 0 {
+        return None;
+    }
+    let (by_one, by_two) = shift_lanes(hz, tz);
+    let depths = [hz, by_one, by_two].map(|offset| _mm256_mul_ps(ray.scale_z, offset));
+    let candidates = candidates & in_range_lanes(&weights, &depths, (ray.tmin, tmax));
+    if candidates == 0 {
+        return None;
+    }
+    Some(LoneEdges {
+        candidates,
+        x: corners.map(|[x, _]| lanes_of(x)),
+        y: corners.map(|[_, y]| lanes_of(y)),
+        z: depths.map(|depth| lanes_of(depth)),
+        weights: weights.map(|w| lanes_of(w)),
+    })
+}
