@@ -452,6 +452,34 @@ impl ReducemFile {
         self.strip_records().len()
     }
 
+    /// The points of a pooled grid file's pools, each pool counted once, read from the strips'
+    /// parts in file order (a pool's strips are consecutive); `None` for other files. What
+    /// `reducem inspect` reports as stored: 4.1 files written before the header counted the
+    /// pools' points count the vertices of the strips' views there. A part or pool outside the
+    /// strip data counts nothing.
+    pub fn pool_points(&self) -> Option<u64> {
+        if !matches!(self.layout, VertexLayout::Pooled { .. }) {
+            return None;
+        }
+        let data = self.section_bytes(SectionKind::StripData);
+        let mut previous = None;
+        let mut points = 0;
+        for record in self.strip_records() {
+            let part = record.data_word as usize * 4;
+            let Some(header) = data.get(part..).and_then(PartHeader::read) else {
+                continue;
+            };
+            let offset = part + header.pool_distance;
+            if previous != Some(offset) {
+                points += data
+                    .get(offset)
+                    .map_or(0, |&count| pool_points(count) as u64);
+                previous = Some(offset);
+            }
+        }
+        Some(points)
+    }
+
     /// Strip `index`'s place in its vertex pool, in pooled grid files and once the strip has
     /// passed validation (after [`ReducemFile::strip`]); `None` otherwise.
     pub fn pool(&self, index: usize) -> Option<PoolPlace<'_>> {
