@@ -22,6 +22,8 @@ pub struct FileStats {
     pub dropped_triangles: u64,
     pub strips: u64,
     pub input_vertices: u64,
+    /// Vertices stored over all strips; in pooled grid files the pools' points, counted from
+    /// the pools (the header of an earlier 4.1 writer's file counts the strips' views instead).
     pub stored_vertices: u64,
     /// Stored copies that exist only to encode the strip hierarchies.
     pub hierarchy_vertices: u64,
@@ -121,7 +123,7 @@ pub fn file_stats(file: &ReducemFile) -> FileStats {
         dropped_triangles: header.dropped_triangle_count,
         strips: header.strip_count,
         input_vertices: header.input_vertex_count,
-        stored_vertices: header.stored_vertex_count,
+        stored_vertices: file.pool_points().unwrap_or(header.stored_vertex_count),
         hierarchy_vertices: header.hierarchy_vertex_count,
         top_nodes: file.top_nodes().len() as u64,
         top_node_width: match file.top_nodes() {

@@ -158,7 +158,8 @@ fn assert_same_answers(kind: Kind, triangles: u64) {
 }
 
 /// `reducem decode`'s PLY of the pooled file: each pool's points once, fewer vertices than the
-/// 4.0 file stores, and the 4.0 file's triangles.
+/// 4.0 file stores, and the 4.0 file's triangles; the pooled file's header counts those points
+/// as stored.
 fn assert_decoded_ply_writes_each_pool_once(
     pooled: &ReducemFile,
     unpooled: &ReducemFile,
@@ -187,6 +188,9 @@ fn assert_decoded_ply_writes_each_pool_once(
         Some(format!("element vertex {pool_points}").as_str())
     );
     assert!((pool_points as u64) < unpooled.header().stored_vertex_count);
+    assert_eq!(pooled.header().stored_vertex_count, pool_points as u64);
+    assert_eq!(pooled.pool_points(), Some(pool_points as u64));
+    assert_eq!(unpooled.pool_points(), None);
     let mesh = reducem::input::read_mesh(&ply).expect("read the decoded PLY");
     let corners = mesh
         .triangles
@@ -238,4 +242,31 @@ fn files_with_short_leaves_or_attributes_are_not_pooled() {
         file.header().vertex_encoding,
         VertexEncoding::GridPooled as u32
     );
+}
+
+/// A 4.1 file of an earlier writer, whose header counts the vertices of the strips' views (the
+/// fuzz corpus's pooled file): `reducem inspect` reports the pools' points, as for a file whose
+/// header counts them.
+#[test]
+fn inspect_counts_pool_points_in_earlier_pooled_files() {
+    let seed = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz/corpus/reducem/grid-pooled.rdm");
+    let file = ReducemFile::open(&seed).expect("open the pooled seed");
+    let points = file.pool_points().expect("a pooled file");
+    let mut spans = 0;
+    let mut previous = None;
+    let mut counted = 0;
+    for s in 0..file.strip_count() {
+        file.strip(s);
+        let place = file.pool(s).expect("every strip is in a pool");
+        spans += u64::from(file.strip_records()[s].vertex_count);
+        if previous != Some(place.offset) {
+            counted += place.points.len() as u64;
+            previous = Some(place.offset);
+        }
+    }
+    assert_eq!(points, counted);
+    assert_eq!(file.header().stored_vertex_count, spans);
+    assert!(points < spans, "{points} pool points, {spans} spanned");
+    let stats = reducem::inspect::file_stats(&file);
+    assert_eq!(stats.stored_vertices, points);
 }

@@ -14,8 +14,8 @@ use std::path::PathBuf;
 use common::{fixture_bytes, hit_bits, temp_path, torus, tracer_variants};
 use reducem::conversion::{convert_mesh, BuildParams};
 use reducem::format::reader::TopNodes;
-use reducem::format::reader::{ReducemFile, Validation, EAGER_VALIDATION_BYTES};
-use reducem::format::{NodeRecord, SectionKind, TopSlot, WideNode, WIDE_WIDTH};
+use reducem::format::reader::{FormatError, ReducemFile, Validation, EAGER_VALIDATION_BYTES};
+use reducem::format::{FilePart, NodeRecord, SectionKind, TopSlot, WideNode, WIDE_WIDTH};
 use reducem::trace::ray_file::encode_rays;
 use reducem::trace::{unit_normal, Hit, Ray};
 
@@ -473,5 +473,53 @@ fn lazy_and_full_validation_agree_on_every_corruption() {
             found_by_tracing > 0 && rejected > found_by_tracing && sound > 0,
             "{name}: {rejected} rejected, {found_by_tracing} found by tracing, {sound} sound"
         );
+    }
+}
+
+/// A strip's first view decides as a full validation does: for every second byte of the strip
+/// records and strip data corrupted, viewing each strip of the lazily opened file in order
+/// reports the defect a full open names (file, byte and words), and none when a full open finds
+/// no strip defect. What ties the checks that only decide, which pass a sound f32 or grid
+/// strip on its first view, to those that name a defect.
+#[test]
+fn first_views_report_the_defect_a_full_open_names() {
+    for (name, bytes) in [
+        (
+            "f32",
+            converted_bytes((24, 12), &BuildParams::default(), "first-views-f32.rdm"),
+        ),
+        (
+            "grid",
+            converted_bytes((24, 12), &grid_params(), "first-views-grid.rdm"),
+        ),
+        ("f32-nodes-3.1", fixture("torus-format-3.1.rdm")),
+        ("grid-3.1", fixture("torus-grid-format-3.1.rdm")),
+    ] {
+        let strips = [SectionKind::StripRecords, SectionKind::StripData]
+            .into_iter()
+            .flat_map(|kind| section_range(&bytes, kind).step_by(2));
+        let mut reported = 0;
+        for (case, at) in strips.enumerate() {
+            let mut corrupt = bytes.clone();
+            corrupt[at] ^= 1 << (case % 8);
+            let path = written("first-views-case.rdm", &corrupt);
+            let expected = match ReducemFile::open_with(&path, Validation::Full) {
+                Ok(_)
+                | Err(FormatError::Invalid {
+                    section: FilePart::Header,
+                    ..
+                }) => None,
+                Err(error) => Some(error.to_string()),
+            };
+            let lazy = ReducemFile::open_with(&path, Validation::Lazy)
+                .expect("the header and section table are intact");
+            for strip in 0..lazy.strip_count() {
+                lazy.strip(strip);
+            }
+            let found = lazy.defect().map(|error| error.to_string());
+            assert_eq!(found, expected, "{name}: byte {at}");
+            reported += usize::from(found.is_some());
+        }
+        assert!(reported > 100, "{name}: only {reported} defects reported");
     }
 }

@@ -23,8 +23,8 @@ pub struct ChunkLayout {
     pub bounds: Aabb,
     /// Bytes of the chunk's strip blocks, a multiple of 4.
     pub data_bytes: u64,
-    /// The vertices the strips' views span when their grid vertices were pooled, which the
-    /// header then counts as stored; `None` otherwise.
+    /// The pools' points when the strips' grid vertices were pooled, which the header then
+    /// counts as stored; `None` otherwise.
     pub pooled_vertices: Option<u64>,
 }
 

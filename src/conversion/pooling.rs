@@ -33,6 +33,7 @@ struct StripPoints {
 /// Rewrites the blocks of `strips` (`vertex_encoding` 3 on `grid`), grouped in `order` (file
 /// order), as pooled parts: each strip's block becomes its part, the last of a group's also
 /// holds the group's pool, and its `vertex_count` the vertices its view spans in the pool.
+/// Returns the pools' points, which the header counts as stored.
 /// Returns the stored vertex count the strips' views then have.
 pub fn pool_blocks(
     strips: &mut [EncodedStrip],
@@ -112,8 +113,7 @@ fn upper_part_bytes(references: usize) -> usize {
     4 + references + crate::format::block_boxes::area_bytes(windows) + 3
 }
 
-/// Writes one group's parts and pool into its strips' blocks; returns the vertices their views
-/// span.
+/// Writes one group's parts and pool into its strips' blocks; returns the pool's points.
 fn write_group(
     strips: &mut [EncodedStrip],
     order: &[u32],
@@ -137,7 +137,6 @@ fn write_group(
         parts.push(encode_part(&indices, &pool, grid));
     }
     let mut distance: usize = parts.iter().map(|(part, _)| part.len()).sum();
-    let mut stored = 0;
     for (&s, (mut part, span)) in order.iter().zip(parts) {
         let header = PartHeader {
             pool_distance: distance,
@@ -148,11 +147,10 @@ fn write_group(
         let strip = &mut strips[s as usize];
         strip.vertex_count = span as u16;
         strip.block = part;
-        stored += span as u64;
     }
     let last = order[order.len() - 1] as usize;
     strips[last].block.extend(pool_block(&pool, grid));
-    stored
+    pool.len() as u64
 }
 
 /// A strip's part (its pool distance left zero) and the vertices its view spans.

@@ -201,6 +201,30 @@ fn slots_of_width_pass(
         & (exactly_empty | occupied == all)
 }
 
+/// The top bit of each byte of a word.
+const BYTE_TOPS: u64 = 0x8080_8080_8080_8080;
+
+/// The top bit of each byte of `word` as bits 0 to 7: each lands, through one multiplication,
+/// in its own bit of the top byte, no two partial products meeting.
+#[inline(always)]
+fn byte_tops(word: u64) -> u32 {
+    (((word & BYTE_TOPS) >> 7).wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32
+}
+
+/// The top bit of each byte of `word` that is not zero.
+#[inline(always)]
+fn nonzero_bytes(word: u64) -> u64 {
+    (((word & !BYTE_TOPS) + !BYTE_TOPS) | word) & BYTE_TOPS
+}
+
+/// The top bit of each byte of `a` above the same byte of `b`, unsigned: the low seven bits
+/// compared by a subtraction that cannot borrow across bytes, the top bits then decide.
+#[inline(always)]
+fn bytes_above(a: u64, b: u64) -> u64 {
+    let low_not_above = (b | BYTE_TOPS) - (a & !BYTE_TOPS);
+    ((a & !b) | (!(a ^ b) & !low_not_above)) & BYTE_TOPS
+}
+
 /// Whether `slot`'s box is all zero codes in boxes stored lane by lane (`min[axis][slot]`), as
 /// [`GridNode`]'s u16 and [`WideNode`]'s u8 codes are.
 fn lane_box_is_zero<T: Copy + Default + PartialEq, const W: usize>(
@@ -316,24 +340,21 @@ impl NodeRecord for WideNode {
         let frame = self.origin.iter().all(|c| c.is_finite())
             & self.exponent.iter().all(|e| (1..=254).contains(e))
             & (self.reserved == 0);
-        let mut differ = [0u8; WIDE_WIDTH];
-        let mut inverted = [false; WIDE_WIDTH];
-        for (min, max) in self.min.iter().zip(&self.max) {
-            for lane in 0..WIDE_WIDTH {
-                differ[lane] |= min[lane] | max[lane];
-                inverted[lane] |= min[lane] > max[lane];
-            }
-        }
+        // Eight slots' codes of an axis are one word: the lanes compare as bytes of words.
+        let min: [u64; 3] = bytemuck::cast(self.min);
+        let max: [u64; 3] = bytemuck::cast(self.max);
+        let codes = min.iter().chain(&max).fold(0, |codes, &word| codes | word);
+        let inverted = (0..3).fold(0, |inverted, axis| {
+            inverted | bytes_above(min[axis], max[axis])
+        });
         let bounds = LinkBounds::new(index, limits);
         let [low, high]: [[u32; 4]; 2] = bytemuck::cast(self.link);
-        let links = (bounds.pass_words(low) | bounds.pass_words(high) << 4)
-            & !lanes_of(WIDE_WIDTH, |slot| inverted[slot]);
+        let links = (bounds.pass_words(low) | bounds.pass_words(high) << 4) & !byte_tops(inverted);
+        let linked = lanes_of(WIDE_WIDTH, |slot| self.link[slot] != 0);
         let slots = (
-            lanes_of(WIDE_WIDTH, |slot| self.link[slot] != 0),
+            linked,
             links,
-            lanes_of(WIDE_WIDTH, |slot| {
-                (differ[slot] == 0) & (self.link[slot] == 0)
-            }),
+            !(byte_tops(nonzero_bytes(codes)) | linked) & 0xff,
         );
         frame & slots_of_width_pass(WIDE_WIDTH, slots, limits.empty_root)
     }
@@ -364,6 +385,22 @@ mod tests {
                     TopSlot::Empty | TopSlot::Invalid(_) => false,
                 }
         })
+    }
+
+    /// The byte-lane helpers agree with comparing each byte, on words built from edge values.
+    #[test]
+    fn byte_lanes_agree_with_each_byte() {
+        let mut picker = Picker(0x9e37_79b9_7f4a_7c15);
+        let edges = [0u8, 1, 2, 0x7f, 0x80, 0x81, 0xfe, 0xff];
+        for _ in 0..20_000 {
+            let a: [u8; 8] = std::array::from_fn(|_| picker.pick(&edges));
+            let b: [u8; 8] = std::array::from_fn(|_| picker.pick(&edges));
+            let (wa, wb) = (u64::from_le_bytes(a), u64::from_le_bytes(b));
+            let above = lanes_of(8, |lane| a[lane] > b[lane]);
+            assert_eq!(byte_tops(bytes_above(wa, wb)), above, "{a:?} {b:?}");
+            let nonzero = lanes_of(8, |lane| a[lane] != 0);
+            assert_eq!(byte_tops(nonzero_bytes(wa)), nonzero, "{a:?}");
+        }
     }
 
     /// A xorshift generator picking from small sets of edge values.

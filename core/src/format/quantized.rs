@@ -89,6 +89,12 @@ impl AxisWord {
         }
     }
 
+    /// Whether the word fits the file's grid: [`AxisWord::check`] without the message.
+    #[inline(always)]
+    pub fn fits(&self, grid_bits: u32) -> bool {
+        self.width <= grid_bits && (self.anchor as u64 + (1u64 << self.width) - 1) >> grid_bits == 0
+    }
+
     /// Whether the word fits the file's grid (see the module documentation).
     pub fn check(&self, grid_bits: u32) -> Result<(), String> {
         if self.width > grid_bits {

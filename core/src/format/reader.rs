@@ -452,6 +452,34 @@ impl ReducemFile {
         self.strip_records().len()
     }
 
+    /// The points of a pooled grid file's pools, each pool counted once, read from the strips'
+    /// parts in file order (a pool's strips are consecutive); `None` for other files. What
+    /// `reducem inspect` reports as stored: 4.1 files written before the header counted the
+    /// pools' points count the vertices of the strips' views there. A part or pool outside the
+    /// strip data counts nothing.
+    pub fn pool_points(&self) -> Option<u64> {
+        if !matches!(self.layout, VertexLayout::Pooled { .. }) {
+            return None;
+        }
+        let data = self.section_bytes(SectionKind::StripData);
+        let mut previous = None;
+        let mut points = 0;
+        for record in self.strip_records() {
+            let part = record.data_word as usize * 4;
+            let Some(header) = data.get(part..).and_then(PartHeader::read) else {
+                continue;
+            };
+            let offset = part + header.pool_distance;
+            if previous != Some(offset) {
+                points += data
+                    .get(offset)
+                    .map_or(0, |&count| pool_points(count) as u64);
+                previous = Some(offset);
+            }
+        }
+        Some(points)
+    }
+
     /// Strip `index`'s place in its vertex pool, in pooled grid files and once the strip has
     /// passed validation (after [`ReducemFile::strip`]); `None` otherwise.
     pub fn pool(&self, index: usize) -> Option<PoolPlace<'_>> {
@@ -511,9 +539,23 @@ impl ReducemFile {
     }
 
     /// Validates strip `index` and views it, or the stand-in without triangles when it is
-    /// corrupt. Out of line: it runs once per strip.
+    /// corrupt. Out of line: it runs once per strip. A sound strip takes checks that only
+    /// decide ([`validate::sound_strip`]); the others are checked again to word the defect.
     #[inline(never)]
     fn strip_on_first_view(&self, index: usize) -> StripView<'_> {
+        match validate::sound_strip(self, index) {
+            Some(view) => {
+                self.checks.strips.set(index);
+                view
+            }
+            None => self.strip_with_defect(index),
+        }
+    }
+
+    /// [`ReducemFile::strip_on_first_view`] of a strip the sound path did not pass: corrupt, or
+    /// pooled (whose pool is checked here).
+    #[inline(never)]
+    fn strip_with_defect(&self, index: usize) -> StripView<'_> {
         match validate::check_strip(self, index) {
             Ok(view) => {
                 self.checks.strips.set(index);
@@ -526,6 +568,20 @@ impl ReducemFile {
         }
     }
 
+    /// Strip `index`'s record, read from the mapping at its offset; `None` past the records.
+    ///
+    /// The record is read once and checked again before use: a file changed in place after
+    /// its validation reads as strips without triangles, never as a panic.
+    #[inline(always)]
+    fn record(&self, index: usize) -> Option<StripRecord> {
+        let records = &self.sections[section_slot(SectionKind::StripRecords)];
+        let at = records.start + index * size_of::<StripRecord>();
+        match self.map.get(at..at + 8) {
+            Some(bytes) if at + 8 <= records.end => Some(bytemuck::pod_read_unaligned(bytes)),
+            _ => None,
+        }
+    }
+
     /// The view of a strip known to be valid.
     ///
     /// The record is read from the mapping at its offset, and the block viewed in the mapping
@@ -535,13 +591,8 @@ impl ReducemFile {
     /// 10 of a view's 146 instructions (callgrind, 1M primary rays on the 1M scan).
     #[inline]
     fn strip_in_place(&self, index: usize) -> StripView<'_> {
-        let records = &self.sections[section_slot(SectionKind::StripRecords)];
-        let at = records.start + index * size_of::<StripRecord>();
-        // The record is read once and checked again before use: a file changed in place after
-        // its validation reads as strips without triangles, never as a panic.
-        let record: StripRecord = match self.map.get(at..at + 8) {
-            Some(bytes) if at + 8 <= records.end => bytemuck::pod_read_unaligned(bytes),
-            _ => return lazy::no_triangles(),
+        let Some(record) = self.record(index) else {
+            return lazy::no_triangles();
         };
         let data = &self.map[self.sections[section_slot(SectionKind::StripData)].start..];
         let parts = self.parts.lengths(record.reference_count as usize);

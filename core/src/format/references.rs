@@ -71,6 +71,46 @@ fn spread_to_bytes(stream: u64, width: usize) -> u64 {
     (pairs & single_mask) | (((pairs >> width) & single_mask) << 8)
 }
 
+/// The masks [`References::first_at_least`] compares one load of `width`-bit fields with.
+#[derive(Clone, Copy, Debug)]
+struct FieldMasks {
+    /// Fields one load holds.
+    per_load: usize,
+    /// The top bit of each field.
+    top: u64,
+    /// The other bits of each field.
+    low: u64,
+}
+
+impl FieldMasks {
+    const fn of(width: usize) -> FieldMasks {
+        let per_load = BITS_PER_LOAD / width;
+        let field = (1u64 << width) - 1;
+        let ones = ((1u64 << (per_load * width)) - 1) / field;
+        let top = ones << (width - 1);
+        FieldMasks {
+            per_load,
+            top,
+            low: (ones * field) & !top,
+        }
+    }
+}
+
+/// [`FieldMasks`] by width, for every width a strip record can give (1 to 16; 0 unused).
+const FIELD_MASKS: [FieldMasks; 17] = {
+    let mut masks = [FieldMasks {
+        per_load: 1,
+        top: 0,
+        low: 0,
+    }; 17];
+    let mut width = 1;
+    while width < masks.len() {
+        masks[width] = FieldMasks::of(width);
+        width += 1;
+    }
+    masks
+};
+
 /// A strip's references viewed in place.
 #[derive(Clone, Copy, Debug)]
 pub struct References<'a> {
@@ -302,19 +342,20 @@ impl<'a> References<'a> {
     /// first view. Per field of `w` bits, the comparison is split at the field's top bit: with
     /// that bit set in the value and clear in the limit, subtracting the limit's low bits never
     /// borrows across fields, and the difference's top bit says whether the low bits reach the
-    /// limit's; the top bits then decide.
+    /// limit's; the top bits then decide. The masks per width are constants ([`FieldMasks`]):
+    /// computed per call, their two divisions and shifts were a third of the search.
     #[inline]
     pub fn first_at_least(&self, limit: usize) -> Option<usize> {
         let width = self.width as usize;
         if limit >> width != 0 {
             return None;
         }
-        let per_load = BITS_PER_LOAD / width;
-        let field = (1u64 << width) - 1;
-        let ones = ((1u64 << (per_load * width)) - 1) / field;
-        let top = ones << (width - 1);
-        let low = (ones * field) & !top;
-        let limit = ones * limit as u64;
+        let masks = FIELD_MASKS
+            .get(width)
+            .copied()
+            .unwrap_or_else(|| FieldMasks::of(width));
+        let FieldMasks { per_load, top, low } = masks;
+        let limit = (top >> (width - 1)) * limit as u64;
         let (limit_top, limit_low) = (limit & top, limit & low);
         let mut first = 0;
         while first < self.count {
@@ -331,6 +372,35 @@ impl<'a> References<'a> {
             first += per_load;
         }
         None
+    }
+
+    /// Whether every reference is below `limit`: [`References::first_at_least`] deciding only,
+    /// inlined into a strip's first view. One pass over the area's bits a load at a time, the
+    /// fields past the last reference masked off in the last load only.
+    #[inline(always)]
+    pub fn all_below(&self, limit: usize) -> bool {
+        let width = self.width as usize;
+        if limit >> width != 0 {
+            return true;
+        }
+        let Some(&FieldMasks { per_load, top, low }) = FIELD_MASKS.get(width) else {
+            return self.first_at_least(limit).is_none();
+        };
+        let limit = (top >> (width - 1)) * limit as u64;
+        let (limit_top, limit_low) = (limit & top, limit & low);
+        let (load_bits, area_bits) = (per_load * width, self.count * width);
+        let mut found = 0;
+        let mut bit = 0;
+        while bit < area_bits {
+            let stream = self.load(bit / 8) >> (bit % 8);
+            let kept = (area_bits - bit).min(load_bits);
+            let (value_top, value_low) = (stream & top, stream & low);
+            let low_reaches = ((value_low | top) - limit_low) & top;
+            let at_least = (value_top & !limit_top) | (!(value_top ^ limit_top) & low_reaches);
+            found |= at_least & ((1u64 << kept) - 1);
+            bit += load_bits;
+        }
+        found & top == 0
     }
 
     /// Every reference, one byte each.
@@ -379,8 +449,9 @@ mod tests {
         }
     }
 
-    /// The word-parallel search finds the same reference as a scan, for every width, limit
-    /// and position, in packed and byte areas, with other data after the references.
+    /// The word-parallel search finds the same reference as a scan, and the range check
+    /// decides as it, for every width, limit and position, in packed and byte areas, with
+    /// other data after the references.
     #[test]
     fn first_reference_at_least_a_limit_matches_a_scan() {
         for vertices in [
@@ -407,6 +478,8 @@ mod tests {
                         scan,
                         "bytes {count} {limit}"
                     );
+                    assert_eq!(packed.all_below(limit), scan.is_none(), "{count} {limit}");
+                    assert_eq!(unpacked.all_below(limit), scan.is_none(), "{count} {limit}");
                 }
             }
         }

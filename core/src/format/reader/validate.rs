@@ -153,6 +153,20 @@ fn check_node_of<N: NodeRecord>(opened: &ReducemFile, index: usize) -> Result<()
     }
 }
 
+/// The view of strip `index` of a lazily opened file when it passes every check of
+/// [`check_strip`], else `None` (also for a pooled strip, left to [`check_strip`]): the
+/// checks decide without naming a defect, so that a sound strip's first view costs little more
+/// than a view.
+#[inline(always)]
+pub(super) fn sound_strip(opened: &ReducemFile, index: usize) -> Option<StripView<'_>> {
+    let record = opened.record(index)?;
+    let shape = BlockShape {
+        parts: &opened.parts,
+        layout: opened.layout,
+    };
+    shape.sound_view(opened.section_bytes(SectionKind::StripData), &record)
+}
+
 /// Validates strip `index` of a lazily opened file in the mapping, as [`Windows::validate_strips`]
 /// does but for the triangle count (its record, its block's bounds, reference indices, split
 /// axes and box exponents), and returns its view.

@@ -175,9 +175,9 @@ impl BlockShape<'_> {
     /// strip's first view needs, in one pass over the block.
     ///
     /// References are checked a load of them at a time ([`References::first_at_least`]), and
-    /// the view is the one traversal then gets. A sound lossless block is viewed once, straight
-    /// from the section ([`BlockShape::sound_view`]); any other takes the checks that name
-    /// its defect.
+    /// the view is the one traversal then gets. A sound block of f32 or grid vertices is viewed
+    /// once, straight from the section ([`BlockShape::sound_view`]); any other takes the checks
+    /// that name its defect.
     pub(super) fn checked_view<'a>(
         &self,
         data: &'a [u8],
@@ -189,26 +189,43 @@ impl BlockShape<'_> {
         self.view_or_defect(data, record)
     }
 
-    /// The view of a lossless block in `data` (the strip-data section) that passes every check
-    /// of [`BlockShape::view_or_defect`], viewed in place as a valid strip is: the block's
+    /// The view of a block in `data` (the strip-data section) that passes every check of
+    /// [`BlockShape::view_or_defect`], viewed in place as a valid strip is: the block's
     /// bounds are those of its view's slices, so its length is not computed apart. `None` for
-    /// a grid block (whose axis words are checked before its vertices can be viewed) or a
-    /// defect.
+    /// a pooled block (whose pool is checked apart) or a defect.
     #[inline(always)]
-    fn sound_view<'a>(&self, data: &'a [u8], record: &StripRecord) -> Option<StripView<'a>> {
-        if !matches!(self.layout, VertexLayout::F32 { .. }) {
+    pub(super) fn sound_view<'a>(
+        &self,
+        data: &'a [u8],
+        record: &StripRecord,
+    ) -> Option<StripView<'a>> {
+        // Axis words first: a view of words wider than the grid would shift past 32 bits.
+        if matches!(self.layout, VertexLayout::Pooled { .. })
+            || !self.sound_axis_words(data, record)
+        {
             return None;
         }
         let nodes = self.sound_nodes(record)?;
         let parts = self.parts.lengths(record.reference_count as usize);
         let view = try_view_block(data, record, parts, &self.layout)?;
-        let sound = view
-            .references
-            .first_at_least(view.vertices.len())
-            .is_none()
-            && first_axis_3(view.axes, nodes).is_none()
+        let sound = view.references.all_below(view.vertices.len())
+            && no_axis_3(view.axes, nodes)
             && sound_exponents(&view.boxes);
         sound.then_some(view)
+    }
+
+    /// Whether the axis words of a grid block that fits `data` fit the grid (true for f32
+    /// vertices).
+    #[inline(always)]
+    fn sound_axis_words(&self, data: &[u8], record: &StripRecord) -> bool {
+        let VertexLayout::Grid { grid, packed, .. } = self.layout else {
+            return true;
+        };
+        let block = data
+            .get(record.data_word as usize * 4..)
+            .unwrap_or_default();
+        let words = VertexLayout::axis_words(&grid, packed).read(block);
+        words.iter().all(|word| word.fits(grid.bits))
     }
 
     /// [`BlockShape::checked_view`] with every check apart, each naming its defect.
@@ -402,6 +419,21 @@ pub(super) fn first_axis_3(axes: &[u8], nodes: usize) -> Option<usize> {
     })
 }
 
+/// Whether none of the `nodes` split axes in `axes` (their [`axis_bytes`], as a view has them)
+/// is 3: [`first_axis_3`] deciding only, inlined into a strip's first view, only the last
+/// byte's unused pairs masked off.
+#[inline(always)]
+fn no_axis_3(axes: &[u8], nodes: usize) -> bool {
+    let Some((&last, full)) = axes.split_last() else {
+        return true;
+    };
+    let threes = |pairs: u8| pairs & (pairs >> 1) & 0x55;
+    let in_last = nodes.saturating_sub(4 * full.len()).min(4);
+    let used = ((1u16 << (2 * in_last)) - 1) as u8;
+    let found = full.iter().fold(0, |found, &pairs| found | threes(pairs));
+    found | (threes(last) & used) == 0
+}
+
 pub(super) fn past_the_end(start: u64, length: u64, data_len: u64) -> StripDefect {
     let detail = format!("block of {length} bytes runs past the section end {data_len}");
     (Some(start), Defect::Truncated, detail)
@@ -437,6 +469,22 @@ pub(super) fn count_triangles(
 mod tests {
     use super::*;
     use crate::format::references::pack;
+
+    /// The deciding check of split axes agrees with the search that names the node, for axes
+    /// of one to three words, a 3 at each place, in use or not.
+    #[test]
+    fn axis_checks_agree() {
+        for nodes in [1usize, 3, 4, 5, 31, 32, 33, 64, 70, 95] {
+            let bytes = nodes.div_ceil(4);
+            for place in 0..4 * bytes {
+                let mut axes = vec![0b10_01_00_10u8 & 0x66; bytes];
+                axes[place / 4] |= 3 << (2 * (place % 4));
+                let found = first_axis_3(&axes, nodes);
+                assert_eq!(found, (place < nodes).then_some(place), "{nodes} {place}");
+                assert_eq!(no_axis_3(&axes, nodes), found.is_none(), "{nodes} {place}");
+            }
+        }
+    }
 
     /// Chunked counting agrees with counting the whole strip at once, across chunk borders,
     /// and finds the first reference out of range.
