@@ -30,6 +30,7 @@ use crate::geometry::Point;
 use crate::strip_windows::window_corners;
 use crate::trace::kernel::distance_bounds::BlockCorners;
 use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+use crate::trace::kernel::query_prefetch::ChildPrefetch;
 use crate::trace::kernel::Kernel;
 
 /// The closest point of the surface to a query point.
@@ -170,6 +171,7 @@ impl<'f> ClosestPointSearch<'f> {
             point: *point,
             wide: point.map(f64::from),
         };
+        let prefetch = ChildPrefetch::new(self.file, nodes);
         self.pending.clear();
         let mut next = Some((0.0, (0, INTERNAL_CHILD)));
         loop {
@@ -188,13 +190,13 @@ impl<'f> ClosestPointSearch<'f> {
                 continue;
             }
             if let Some(node) = self.file.top_node(nodes, child as usize) {
-                next = self.push_children::<N, Q>(node, grid, &query, best.limit);
+                next = self.push_children::<N, Q>(node, grid, &query, best.limit, &prefetch);
             }
         }
     }
 
     /// Pushes the children of `node` whose bound does not exceed `limit`, but for the nearest,
-    /// returned with its bound.
+    /// returned with its bound; each is asked for from memory before the walk reaches it.
     #[inline(always)]
     fn push_children<N: ChildBox, Q: QueryKernel>(
         &mut self,
@@ -202,6 +204,7 @@ impl<'f> ClosestPointSearch<'f> {
         grid: &N::Grid,
         query: &Query,
         limit: f64,
+        prefetch: &ChildPrefetch<N>,
     ) -> Option<(f64, (u32, u32))> {
         let mut nearest: Option<(f64, (u32, u32))> = None;
         let groups = node.child_boxes::<Q>(grid);
@@ -219,6 +222,7 @@ impl<'f> ClosestPointSearch<'f> {
                 if bound > limit {
                     continue;
                 }
+                prefetch.child(link);
                 let candidate = (bound, link);
                 match nearest {
                     Some((nearest_bound, _)) if nearest_bound <= bound => self.defer(candidate),

@@ -11,9 +11,10 @@ use arrayvec::ArrayVec;
 use super::crossing_walk::{block_boxes, box_frame, CrossingWalk, NodeBoxes, NodeStack, BOX_LANES};
 use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
-use crate::format::{TopSlot, WIDE_WIDTH};
+use crate::format::{TopSlot, INTERNAL_CHILD, WIDE_WIDTH};
 use crate::trace::kernel::crossing_blocks::MASK_BLOCKS;
 use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+use crate::trace::kernel::query_prefetch::ChildPrefetch;
 use crate::trace::kernel::Kernel;
 use crate::trace::watertight::RayPoint;
 use crate::trace::Ray;
@@ -82,6 +83,7 @@ impl CrossingPacket {
         if nodes.is_empty() || self.valid == 0 {
             return;
         }
+        let prefetch = ChildPrefetch::new(file, nodes);
         let mut stack = NodeStack::<(u32, Lanes)>::default();
         stack.push((0, self.valid));
         let mut visits = file.node_visits();
@@ -104,17 +106,30 @@ impl CrossingPacket {
                     entered &= entered - 1;
                 }
             });
+            // Every entered child asked for before the first leaf is walked.
+            let mut leaves = 0u32;
             while entered_any != 0 {
-                let slot = entered_any.trailing_zeros() as usize;
+                let slot = entered_any.trailing_zeros();
                 entered_any &= entered_any - 1;
-                match node.slot(slot) {
-                    TopSlot::Internal(child) => stack.push((child, by_slot[slot])),
+                match node.slot(slot as usize) {
+                    TopSlot::Internal(child) => {
+                        prefetch.child((child, INTERNAL_CHILD));
+                        stack.push((child, by_slot[slot as usize]));
+                    }
                     TopSlot::Leaf { first, count } => {
-                        for strip in file.leaf_strips(first, count) {
-                            self.strip::<Q>(file, strip, by_slot[slot], each);
-                        }
+                        prefetch.child((first, count));
+                        leaves |= 1 << slot;
                     }
                     TopSlot::Empty | TopSlot::Invalid(_) => {}
+                }
+            }
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                if let TopSlot::Leaf { first, count } = node.slot(slot) {
+                    for strip in file.leaf_strips(first, count) {
+                        self.strip::<Q>(file, strip, by_slot[slot], each);
+                    }
                 }
             }
         }

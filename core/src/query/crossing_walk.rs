@@ -18,11 +18,14 @@ use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_WINDOWS, CODE_BIAS, M
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, WideNode, TOP_WIDTH, WIDE_WIDTH};
+use crate::format::{
+    GridNode, NodeRecord, TopNode, TopSlot, WideNode, INTERNAL_CHILD, TOP_WIDTH, WIDE_WIDTH,
+};
 use crate::geometry::Point;
 use crate::trace::kernel::crossing_blocks::{StripBlocks, MASK_BLOCKS};
 use crate::trace::kernel::crossing_nodes::WidenedRay;
 use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+use crate::trace::kernel::query_prefetch::ChildPrefetch;
 use crate::trace::kernel::Kernel;
 use crate::trace::prepared::{max_not_nan_x4, min_not_nan_x4, PreparedRay, FAR_INFLATION};
 use crate::trace::watertight::{RayPoint, RaySpace};
@@ -107,6 +110,7 @@ impl CrossingWalk {
         if nodes.is_empty() {
             return;
         }
+        let prefetch = ChildPrefetch::new(file, nodes);
         let mut stack = NodeStack::<u32>::default();
         stack.push(0);
         let mut visits = file.node_visits();
@@ -120,17 +124,30 @@ impl CrossingWalk {
                 continue;
             };
             let mut entered = node.entered_children::<Q>(self, grid);
+            // Every entered child asked for before the first leaf is walked.
+            let mut leaves = 0u32;
             while entered != 0 {
-                let slot = entered.trailing_zeros() as usize;
+                let slot = entered.trailing_zeros();
                 entered &= entered - 1;
-                match node.slot(slot) {
-                    TopSlot::Internal(child) => stack.push(child),
+                match node.slot(slot as usize) {
+                    TopSlot::Internal(child) => {
+                        prefetch.child((child, INTERNAL_CHILD));
+                        stack.push(child);
+                    }
                     TopSlot::Leaf { first, count } => {
-                        for strip in file.leaf_strips(first, count) {
-                            self.strip::<Q>(file, strip, each);
-                        }
+                        prefetch.child((first, count));
+                        leaves |= 1 << slot;
                     }
                     TopSlot::Empty | TopSlot::Invalid(_) => {}
+                }
+            }
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                if let TopSlot::Leaf { first, count } = node.slot(slot) {
+                    for strip in file.leaf_strips(first, count) {
+                        self.strip::<Q>(file, strip, each);
+                    }
                 }
             }
         }

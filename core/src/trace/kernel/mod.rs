@@ -26,6 +26,7 @@ pub(crate) mod distance_bounds;
 mod portable;
 pub(super) mod prefetch;
 pub(crate) mod query_kernel;
+pub(crate) mod query_prefetch;
 
 use std::fmt;
 
