@@ -6,6 +6,7 @@
 
 #![allow(unsafe_code)]
 
+#[cfg(target_arch = "x86_64")]
 use crate::format::WideNode;
 
 /// A ray as the crossing walk's box test needs it: the slab test's precomputed planes and the
