@@ -4,7 +4,8 @@
 
 use crate::format::grid::NodeGrid;
 use crate::format::{GridNode, NodeRecord, TopNode, WideNode, TOP_WIDTH};
-use crate::trace::kernel::distance_bounds::{BoundLanes, LaneBoxes};
+use crate::trace::kernel::distance_bounds::LaneBoxes;
+use crate::trace::kernel::query_kernel::QueryKernel;
 
 /// A group of four child boxes by axis and slot (`[axis][slot]`): minima, maxima.
 pub(crate) type FourBoxes = (LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>);
@@ -16,7 +17,7 @@ pub(crate) trait ChildBox: NodeRecord {
     /// Every slot's box in groups of four (group `g`: slots `4 g .. 4 g + 4`); slots that hold
     /// no child decode as whatever their planes store.
     type Groups: AsRef<[FourBoxes]>;
-    fn child_boxes<L: BoundLanes>(&self, grid: &Self::Grid) -> Self::Groups;
+    fn child_boxes<Q: QueryKernel>(&self, grid: &Self::Grid) -> Self::Groups;
 }
 
 impl ChildBox for TopNode {
@@ -25,7 +26,7 @@ impl ChildBox for TopNode {
 
     /// The record stores its boxes by axis and slot already.
     #[inline(always)]
-    fn child_boxes<L: BoundLanes>(&self, _: &()) -> [FourBoxes; 1] {
+    fn child_boxes<Q: QueryKernel>(&self, _: &()) -> [FourBoxes; 1] {
         [(self.min, self.max)]
     }
 }
@@ -37,7 +38,7 @@ impl ChildBox for GridNode {
     /// Through [`NodeGrid::decode_axis`], the expression the writer rounded the boxes outward
     /// with.
     #[inline(always)]
-    fn child_boxes<L: BoundLanes>(&self, grid: &NodeGrid) -> [FourBoxes; 1] {
+    fn child_boxes<Q: QueryKernel>(&self, grid: &NodeGrid) -> [FourBoxes; 1] {
         let decode = |q: &[[u16; TOP_WIDTH]; 3]| {
             std::array::from_fn(|axis| q[axis].map(|q| grid.decode_axis(q, axis)))
         };
@@ -52,7 +53,7 @@ impl ChildBox for WideNode {
     /// All eight at once in the kernel's lanes: [`WideNode::decode`]'s bits, the expression
     /// the writer rounded the boxes outward with.
     #[inline(always)]
-    fn child_boxes<L: BoundLanes>(&self, _: &()) -> [FourBoxes; 2] {
-        L::wide_child_boxes(self)
+    fn child_boxes<Q: QueryKernel>(&self, _: &()) -> [FourBoxes; 2] {
+        Q::wide_child_boxes(self)
     }
 }

@@ -28,7 +28,9 @@ use crate::format::vertices::{StripVertices, VertexAccess};
 use crate::format::{TopSlot, INTERNAL_CHILD, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::strip_windows::window_corners;
-use crate::trace::kernel::distance_bounds::{compiled, BlockCorners, BoundLanes, PointWalk};
+use crate::trace::kernel::distance_bounds::BlockCorners;
+use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+use crate::trace::kernel::query_prefetch::ChildPrefetch;
 use crate::trace::kernel::Kernel;
 
 /// The closest point of the surface to a query point.
@@ -117,7 +119,7 @@ impl<'f> ClosestPointSearch<'f> {
             limit: (max * max).min(self.previous_bound(point)),
             found: None,
         };
-        compiled(
+        dispatch_query(
             self.kernel,
             Search {
                 search: self,
@@ -158,7 +160,7 @@ impl<'f> ClosestPointSearch<'f> {
     /// is entered at once rather than through the heap: that child would most often be popped
     /// next anyway, and the answer does not depend on the order (see the module's notes).
     #[inline(always)]
-    fn walk<N: ChildBox, L: BoundLanes>(
+    fn walk<N: ChildBox, Q: QueryKernel>(
         &mut self,
         nodes: &[N],
         grid: &N::Grid,
@@ -169,6 +171,7 @@ impl<'f> ClosestPointSearch<'f> {
             point: *point,
             wide: point.map(f64::from),
         };
+        let prefetch = ChildPrefetch::new(self.file, nodes);
         self.pending.clear();
         let mut next = Some((0.0, (0, INTERNAL_CHILD)));
         loop {
@@ -183,32 +186,33 @@ impl<'f> ClosestPointSearch<'f> {
                 break;
             }
             if kind != INTERNAL_CHILD {
-                self.search_leaf::<L>((child, kind), bound, &query, best);
+                self.search_leaf::<Q>((child, kind), bound, &query, best);
                 continue;
             }
             if let Some(node) = self.file.top_node(nodes, child as usize) {
-                next = self.push_children::<N, L>(node, grid, &query, best.limit);
+                next = self.push_children::<N, Q>(node, grid, &query, best.limit, &prefetch);
             }
         }
     }
 
     /// Pushes the children of `node` whose bound does not exceed `limit`, but for the nearest,
-    /// returned with its bound.
+    /// returned with its bound; each is asked for from memory before the walk reaches it.
     #[inline(always)]
-    fn push_children<N: ChildBox, L: BoundLanes>(
+    fn push_children<N: ChildBox, Q: QueryKernel>(
         &mut self,
         node: &N,
         grid: &N::Grid,
         query: &Query,
         limit: f64,
+        prefetch: &ChildPrefetch<N>,
     ) -> Option<(f64, (u32, u32))> {
         let mut nearest: Option<(f64, (u32, u32))> = None;
-        let groups = node.child_boxes::<L>(grid);
+        let groups = node.child_boxes::<Q>(grid);
         for (group, (min, max)) in groups.as_ref().iter().enumerate() {
             if node.slot(group * TOP_WIDTH) == TopSlot::Empty {
                 break;
             }
-            let bounds = L::child_bounds(&query.wide, min, max);
+            let bounds = Q::child_bounds(&query.wide, min, max);
             for (lane, &bound) in bounds.iter().enumerate() {
                 let link = match node.slot(group * TOP_WIDTH + lane) {
                     TopSlot::Internal(index) => (index, INTERNAL_CHILD),
@@ -218,6 +222,7 @@ impl<'f> ClosestPointSearch<'f> {
                 if bound > limit {
                     continue;
                 }
+                prefetch.child(link);
                 let candidate = (bound, link);
                 match nearest {
                     Some((nearest_bound, _)) if nearest_bound <= bound => self.defer(candidate),
@@ -237,27 +242,27 @@ impl<'f> ClosestPointSearch<'f> {
     }
 }
 
-/// [`ClosestPointSearch::closest`]'s walk of one point, for [`compiled`].
+/// [`ClosestPointSearch::closest`]'s walk of one point, for [`dispatch_query`].
 struct Search<'s, 'f> {
     search: &'s mut ClosestPointSearch<'f>,
     point: &'s Point,
     best: &'s mut Best,
 }
 
-impl PointWalk for Search<'_, '_> {
+impl QueryWalk for Search<'_, '_> {
     type Output = ();
 
     #[inline(always)]
-    fn run<L: BoundLanes>(self) {
+    fn run<Q: QueryKernel>(self) {
         let Search {
             search,
             point,
             best,
         } = self;
         match search.file.top_nodes() {
-            TopNodes::F32(nodes) => search.walk::<_, L>(nodes, &(), point, best),
-            TopNodes::Grid(nodes, grid) => search.walk::<_, L>(nodes, &grid, point, best),
-            TopNodes::Wide(nodes) => search.walk::<_, L>(nodes, &(), point, best),
+            TopNodes::F32(nodes) => search.walk::<_, Q>(nodes, &(), point, best),
+            TopNodes::Grid(nodes, grid) => search.walk::<_, Q>(nodes, &grid, point, best),
+            TopNodes::Wide(nodes) => search.walk::<_, Q>(nodes, &(), point, best),
         }
     }
 }
@@ -282,7 +287,7 @@ impl<'f> ClosestPointSearch<'f> {
     /// `leaf_bound`) that may beat `best`: the blocks of every strip nearest first, so that the
     /// limit shrinks early and farther blocks are skipped.
     #[inline(always)]
-    fn search_leaf<L: BoundLanes>(
+    fn search_leaf<Q: QueryKernel>(
         &mut self,
         (first, count): (u32, u32),
         leaf_bound: f64,
@@ -294,7 +299,7 @@ impl<'f> ClosestPointSearch<'f> {
         for strip in first..first.saturating_add(count) {
             let view = self.file.strip(strip as usize);
             let at = (strip, self.views.len() as u32);
-            push_spans::<L>(&mut self.spans, &view, at, leaf_bound, query, best.limit);
+            push_spans::<Q>(&mut self.spans, &view, at, leaf_bound, query, best.limit);
             self.views.push(view);
         }
         self.spans
@@ -307,10 +312,10 @@ impl<'f> ClosestPointSearch<'f> {
             // The one branch on the vertex encoding, per span.
             match view.vertices {
                 StripVertices::F32(vertices) => {
-                    search_windows::<_, L>(vertices, view, span, query, best)
+                    search_windows::<_, Q>(vertices, view, span, query, best)
                 }
                 StripVertices::Grid(vertices) => {
-                    search_windows::<_, L>(vertices, view, span, query, best)
+                    search_windows::<_, Q>(vertices, view, span, query, best)
                 }
             }
         }
@@ -321,7 +326,7 @@ impl<'f> ClosestPointSearch<'f> {
 /// stores them (bounded four at a time, each as `distance_bounds::box_bound` bounds it; up to the first box
 /// that cannot be read), else the whole strip at its leaf's bound.
 #[inline(always)]
-fn push_spans<L: BoundLanes>(
+fn push_spans<Q: QueryKernel>(
     spans: &mut Vec<Span>,
     strip_view: &StripView,
     (strip, view): (u32, u32),
@@ -348,7 +353,7 @@ fn push_spans<L: BoundLanes>(
     for first in (0..blocks).step_by(BOX_LANES) {
         let lanes = (blocks - first).min(BOX_LANES);
         let ((min, max), unreadable) = block_boxes(boxes, &frame, first, lanes);
-        let bounds = L::child_bounds(&query.wide, &min, &max);
+        let bounds = Q::child_bounds(&query.wide, &min, &max);
         for (lane, &bound) in bounds.iter().enumerate().take(lanes) {
             if unreadable >> lane & 1 != 0 {
                 return;
@@ -369,7 +374,7 @@ fn push_spans<L: BoundLanes>(
 /// Tests the span's windows whose own box may beat `best` exactly, a block of windows at a
 /// time: its references and vertices read once, its windows' box bounds computed together.
 #[inline(always)]
-fn search_windows<V: VertexAccess, L: BoundLanes>(
+fn search_windows<V: VertexAccess, Q: QueryKernel>(
     vertices: V,
     view: &StripView,
     span: &Span,
@@ -382,7 +387,7 @@ fn search_windows<V: VertexAccess, L: BoundLanes>(
         let references: [u8; BOX_WINDOWS + 2] = view.references.read_block(block);
         let corners: BlockCorners =
             vertices.gather::<0, 1, 2, { BOX_WINDOWS + 2 }>(&references, used + 2);
-        let bounds = L::window_bounds(&query.wide, &corners);
+        let bounds = Q::window_bounds(&query.wide, &corners);
         for (lane, &bound) in bounds.iter().enumerate().take(used) {
             if bound > best.limit {
                 continue;

@@ -11,9 +11,10 @@ use arrayvec::ArrayVec;
 use super::crossing_walk::{block_boxes, box_frame, CrossingWalk, NodeBoxes, NodeStack, BOX_LANES};
 use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
-use crate::format::{TopSlot, WIDE_WIDTH};
+use crate::format::{TopSlot, INTERNAL_CHILD, WIDE_WIDTH};
 use crate::trace::kernel::crossing_blocks::MASK_BLOCKS;
-use crate::trace::kernel::crossing_nodes::{compiled, NodeWalk, WideBoxes};
+use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+use crate::trace::kernel::query_prefetch::ChildPrefetch;
 use crate::trace::kernel::Kernel;
 use crate::trace::watertight::RayPoint;
 use crate::trace::Ray;
@@ -68,11 +69,11 @@ impl CrossingPacket {
             file,
             each,
         };
-        compiled(self.kernel, walk)
+        dispatch_query(self.kernel, walk)
     }
 
     #[inline(always)]
-    fn nodes<N: NodeBoxes, B: WideBoxes>(
+    fn nodes<N: NodeBoxes, Q: QueryKernel>(
         &self,
         file: &ReducemFile,
         nodes: &[N],
@@ -82,6 +83,7 @@ impl CrossingPacket {
         if nodes.is_empty() || self.valid == 0 {
             return;
         }
+        let prefetch = ChildPrefetch::new(file, nodes);
         let mut stack = NodeStack::<(u32, Lanes)>::default();
         stack.push((0, self.valid));
         let mut visits = file.node_visits();
@@ -97,24 +99,37 @@ impl CrossingPacket {
             let mut by_slot = [0 as Lanes; WIDE_WIDTH];
             let mut entered_any = 0u32;
             for_each_lane(lanes, |lane| {
-                let mut entered = node.entered_children::<B>(&self.walks[lane], grid);
+                let mut entered = node.entered_children::<Q>(&self.walks[lane], grid);
                 entered_any |= entered;
                 while entered != 0 {
                     by_slot[entered.trailing_zeros() as usize] |= 1 << lane;
                     entered &= entered - 1;
                 }
             });
+            // Every entered child asked for before the first leaf is walked.
+            let mut leaves = 0u32;
             while entered_any != 0 {
-                let slot = entered_any.trailing_zeros() as usize;
+                let slot = entered_any.trailing_zeros();
                 entered_any &= entered_any - 1;
-                match node.slot(slot) {
-                    TopSlot::Internal(child) => stack.push((child, by_slot[slot])),
+                match node.slot(slot as usize) {
+                    TopSlot::Internal(child) => {
+                        prefetch.child((child, INTERNAL_CHILD));
+                        stack.push((child, by_slot[slot as usize]));
+                    }
                     TopSlot::Leaf { first, count } => {
-                        for strip in file.leaf_strips(first, count) {
-                            self.strip(file, strip, by_slot[slot], each);
-                        }
+                        prefetch.child((first, count));
+                        leaves |= 1 << slot;
                     }
                     TopSlot::Empty | TopSlot::Invalid(_) => {}
+                }
+            }
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                if let TopSlot::Leaf { first, count } = node.slot(slot) {
+                    for strip in file.leaf_strips(first, count) {
+                        self.strip::<Q>(file, strip, by_slot[slot], each);
+                    }
                 }
             }
         }
@@ -123,7 +138,7 @@ impl CrossingPacket {
     /// The candidate windows of strip `strip` for the rays of `lanes`: the strip viewed once,
     /// each group of its block boxes decoded once and tested by every lane.
     #[inline(always)]
-    fn strip(
+    fn strip<Q: QueryKernel>(
         &self,
         file: &ReducemFile,
         strip: u32,
@@ -135,11 +150,16 @@ impl CrossingPacket {
         for first_block in (0..blocks).step_by(MASK_BLOCKS) {
             let count = (blocks - first_block).min(MASK_BLOCKS);
             let masks = self.entered_blocks(&view, lanes, first_block, count);
-            for_each_lane(lanes, |lane| {
+            // A plain loop: as a closure, this body (the kernel's block tests inlined) was
+            // compiled out of line.
+            let mut walked = lanes;
+            while walked != 0 {
+                let lane = walked.trailing_zeros() as usize;
+                walked &= walked - 1;
                 let mut candidate =
                     |window: usize, corners: [RayPoint; 3]| each(lane, strip, window, corners);
-                self.walks[lane].candidates(&view, first_block, masks[lane], &mut candidate);
-            });
+                self.walks[lane].candidates::<Q>(&view, first_block, masks[lane], &mut candidate);
+            }
         }
     }
 
@@ -184,23 +204,23 @@ fn for_each_lane(mut lanes: Lanes, mut each: impl FnMut(usize)) {
     }
 }
 
-/// [`CrossingPacket::run`]'s walk of one file, for [`compiled`].
+/// [`CrossingPacket::run`]'s walk of one file, for [`dispatch_query`].
 struct PacketWalk<'p, 'f, F> {
     packet: &'p CrossingPacket,
     file: &'f ReducemFile,
     each: &'p mut F,
 }
 
-impl<F: FnMut(usize, u32, usize, [RayPoint; 3])> NodeWalk for PacketWalk<'_, '_, F> {
+impl<F: FnMut(usize, u32, usize, [RayPoint; 3])> QueryWalk for PacketWalk<'_, '_, F> {
     type Output = ();
 
     #[inline(always)]
-    fn run<B: WideBoxes>(self) {
+    fn run<Q: QueryKernel>(self) {
         let PacketWalk { packet, file, each } = self;
         match file.top_nodes() {
-            TopNodes::F32(nodes) => packet.nodes::<_, B>(file, nodes, &(), each),
-            TopNodes::Grid(nodes, grid) => packet.nodes::<_, B>(file, nodes, &grid, each),
-            TopNodes::Wide(nodes) => packet.nodes::<_, B>(file, nodes, &(), each),
+            TopNodes::F32(nodes) => packet.nodes::<_, Q>(file, nodes, &(), each),
+            TopNodes::Grid(nodes, grid) => packet.nodes::<_, Q>(file, nodes, &grid, each),
+            TopNodes::Wide(nodes) => packet.nodes::<_, Q>(file, nodes, &(), each),
         }
     }
 }

@@ -18,10 +18,14 @@ use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_WINDOWS, CODE_BIAS, M
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, WideNode, TOP_WIDTH, WIDE_WIDTH};
+use crate::format::{
+    GridNode, NodeRecord, TopNode, TopSlot, WideNode, INTERNAL_CHILD, TOP_WIDTH, WIDE_WIDTH,
+};
 use crate::geometry::Point;
-use crate::trace::kernel::crossing_blocks::{for_each_candidate, StripBlocks, MASK_BLOCKS};
-use crate::trace::kernel::crossing_nodes::{compiled, NodeWalk, WideBoxes, WidenedRay};
+use crate::trace::kernel::crossing_blocks::{StripBlocks, MASK_BLOCKS};
+use crate::trace::kernel::crossing_nodes::WidenedRay;
+use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+use crate::trace::kernel::query_prefetch::ChildPrefetch;
 use crate::trace::kernel::Kernel;
 use crate::trace::prepared::{max_not_nan_x4, min_not_nan_x4, PreparedRay, FAR_INFLATION};
 use crate::trace::watertight::{RayPoint, RaySpace};
@@ -82,9 +86,10 @@ impl CrossingWalk {
     }
 
     /// Calls `each(strip, window, corners)` for every candidate window of the file (see
-    /// [`for_each_candidate`]); corrupt nodes reached are skipped as in tracing.
+    /// [`QueryKernel::for_each_candidate`]); corrupt nodes reached are skipped as in tracing.
+    /// The whole walk is compiled once for the kernel, its tests inlined.
     pub(super) fn run(&self, file: &ReducemFile, each: &mut impl FnMut(u32, usize, [RayPoint; 3])) {
-        compiled(
+        dispatch_query(
             self.kernel,
             FileWalk {
                 walk: self,
@@ -95,7 +100,7 @@ impl CrossingWalk {
     }
 
     #[inline(always)]
-    fn nodes<N: NodeBoxes, B: WideBoxes>(
+    fn nodes<N: NodeBoxes, Q: QueryKernel>(
         &self,
         file: &ReducemFile,
         nodes: &[N],
@@ -105,6 +110,7 @@ impl CrossingWalk {
         if nodes.is_empty() {
             return;
         }
+        let prefetch = ChildPrefetch::new(file, nodes);
         let mut stack = NodeStack::<u32>::default();
         stack.push(0);
         let mut visits = file.node_visits();
@@ -117,18 +123,31 @@ impl CrossingWalk {
             let Some(node) = file.top_node(nodes, index as usize) else {
                 continue;
             };
-            let mut entered = node.entered_children::<B>(self, grid);
+            let mut entered = node.entered_children::<Q>(self, grid);
+            // Every entered child asked for before the first leaf is walked.
+            let mut leaves = 0u32;
             while entered != 0 {
-                let slot = entered.trailing_zeros() as usize;
+                let slot = entered.trailing_zeros();
                 entered &= entered - 1;
-                match node.slot(slot) {
-                    TopSlot::Internal(child) => stack.push(child),
+                match node.slot(slot as usize) {
+                    TopSlot::Internal(child) => {
+                        prefetch.child((child, INTERNAL_CHILD));
+                        stack.push(child);
+                    }
                     TopSlot::Leaf { first, count } => {
-                        for strip in file.leaf_strips(first, count) {
-                            self.strip(file, strip, each);
-                        }
+                        prefetch.child((first, count));
+                        leaves |= 1 << slot;
                     }
                     TopSlot::Empty | TopSlot::Invalid(_) => {}
+                }
+            }
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                if let TopSlot::Leaf { first, count } = node.slot(slot) {
+                    for strip in file.leaf_strips(first, count) {
+                        self.strip::<Q>(file, strip, each);
+                    }
                 }
             }
         }
@@ -137,7 +156,7 @@ impl CrossingWalk {
     /// The candidate windows of strip `strip` in the blocks whose box the ray may meet (every
     /// block when the strip stores no boxes).
     #[inline(always)]
-    fn strip(
+    fn strip<Q: QueryKernel>(
         &self,
         file: &ReducemFile,
         strip: u32,
@@ -152,14 +171,14 @@ impl CrossingWalk {
                 true => u64::MAX >> (MASK_BLOCKS - count),
                 false => self.entered_blocks(&view, first_block, count),
             };
-            self.candidates(&view, first_block, mask, &mut candidate);
+            self.candidates::<Q>(&view, first_block, mask, &mut candidate);
         }
     }
 
     /// Calls `each(window, corners)` for the candidate windows of the blocks of `mask` (bit
     /// `k`: block `first_block + k`) of `view`.
     #[inline(always)]
-    pub(super) fn candidates(
+    pub(super) fn candidates<Q: QueryKernel>(
         &self,
         view: &StripView,
         first_block: usize,
@@ -172,7 +191,7 @@ impl CrossingWalk {
                 mask,
                 first_block,
             };
-            for_each_candidate(self.kernel, &self.space, self.range, blocks, each);
+            Q::for_each_candidate(&self.space, self.range, blocks, each);
         }
     }
 
@@ -219,23 +238,23 @@ impl CrossingWalk {
     }
 }
 
-/// [`CrossingWalk::run`]'s walk of one file, for [`compiled`].
+/// [`CrossingWalk::run`]'s walk of one file, for [`dispatch_query`].
 struct FileWalk<'w, 'f, F> {
     walk: &'w CrossingWalk,
     file: &'f ReducemFile,
     each: &'w mut F,
 }
 
-impl<F: FnMut(u32, usize, [RayPoint; 3])> NodeWalk for FileWalk<'_, '_, F> {
+impl<F: FnMut(u32, usize, [RayPoint; 3])> QueryWalk for FileWalk<'_, '_, F> {
     type Output = ();
 
     #[inline(always)]
-    fn run<B: WideBoxes>(self) {
+    fn run<Q: QueryKernel>(self) {
         let FileWalk { walk, file, each } = self;
         match file.top_nodes() {
-            TopNodes::F32(nodes) => walk.nodes::<_, B>(file, nodes, &(), each),
-            TopNodes::Grid(nodes, grid) => walk.nodes::<_, B>(file, nodes, &grid, each),
-            TopNodes::Wide(nodes) => walk.nodes::<_, B>(file, nodes, &(), each),
+            TopNodes::F32(nodes) => walk.nodes::<_, Q>(file, nodes, &(), each),
+            TopNodes::Grid(nodes, grid) => walk.nodes::<_, Q>(file, nodes, &grid, each),
+            TopNodes::Wide(nodes) => walk.nodes::<_, Q>(file, nodes, &(), each),
         }
     }
 }
@@ -322,9 +341,9 @@ pub(super) trait NodeBoxes: NodeRecord {
     fn boxes(&self, grid: &Self::Grid, group: usize) -> FourBoxes;
 
     /// The children whose box `walk`'s ray may meet ([`CrossingWalk::entered`]), as a bit mask;
-    /// `B` tests a wide node's eight boxes at once where the kernel can.
+    /// `Q` tests a wide node's eight boxes at once where the kernel can.
     #[inline(always)]
-    fn entered_children<B: WideBoxes>(&self, walk: &CrossingWalk, grid: &Self::Grid) -> u32 {
+    fn entered_children<Q: QueryKernel>(&self, walk: &CrossingWalk, grid: &Self::Grid) -> u32 {
         let mut entered = 0;
         for group in 0..Self::WIDTH / TOP_WIDTH {
             entered |= walk.entered(&self.boxes(grid, group)) << (group * TOP_WIDTH);
@@ -372,8 +391,8 @@ impl NodeBoxes for WideNode {
 
     /// All eight boxes in one register where the kernel has one that wide: the same bits.
     #[inline(always)]
-    fn entered_children<B: WideBoxes>(&self, walk: &CrossingWalk, _: &()) -> u32 {
-        B::entered(&walk.widened, self).unwrap_or_else(|| {
+    fn entered_children<Q: QueryKernel>(&self, walk: &CrossingWalk, _: &()) -> u32 {
+        Q::entered_wide(&walk.widened, self).unwrap_or_else(|| {
             (0..WIDE_WIDTH / TOP_WIDTH).fold(0, |entered, group| {
                 entered | walk.entered(&self.boxes(&(), group)) << (group * TOP_WIDTH)
             })

@@ -3,7 +3,7 @@
 //! lane that could cross kept (all weights of one sign with `t` in range, or a weight exactly
 //! zero), so that the exact tie rule runs only on those few lanes, in scalar code.
 
-use super::{dispatch, Kernel, TraceKernel, Walk, BLOCK};
+use super::{TraceKernel, Walk, BLOCK};
 use crate::format::reader::StripView;
 use crate::format::vertices::{StripVertices, VertexAccess};
 use crate::trace::watertight::{RayPoint, RaySpace};
@@ -21,25 +21,28 @@ pub struct StripBlocks<'a, 'v> {
 }
 
 /// Calls `each(window, corners)` for every real window of the blocks `blocks` names that the
-/// ray of `space` may cross within `range`, on `kernel`: its corners in ray space in strip
+/// ray of `space` may cross within `range`, on kernel `K`: its corners in ray space in strip
 /// order, bit-identical to [`RaySpace::transform`] of its vertices. Every window the exact
-/// tie rule or `watertight::resolve` would accept is among them.
-pub fn for_each_candidate(
-    kernel: Kernel,
+/// tie rule or `watertight::resolve` would accept is among them. Inlined into the query walk
+/// already compiled for `K` ([`QueryKernel::for_each_candidate`]), so a strip costs no call.
+///
+/// [`QueryKernel::for_each_candidate`]: super::query_kernel::QueryKernel::for_each_candidate
+#[inline(always)]
+pub(super) fn candidates_on<K: TraceKernel, F: FnMut(usize, [RayPoint; 3])>(
     space: &RaySpace,
     range: (f32, f32),
     blocks: StripBlocks,
-    each: &mut impl FnMut(usize, [RayPoint; 3]),
+    each: &mut F,
 ) {
     match blocks.view.vertices {
-        StripVertices::F32(vertices) => by_axes(kernel, space, range, vertices, blocks, each),
-        StripVertices::Grid(vertices) => by_axes(kernel, space, range, vertices, blocks, each),
+        StripVertices::F32(vertices) => by_axes::<K, _, F>(space, range, vertices, blocks, each),
+        StripVertices::Grid(vertices) => by_axes::<K, _, F>(space, range, vertices, blocks, each),
     }
 }
 
-/// One compiled walk per ray-space axis order, as the closest-hit strip walk.
-fn by_axes<V: VertexAccess, F: FnMut(usize, [RayPoint; 3])>(
-    kernel: Kernel,
+/// One walk per ray-space axis order, as the closest-hit strip walk.
+#[inline(always)]
+fn by_axes<K: TraceKernel, V: VertexAccess, F: FnMut(usize, [RayPoint; 3])>(
     space: &RaySpace,
     range: (f32, f32),
     vertices: V,
@@ -48,12 +51,12 @@ fn by_axes<V: VertexAccess, F: FnMut(usize, [RayPoint; 3])>(
 ) {
     let args = (space, range, vertices, blocks);
     match space.axes() {
-        [1, 2, 0] => dispatch(kernel, Candidates::<V, F, 1, 2, 0>::new(args, each)),
-        [2, 1, 0] => dispatch(kernel, Candidates::<V, F, 2, 1, 0>::new(args, each)),
-        [2, 0, 1] => dispatch(kernel, Candidates::<V, F, 2, 0, 1>::new(args, each)),
-        [0, 2, 1] => dispatch(kernel, Candidates::<V, F, 0, 2, 1>::new(args, each)),
-        [0, 1, 2] => dispatch(kernel, Candidates::<V, F, 0, 1, 2>::new(args, each)),
-        _ => dispatch(kernel, Candidates::<V, F, 1, 0, 2>::new(args, each)),
+        [1, 2, 0] => Candidates::<V, F, 1, 2, 0>::new(args, each).run::<K>(),
+        [2, 1, 0] => Candidates::<V, F, 2, 1, 0>::new(args, each).run::<K>(),
+        [2, 0, 1] => Candidates::<V, F, 2, 0, 1>::new(args, each).run::<K>(),
+        [0, 2, 1] => Candidates::<V, F, 0, 2, 1>::new(args, each).run::<K>(),
+        [0, 1, 2] => Candidates::<V, F, 0, 1, 2>::new(args, each).run::<K>(),
+        _ => Candidates::<V, F, 1, 0, 2>::new(args, each).run::<K>(),
     }
 }
 

@@ -6,7 +6,7 @@
 
 #![allow(unsafe_code)]
 
-use super::Kernel;
+#[cfg(target_arch = "x86_64")]
 use crate::format::WideNode;
 
 /// A ray as the crossing walk's box test needs it: the slab test's precomputed planes and the
@@ -26,69 +26,11 @@ pub(crate) struct WidenedRay {
     pub far_inflation: f32,
 }
 
-/// How a walk tests a wide node's eight child boxes: the children whose grown box the ray may
-/// meet as a bit mask (bit `k`: slot `k`), or `None` where the kernel has no eight-lane
-/// registers and the walk tests four boxes at a time. Chosen once per walk by [`compiled`].
-pub(crate) trait WideBoxes {
-    fn entered(ray: &WidenedRay, node: &WideNode) -> Option<u32>;
-}
-
-/// Four boxes at a time, by the walk's own test.
-struct FourLanes;
-
-impl WideBoxes for FourLanes {
-    #[inline(always)]
-    fn entered(_: &WidenedRay, _: &WideNode) -> Option<u32> {
-        None
-    }
-}
-
-/// All eight in one AVX2 register; only [`compiled`] names it, once the CPU was found to run
-/// AVX2.
-#[cfg(target_arch = "x86_64")]
-struct EightLanes;
-
-#[cfg(target_arch = "x86_64")]
-impl WideBoxes for EightLanes {
-    #[inline(always)]
-    fn entered(ray: &WidenedRay, node: &WideNode) -> Option<u32> {
-        // SAFETY: `EightLanes` runs only inside `compiled_for_avx2`, called once AVX2 was
-        // detected.
-        Some(unsafe { entered_wide_avx2(ray, node) })
-    }
-}
-
-/// A crossing walk generic over its wide-node test, for [`compiled`].
-pub(crate) trait NodeWalk {
-    type Output;
-
-    fn run<B: WideBoxes>(self) -> Self::Output;
-}
-
-/// `walk` with its node tests chosen once: on AVX2 the whole walk is compiled for AVX2, so
-/// that the eight-box test is inlined into its loop with the ray's planes loaded once, not
-/// called (and the CPU asked) at every node. The masks are the same bits on every path.
-#[inline(always)]
-pub(crate) fn compiled<W: NodeWalk>(kernel: Kernel, walk: W) -> W::Output {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: the CPU runs AVX2 and BMI2, just checked.
-        Kernel::Avx2 if super::detect::avx2() => unsafe { compiled_for_avx2(walk) },
-        _ => walk.run::<FourLanes>(),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,bmi2")]
-#[inline(never)]
-fn compiled_for_avx2<W: NodeWalk>(walk: W) -> W::Output {
-    walk.run::<EightLanes>()
-}
-
+/// The eight-box test in one AVX2 register: `QueryKernel::entered_wide` of the AVX2 kernel.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn entered_wide_avx2(ray: &WidenedRay, node: &WideNode) -> u32 {
+pub(super) fn entered_wide_avx2(ray: &WidenedRay, node: &WideNode) -> u32 {
     use std::arch::x86_64::*;
 
     // Codes widened to f32 (exact), times the power-of-two scale (exact), plus the origin:

@@ -2,15 +2,15 @@
 //! closest-point walk: the child boxes of a top-level node, and the boxes of the windows of a
 //! strip block. Every lane runs the same f64 operations in the same order whichever kernel runs
 //! (AVX2 only widens the lanes; no fused multiply-add), so the bounds are bit-identical across
-//! kernels and architectures.
+//! kernels and architectures. The walk reaches them through `QueryKernel` (`query_kernel`).
 //!
 //! Exactness: a bound is computed in f64 and then lowered by [`BOUND_SHRINK`], so it is never
 //! above the true distance from the point to the box, hence to any triangle in it.
 
 #![allow(unsafe_code)]
 
-use super::{Kernel, TraceKernel, BLOCK};
-use crate::format::{WideNode, TOP_WIDTH};
+use super::BLOCK;
+use crate::format::TOP_WIDTH;
 
 /// The factor that lowers a box's squared distance below its f64 rounding: a subtraction, three
 /// squares and two sums, each rounded by at most 2^-53 relative, stay within 2^-50.
@@ -22,106 +22,6 @@ pub(crate) type LaneBoxes<const N: usize> = [[f32; N]; 3];
 /// The vertices of a block of [`BLOCK`] windows by axis (`[axis][vertex]`), window `k` having
 /// vertices `k`, `k + 1` and `k + 2`.
 pub(crate) type BlockCorners = [[f32; BLOCK + 2]; 3];
-
-/// The box bounds of a closest-point search in one kernel's lanes, chosen once per search by
-/// [`compiled`]; every implementation gives the same bits.
-pub(crate) trait BoundLanes {
-    /// [`box_bound`] of each child box of a top-level node.
-    fn child_bounds(
-        query: &[f64; 3],
-        min: &LaneBoxes<TOP_WIDTH>,
-        max: &LaneBoxes<TOP_WIDTH>,
-    ) -> [f64; TOP_WIDTH];
-
-    /// The eight child boxes of a format 4 node as two groups of four (`(min, max)` by axis
-    /// and slot), decoded at once: [`WideNode::decode`]'s bits (the kernels' tests).
-    fn wide_child_boxes(node: &WideNode) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2];
-
-    /// [`box_bound`] of the box of each window of a block (its corners' minima and maxima),
-    /// the bound the search tests before a window's exact distance.
-    fn window_bounds(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK];
-}
-
-/// The portable kernel's lanes.
-struct PortableLanes;
-
-impl BoundLanes for PortableLanes {
-    #[inline(always)]
-    fn child_bounds(
-        query: &[f64; 3],
-        min: &LaneBoxes<TOP_WIDTH>,
-        max: &LaneBoxes<TOP_WIDTH>,
-    ) -> [f64; TOP_WIDTH] {
-        child_lanes(query, min, max)
-    }
-
-    #[inline(always)]
-    fn wide_child_boxes(node: &WideNode) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2] {
-        super::portable::Portable::decode_wide(node)
-    }
-
-    #[inline(always)]
-    fn window_bounds(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
-        window_lanes(query, corners)
-    }
-}
-
-/// AVX2 registers; only [`compiled`] names it, once the CPU was found to run AVX2.
-#[cfg(target_arch = "x86_64")]
-struct Avx2Lanes;
-
-// SAFETY (each call below): `Avx2Lanes` runs only inside `compiled_for_avx2`, called once
-// AVX2 and BMI2 were detected.
-#[cfg(target_arch = "x86_64")]
-impl BoundLanes for Avx2Lanes {
-    #[inline(always)]
-    fn child_bounds(
-        query: &[f64; 3],
-        min: &LaneBoxes<TOP_WIDTH>,
-        max: &LaneBoxes<TOP_WIDTH>,
-    ) -> [f64; TOP_WIDTH] {
-        // SAFETY: see the impl.
-        unsafe { child_bounds_avx2(query, min, max) }
-    }
-
-    #[inline(always)]
-    fn wide_child_boxes(node: &WideNode) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2] {
-        super::avx2::Avx2::decode_wide(node)
-    }
-
-    #[inline(always)]
-    fn window_bounds(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
-        // SAFETY: see the impl.
-        unsafe { window_bounds_avx2(query, corners) }
-    }
-}
-
-/// A closest-point search generic over its bound lanes, for [`compiled`].
-pub(crate) trait PointWalk {
-    type Output;
-
-    fn run<L: BoundLanes>(self) -> Self::Output;
-}
-
-/// `walk` with its bound lanes chosen once: on AVX2 the whole search is compiled for AVX2, so
-/// the bounds are inlined into its loops, not called (and the CPU asked) at every node and
-/// block. A kernel this CPU lacks runs as the portable one.
-#[inline(always)]
-pub(crate) fn compiled<W: PointWalk>(kernel: Kernel, walk: W) -> W::Output {
-    match kernel {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: the CPU runs AVX2 and BMI2, just checked.
-        Kernel::Avx2 if super::detect::avx2() => unsafe { compiled_for_avx2(walk) },
-        _ => walk.run::<PortableLanes>(),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,bmi2")]
-#[inline(never)]
-fn compiled_for_avx2<W: PointWalk>(walk: W) -> W::Output {
-    walk.run::<Avx2Lanes>()
-}
 
 /// A lower bound of the squared distance from `query` to the box `min..max`, never above the
 /// true one. A NaN plane (only in a corrupt box) counts as no gap.
@@ -154,7 +54,7 @@ fn squared_bound([x, y, z]: [f64; 3]) -> f64 {
 }
 
 #[inline(always)]
-fn child_lanes(
+pub(super) fn child_lanes(
     query: &[f64; 3],
     min: &LaneBoxes<TOP_WIDTH>,
     max: &LaneBoxes<TOP_WIDTH>,
@@ -166,7 +66,7 @@ fn child_lanes(
 /// three corners' offsets: the same values as offsetting the window box's planes, since rounding
 /// is monotonic.
 #[inline(always)]
-fn window_lanes(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
+pub(super) fn window_lanes(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
     let offsets: [[f64; BLOCK + 2]; 3] =
         std::array::from_fn(|axis| corners[axis].map(|x| f64::from(x) - query[axis]));
     let lesser = |a: f64, b: f64| if a < b { a } else { b };
@@ -187,7 +87,7 @@ fn window_lanes(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn child_bounds_avx2(
+pub(super) fn child_bounds_avx2(
     query: &[f64; 3],
     min: &LaneBoxes<TOP_WIDTH>,
     max: &LaneBoxes<TOP_WIDTH>,
@@ -214,7 +114,7 @@ fn child_bounds_avx2(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn window_bounds_avx2(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
+pub(super) fn window_bounds_avx2(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
     use std::arch::x86_64::*;
     let half = |first: usize| {
         let gaps: [__m256d; 3] = std::array::from_fn(|axis| {
@@ -269,6 +169,8 @@ fn squared_bound_avx2([x, y, z]: [std::arch::x86_64::__m256d; 3]) -> [f64; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+    use crate::trace::kernel::Kernel;
 
     #[test]
     fn box_bounds_are_zero_inside_and_below_the_distance_outside() {
@@ -295,21 +197,21 @@ mod tests {
         }
     }
 
-    /// Both bounds of one block on `kernel`, through [`compiled`] as the search runs them.
+    /// Both bounds of one block on `kernel`, through [`dispatch_query`] as the search runs them.
     struct Bounds<'a> {
         query: &'a [f64; 3],
         boxes: (&'a LaneBoxes<TOP_WIDTH>, &'a LaneBoxes<TOP_WIDTH>),
         corners: &'a BlockCorners,
     }
 
-    impl PointWalk for Bounds<'_> {
+    impl QueryWalk for Bounds<'_> {
         type Output = ([f64; TOP_WIDTH], [f64; BLOCK]);
 
-        fn run<L: BoundLanes>(self) -> Self::Output {
+        fn run<Q: QueryKernel>(self) -> Self::Output {
             let (min, max) = self.boxes;
             (
-                L::child_bounds(self.query, min, max),
-                L::window_bounds(self.query, self.corners),
+                Q::child_bounds(self.query, min, max),
+                Q::window_bounds(self.query, self.corners),
             )
         }
     }
@@ -326,7 +228,7 @@ mod tests {
             let corners: BlockCorners = [[0.0; BLOCK + 2]; 3].map(|a| a.map(|_| value(&mut seed)));
             let on = |kernel: Kernel| {
                 let boxes = (&min, &max);
-                compiled(
+                dispatch_query(
                     kernel,
                     Bounds {
                         query: &query,

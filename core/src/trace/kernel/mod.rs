@@ -25,6 +25,8 @@ mod detect;
 pub(crate) mod distance_bounds;
 mod portable;
 pub(super) mod prefetch;
+pub(crate) mod query_kernel;
+pub(crate) mod query_prefetch;
 
 use std::fmt;
 
@@ -207,7 +209,7 @@ pub(super) struct LeafStrip<'a, 'v> {
 
 /// The operations beneath the walks, in one instruction set. Every implementation computes,
 /// lane by lane, what the portable kernel computes, bit for bit.
-pub(super) trait TraceKernel {
+pub(super) trait TraceKernel: query_kernel::QueryKernel {
     /// `walk` run in code compiled for this kernel's instructions, out of line: the walks'
     /// instantiation points (one per ray-space axis order and vertex encoding, one per ray).
     fn compiled<W: Walk>(walk: W) -> W::Output;

@@ -1,0 +1,23 @@
+//! The tracer's prefetches ([`prefetch`](super::prefetch)) for the query walks, which live
+//! outside `crate::trace`: a walk that asks for every entered child of a node before it
+//! visits the first overlaps the loads of the later ones with that visit.
+
+use super::prefetch::Targets;
+use crate::format::reader::ReducemFile;
+
+/// What a query walk over `nodes` (one file's top-level nodes) prefetches from.
+pub(crate) struct ChildPrefetch<'a, N>(Targets<'a, N>);
+
+impl<'a, N> ChildPrefetch<'a, N> {
+    pub(crate) fn new(file: &'a ReducemFile, nodes: &'a [N]) -> ChildPrefetch<'a, N> {
+        ChildPrefetch(Targets::new(file, nodes))
+    }
+
+    /// Asks for what visiting the child linked as `(child, kind)` (as a node's slot links it:
+    /// an internal node's index and `INTERNAL_CHILD`, or a leaf's first strip and count)
+    /// loads first.
+    #[inline(always)]
+    pub(crate) fn child(&self, link: (u32, u32)) {
+        self.0.child(link)
+    }
+}
