@@ -2,7 +2,7 @@
 //! outside `crate::trace`: a walk that asks for every entered child of a node before it
 //! visits the first overlaps the loads of the later ones with that visit.
 
-use super::prefetch::Targets;
+use super::prefetch::{StripSections, Targets};
 use crate::format::reader::ReducemFile;
 
 /// What a query walk over `nodes` (one file's top-level nodes) prefetches from.
@@ -10,7 +10,7 @@ pub(crate) struct ChildPrefetch<'a, N>(Targets<'a, N>);
 
 impl<'a, N> ChildPrefetch<'a, N> {
     pub(crate) fn new(file: &'a ReducemFile, nodes: &'a [N]) -> ChildPrefetch<'a, N> {
-        ChildPrefetch(Targets::new(file, nodes))
+        ChildPrefetch(Targets::new(&StripSections::new(file), nodes))
     }
 
     /// Asks for what visiting the child linked as `(child, kind)` (as a node's slot links it:
