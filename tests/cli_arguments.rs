@@ -31,7 +31,10 @@ fn scene(name: &str, camera: &str) -> PathBuf {
 
 /// Renders `model` with the automatic scene and `camera` arguments to `output`.
 fn render(model: &Path, output: &Path, camera: &[&str]) -> Output {
-    let scene = scene("cli-arguments-auto.toml", "auto = true\n");
+    // A scene per output: tests run in parallel, and one rewriting a shared scene file while
+    // another's render reads it made the reader fail now and then.
+    let name = output.file_name().unwrap().to_str().unwrap();
+    let scene = scene(&format!("{name}.toml"), "auto = true\n");
     let base = [
         "render",
         model.to_str().unwrap(),
