@@ -10,6 +10,9 @@ use common::pipeline;
 
 fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("pipeline-cli-{}-{name}", std::process::id()));
+    // Emptied first: an earlier run whose process had the same id may have left files (a work
+    // directory, an output) that these tests take as their own doing.
+    let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp dir");
     dir
 }
