@@ -201,15 +201,7 @@ pub(super) fn block_edges<
             )
         }
     };
-    let weights = [
-        edge(&corners[1], &corners[2]),
-        edge(&corners[2], &corners[0]),
-        edge(&corners[0], &corners[1]),
-    ];
-    let candidates = candidate_lanes(&weights) & ((1 << count) - 1) & !swap_lanes(references);
-    if candidates == 0 {
-        return None;
-    }
+    let (weights, candidates) = window_candidates(&corners, references, count)?;
     let offsets = match offsets {
         Offsets::Shifted(head, tail) => {
             let (by_one, by_two) = shift_lanes(head, tail);
@@ -228,6 +220,24 @@ pub(super) fn block_edges<
         y: corners.map(|[_, y]| lanes(y)),
         weights: weights.map(|w| lanes(w)),
     })
+}
+
+/// The edge functions of a block's windows from their corners' ray-space x and y, and the
+/// windows that may be hit by them: among the first `count`, not swaps; `None` when none may.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+pub(super) fn window_candidates(
+    corners: &[[__m256; 2]; 3],
+    references: &[u8; BLOCK + 2],
+    count: usize,
+) -> Option<([__m256; 3], u32)> {
+    let weights = [
+        edge(&corners[1], &corners[2]),
+        edge(&corners[2], &corners[0]),
+        edge(&corners[0], &corners[1]),
+    ];
+    let candidates = candidate_lanes(&weights) & ((1 << count) - 1) & !swap_lanes(references);
+    (candidates != 0).then_some((weights, candidates))
 }
 
 /// The lanes that `resolve` could accept within `range`: those
@@ -264,7 +274,7 @@ pub(super) fn spread_references(stream: u64, width: u32) -> [u8; BLOCK + 2] {
 /// shifted by one and two positions, in one register.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-pub(super) fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
+fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
     let (head, tail) = references.split_at(8);
     let head = i64::from_le_bytes(head.try_into().expect("eight references"));
     let tail = i16::from_le_bytes(tail.try_into().expect("two references"));

@@ -16,11 +16,11 @@
 use std::arch::x86_64::*;
 
 use super::blocks::{
-    entered_boxes, in_range_lanes, shift_lanes, shifted_corners, swap_lanes, transform,
-    transpose_positions, BoxRay,
+    entered_boxes, in_range_lanes, shift_lanes, shifted_corners, transform, transpose_positions,
+    window_candidates, BoxRay,
 };
 use super::packet_strips::MAX_WINDOWS;
-use super::simd::{candidate_lanes, edge, lanes as lanes_of};
+use super::simd::lanes as lanes_of;
 use super::Avx2;
 use crate::format::reader::StripView;
 use crate::trace::closest::Closest;
@@ -178,15 +178,7 @@ fn lone_edges(
     let [hx, hy, hz] = transform([head[a], head[b], head[c]], &ray.origin, &ray.shear);
     let [tx, ty, tz] = transform([tail[a], tail[b], tail[c]], &ray.origin, &ray.shear);
     let corners = shifted_corners([hx, hy], [tx, ty]);
-    let weights = [
-        edge(&corners[1], &corners[2]),
-        edge(&corners[2], &corners[0]),
-        edge(&corners[0], &corners[1]),
-    ];
-    let candidates = candidate_lanes(&weights) & ((1 << windows) - 1) & !swap_lanes(references);
-    if candidates == 0 {
-        return None;
-    }
+    let (weights, candidates) = window_candidates(&corners, references, windows)?;
     let (by_one, by_two) = shift_lanes(hz, tz);
     let depths = [hz, by_one, by_two].map(|offset| _mm256_mul_ps(ray.scale_z, offset));
     let candidates = candidates & in_range_lanes(&weights, &depths, (ray.tmin, tmax));
