@@ -326,18 +326,36 @@ fn ray_defect(ray: &Ray) -> Option<(usize, String)> {
     None
 }
 
+/// The exponent bits of an f32, all set in an infinity or a NaN.
+const EXPONENT: u32 = 0x7f80_0000;
+
+/// Per field of a record, a mask and the masked value that makes the field invalid: an
+/// exponent with every bit set in the origin and the direction, which must be finite; never
+/// for `tmin` and `tmax` (no bits never equal 1), which their comparisons check.
+const NOT_FINITE_BITS: [(u32, u32); 8] = [
+    (EXPONENT, EXPONENT),
+    (EXPONENT, EXPONENT),
+    (EXPONENT, EXPONENT),
+    (EXPONENT, EXPONENT),
+    (EXPONENT, EXPONENT),
+    (EXPONENT, EXPONENT),
+    (0, 1),
+    (0, 1),
+];
+
 /// Whether [`ray_defect`] finds nothing wrong with `ray`, without branches per field: the
-/// validation pass over a whole batch (about 6 instructions per ray instead of 100).
+/// validation pass over a whole batch. The finiteness tests are on the fields' bits, the same
+/// test in every field, so that the compiler makes them a few vector operations per ray.
 fn is_valid(ray: &Ray) -> bool {
-    let finite = |point: &[f32; 3]| point.iter().fold(true, |all, x| all & x.is_finite());
-    let [dx, dy, dz] = ray.direction;
-    let nonzero = (dx != 0.0) | (dy != 0.0) | (dz != 0.0);
+    let fields = bytemuck::cast::<Ray, [u32; 8]>(*ray);
+    let not_finite = fields
+        .iter()
+        .zip(NOT_FINITE_BITS)
+        .fold(false, |any, (&x, (mask, all_set))| any | (x & mask == all_set));
+    // Zero in every bit but the sign.
+    let zero_direction = (fields[3] | fields[4] | fields[5]) << 1 == 0;
     // `tmin >= 0` and `tmin <= tmax` are false when either is NaN; infinities are allowed.
-    finite(&ray.origin)
-        & finite(&ray.direction)
-        & nonzero
-        & (ray.tmin >= 0.0)
-        & (ray.tmin <= ray.tmax)
+    !not_finite & !zero_direction & (ray.tmin >= 0.0) & (ray.tmin <= ray.tmax)
 }
 
 /// The error of the first invalid ray of `rays`, the records of the file at `path`, which has
