@@ -484,8 +484,10 @@ fn encode_hit(hit: Option<&Hit>, record: &mut [u8]) {
         Some(hit) => [hit.t, hit.normal[0], hit.normal[1], hit.normal[2]],
         None => [f32::INFINITY, 0.0, 0.0, 0.0],
     };
-    for (field, out) in fields.iter().zip(record.chunks_exact_mut(4)) {
-        out.copy_from_slice(&field.to_le_bytes());
+    // One 16-byte store: a copy per field was about 20 instructions a ray.
+    let bytes: [u8; HIT_BYTES] = bytemuck::cast(fields.map(|field| field.to_bits().to_le()));
+    if let Some(record) = record.first_chunk_mut::<HIT_BYTES>() {
+        *record = bytes;
     }
 }
 
