@@ -22,7 +22,11 @@ pub struct ReduceM<'f>(pub Tracer<'f>);
 
 impl Engine for ReduceM<'_> {
     fn count_hits(&self, rays: &[Ray]) -> usize {
-        self.0.intersect_chunk(rays).iter().flatten().count()
+        // Counted as they are found, as Embree's are: no vector of hits per task.
+        let mut hits = 0;
+        self.0
+            .intersect_each(rays, |_, hit| hits += usize::from(hit.is_some()));
+        hits
     }
     fn count_occluded(&self, rays: &[Ray]) -> usize {
         self.0.occluded_chunk(rays).iter().filter(|&&o| o).count()
