@@ -275,15 +275,16 @@ fn sort_by_keys(indices: &mut [usize], slots: &[usize; MAX_WIDTH], keys: &[f32; 
     }
 }
 
-/// The culling bound ([`Closest::reach`]) of every lane, finished lanes (occlusion found)
-/// `-inf` so that nothing is entered for them any more; and the greatest of them, the
-/// frustum's, passing over a NaN bound (a lane with one enters nothing) with one compare per
-/// lane, not `f32::max`'s NaN fix-ups. Of two zeros it may keep either: the frustum's bound
-/// only picks the slots clipped lane by lane, and no comparison tells the zeros apart.
+/// The culling bound ([`Closest::reach`]) of every lane, finished lanes (occlusion found, so
+/// only with `ANY_HIT`) `-inf` so that nothing is entered for them any more; and the greatest
+/// of them, the frustum's, passing over a NaN bound (a lane with one enters nothing) with one
+/// compare per lane, not `f32::max`'s NaN fix-ups. Of two zeros it may keep either: the
+/// frustum's bound only picks the slots clipped lane by lane, and no comparison tells the
+/// zeros apart.
 #[inline(always)]
-fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> (f32x8, f32) {
+fn bounds<const ANY_HIT: bool>(closest: &[Closest; PACKET_WIDTH], finished: u32) -> (f32x8, f32) {
     let lanes = std::array::from_fn::<f32, PACKET_WIDTH, _>(|lane| {
-        if finished & (1 << lane) != 0 {
+        if ANY_HIT && finished & (1 << lane) != 0 {
             f32::NEG_INFINITY
         } else {
             closest[lane].reach
@@ -333,7 +334,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     let frustum = C::frustum(lanes, packet_mask);
     let targets = Targets::new(tracer.strip_sections(), nodes);
     // The lanes' culling bounds change only at leaves: gathered once per leaf, not per node.
-    let (mut limit, mut reach) = bounds(closest, finished);
+    let (mut limit, mut reach) = bounds::<ANY_HIT>(closest, finished);
     // The root has no box: every lane starts with its own interval.
     let mut current = PacketDeferred {
         child: 0,
@@ -355,7 +356,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
             );
             if found != 0 {
                 finished |= found;
-                (limit, reach) = bounds(closest, finished);
+                (limit, reach) = bounds::<ANY_HIT>(closest, finished);
             }
         } else if current.mask != 0 {
             if current.kind == INTERNAL_CHILD {
@@ -384,7 +385,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
                 // An occlusion lane's bound changes only when it finishes.
                 if !ANY_HIT || found != 0 {
                     finished |= found;
-                    (limit, reach) = bounds(closest, finished);
+                    (limit, reach) = bounds::<ANY_HIT>(closest, finished);
                 }
             }
         }
