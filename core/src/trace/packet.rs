@@ -28,8 +28,10 @@
 //! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
 //! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children in
 //! slot order, unsorted, which costs fewer instructions than either sorted order; and a subtree
-//! that only one lane of an occlusion packet enters is walked by that lane alone (the single-ray
-//! walk), where one clip tests all of a node's children.
+//! below a node that only one lane of an occlusion packet enters is walked by that lane alone
+//! (the single-ray walk), where one clip tests all of a node's children. A leaf that one lane
+//! reaches stays with the packet, whose kernel may test a strip for a lone lane more cheaply
+//! than the single-ray walk does.
 //!
 //! [`order_keys`]: super::top::order_keys
 
@@ -54,9 +56,9 @@ use crate::format::INTERNAL_CHILD;
 /// traced alone.
 const MIN_PACKET_LANES: usize = 6;
 
-/// Most lanes of an occlusion packet that walk a subtree each alone rather than together: a
-/// lone lane pays a packet's clip per child for nothing. More lanes alone cost the benchmark's
-/// AO rays more than they save, since single rays test strips one ray at a time.
+/// Most lanes of an occlusion packet that walk a node's subtree each alone rather than
+/// together: a lone lane pays a packet's clip per child for nothing. More lanes alone cost the
+/// benchmark's AO rays more than they save, since single rays test strips one ray at a time.
 const MAX_SOLO_LANES: usize = 1;
 
 /// A child deferred for some lanes of the packet.
@@ -346,7 +348,10 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     // `ReducemFile::node_visits`, from the nodes at hand rather than a second look-up.
     let mut visits = nodes.len();
     loop {
-        if ANY_HIT && current.mask.count_ones() as usize <= MAX_SOLO_LANES {
+        if ANY_HIT
+            && current.kind == INTERNAL_CHILD
+            && current.mask.count_ones() as usize <= MAX_SOLO_LANES
+        {
             let found = occlude_alone::<N, C, P>(
                 tracer,
                 (nodes, decoder),
@@ -403,8 +408,8 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     }
 }
 
-/// Each lane of `entry` walks its subtree (or leaf) alone with the single-ray walk; returns the
-/// lanes that found an occluder. Occlusion answers do not depend on the order of the visits,
+/// Each lane of `entry` walks its subtree alone with the single-ray walk; returns the lanes
+/// that found an occluder. Occlusion answers do not depend on the order of the visits,
 /// so a lane may leave the packet anywhere.
 #[inline(always)]
 fn occlude_alone<N: TraceNode, C: TraceKernel, P: LaneRays>(
