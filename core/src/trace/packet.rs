@@ -28,8 +28,10 @@
 //! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
 //! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children in
 //! slot order, unsorted, which costs fewer instructions than either sorted order; and a subtree
-//! that only one lane of an occlusion packet enters is walked by that lane alone (the single-ray
-//! walk), where one clip tests all of a node's children.
+//! below a node that only one lane of an occlusion packet enters is walked by that lane alone
+//! (the single-ray walk), where one clip tests all of a node's children. A leaf that one lane
+//! reaches stays with the packet, whose kernel may test a strip for a lone lane more cheaply
+//! than the single-ray walk does.
 //!
 //! [`order_keys`]: super::top::order_keys
 
@@ -54,9 +56,9 @@ use crate::format::INTERNAL_CHILD;
 /// traced alone.
 const MIN_PACKET_LANES: usize = 6;
 
-/// Most lanes of an occlusion packet that walk a subtree each alone rather than together: a
-/// lone lane pays a packet's clip per child for nothing. More lanes alone cost the benchmark's
-/// AO rays more than they save, since single rays test strips one ray at a time.
+/// Most lanes of an occlusion packet that walk a node's subtree each alone rather than
+/// together: a lone lane pays a packet's clip per child for nothing. More lanes alone cost the
+/// benchmark's AO rays more than they save, since single rays test strips one ray at a time.
 const MAX_SOLO_LANES: usize = 1;
 
 /// A child deferred for some lanes of the packet.
@@ -275,15 +277,16 @@ fn sort_by_keys(indices: &mut [usize], slots: &[usize; MAX_WIDTH], keys: &[f32; 
     }
 }
 
-/// The culling bound ([`Closest::reach`]) of every lane, finished lanes (occlusion found)
-/// `-inf` so that nothing is entered for them any more; and the greatest of them, the
-/// frustum's, passing over a NaN bound (a lane with one enters nothing) with one compare per
-/// lane, not `f32::max`'s NaN fix-ups. Of two zeros it may keep either: the frustum's bound
-/// only picks the slots clipped lane by lane, and no comparison tells the zeros apart.
+/// The culling bound ([`Closest::reach`]) of every lane, finished lanes (occlusion found, so
+/// only with `ANY_HIT`) `-inf` so that nothing is entered for them any more; and the greatest
+/// of them, the frustum's, passing over a NaN bound (a lane with one enters nothing) with one
+/// compare per lane, not `f32::max`'s NaN fix-ups. Of two zeros it may keep either: the
+/// frustum's bound only picks the slots clipped lane by lane, and no comparison tells the
+/// zeros apart.
 #[inline(always)]
-fn bounds(closest: &[Closest; PACKET_WIDTH], finished: u32) -> (f32x8, f32) {
+fn bounds<const ANY_HIT: bool>(closest: &[Closest; PACKET_WIDTH], finished: u32) -> (f32x8, f32) {
     let lanes = std::array::from_fn::<f32, PACKET_WIDTH, _>(|lane| {
-        if finished & (1 << lane) != 0 {
+        if ANY_HIT && finished & (1 << lane) != 0 {
             f32::NEG_INFINITY
         } else {
             closest[lane].reach
@@ -333,7 +336,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     let frustum = C::frustum(lanes, packet_mask);
     let targets = Targets::new(tracer.strip_sections(), nodes);
     // The lanes' culling bounds change only at leaves: gathered once per leaf, not per node.
-    let (mut limit, mut reach) = bounds(closest, finished);
+    let (mut limit, mut reach) = bounds::<ANY_HIT>(closest, finished);
     // The root has no box: every lane starts with its own interval.
     let mut current = PacketDeferred {
         child: 0,
@@ -345,7 +348,10 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     // `ReducemFile::node_visits`, from the nodes at hand rather than a second look-up.
     let mut visits = nodes.len();
     loop {
-        if ANY_HIT && current.mask.count_ones() as usize <= MAX_SOLO_LANES {
+        if ANY_HIT
+            && current.kind == INTERNAL_CHILD
+            && current.mask.count_ones() as usize <= MAX_SOLO_LANES
+        {
             let found = occlude_alone::<N, C, P>(
                 tracer,
                 (nodes, decoder),
@@ -355,7 +361,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
             );
             if found != 0 {
                 finished |= found;
-                (limit, reach) = bounds(closest, finished);
+                (limit, reach) = bounds::<ANY_HIT>(closest, finished);
             }
         } else if current.mask != 0 {
             if current.kind == INTERNAL_CHILD {
@@ -384,7 +390,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
                 // An occlusion lane's bound changes only when it finishes.
                 if !ANY_HIT || found != 0 {
                     finished |= found;
-                    (limit, reach) = bounds(closest, finished);
+                    (limit, reach) = bounds::<ANY_HIT>(closest, finished);
                 }
             }
         }
@@ -402,8 +408,8 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     }
 }
 
-/// Each lane of `entry` walks its subtree (or leaf) alone with the single-ray walk; returns the
-/// lanes that found an occluder. Occlusion answers do not depend on the order of the visits,
+/// Each lane of `entry` walks its subtree alone with the single-ray walk; returns the lanes
+/// that found an occluder. Occlusion answers do not depend on the order of the visits,
 /// so a lane may leave the packet anywhere.
 #[inline(always)]
 fn occlude_alone<N: TraceNode, C: TraceKernel, P: LaneRays>(

@@ -360,8 +360,8 @@ pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel, const ANY_HIT: bool>(
     closest: &mut Closest,
 ) -> bool {
     let file = tracer.file();
-    // Most subtrees a packet hands to a lone lane are leaves: no node, stack or prefetch
-    // targets to set up for them.
+    // A walk started on a leaf traces it at once: no node, stack or prefetch targets to set
+    // up for it.
     if start.kind != INTERNAL_CHILD {
         return trace_leaf::<K>(file, query, &start, closest);
     }

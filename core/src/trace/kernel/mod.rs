@@ -47,7 +47,8 @@ use wide::f32x8;
 pub enum Kernel {
     /// The portable kernel: 128-bit lanes through `wide` (SSE2 on x86-64, NEON on aarch64).
     Sse2,
-    /// 256-bit AVX2 strip blocks, packet box tests and packet setup (x86-64 with AVX2 and BMI2).
+    /// 256-bit AVX2 strip blocks, packet box tests and packet setup (x86-64 with AVX2, BMI2,
+    /// POPCNT and BMI1).
     Avx2,
 }
 

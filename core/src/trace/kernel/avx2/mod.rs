@@ -5,9 +5,10 @@
 //!
 //! `wide` picks its instructions when the crate is compiled, so it stays SSE2 inside a function
 //! compiled for AVX2; this kernel therefore uses `std::arch` itself. Its functions are
-//! `#[target_feature(enable = "avx2,bmi2")]`, and calling them is sound only on a CPU that has
-//! both: [`Avx2`] is named only by `kernel::dispatch`, which checks the CPU first, so every
-//! `unsafe` call below runs after that check (each says so).
+//! `#[target_feature(enable = "avx2,bmi2")]` (the walks' entry point adds POPCNT and BMI1),
+//! and calling them is sound only on a CPU that has these: [`Avx2`] is named only by
+//! `kernel::dispatch`, which checks the CPU first, so every `unsafe` call below runs after
+//! that check (each says so).
 
 #![allow(unsafe_code)]
 
@@ -38,8 +39,10 @@ use crate::trace::watertight::RaySpace;
 /// BMI2; the walks reach it as their kernel parameter.
 pub(in crate::trace) struct Avx2;
 
-/// `walk` on the AVX2 kernel, compiled for AVX2 down to the kernel's operations.
-#[target_feature(enable = "avx2,bmi2")]
+/// `walk` on the AVX2 kernel, compiled for AVX2 down to the kernel's operations; with
+/// POPCNT and BMI1 too, so that the walks' lane and slot masks are counted and walked bit by
+/// bit in one instruction each (`popcnt`, `tzcnt`, `blsr`) rather than in emulation.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline(never)]
 fn compiled_for_avx2<W: Walk>(walk: W) -> W::Output {
     walk.run::<Avx2>()
@@ -48,7 +51,8 @@ fn compiled_for_avx2<W: Walk>(walk: W) -> W::Output {
 impl TraceKernel for Avx2 {
     #[inline(always)]
     fn compiled<W: Walk>(walk: W) -> W::Output {
-        // SAFETY: `Avx2` runs only once the CPU was found to have AVX2 and BMI2 (module doc).
+        // SAFETY: `Avx2` runs only once the CPU was found to have AVX2, BMI2, POPCNT and BMI1
+        // (module doc).
         unsafe { compiled_for_avx2(walk) }
     }
 

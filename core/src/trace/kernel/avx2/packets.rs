@@ -206,10 +206,13 @@ pub(super) fn frustum_slots(frustum: &Avx2Frustum, planes: &Avx2Planes, reach: f
     let mut far = _mm256_set1_ps(reach);
     for axis in 0..3 {
         let (low, high) = (bounds.reciprocal_low[axis], bounds.reciprocal_high[axis]);
+        // The lesser of `d * low` and `d * high` is `d * low` where `d`'s sign bit is clear and
+        // `d * high` where it is set (rounding is monotone; at a zero `d` both products are
+        // zeros of one sign, at a NaN both NaN): one blend on `d`'s sign and one product.
         let entry = _mm256_sub_ps(planes.entry[axis], bounds.entry_origin[axis]);
-        let entry = _mm256_min_ps(_mm256_mul_ps(entry, low), _mm256_mul_ps(entry, high));
+        let entry = _mm256_mul_ps(entry, _mm256_blendv_ps(low, high, entry));
         let exit = _mm256_sub_ps(planes.exit[axis], bounds.exit_origin[axis]);
-        let exit = _mm256_max_ps(_mm256_mul_ps(exit, low), _mm256_mul_ps(exit, high));
+        let exit = _mm256_mul_ps(exit, _mm256_blendv_ps(high, low, exit));
         near = _mm256_max_ps(entry, near);
         far = _mm256_min_ps(_mm256_mul_ps(exit, inflation), far);
     }
