@@ -1,9 +1,9 @@
 //! A short strip tested against all the rays of a packet at once: lanes are rays, and the
 //! strip's windows are walked one after the other, each tested against every lane in one pass.
 //! The packet walk offers each strip of a leaf here (`TraceKernel::trace_strip_together`); a
-//! lossless strip of at most [`MAX_WINDOWS`] windows that more than [`most_alone`] lanes reach
-//! is tested this way, one that fewer reach by each lane alone ([`super::strip_alone`]), any
-//! other strip by the lane-by-lane walk.
+//! lossless strip of at most [`MAX_WINDOWS`] windows is tested this way, or by each lane alone
+//! when only [`few_lanes`] reach it ([`super::strip_alone`]); any other strip by the
+//! lane-by-lane walk.
 //!
 //! Deviation from the paper, which keeps packets small at the low level: several lanes of a
 //! packet (about five for ambient-occlusion rays) reach each short strip, so each position of
@@ -130,7 +130,7 @@ pub(super) struct StripLanes<'a> {
 
 /// Tests strip `strip` for the `active` lanes when it is lossless, has at most [`MAX_WINDOWS`]
 /// windows and its lane-by-lane walk culls by block boxes or has a single kd leaf: for all of
-/// them at once when more than [`most_alone`] reach it, else for each alone. Returns the lanes
+/// them at once, or for each alone when so few reach it ([`few_lanes`]). Returns the lanes
 /// done (an occluder found with `any_hit`), or `None` for the lane-by-lane walk. `spaces` are
 /// the lanes' ray spaces, made once per packet.
 #[target_feature(enable = "avx2,bmi2")]
@@ -152,7 +152,7 @@ pub(super) fn trace_strip_together(
     if windows > MAX_WINDOWS || !culled_alike {
         return None;
     }
-    if leaf.active.count_ones() <= most_alone(any_hit) {
+    if few_lanes(leaf.active, any_hit) {
         let mut done = 0;
         let mut active = leaf.active;
         while active != 0 {
@@ -174,14 +174,18 @@ pub(super) fn trace_strip_together(
     Some(trace_strip(spaces, (view, points), &blocks, strip_lanes))
 }
 
-/// Most lanes reaching a strip that test it each alone: below that, a pass of the packet per
-/// window serves too few lanes. Measured on the 10M scan: two for closest hits, where each
-/// strip view of a camera packet serves few lanes; one for occlusion, whose strips serve more.
-fn most_alone(any_hit: bool) -> u32 {
+/// Whether so few lanes reach a strip that each tests it alone: below that, a pass of the
+/// packet per window serves too few lanes. Measured on the 10M scan: at most two for closest
+/// hits, where each strip view of a camera packet serves few lanes; one for occlusion, whose
+/// strips serve more. Bits cleared rather than counted: the kernel's features leave out
+/// `popcnt`, without which a count is a dozen instructions.
+#[inline(always)]
+fn few_lanes(active: u32, any_hit: bool) -> bool {
+    let past_one = active & active.wrapping_sub(1);
     if any_hit {
-        1
+        past_one == 0
     } else {
-        2
+        past_one & past_one.wrapping_sub(1) == 0
     }
 }
 
