@@ -82,6 +82,7 @@ fn real_triangles_before(view: &StripView, windows: usize) -> u64 {
 const WORD_WINDOWS: usize = 8;
 const LOW_BITS: u64 = 0x7f7f_7f7f_7f7f_7f7f;
 const HIGH_BITS: u64 = 0x8080_8080_8080_8080;
+const ONE_PER_BYTE: u64 = 0x0101_0101_0101_0101;
 
 /// Windows among the first `count` of `references` whose three corners differ (a swap repeats
 /// one, as `strip_windows::window_corners` decides), eight at a time in the bytes of a word
@@ -100,7 +101,8 @@ fn real_windows(references: &[u8; WINDOWS_READ_AT_ONCE + 2], count: usize) -> u6
         let windows = (count - first).min(WORD_WINDOWS);
         let in_range = HIGH_BITS & (u64::MAX >> (8 * (WORD_WINDOWS - windows)));
         let distinct = nonzero(a ^ b) & nonzero(b ^ c) & nonzero(a ^ c) & in_range;
-        real += u64::from(distinct.count_ones());
+        // A byte of 0 or 1 per window, summed into the top byte by one product.
+        real += (distinct >> 7).wrapping_mul(ONE_PER_BYTE) >> 56;
     }
     real
 }
