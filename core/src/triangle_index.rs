@@ -71,7 +71,8 @@ fn real_triangles_before(view: &StripView, windows: usize) -> u64 {
     let mut first = 0;
     while first < windows {
         let count = (windows - first).min(WINDOWS_READ_AT_ONCE);
-        view.references.read_into(first, &mut references[..count + 2]);
+        view.references
+            .read_into(first, &mut references[..count + 2]);
         real += real_windows(&references, count);
         first += count;
     }

@@ -117,7 +117,13 @@ pub fn all_hits_on(
 pub fn ray_hits(file: &ReducemFile, ray: &Ray, face_ids: &FaceIds) -> Vec<RayHit> {
     let mut hits = Vec::new();
     let sections = QuerySections::new(file);
-    push_ray_hits((file, &sections), ray, face_ids, Kernel::configured(), &mut hits);
+    push_ray_hits(
+        (file, &sections),
+        ray,
+        face_ids,
+        Kernel::configured(),
+        &mut hits,
+    );
     hits
 }
 
