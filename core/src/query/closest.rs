@@ -30,7 +30,7 @@ use crate::geometry::Point;
 use crate::strip_windows::window_corners;
 use crate::trace::kernel::distance_bounds::BlockCorners;
 use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
-use crate::trace::kernel::query_prefetch::ChildPrefetch;
+use crate::trace::kernel::query_prefetch::{ChildPrefetch, QuerySections};
 use crate::trace::kernel::Kernel;
 
 /// The closest point of the surface to a query point.
@@ -51,6 +51,7 @@ pub struct ClosestPoint {
 /// Searches one file for closest points, keeping its heap between queries (one per thread).
 pub struct ClosestPointSearch<'f> {
     file: &'f ReducemFile,
+    sections: QuerySections<'f>,
     kernel: Kernel,
     pending: BinaryHeap<Reverse<Pending>>,
     spans: Vec<Span>,
@@ -101,6 +102,7 @@ impl<'f> ClosestPointSearch<'f> {
     pub fn with_kernel(file: &'f ReducemFile, kernel: Kernel) -> ClosestPointSearch<'f> {
         ClosestPointSearch {
             file,
+            sections: QuerySections::new(file),
             kernel,
             pending: BinaryHeap::new(),
             spans: Vec::new(),
@@ -171,7 +173,7 @@ impl<'f> ClosestPointSearch<'f> {
             point: *point,
             wide: point.map(f64::from),
         };
-        let prefetch = ChildPrefetch::new(self.file, nodes);
+        let prefetch = ChildPrefetch::new(&self.sections, nodes);
         self.pending.clear();
         let mut next = Some((0.0, (0, INTERNAL_CHILD)));
         loop {

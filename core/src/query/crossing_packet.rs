@@ -14,7 +14,7 @@ use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::{TopSlot, INTERNAL_CHILD, WIDE_WIDTH};
 use crate::trace::kernel::crossing_blocks::MASK_BLOCKS;
 use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
-use crate::trace::kernel::query_prefetch::ChildPrefetch;
+use crate::trace::kernel::query_prefetch::{ChildPrefetch, QuerySections};
 use crate::trace::kernel::Kernel;
 use crate::trace::watertight::RayPoint;
 use crate::trace::Ray;
@@ -83,7 +83,7 @@ impl CrossingPacket {
         if nodes.is_empty() || self.valid == 0 {
             return;
         }
-        let prefetch = ChildPrefetch::new(file, nodes);
+        let prefetch = ChildPrefetch::new(&QuerySections::new(file), nodes);
         let mut stack = NodeStack::<(u32, Lanes)>::default();
         stack.push((0, self.valid));
         let mut visits = file.node_visits();

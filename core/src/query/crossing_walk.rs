@@ -25,7 +25,7 @@ use crate::geometry::Point;
 use crate::trace::kernel::crossing_blocks::{StripBlocks, MASK_BLOCKS};
 use crate::trace::kernel::crossing_nodes::WidenedRay;
 use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
-use crate::trace::kernel::query_prefetch::ChildPrefetch;
+use crate::trace::kernel::query_prefetch::{ChildPrefetch, QuerySections};
 use crate::trace::kernel::Kernel;
 use crate::trace::prepared::{max_not_nan_x4, min_not_nan_x4, PreparedRay, FAR_INFLATION};
 use crate::trace::watertight::{RayPoint, RaySpace};
@@ -87,13 +87,20 @@ impl CrossingWalk {
 
     /// Calls `each(strip, window, corners)` for every candidate window of the file (see
     /// [`QueryKernel::for_each_candidate`]); corrupt nodes reached are skipped as in tracing.
-    /// The whole walk is compiled once for the kernel, its tests inlined.
-    pub(super) fn run(&self, file: &ReducemFile, each: &mut impl FnMut(u32, usize, [RayPoint; 3])) {
+    /// The whole walk is compiled once for the kernel, its tests inlined; `sections` are
+    /// `file`'s.
+    pub(super) fn run(
+        &self,
+        file: &ReducemFile,
+        sections: &QuerySections,
+        each: &mut impl FnMut(u32, usize, [RayPoint; 3]),
+    ) {
         dispatch_query(
             self.kernel,
             FileWalk {
                 walk: self,
                 file,
+                sections,
                 each,
             },
         )
@@ -102,7 +109,7 @@ impl CrossingWalk {
     #[inline(always)]
     fn nodes<N: NodeBoxes, Q: QueryKernel>(
         &self,
-        file: &ReducemFile,
+        (file, sections): (&ReducemFile, &QuerySections),
         nodes: &[N],
         grid: &N::Grid,
         each: &mut impl FnMut(u32, usize, [RayPoint; 3]),
@@ -110,7 +117,7 @@ impl CrossingWalk {
         if nodes.is_empty() {
             return;
         }
-        let prefetch = ChildPrefetch::new(file, nodes);
+        let prefetch = ChildPrefetch::new(sections, nodes);
         let mut stack = NodeStack::<u32>::default();
         stack.push(0);
         let mut visits = file.node_visits();
@@ -242,6 +249,7 @@ impl CrossingWalk {
 struct FileWalk<'w, 'f, F> {
     walk: &'w CrossingWalk,
     file: &'f ReducemFile,
+    sections: &'w QuerySections<'f>,
     each: &'w mut F,
 }
 
@@ -250,11 +258,17 @@ impl<F: FnMut(u32, usize, [RayPoint; 3])> QueryWalk for FileWalk<'_, '_, F> {
 
     #[inline(always)]
     fn run<Q: QueryKernel>(self) {
-        let FileWalk { walk, file, each } = self;
+        let FileWalk {
+            walk,
+            file,
+            sections,
+            each,
+        } = self;
+        let on = (file, sections);
         match file.top_nodes() {
-            TopNodes::F32(nodes) => walk.nodes::<_, Q>(file, nodes, &(), each),
-            TopNodes::Grid(nodes, grid) => walk.nodes::<_, Q>(file, nodes, &grid, each),
-            TopNodes::Wide(nodes) => walk.nodes::<_, Q>(file, nodes, &(), each),
+            TopNodes::F32(nodes) => walk.nodes::<_, Q>(on, nodes, &(), each),
+            TopNodes::Grid(nodes, grid) => walk.nodes::<_, Q>(on, nodes, &grid, each),
+            TopNodes::Wide(nodes) => walk.nodes::<_, Q>(on, nodes, &(), each),
         }
     }
 }

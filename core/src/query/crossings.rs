@@ -26,6 +26,7 @@ use super::crossing_walk::CrossingWalk;
 use super::FaceIds;
 use crate::format::reader::ReducemFile;
 use crate::geometry::Point;
+use crate::trace::kernel::query_prefetch::QuerySections;
 use crate::trace::kernel::Kernel;
 use crate::trace::watertight::{edge, resolve, RayPoint, RaySpace, TriangleHit};
 use crate::trace::Ray;
@@ -63,10 +64,11 @@ pub fn count_crossings(file: &ReducemFile, rays: &[Ray]) -> Vec<u32> {
 
 /// [`count_crossings`] on `kernel`.
 pub fn count_crossings_on(file: &ReducemFile, rays: &[Ray], kernel: Kernel) -> Vec<u32> {
+    let sections = QuerySections::new(file);
     rays.par_iter()
         .map(|ray| {
             let mut count = 0u32;
-            for_each_crossing_on(file, ray, kernel, |_, _, _| count += 1);
+            crossings_in(file, &sections, ray, kernel, |_, _, _| count += 1);
             count
         })
         .collect()
@@ -84,13 +86,14 @@ pub fn all_hits_on(
     face_ids: &FaceIds,
     kernel: Kernel,
 ) -> AllHits {
+    let sections = QuerySections::new(file);
     let per_task: Vec<(Vec<usize>, Vec<RayHit>)> = rays
         .par_chunks(RAYS_PER_TASK)
         .map(|rays| {
             let (mut counts, mut hits) = (Vec::with_capacity(rays.len()), Vec::new());
             for ray in rays {
                 let before = hits.len();
-                push_ray_hits(file, ray, face_ids, kernel, &mut hits);
+                push_ray_hits((file, &sections), ray, face_ids, kernel, &mut hits);
                 counts.push(hits.len() - before);
             }
             (counts, hits)
@@ -113,20 +116,27 @@ pub fn all_hits_on(
 /// The crossings of one ray, `t` ascending, ties by face id.
 pub fn ray_hits(file: &ReducemFile, ray: &Ray, face_ids: &FaceIds) -> Vec<RayHit> {
     let mut hits = Vec::new();
-    push_ray_hits(file, ray, face_ids, Kernel::configured(), &mut hits);
+    let sections = QuerySections::new(file);
+    push_ray_hits(
+        (file, &sections),
+        ray,
+        face_ids,
+        Kernel::configured(),
+        &mut hits,
+    );
     hits
 }
 
 /// Appends the crossings of `ray` to `hits`, `t` ascending, ties by face id.
 fn push_ray_hits(
-    file: &ReducemFile,
+    (file, sections): (&ReducemFile, &QuerySections),
     ray: &Ray,
     face_ids: &FaceIds,
     kernel: Kernel,
     hits: &mut Vec<RayHit>,
 ) {
     let before = hits.len();
-    for_each_crossing_on(file, ray, kernel, |strip, window, hit| {
+    crossings_in(file, sections, ray, kernel, |strip, window, hit| {
         hits.push(RayHit {
             t: hit.t,
             face_id: face_ids.id(file, strip, window).unwrap_or(NO_FACE),
@@ -153,12 +163,23 @@ pub fn for_each_crossing_on(
     file: &ReducemFile,
     ray: &Ray,
     kernel: Kernel,
+    each: impl FnMut(u32, u16, TriangleHit),
+) {
+    crossings_in(file, &QuerySections::new(file), ray, kernel, each)
+}
+
+/// [`for_each_crossing_on`] with `file`'s sections looked up once for a batch of rays.
+fn crossings_in(
+    file: &ReducemFile,
+    sections: &QuerySections,
+    ray: &Ray,
+    kernel: Kernel,
     mut each: impl FnMut(u32, u16, TriangleHit),
 ) {
     if !valid(ray) {
         return;
     }
-    CrossingWalk::new(ray, kernel).run(file, &mut |strip, window, corners| {
+    CrossingWalk::new(ray, kernel).run(file, sections, &mut |strip, window, corners| {
         if let Some(hit) = settle_window(window, corners, ray) {
             each(strip, window as u16, hit);
         }

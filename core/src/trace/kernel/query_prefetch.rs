@@ -5,12 +5,24 @@
 use super::prefetch::{StripSections, Targets};
 use crate::format::reader::ReducemFile;
 
+/// The sections of one file that the query walks prefetch from, looked up once for a batch of
+/// queries rather than per ray or point.
+#[derive(Clone, Copy)]
+pub(crate) struct QuerySections<'a>(StripSections<'a>);
+
+impl<'a> QuerySections<'a> {
+    pub(crate) fn new(file: &'a ReducemFile) -> QuerySections<'a> {
+        QuerySections(StripSections::new(file))
+    }
+}
+
 /// What a query walk over `nodes` (one file's top-level nodes) prefetches from.
 pub(crate) struct ChildPrefetch<'a, N>(Targets<'a, N>);
 
 impl<'a, N> ChildPrefetch<'a, N> {
-    pub(crate) fn new(file: &'a ReducemFile, nodes: &'a [N]) -> ChildPrefetch<'a, N> {
-        ChildPrefetch(Targets::new(&StripSections::new(file), nodes))
+    #[inline(always)]
+    pub(crate) fn new(sections: &QuerySections<'a>, nodes: &'a [N]) -> ChildPrefetch<'a, N> {
+        ChildPrefetch(Targets::new(&sections.0, nodes))
     }
 
     /// Asks for what visiting the child linked as `(child, kind)` (as a node's slot links it:
