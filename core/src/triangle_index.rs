@@ -84,6 +84,8 @@ const WORD_WINDOWS: usize = 8;
 const LOW_BITS: u64 = 0x7f7f_7f7f_7f7f_7f7f;
 const HIGH_BITS: u64 = 0x8080_8080_8080_8080;
 const ONE_PER_BYTE: u64 = 0x0101_0101_0101_0101;
+// The last word read starts two references past the last window counted at once.
+const _: () = assert!(WINDOWS_READ_AT_ONCE.is_multiple_of(WORD_WINDOWS));
 
 /// Windows among the first `count` of `references` whose three corners differ (a swap repeats
 /// one, as `strip_windows::window_corners` decides), eight at a time in the bytes of a word

@@ -15,9 +15,10 @@
 //! are the rays themselves ([`RayFile`]: validated in place on every core, never copied), and
 //! each chunk of rays is traced on every core and encoded into a small buffer, which a writing
 //! thread writes at its place in the output file and hands back for reuse ([`write_answers`]),
-//! with no per-ray `Hit` vector and no output-sized buffer in between. Fresh memory costs a page fault per 4 KiB
-//! page (about 0.75 ms per MB on the 2-core test machine: a copy of 122 MB of AO rays took
-//! 110 ms before tracing began), so the rays and answers of a batch are never held in it.
+//! with no per-ray `Hit` vector and no output-sized buffer in between. Fresh memory costs a
+//! page fault per 4 KiB page (about 0.75 ms per MB on the 2-core test machine: a copy of 122
+//! MB of AO rays took 110 ms before tracing began), so the rays and answers of a batch are
+//! never held in it.
 
 use std::fs::File;
 use std::io::{self, Read, Write};
@@ -486,7 +487,7 @@ fn encode_hit(hit: Option<&Hit>, record: &mut [u8]) {
         Some(hit) => [hit.t, hit.normal[0], hit.normal[1], hit.normal[2]],
         None => [f32::INFINITY, 0.0, 0.0, 0.0],
     };
-    // One 16-byte store: a copy per field was about 20 instructions a ray.
+    // The record as one 16-byte store rather than a copy per field.
     let bytes: [u8; HIT_BYTES] = bytemuck::cast(fields.map(|field| field.to_bits().to_le()));
     if let Some(record) = record.first_chunk_mut::<HIT_BYTES>() {
         *record = bytes;
