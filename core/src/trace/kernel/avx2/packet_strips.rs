@@ -10,7 +10,9 @@
 //! the strip is moved to every lane's ray space once (a `vpermps` per ray-space axis picks each
 //! lane's coordinates), each window costs two edge functions for all lanes (its third is the
 //! previous window's first), and the block boxes are clipped for all lanes at once, a box's six
-//! planes decoded in one pass ([`BoxDecoder`]).
+//! planes decoded in one pass ([`BoxDecoder`]). A block that only one lane tests after the
+//! clip is tested for that lane alone (`super::strip_alone::trace_block_alone`), as a lone lane's
+//! strip is.
 //!
 //! Bit-identical to the lane-by-lane walk, also on a corrupt file: a lane tests exactly the
 //! blocks its walk alone would (the same box decisions: planes decoded with
@@ -31,19 +33,21 @@ use wide::{f32x8, i32x8};
 use super::simd::{
     candidate_lanes, edge, in_range_lanes_between, lanes as lanes_of, load, load_vertex,
 };
-use super::strip_alone::trace_strip_alone;
+use super::strip_alone::{trace_block_alone, trace_strip_alone};
 use super::Avx2;
 use crate::format::block_boxes::{BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
 use crate::format::reader::StripView;
 use crate::format::vertices::StripVertices;
 use crate::trace::closest::Closest;
-use crate::trace::kernel::{LeafLanes, LeafStrip, TraceKernel, BLOCK};
+use crate::trace::kernel::{LeafLanes, LeafStrip, TraceKernel, BLOCK, BOX_GROUP};
 use crate::trace::lanes::{Lanes, PACKET_WIDTH};
 use crate::trace::prepared::FAR_INFLATION;
 use crate::trace::watertight::{resolve, RayPoint};
 
-/// Most windows of a strip tested for all lanes at once: longer strips keep their block boxes.
-pub(super) const MAX_WINDOWS: usize = 24;
+/// Most windows of a strip tested for all lanes at once: one group of block boxes, which the
+/// lone lane's test clips in one pass. Longer strips (rare at the pipeline's strip length, with
+/// their swaps) go lane by lane.
+pub(super) const MAX_WINDOWS: usize = BOX_GROUP * BLOCK;
 
 /// The packet's rays as lanes for the strip test: per lane its ray-space axes (as indices into
 /// a position's coordinates), the origin's coordinate on each ray-space axis, the shears, the
@@ -164,14 +168,19 @@ pub(super) fn trace_strip_together(
         }
         return Some(done);
     }
-    let blocks = entered_blocks(lanes, leaf, view, points, closest);
+    let blocks = entered_blocks(lanes, leaf, (view, points), any_hit, closest);
     let strip_lanes = StripLanes {
         strip,
         active: leaf.active,
         any_hit,
         closest,
     };
-    Some(trace_strip(spaces, (view, points), &blocks, strip_lanes))
+    Some(trace_strip(
+        (spaces, lanes),
+        (view, points),
+        &blocks,
+        strip_lanes,
+    ))
 }
 
 /// Whether so few lanes reach a strip that each tests it alone: below that, a pass of the
@@ -210,8 +219,8 @@ const MAX_BLOCKS: usize = MAX_WINDOWS.div_ceil(BLOCK);
 fn entered_blocks(
     lanes: &Lanes,
     leaf: &LeafLanes,
-    view: &StripView,
-    points: &[[f32; 3]],
+    (view, points): (&StripView, &[[f32; 3]]),
+    any_hit: bool,
     closest: &[Closest; PACKET_WIDTH],
 ) -> EnteredBlocks {
     let mut entered = EnteredBlocks {
@@ -223,10 +232,15 @@ fn entered_blocks(
         return entered;
     };
     let t_near = load(leaf.t_near);
-    let t_far = _mm256_min_ps(
-        load(leaf.t_far),
-        load(&std::array::from_fn(|lane| closest[lane].reach)),
-    );
+    // An occlusion lane's bound is its interval's end until it finds a hit, which ends it.
+    let t_far = if any_hit {
+        load(leaf.t_far)
+    } else {
+        _mm256_min_ps(
+            load(leaf.t_far),
+            load(&std::array::from_fn(|lane| closest[lane].reach)),
+        )
+    };
     let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
     let decoder = BoxDecoder::new(&frame, lanes.negative());
     for block in 0..MAX_BLOCKS {
@@ -314,7 +328,7 @@ impl BoxDecoder {
 /// returns the lanes that found a hit when `any_hit` is set (they are done).
 #[target_feature(enable = "avx2,bmi2")]
 fn trace_strip(
-    spaces: &LaneSpaces,
+    (spaces, rays): (&LaneSpaces, &Lanes),
     (view, points): (&StripView, &[[f32; 3]]),
     blocks: &EnteredBlocks,
     mut lanes: StripLanes,
@@ -325,9 +339,11 @@ fn trace_strip(
     for (block, first) in (0..count).step_by(BLOCK).enumerate() {
         // As the lane-by-lane walk: a block whose box a lane enters is tested unless a hit
         // found since is nearer than the box; a block no lane tests is skipped.
-        let reach = load(&std::array::from_fn(|lane| lanes.closest[lane].reach));
-        let near = _mm256_cmp_ps::<_CMP_LE_OQ>(blocks.near[block], reach);
-        let within = if blocks.culled {
+        // An occlusion lane entered the block's box within its interval, which ends at its
+        // bound until it finds a hit, which ends it: only closest-hit lanes check again.
+        let within = if blocks.culled && !lanes.any_hit {
+            let reach = load(&std::array::from_fn(|lane| lanes.closest[lane].reach));
+            let near = _mm256_cmp_ps::<_CMP_LE_OQ>(blocks.near[block], reach);
             _mm256_movemask_ps(near) as u32
         } else {
             u32::MAX
@@ -338,6 +354,19 @@ fn trace_strip(
         }
         // Only the references of the blocks tested are spread, as the lane-by-lane walk does.
         let references = Avx2::references(&view.references, first);
+        // A block that a single lane tests costs that lane's pass alone, not eight lanes'.
+        if testing & (testing - 1) == 0 {
+            let block_at = (&references, first, BLOCK.min(count - first));
+            let strip_at = (lanes.strip, points);
+            let packet = (rays, testing);
+            let done = trace_block_alone(packet, strip_at, block_at, lanes.any_hit, lanes.closest);
+            finished |= done;
+            lanes.active &= !done;
+            if lanes.active == 0 {
+                return finished;
+            }
+            continue;
+        }
         let position = |k: usize| {
             let [x, y, _] = spaces.transform(load_vertex(flat, usize::from(references[k])));
             [x, y]

@@ -134,31 +134,78 @@ pub(super) fn trace_strip_alone(
         }
         let first = block * BLOCK;
         let references = Avx2::references(&view.references, first);
-        let block_at = (&references, BLOCK.min(count - first));
-        let Some(edges) = lone_edges(&ray, points, block_at, closest.t) else {
-            continue;
-        };
-        let mut candidates = edges.candidates;
-        while candidates != 0 {
-            let k = candidates.trailing_zeros() as usize;
-            candidates &= candidates - 1;
-            let c: [RayPoint; 3] = std::array::from_fn(|corner| RayPoint {
-                x: edges.x[corner][k],
-                y: edges.y[corner][k],
-                z: edges.z[corner][k],
-            });
-            let w = edges.weights.map(|w| w[k]);
-            if let Some(hit) = resolve(&c, w, ray.tmin, closest.t) {
-                let corners = [0, 1, 2].map(|c| references[k + c]);
-                let window = (strip, (first + k) as u16);
-                closest.offer(hit.t, window, hit.weights, (points, corners));
-                if any_hit {
-                    return 1 << lane;
-                }
-            }
+        let block_at = (&references, first, BLOCK.min(count - first));
+        if test_block::<0>(&ray, (strip, points), block_at, any_hit, closest) {
+            return 1 << lane;
         }
     }
     0
+}
+
+/// Tests the block of windows `first ..` (`windows` of them, `references` theirs) of the
+/// lossless strip number `strip` for the lone lane `ray`, window after window as the
+/// single-ray block does; true when it found a hit and `any_hit` is set (the lane is done).
+/// `SITE` tells its two callers apart, so that each instantiation has one caller and is
+/// inlined into it.
+#[target_feature(enable = "avx2,bmi2")]
+#[inline]
+fn test_block<const SITE: usize>(
+    ray: &LoneRay,
+    (strip, points): (u32, &[[f32; 3]]),
+    (references, first, windows): (&[u8; BLOCK + 2], usize, usize),
+    any_hit: bool,
+    closest: &mut Closest,
+) -> bool {
+    let Some(edges) = lone_edges::<SITE>(ray, points, (references, windows), closest.t) else {
+        return false;
+    };
+    let mut candidates = edges.candidates;
+    while candidates != 0 {
+        let k = candidates.trailing_zeros() as usize;
+        candidates &= candidates - 1;
+        let c: [RayPoint; 3] = std::array::from_fn(|corner| RayPoint {
+            x: edges.x[corner][k],
+            y: edges.y[corner][k],
+            z: edges.z[corner][k],
+        });
+        let w = edges.weights.map(|w| w[k]);
+        if let Some(hit) = resolve(&c, w, ray.tmin, closest.t) {
+            let corners = [0, 1, 2].map(|c| references[k + c]);
+            let window = (strip, (first + k) as u16);
+            closest.offer(hit.t, window, hit.weights, (points, corners));
+            if any_hit {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+/// Tests one block of a strip tested for all lanes (`super::packet_strips`) for each of the
+/// few lanes `testing` that test it, alone: the same windows in the same order for each lane
+/// as the window loop of all lanes, at the cost of one lane's pass rather than eight. Returns
+/// the lanes done (a hit found with `any_hit`).
+#[target_feature(enable = "avx2,bmi2")]
+#[inline(never)]
+pub(super) fn trace_block_alone(
+    (lanes, testing): (&Lanes, u32),
+    (strip, points): (u32, &[[f32; 3]]),
+    block: (&[u8; BLOCK + 2], usize, usize),
+    any_hit: bool,
+    closest: &mut [Closest; PACKET_WIDTH],
+) -> u32 {
+    let mut done = 0;
+    let mut testing = testing;
+    while testing != 0 {
+        let lane = testing.trailing_zeros() as usize;
+        testing &= testing - 1;
+        let ray = LoneRay::new(lanes, lane);
+        let closest = &mut closest[lane % PACKET_WIDTH];
+        if test_block::<1>(&ray, (strip, points), block, any_hit, closest) {
+            done |= 1 << lane;
+        }
+    }
+    done
 }
 
 /// The candidate windows of the block whose `BLOCK + 2` references are `references`
@@ -167,7 +214,7 @@ pub(super) fn trace_strip_alone(
 /// every lane as its in-range test computes them.
 #[target_feature(enable = "avx2,bmi2")]
 #[inline]
-fn lone_edges(
+fn lone_edges<const SITE: usize>(
     ray: &LoneRay,
     points: &[[f32; 3]],
     (references, windows): (&[u8; BLOCK + 2], usize),
