@@ -5,7 +5,7 @@
 //!
 //! `wide` picks its instructions when the crate is compiled, so it stays SSE2 inside a function
 //! compiled for AVX2; this kernel therefore uses `std::arch` itself. Its functions are
-//! `#[target_feature(enable = "avx2,bmi2")]` (the walks' entry point adds POPCNT and BMI1),
+//! `#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]` (the walks' entry point adds POPCNT and BMI1),
 //! and calling them is sound only on a CPU that has these: [`Avx2`] is named only by
 //! `kernel::dispatch`, which checks the CPU first, so every `unsafe` call below runs after
 //! that check (each says so).

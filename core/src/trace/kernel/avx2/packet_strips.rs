@@ -61,7 +61,7 @@ pub(in crate::trace) struct LaneSpaces {
 impl LaneSpaces {
     /// The ray spaces of `lanes`' rays, as the packet's setup computed them, with the origin's
     /// coordinates on each lane's ray-space axes picked.
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     pub(super) fn new(lanes: &Lanes) -> LaneSpaces {
         let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
@@ -92,7 +92,7 @@ impl LaneSpaces {
     /// The model position `[x, y, z, any]` in every lane's ray space: x and y, and the offset
     /// along the lane's ray-space z axis (which the depth scales), with the operations of
     /// `RaySpace::transform` (each lane picks its axes' coordinates with one `vpermps` each).
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     fn transform(&self, position: __m128) -> [__m256; 3] {
         let both = _mm256_set_m128(position, position);
@@ -111,7 +111,7 @@ impl LaneSpaces {
 }
 
 /// Per lane the coordinate of `origin` on the model axis `axis` (0, 1 or 2), by two blends.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn origin_on(axis: __m256i, origin: &[__m256; 3]) -> __m256 {
     let on = |model: i32| _mm256_castsi256_ps(_mm256_cmpeq_epi32(axis, _mm256_set1_epi32(model)));
@@ -133,7 +133,7 @@ pub(super) struct StripLanes<'a> {
 /// them at once, or for each alone when so few reach it ([`few_lanes`]). Returns the lanes
 /// done (an occluder found with `any_hit`), or `None` for the lane-by-lane walk. `spaces` are
 /// the lanes' ray spaces, made once per packet.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 pub(super) fn trace_strip_together(
     (spaces, lanes): (&LaneSpaces, &Lanes),
     offered: &LeafStrip,
@@ -206,7 +206,7 @@ const MAX_BLOCKS: usize = MAX_WINDOWS.div_ceil(BLOCK);
 /// [`EnteredBlocks`] of the strip for the `active` lanes: each block box clipped for every
 /// lane with `BoxTest`'s decisions (its planes decoded as `block_boxes::decode_plane` does,
 /// the distances as `PreparedRay` computes them, folded into `[t_near, min(t_far, reach)]`).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 fn entered_blocks(
     lanes: &Lanes,
     leaf: &LeafLanes,
@@ -280,7 +280,7 @@ struct BoxDecoder {
 impl BoxDecoder {
     /// The decoder of boxes in `frame` for rays whose direction is negative on the axes
     /// `negative` (their entry plane is the maximum there).
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     fn new(frame: &BoxFrame, negative: [bool; 3]) -> BoxDecoder {
         let entry_shift = negative.map(|negative| if negative { 4 } else { 0 });
@@ -296,7 +296,7 @@ impl BoxDecoder {
 
     /// The entry planes (lanes 0..3, x y z) and exit planes (lanes 4..7) of the box with
     /// `codes`; the spare lanes hold 0.
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     fn planes(&self, [x, y, z]: [u8; BOX_BYTES]) -> __m256 {
         // The three bytes in lanes 0..3 and again in 4..7, a zero byte after each triple.
@@ -312,7 +312,7 @@ impl BoxDecoder {
 
 /// Tests every window of the lossless strip `view` (with `points`) against the `active` lanes;
 /// returns the lanes that found a hit when `any_hit` is set (they are done).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 fn trace_strip(
     spaces: &LaneSpaces,
     (view, points): (&StripView, &[[f32; 3]]),
@@ -371,7 +371,7 @@ fn trace_strip(
 
 /// Finishes window `window`'s candidate lanes one by one with [`resolve`], as the lane-by-lane
 /// walk does; returns the lanes done (a hit found with `any_hit`).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn resolve_lanes(
     spaces: &LaneSpaces,
