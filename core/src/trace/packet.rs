@@ -76,6 +76,29 @@ struct PacketDeferred {
     t_far: f32x8,
 }
 
+/// An internal child deferred by an occlusion packet: its node and lanes, without the lanes'
+/// intervals in its box, which only a leaf's strips read (its own children are clipped over
+/// each lane's whole interval).
+#[derive(Clone, Copy)]
+struct Internal {
+    node: u32,
+    mask: u32,
+}
+
+impl Internal {
+    /// As the packet walk visits it; the lanes' intervals are theirs in the whole file.
+    #[inline(always)]
+    fn deferred(self, t_near: f32x8, t_far: f32x8) -> PacketDeferred {
+        PacketDeferred {
+            child: self.node,
+            kind: INTERNAL_CHILD,
+            mask: self.mask,
+            t_near,
+            t_far,
+        }
+    }
+}
+
 /// Traces up to [`PACKET_WIDTH`] rays into `closest`: entry `i` is ray `i`'s closest hit (or,
 /// with `any_hit`, a hit that proves occlusion). Entries past `rays.len()` are empty. The
 /// packet is prepared and walked in code compiled for the tracer's kernel.
@@ -190,9 +213,11 @@ impl Lanes {
 
     /// Clips the `active` lanes against `node`'s occupied slots; returns the child to visit
     /// first and defers the others: for closest hits so that they come off the stack in
-    /// [`order_keys`] order, for occlusion (`ANY_HIT`) as they come. Empty slots are skipped (by their link: a grid node's empty box is not
-    /// missed by construction); validated nodes hold their occupied slots first. The planes
-    /// come straight from the node ([`TraceNode::planes`]): a format 4 node's eight at once.
+    /// [`order_keys`] order, for occlusion (`ANY_HIT`) as they come, internal children on
+    /// `internal` as their node and lanes alone. Empty slots are skipped (by their link: a
+    /// grid node's empty box is not missed by construction); validated nodes hold their
+    /// occupied slots first. The planes come straight from the node ([`TraceNode::planes`]):
+    /// a format 4 node's eight at once.
     ///
     /// [`order_keys`]: super::top::order_keys
     #[inline(always)]
@@ -203,7 +228,7 @@ impl Lanes {
         decoder: &N::Decoder,
         active: u32,
         (limit, reach): (f32x8, f32),
-        stack: &mut DeferStack<PacketDeferred>,
+        (stack, internal): (&mut DeferStack<PacketDeferred>, &mut DeferStack<Internal>),
     ) -> Option<PacketDeferred> {
         let occupied = (node.occupied_mask().trailing_ones() as usize).min(MAX_WIDTH);
         let planes = node.planes::<C>(decoder, self);
@@ -219,6 +244,10 @@ impl Lanes {
                 if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
                     match first {
                         None => first = Some(child),
+                        Some(_) if child.kind == INTERNAL_CHILD => internal.push(Internal {
+                            node: child.child,
+                            mask: child.mask,
+                        }),
                         Some(_) => stack.push(child),
                     }
                 }
@@ -325,6 +354,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
 ) {
     let mut finished = 0u32;
     let mut stack = DeferStack::default();
+    let mut internal = DeferStack::default();
     let together = C::together(lanes);
     let frustum = C::frustum(lanes, packet_mask);
     let targets = Targets::new(tracer.strip_sections(), nodes);
@@ -367,7 +397,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
                         decoder,
                         current.mask,
                         (limit, reach),
-                        &mut stack,
+                        (&mut stack, &mut internal),
                     )
                 });
                 if let Some(first) = entered {
@@ -385,8 +415,13 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
             }
         }
         loop {
-            let Some(deferred) = stack.pop() else {
-                return;
+            // Occlusion packets take deferred leaves first: the order does not matter to them.
+            let deferred = match stack.pop() {
+                Some(deferred) => deferred,
+                None => match internal.pop() {
+                    Some(node) if ANY_HIT => node.deferred(lanes.tmin, limit),
+                    _ => return,
+                },
             };
             // An occlusion lane entered a child within its bound, which stays until the lane
             // finishes: only finished lanes drop out.
