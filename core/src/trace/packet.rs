@@ -26,8 +26,8 @@
 //! order with the same bounds as its ray alone, so the results agree bit for bit even on a
 //! corrupt file whose boxes do not bound their strips (on a valid file the closest-hit rule
 //! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
-//! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children in
-//! slot order, unsorted, which costs fewer instructions than either sorted order; and a subtree
+//! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children
+//! unsorted (the lowest slot entered first), which costs fewer instructions than either sorted order; and a subtree
 //! below a node that only one lane of an occlusion packet enters is walked by that lane alone
 //! (the single-ray walk), where one clip tests all of a node's children. A leaf that one lane
 //! reaches stays with the packet, whose kernel may test a strip for a lone lane more cheaply
@@ -56,10 +56,14 @@ use crate::format::INTERNAL_CHILD;
 /// traced alone.
 const MIN_PACKET_LANES: usize = 6;
 
-/// Most lanes of an occlusion packet that walk a node's subtree each alone rather than
-/// together: a lone lane pays a packet's clip per child for nothing. More lanes alone cost the
-/// benchmark's AO rays more than they save, since single rays test strips one ray at a time.
-const MAX_SOLO_LANES: usize = 1;
+/// Whether `mask` has one lane at most: an occlusion packet hands a node's subtree that one
+/// lane enters to that lane alone, since a lone lane pays a packet's clip per child for
+/// nothing. Two lanes alone cost the benchmark's AO rays more than they save, since single
+/// rays test strips one ray at a time.
+#[inline(always)]
+fn at_most_one(mask: u32) -> bool {
+    mask & mask.wrapping_sub(1) == 0
+}
 
 /// A child deferred for some lanes of the packet.
 #[derive(Clone, Copy, Default)]
@@ -70,6 +74,29 @@ struct PacketDeferred {
     mask: u32,
     t_near: f32x8,
     t_far: f32x8,
+}
+
+/// An internal child deferred by an occlusion packet: its node and lanes, without the lanes'
+/// intervals in its box, which only a leaf's strips read (its own children are clipped over
+/// each lane's whole interval).
+#[derive(Clone, Copy)]
+struct Internal {
+    node: u32,
+    mask: u32,
+}
+
+impl Internal {
+    /// As the packet walk visits it; the lanes' intervals are theirs in the whole file.
+    #[inline(always)]
+    fn deferred(self, t_near: f32x8, t_far: f32x8) -> PacketDeferred {
+        PacketDeferred {
+            child: self.node,
+            kind: INTERNAL_CHILD,
+            mask: self.mask,
+            t_near,
+            t_far,
+        }
+    }
 }
 
 /// Traces up to [`PACKET_WIDTH`] rays into `closest`: entry `i` is ray `i`'s closest hit (or,
@@ -185,11 +212,12 @@ impl Lanes {
     }
 
     /// Clips the `active` lanes against `node`'s occupied slots; returns the child to visit
-    /// first and defers the others, so that they come off the stack in
-    /// visiting order: [`order_keys`] order for closest hits, slot order for occlusion
-    /// (`ANY_HIT`). Empty slots are skipped (by their link: a grid node's empty box is not
-    /// missed by construction); validated nodes hold their occupied slots first. The planes
-    /// come straight from the node ([`TraceNode::planes`]): a format 4 node's eight at once.
+    /// first and defers the others: for closest hits so that they come off the stack in
+    /// [`order_keys`] order, for occlusion (`ANY_HIT`) as they come, internal children on
+    /// `internal` as their node and lanes alone. Empty slots are skipped (by their link: a
+    /// grid node's empty box is not missed by construction); validated nodes hold their
+    /// occupied slots first. The planes come straight from the node ([`TraceNode::planes`]):
+    /// a format 4 node's eight at once.
     ///
     /// [`order_keys`]: super::top::order_keys
     #[inline(always)]
@@ -200,7 +228,7 @@ impl Lanes {
         decoder: &N::Decoder,
         active: u32,
         (limit, reach): (f32x8, f32),
-        stack: &mut DeferStack<PacketDeferred>,
+        (stack, internal): (&mut DeferStack<PacketDeferred>, &mut DeferStack<Internal>),
     ) -> Option<PacketDeferred> {
         let occupied = (node.occupied_mask().trailing_ones() as usize).min(MAX_WIDTH);
         let planes = node.planes::<C>(decoder, self);
@@ -209,18 +237,22 @@ impl Lanes {
         let clipped = (node, &planes, targets);
         let bounds = (active, limit);
         if ANY_HIT {
-            // Slot order is known before clipping: the slots are clipped last to first, each
-            // child entered deferred once a lower one is, the lowest visited at once (its
-            // lanes are within their bounds, which only a leaf changes).
-            let mut lowest = None;
-            for_each_bit_down(candidates, |slot| {
+            // The first child entered is visited at once (its lanes are within their bounds,
+            // which only a leaf changes), the others deferred as they come.
+            let mut first = None;
+            for_each_bit(candidates, |slot| {
                 if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
-                    if let Some(higher) = lowest.replace(child) {
-                        stack.push(higher);
+                    match first {
+                        None => first = Some(child),
+                        Some(_) if child.kind == INTERNAL_CHILD => internal.push(Internal {
+                            node: child.child,
+                            mask: child.mask,
+                        }),
+                        Some(_) => stack.push(child),
                     }
                 }
             });
-            return lowest;
+            return first;
         }
         // Not an array of defaults: zeroing eight 96-byte entries per node costs more than the
         // pushes.
@@ -243,16 +275,6 @@ impl Lanes {
             stack.push(entered[index]);
         }
         order.first().map(|&index| entered[index])
-    }
-}
-
-/// `f(i)` for each set bit `i` of `mask`, highest first.
-#[inline(always)]
-fn for_each_bit_down(mut mask: u32, mut f: impl FnMut(usize)) {
-    while mask != 0 {
-        let bit = 31 - mask.leading_zeros();
-        f(bit as usize);
-        mask &= !(1 << bit);
     }
 }
 
@@ -332,6 +354,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
 ) {
     let mut finished = 0u32;
     let mut stack = DeferStack::default();
+    let mut internal = DeferStack::default();
     let together = C::together(lanes);
     let frustum = C::frustum(lanes, packet_mask);
     let targets = Targets::new(tracer.strip_sections(), nodes);
@@ -348,10 +371,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     // `ReducemFile::node_visits`, from the nodes at hand rather than a second look-up.
     let mut visits = nodes.len();
     loop {
-        if ANY_HIT
-            && current.kind == INTERNAL_CHILD
-            && current.mask.count_ones() as usize <= MAX_SOLO_LANES
-        {
+        if ANY_HIT && current.kind == INTERNAL_CHILD && at_most_one(current.mask) {
             let found = occlude_alone::<N, C, P>(
                 tracer,
                 (nodes, decoder),
@@ -377,7 +397,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
                         decoder,
                         current.mask,
                         (limit, reach),
-                        &mut stack,
+                        (&mut stack, &mut internal),
                     )
                 });
                 if let Some(first) = entered {
@@ -395,10 +415,20 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
             }
         }
         loop {
-            let Some(deferred) = stack.pop() else {
-                return;
+            // Occlusion packets take deferred leaves first: the order does not matter to them.
+            let deferred = match stack.pop() {
+                Some(deferred) => deferred,
+                None => match internal.pop() {
+                    Some(node) if ANY_HIT => node.deferred(lanes.tmin, limit),
+                    _ => return,
+                },
             };
-            let alive = C::lanes_at_most(deferred.t_near, limit);
+            // An occlusion lane entered a child within its bound, which stays until the lane
+            // finishes: only finished lanes drop out.
+            let alive = match ANY_HIT {
+                true => !finished,
+                false => C::lanes_at_most(deferred.t_near, limit),
+            };
             let mask = deferred.mask & alive;
             if mask != 0 {
                 current = PacketDeferred { mask, ..deferred };
@@ -452,7 +482,7 @@ fn trace_leaf_lanes<C: TraceKernel, P: LaneRays, const ANY_HIT: bool>(
     let t_far = leaf.t_far.to_array();
     let mut finished = 0;
     let mut active = leaf.mask;
-    let strips = tracer.file().leaf_strips(leaf.child, leaf.kind);
+    let strips = tracer.strip_sections().leaf_strips(leaf.child, leaf.kind);
     for strip in strips.clone() {
         // A closest-hit lane stops where a hit found since is nearer than its interval: after
         // the leaf's first strip (a lane enters the leaf with `t_near <= t_far` and

@@ -28,7 +28,7 @@ use super::prepared::{PreparedRay, WideRay};
 use super::strip::StripQuery;
 use super::Tracer;
 use crate::format::grid::NodeGrid;
-use crate::format::reader::{ReducemFile, TopNodes};
+use crate::format::reader::TopNodes;
 use crate::format::{
     GridNode, NodeRecord, TopNode, WideNode, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS,
     GRID_LINK_INTERNAL, INTERNAL_CHILD, TOP_WIDTH, WIDE_WIDTH,
@@ -363,7 +363,7 @@ pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel, const ANY_HIT: bool>(
     // A walk started on a leaf traces it at once: no node, stack or prefetch targets to set
     // up for it.
     if start.kind != INTERNAL_CHILD {
-        return trace_leaf::<K>(file, query, &start, closest);
+        return trace_leaf::<K>(tracer, query, &start, closest);
     }
     let ray = WideRay::new(query.ray);
     let mut stack = DeferStack::default();
@@ -390,7 +390,7 @@ pub(super) fn trace_nodes<N: TraceNode, K: TraceKernel, const ANY_HIT: bool>(
                     continue;
                 }
             }
-        } else if trace_leaf::<K>(file, query, &current, closest) {
+        } else if trace_leaf::<K>(tracer, query, &current, closest) {
             return true;
         }
         loop {
@@ -551,12 +551,13 @@ pub fn sort_by_key<T: Copy>(entries: &mut [(f32, T)]) {
 /// the leaf box's interval.
 #[inline]
 fn trace_leaf<K: TraceKernel>(
-    file: &ReducemFile,
+    tracer: &Tracer,
     query: &StripQuery,
     leaf: &Deferred,
     closest: &mut Closest,
 ) -> bool {
-    for strip in file.leaf_strips(leaf.child, leaf.kind) {
+    let file = tracer.file();
+    for strip in tracer.strip_sections().leaf_strips(leaf.child, leaf.kind) {
         let t_far = leaf.t_far.min(closest.reach);
         if leaf.t_near > t_far {
             break;

@@ -37,6 +37,13 @@ impl<'a> StripSections<'a> {
             data: file.section_bytes(SectionKind::StripData),
         }
     }
+
+    /// [`ReducemFile::leaf_strips`] from the records at hand, not looked up per leaf.
+    #[inline(always)]
+    pub(in crate::trace) fn leaf_strips(&self, first: u32, count: u32) -> std::ops::Range<u32> {
+        let end = first.saturating_add(count).min(self.records.len() as u32);
+        first.min(end)..end
+    }
 }
 
 /// What a walk over `nodes` (one file's top-level nodes) prefetches from.

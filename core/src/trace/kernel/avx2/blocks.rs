@@ -55,7 +55,7 @@ impl<'a> From<&'a PreparedRay> for BoxRay<'a> {
 /// exits into `t_far` by `vminps`, as `max_not_nan`/`min_not_nan` fold them. The folding order
 /// differs from `interval`'s, but the maximum and minimum of the same values are the same
 /// (zeros aside, which `<=` does not tell apart), so the same boxes are entered.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn entered_boxes(
     ray: BoxRay,
@@ -137,7 +137,7 @@ pub(super) fn entered_boxes(
 
 /// The first sixteen bytes of `window` (zeros past its end) in one register: two overlapping
 /// eight-byte reads when it has at least eight bytes, byte by byte otherwise.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn load_window(window: &[u8]) -> __m128i {
     let length = window.len().min(16);
@@ -164,7 +164,7 @@ fn load_window(window: &[u8]) -> __m128i {
 /// outside `range` ([`in_range_lanes`]).
 /// `SITE` is the calling walk's (see the strip walk's `intersect_block`): one caller per
 /// instantiation, so that it is inlined.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn block_edges<
     V: VertexAccess,
@@ -224,7 +224,7 @@ pub(super) fn block_edges<
 
 /// The edge functions of a block's windows from their corners' ray-space x and y, and the
 /// windows that may be hit by them: among the first `count`, not swaps; `None` when none may.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn window_candidates(
     corners: &[[__m256; 2]; 3],
@@ -246,7 +246,7 @@ pub(super) fn window_candidates(
 /// never fused; its `+ 0.0` changes no comparison). Dropping the others before `resolve` sees
 /// them changes no answer: an ambient-occlusion ray starts on a triangle whose window is a
 /// candidate with `t` just below `tmin`, and this is where it is rejected.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], (tmin, tmax): (f32, f32)) -> u32 {
     in_range_lanes_between(w, z, _mm256_set1_ps(tmin), _mm256_set1_ps(tmax))
@@ -255,7 +255,7 @@ pub(super) fn in_range_lanes(w: &[__m256; 3], z: &[__m256; 3], (tmin, tmax): (f3
 /// The block's references from their packed bit stream (`width` bits each): the first eight
 /// spread into bytes by one `pdep`, the last two shifted out; what `References::read_block`
 /// gives, in about a third of its instructions.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn spread_references(stream: u64, width: u32) -> [u8; BLOCK + 2] {
     let mask = (1u64 << width) - 1;
@@ -272,7 +272,7 @@ pub(super) fn spread_references(stream: u64, width: u32) -> [u8; BLOCK + 2] {
 /// one of its edge functions is exactly zero and it is always a candidate; on AO rays of the 1M
 /// scan most candidates were swaps. Bytewise compares of the references against themselves
 /// shifted by one and two positions, in one register.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
     let (head, tail) = references.split_at(8);
@@ -291,7 +291,7 @@ fn swap_lanes(references: &[u8; BLOCK + 2]) -> u32 {
 /// `RaySpace::transform_lanes`, lanewise the same operations: ray-space x and y of the model
 /// positions `[x, y, z]` (in ray-space axis order), and their offset from the origin along the
 /// ray-space z axis (which `RaySpace::depth_as` scales).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn transform(
     model: [__m256; 3],
@@ -321,7 +321,7 @@ enum Offsets {
 /// eight references (`head`) and last two (`tail`, lanes 0 and 1): corner `s` of lane `k` is
 /// position `k + s`, moved across lanes (`vpermps`) rather than transformed once per shift. The
 /// values are those positions' bits, so every lane is what transforming per shift gives.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn shifted_corners(head: [__m256; 2], tail: [__m256; 2]) -> [[__m256; 2]; 3] {
     let (x1, x2) = shift_lanes(head[0], tail[0]);
@@ -330,7 +330,7 @@ pub(super) fn shifted_corners(head: [__m256; 2], tail: [__m256; 2]) -> [[__m256;
 }
 
 /// Lanes `k + 1` and `k + 2` of the ten values `head` (lanes 0-7) and `tail` (lanes 0 and 1).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn shift_lanes(head: __m256, tail: __m256) -> (__m256, __m256) {
     let one = _mm256_setr_epi32(1, 2, 3, 4, 5, 6, 7, 7);
@@ -351,7 +351,7 @@ pub(super) fn shift_lanes(head: __m256, tail: __m256) -> (__m256, __m256) {
 /// the first array is vertex `references[k]`, lanes 0 and 1 of the second are vertices
 /// `references[8]` and `references[9]` (the other lanes are copies of no meaning). Each vertex
 /// is one 16-byte load, transposed in registers.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn transpose_positions<const KX: usize, const KY: usize, const KZ: usize>(
     points: &[[f32; 3]],
@@ -389,14 +389,14 @@ pub(super) fn transpose_positions<const KX: usize, const KY: usize, const KZ: us
 }
 
 /// The portable kernel's decoded block (`[axis][position]`) as `[shift][axis]` lanes.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn load_corners(model: &[[f32; BLOCK + 2]; 3]) -> [[__m256; 3]; 3] {
     std::array::from_fn(|shift| std::array::from_fn(|axis| load(&model[axis], shift)))
 }
 
 /// Lanes `shift .. shift + BLOCK` of `values`.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn load(values: &[f32; BLOCK + 2], shift: usize) -> __m256 {
     let lanes: &[f32; BLOCK] = values[shift..shift + BLOCK]

@@ -1,12 +1,13 @@
-//! The AVX2 kernel (x86-64 with AVX2 and BMI2): strip blocks ([`blocks`]), the packets' box
+//! The AVX2 kernel (x86-64 with AVX2, BMI2, POPCNT and BMI1): strip blocks ([`blocks`]), the packets' box
 //! tests ([`packets`]), short strips tested for all of a packet's rays at once
 //! ([`packet_strips`]), the packet's rays prepared in registers ([`setup`]), a ray against all
 //! eight children of a format 4 node ([`wide_nodes`]), and what they share ([`simd`]).
 //!
 //! `wide` picks its instructions when the crate is compiled, so it stays SSE2 inside a function
 //! compiled for AVX2; this kernel therefore uses `std::arch` itself. Its functions are
-//! `#[target_feature(enable = "avx2,bmi2")]` (the walks' entry point adds POPCNT and BMI1),
-//! and calling them is sound only on a CPU that has these: [`Avx2`] is named only by
+//! `#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]`, one list for all, so that the
+//! functions that stay out of line count and walk bit masks in one instruction each (`popcnt`,
+//! `tzcnt`, `blsr`) as the walks do; calling them is sound only on a CPU that has these: [`Avx2`] is named only by
 //! `kernel::dispatch`, which checks the CPU first, so every `unsafe` call below runs after
 //! that check (each says so).
 
@@ -35,13 +36,11 @@ use crate::trace::prepared::{PreparedRay, WideRay};
 use crate::trace::ray::Ray;
 use crate::trace::watertight::RaySpace;
 
-/// The AVX2 kernel. Only `kernel::dispatch` names it, after checking that the CPU has AVX2 and
-/// BMI2; the walks reach it as their kernel parameter.
+/// The AVX2 kernel. Only `kernel::dispatch` names it, after checking that the CPU has AVX2,
+/// BMI2, POPCNT and BMI1; the walks reach it as their kernel parameter.
 pub(in crate::trace) struct Avx2;
 
-/// `walk` on the AVX2 kernel, compiled for AVX2 down to the kernel's operations; with
-/// POPCNT and BMI1 too, so that the walks' lane and slot masks are counted and walked bit by
-/// bit in one instruction each (`popcnt`, `tzcnt`, `blsr`) rather than in emulation.
+/// `walk` on the AVX2 kernel, compiled for the kernel's features down to its operations.
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline(never)]
 fn compiled_for_avx2<W: Walk>(walk: W) -> W::Output {
@@ -59,7 +58,7 @@ impl TraceKernel for Avx2 {
     #[inline(always)]
     fn references(references: &References, first: usize) -> [u8; BLOCK + 2] {
         match references.block_stream::<{ BLOCK + 2 }>(first) {
-            // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+            // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
             Some(stream) => unsafe { blocks::spread_references(stream, references.width()) },
             None => references.read_block(first),
         }
@@ -80,7 +79,7 @@ impl TraceKernel for Avx2 {
         range: (f32, f32),
     ) -> Option<BlockEdges> {
         let block = (references, count, range);
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { blocks::block_edges::<V, KX, KY, KZ, SITE>(space, vertices, block) }
     }
 
@@ -94,7 +93,7 @@ impl TraceKernel for Avx2 {
         t_far: f32,
     ) -> EnteredBoxes {
         let (bytes, interval) = (boxes.bytes(), (t_near, t_far));
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { blocks::entered_boxes(ray.into(), bytes, frame, group, interval) }
     }
 
@@ -109,7 +108,7 @@ impl TraceKernel for Avx2 {
 
     #[inline(always)]
     fn lanes(rays: &[Ray], _prepared: &Self::PreparedRays) -> Lanes {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { setup::lanes(rays) }
     }
 
@@ -117,13 +116,13 @@ impl TraceKernel for Avx2 {
 
     #[inline(always)]
     fn planes(lanes: &Lanes, boxes: &ChildBoxes) -> packets::Avx2Planes {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packets::planes(lanes, boxes) }
     }
 
     #[inline(always)]
     fn wide_planes(lanes: &Lanes, node: &WideNode) -> packets::Avx2Planes {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { wide_nodes::wide_planes(lanes, node) }
     }
 
@@ -134,13 +133,13 @@ impl TraceKernel for Avx2 {
         slot: usize,
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32) {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packets::clip_slot(lanes, planes, slot, t_far) }
     }
 
     #[inline(always)]
     fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { wide_nodes::decode_wide(node) }
     }
 
@@ -151,25 +150,25 @@ impl TraceKernel for Avx2 {
         node: &WideNode,
         interval: (f32, f32),
     ) -> WideClip {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { wide_nodes::clip_wide(ray, node, interval) }
     }
 
     #[inline(always)]
     fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; 8] {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { wide_nodes::wide_order_keys(node, negative) }
     }
 
     #[inline(always)]
     fn plane_order_keys(planes: &packets::Avx2Planes, negative: &[bool; 3]) -> [f32; 8] {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packets::plane_order_keys(planes, negative) }
     }
 
     #[inline(always)]
     fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packets::lanes_at_most(a, b) }
     }
 
@@ -177,7 +176,7 @@ impl TraceKernel for Avx2 {
 
     #[inline(always)]
     fn frustum(lanes: &Lanes, packet_mask: u32) -> packets::Avx2Frustum {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packets::frustum(lanes, packet_mask) }
     }
 
@@ -187,7 +186,7 @@ impl TraceKernel for Avx2 {
         planes: &packets::Avx2Planes,
         reach: f32,
     ) -> u32 {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packets::frustum_slots(frustum, planes, reach) }
     }
 
@@ -195,7 +194,7 @@ impl TraceKernel for Avx2 {
 
     #[inline(always)]
     fn together(lanes: &Lanes) -> packet_strips::LaneSpaces {
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packet_strips::LaneSpaces::new(lanes) }
     }
 
@@ -209,7 +208,7 @@ impl TraceKernel for Avx2 {
         closest: &mut [Closest; PACKET_WIDTH],
     ) -> Option<u32> {
         let packet = (together, lanes);
-        // SAFETY: as in `compiled`: AVX2 and BMI2 were detected before this runs.
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packet_strips::trace_strip_together(packet, strip, leaf, any_hit, closest) }
     }
 }

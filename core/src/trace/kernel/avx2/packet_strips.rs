@@ -65,7 +65,7 @@ pub(in crate::trace) struct LaneSpaces {
 impl LaneSpaces {
     /// The ray spaces of `lanes`' rays, as the packet's setup computed them, with the origin's
     /// coordinates on each lane's ray-space axes picked.
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     pub(super) fn new(lanes: &Lanes) -> LaneSpaces {
         let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
@@ -96,7 +96,7 @@ impl LaneSpaces {
     /// The model position `[x, y, z, any]` in every lane's ray space: x and y, and the offset
     /// along the lane's ray-space z axis (which the depth scales), with the operations of
     /// `RaySpace::transform` (each lane picks its axes' coordinates with one `vpermps` each).
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     fn transform(&self, position: __m128) -> [__m256; 3] {
         let both = _mm256_set_m128(position, position);
@@ -115,7 +115,7 @@ impl LaneSpaces {
 }
 
 /// Per lane the coordinate of `origin` on the model axis `axis` (0, 1 or 2), by two blends.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn origin_on(axis: __m256i, origin: &[__m256; 3]) -> __m256 {
     let on = |model: i32| _mm256_castsi256_ps(_mm256_cmpeq_epi32(axis, _mm256_set1_epi32(model)));
@@ -137,7 +137,7 @@ pub(super) struct StripLanes<'a> {
 /// them at once, or for each alone when so few reach it ([`few_lanes`]). Returns the lanes
 /// done (an occluder found with `any_hit`), or `None` for the lane-by-lane walk. `spaces` are
 /// the lanes' ray spaces, made once per packet.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 pub(super) fn trace_strip_together(
     (spaces, lanes): (&LaneSpaces, &Lanes),
     offered: &LeafStrip,
@@ -186,8 +186,7 @@ pub(super) fn trace_strip_together(
 /// Whether so few lanes reach a strip that each tests it alone: below that, a pass of the
 /// packet per window serves too few lanes. Measured on the 10M scan: at most two for closest
 /// hits, where each strip view of a camera packet serves few lanes; one for occlusion, whose
-/// strips serve more. Bits cleared rather than counted: this file's functions are compiled for
-/// `avx2,bmi2` without `popcnt`, where a count is a dozen instructions.
+/// strips serve more. Bits cleared (`blsr`) rather than counted.
 #[inline(always)]
 fn few_lanes(active: u32, any_hit: bool) -> bool {
     let past_one = active & active.wrapping_sub(1);
@@ -215,7 +214,7 @@ const MAX_BLOCKS: usize = MAX_WINDOWS.div_ceil(BLOCK);
 /// [`EnteredBlocks`] of the strip for the `active` lanes: each block box clipped for every
 /// lane with `BoxTest`'s decisions (its planes decoded as `block_boxes::decode_plane` does,
 /// the distances as `PreparedRay` computes them, folded into `[t_near, min(t_far, reach)]`).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 fn entered_blocks(
     lanes: &Lanes,
     leaf: &LeafLanes,
@@ -294,7 +293,7 @@ struct BoxDecoder {
 impl BoxDecoder {
     /// The decoder of boxes in `frame` for rays whose direction is negative on the axes
     /// `negative` (their entry plane is the maximum there).
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     fn new(frame: &BoxFrame, negative: [bool; 3]) -> BoxDecoder {
         let entry_shift = negative.map(|negative| if negative { 4 } else { 0 });
@@ -310,7 +309,7 @@ impl BoxDecoder {
 
     /// The entry planes (lanes 0..3, x y z) and exit planes (lanes 4..7) of the box with
     /// `codes`; the spare lanes hold 0.
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     fn planes(&self, [x, y, z]: [u8; BOX_BYTES]) -> __m256 {
         // The three bytes in lanes 0..3 and again in 4..7, a zero byte after each triple.
@@ -326,7 +325,7 @@ impl BoxDecoder {
 
 /// Tests every window of the lossless strip `view` (with `points`) against the `active` lanes;
 /// returns the lanes that found a hit when `any_hit` is set (they are done).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 fn trace_strip(
     (spaces, rays): (&LaneSpaces, &Lanes),
     (view, points): (&StripView, &[[f32; 3]]),
@@ -400,7 +399,7 @@ fn trace_strip(
 
 /// Finishes window `window`'s candidate lanes one by one with [`resolve`], as the lane-by-lane
 /// walk does; returns the lanes done (a hit found with `any_hit`).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn resolve_lanes(
     spaces: &LaneSpaces,

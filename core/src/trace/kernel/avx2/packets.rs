@@ -17,7 +17,7 @@ use crate::trace::prepared::FAR_INFLATION;
 /// into the interval by `max_not_nan_x8` and `min_not_nan_x8` (`vmaxps(entry, near)` and
 /// `vminps(exit, far)` keep the interval's value where the distance is NaN, as `maxps` and
 /// `minps` do there).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn clip_slot(
     lanes: &Lanes,
@@ -54,7 +54,7 @@ pub(super) fn clip_slot(
 
 /// `TraceKernel::lanes_at_most`: one `vcmpps` (`LE_OQ`, as `cmpleps`) on eight lanes, where
 /// `wide` compares two halves.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn lanes_at_most(a: f32x8, b: f32x8) -> u32 {
     let (a, b): (__m256, __m256) = (bytemuck::cast(a), bytemuck::cast(b));
@@ -71,7 +71,7 @@ pub(in crate::trace) struct Avx2Planes {
 
 /// `TraceKernel::planes`: the minima or maxima of each axis picked by the direction's sign
 /// with one `vblendvps` each (by `Lanes::negative_masks`), instead of a branch per slot.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn planes(lanes: &Lanes, (min, max): &ChildBoxes) -> Avx2Planes {
     // Axis by axis, not through `array::map`, whose closure stayed a call.
@@ -91,7 +91,7 @@ pub(super) fn planes(lanes: &Lanes, (min, max): &ChildBoxes) -> Avx2Planes {
 
 /// The entry and exit planes of one axis, each in both halves: `min` and `max` swapped where
 /// `negative` is set.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn axis_planes(min: __m128, max: __m128, negative: __m128) -> (__m256, __m256) {
     let entry = _mm_blendv_ps(min, max, negative);
@@ -115,7 +115,7 @@ struct FrustumBounds {
 }
 
 /// The least lane of `v` in every lane.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn least(v: __m256) -> __m256 {
     let v = _mm256_min_ps(v, _mm256_permute2f128_ps::<1>(v, v));
@@ -124,7 +124,7 @@ fn least(v: __m256) -> __m256 {
 }
 
 /// The greatest lane of `v` in every lane.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn greatest(v: __m256) -> __m256 {
     let v = _mm256_max_ps(v, _mm256_permute2f128_ps::<1>(v, v));
@@ -134,7 +134,7 @@ fn greatest(v: __m256) -> __m256 {
 
 /// `TraceKernel::frustum`: the bounds over the lanes of `packet_mask` (lane 0 among them);
 /// the other lanes take lane 0's values, so that they widen nothing.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn frustum(lanes: &Lanes, packet_mask: u32) -> Avx2Frustum {
     let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
@@ -195,7 +195,7 @@ pub(super) fn frustum(lanes: &Lanes, packet_mask: u32) -> Avx2Frustum {
 /// distance at most the greatest such product from the exit origin, inflated as the lanes'
 /// are; a NaN bound keeps the interval's value, as in [`clip_slot`], so it culls nothing. A
 /// slot is left out only where the least entry is beyond the greatest exit: no lane enters it.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn frustum_slots(frustum: &Avx2Frustum, planes: &Avx2Planes, reach: f32) -> u32 {
     let Some(bounds) = &frustum.0 else {
@@ -222,7 +222,7 @@ pub(super) fn frustum_slots(frustum: &Avx2Frustum, planes: &Avx2Planes, reach: f
 
 /// `TraceKernel::plane_order_keys`: `order_keys`' operations in its order on eight lanes, each
 /// centre the sum of a slot's entry and exit planes.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn plane_order_keys(planes: &Avx2Planes, negative: &[bool; 3]) -> [f32; 8] {
     let centres = std::array::from_fn(|axis| _mm256_add_ps(planes.entry[axis], planes.exit[axis]));

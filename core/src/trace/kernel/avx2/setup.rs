@@ -25,7 +25,7 @@ use crate::trace::lanes::Lanes;
 use crate::trace::ray::Ray;
 
 /// The lanes of `rays` (at least one, at most eight; lanes past them repeat the last ray).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 pub(super) fn lanes(rays: &[Ray]) -> Lanes {
     let rows: [__m256; 8] = match <&[Ray; 8]>::try_from(rays) {
         // A full packet's rows are plain loads, without an index clamped and checked per row.
@@ -107,7 +107,7 @@ struct Axes {
 
 impl Axes {
     /// Per lane the value of the model axis that is kz: `on_x`, `on_y` or `on_z`.
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     fn pick(&self, on_x: __m256, on_y: __m256, on_z: __m256) -> __m256 {
         _mm256_blendv_ps(
@@ -119,7 +119,7 @@ impl Axes {
 
     /// The values on kx and ky: axes `(kz + 1) % 3` and `(kz + 2) % 3`, the other way round
     /// where the axes swap.
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     fn sides(&self, on_x: __m256, on_y: __m256, on_z: __m256) -> (__m256, __m256) {
         let next = self.pick(on_y, on_z, on_x);
@@ -134,7 +134,7 @@ impl Axes {
 /// `PreparedRay::new`'s entry reciprocal of the direction component `d` from `r = 1 / d`: `r`
 /// clamped to `±f32::MAX` (`vmaxps`/`vminps` keep a NaN `r` as `f32::clamp` does, their second
 /// operand being returned where either is NaN), or `r` itself where `d == ±0`.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn entry_reciprocal(d: __m256, r: __m256) -> __m256 {
     let clamped = _mm256_min_ps(
@@ -146,7 +146,7 @@ fn entry_reciprocal(d: __m256, r: __m256) -> __m256 {
 }
 
 /// Rows of eight values as columns: lane `k` of result `i` is lane `i` of `rows[k]`.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn transpose(rows: [__m256; 8]) -> [__m256; 8] {
     let [r0, r1, r2, r3, r4, r5, r6, r7] = rows;

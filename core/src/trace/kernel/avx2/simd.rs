@@ -8,7 +8,7 @@ use crate::trace::kernel::BLOCK;
 
 /// `watertight::candidate_lanes` lanewise: `vminps`/`vmaxps` are the portable `minps`/`maxps`
 /// on eight lanes (the second operand where either is NaN).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn candidate_lanes(w: &[__m256; 3]) -> u32 {
     let zero = _mm256_setzero_ps();
@@ -28,7 +28,7 @@ pub(super) fn candidate_lanes(w: &[__m256; 3]) -> u32 {
 }
 
 /// [`in_range_lanes`] with a range per lane.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn in_range_lanes_between(
     w: &[__m256; 3],
@@ -64,7 +64,7 @@ pub(super) fn in_range_lanes_between(
 ///
 /// The load is unchecked: with the start clamped to `flat.len() - 4` the four floats are in
 /// bounds whatever the index, and a checked slice costs a few instructions per vertex.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn load_vertex(flat: &[f32], index: usize) -> __m128 {
     assert!(flat.len() >= 4, "a strip has at least three vertices");
@@ -80,7 +80,7 @@ pub(super) fn load_vertex(flat: &[f32], index: usize) -> __m128 {
 }
 
 /// The eight lanes of `value` (a block's windows, or a packet's rays).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn lanes(value: __m256) -> [f32; BLOCK] {
     let mut lanes = [0.0; BLOCK];
@@ -90,14 +90,14 @@ pub(super) fn lanes(value: __m256) -> [f32; BLOCK] {
 }
 
 /// `watertight::edge_lanes`, lanewise the same operations: `q.x * p.y - q.y * p.x`.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn edge(p: &[__m256; 2], q: &[__m256; 2]) -> __m256 {
     _mm256_sub_ps(_mm256_mul_ps(q[0], p[1]), _mm256_mul_ps(q[1], p[0]))
 }
 
 /// `values` as eight lanes.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn load(values: &[f32; BLOCK]) -> __m256 {
     // SAFETY: `values` is eight f32 (32 bytes), what the unaligned load reads; AVX is enabled.

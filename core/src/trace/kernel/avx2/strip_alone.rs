@@ -45,7 +45,7 @@ struct LoneRay {
 
 impl LoneRay {
     /// Lane `lane`'s ray, read from `lanes`.
-    #[target_feature(enable = "avx2,bmi2")]
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     fn new(lanes: &Lanes, lane: usize) -> LoneRay {
         let lane = lane % PACKET_WIDTH;
@@ -97,7 +97,7 @@ struct LoneEdges {
 /// the lane's interval (clipped to its culling bound for closest hits), the blocks entered in
 /// strip order, each skipped when a hit found since is nearer than its box. Returns the lane's
 /// bit when it found a hit and `any_hit` is set (it is done).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 pub(super) fn trace_strip_alone(
     (lanes, lane): (&Lanes, usize),
     leaf: &LeafLanes,
@@ -212,7 +212,7 @@ pub(super) fn trace_block_alone(
 /// (`windows` of them real) for the lone lane within `[tmin, tmax]`, or `None`: the
 /// single-ray block's candidates ([`super::blocks::block_edges`]), its depths computed for
 /// every lane as its in-range test computes them.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn lone_edges<const SITE: usize>(
     ray: &LoneRay,

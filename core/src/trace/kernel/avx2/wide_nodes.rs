@@ -11,7 +11,7 @@ use crate::trace::prepared::{PreparedRay, FAR_INFLATION};
 
 /// Codes `q` of one plane of eight children decoded: `origin + (q as f32) * scale` per lane,
 /// the exact conversion, the exact product and one rounded sum, as [`WideNode::decode`].
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn decode_plane(codes: &[u8; 8], origin: __m256, scale: __m256) -> __m256 {
     let codes = _mm_set_epi64x(0, i64::from_le_bytes(*codes));
@@ -21,7 +21,7 @@ fn decode_plane(codes: &[u8; 8], origin: __m256, scale: __m256) -> __m256 {
 
 /// The three axes' scales ([`WideNode::scale`]) each in all eight lanes: the exponents moved
 /// into place in one register (one load, widening and shift) rather than axis by axis.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn scales(node: &WideNode) -> [__m256; 3] {
     let [x, y, z] = node.exponent;
@@ -35,7 +35,7 @@ fn scales(node: &WideNode) -> [__m256; 3] {
 }
 
 /// [`TraceKernel::decode_wide`](crate::trace::kernel::TraceKernel::decode_wide).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 pub(super) fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
     let mut planes = [[[[0.0f32; 4]; 3]; 2]; 2];
     let scales = scales(node);
@@ -62,7 +62,7 @@ fn entry_exit_codes(node: &WideNode, axis: usize, negative: bool) -> (&[u8; 8], 
 
 /// [`TraceKernel::wide_planes`](crate::trace::kernel::TraceKernel::wide_planes): only the
 /// planes the packet's signs pick are decoded, each once for all eight slots.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 pub(super) fn wide_planes(lanes: &Lanes, node: &WideNode) -> Avx2Planes {
     let negative = lanes.negative();
     let scales = scales(node);
@@ -85,7 +85,7 @@ pub(super) fn wide_planes(lanes: &Lanes, node: &WideNode) -> Avx2Planes {
 
 /// [`TraceKernel::wide_order_keys`](crate::trace::kernel::TraceKernel::wide_order_keys):
 /// `order_keys`' operations in its order on eight lanes (each centre `min + max`).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 pub(super) fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; 8] {
     let scales = scales(node);
     let centres = std::array::from_fn(|axis| {
@@ -100,7 +100,7 @@ pub(super) fn wide_order_keys(node: &WideNode, negative: &[bool; 3]) -> [f32; 8]
 
 /// The order keys of eight boxes from their centres (`min + max` by axis): summed into the key
 /// from zero axis by axis, subtracted on negative axes, a NaN key made `-inf`.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn keys_of_centres(centres: &[__m256; 3], negative: &[bool; 3]) -> [f32; 8] {
     let mut key = _mm256_setzero_ps();
@@ -121,7 +121,7 @@ pub(super) fn keys_of_centres(centres: &[__m256; 3], negative: &[bool; 3]) -> [f
 /// [`TraceKernel::clip_wide`](crate::trace::kernel::TraceKernel::clip_wide): per lane the
 /// portable kernel's operations in its order (decode: the exact u8 → f32 conversion, the exact
 /// product, one rounded sum; clip: `WideRay::clip_boxes`), so the same bits.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 pub(super) fn clip_wide(
     ray: &PreparedRay,
     node: &WideNode,
@@ -210,7 +210,7 @@ mod tests {
 
     #[test]
     fn eight_lanes_decode_and_clip_as_the_portable_groups_of_four() {
-        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("bmi2")) {
+        if !crate::trace::kernel::detect::avx2() {
             return;
         }
         let mut bits = Bits(0x243f_6a88_85a3_08d3);
@@ -256,7 +256,7 @@ mod tests {
 
     #[test]
     fn the_frustums_keep_every_slot_a_packet_lane_enters() {
-        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("bmi2")) {
+        if !crate::trace::kernel::detect::avx2() {
             return;
         }
         let mut bits = Bits(0xa409_3822_299f_31d0);
@@ -309,7 +309,7 @@ mod tests {
 
     #[test]
     fn packet_planes_decode_and_clip_as_the_portable_kernel() {
-        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("bmi2")) {
+        if !crate::trace::kernel::detect::avx2() {
             return;
         }
         let mut bits = Bits(0x1319_8a2e_0370_7344);
