@@ -17,7 +17,7 @@ pub fn map_file(file: &File) -> io::Result<Mmap> {
 /// than the file size.
 ///
 /// # Safety
-/// One of the project's few `unsafe` calls outside the tracer's SIMD kernel modules
+/// One of the project's few `unsafe` calls (with [`drop_cached_pages`]) outside the tracer's SIMD kernel modules
 /// (`trace/avx2*.rs`, `trace/prefetch.rs`), besides the signal handling of `signals` and the
 /// report's Embree adapter (`embree_peer.rs`, behind the `embree` feature, whose C callback
 /// counts Embree's allocations): `reducem-core` and `reducem` deny `unsafe_code` everywhere
@@ -54,6 +54,21 @@ pub fn advise_default_reads(map: &Mmap) {
     // A hint only, as above.
     let _ = map.advise(memmap2::Advice::Normal);
 }
+
+/// Asks the kernel to drop `file`'s clean pages from the page cache (fadvise DONTNEED); the
+/// file's contents stay as they are. A hint: a kernel that refuses it keeps the pages.
+#[cfg(target_os = "linux")]
+#[allow(unsafe_code)]
+pub fn drop_cached_pages(file: &File) {
+    use std::os::fd::AsRawFd;
+    // SAFETY: fadvise reads and writes no memory of this process, and `file` stays open for the
+    // call.
+    let _ = unsafe { libc::posix_fadvise(file.as_raw_fd(), 0, 0, libc::POSIX_FADV_DONTNEED) };
+}
+
+/// Without fadvise, the pages are left to the kernel.
+#[cfg(not(target_os = "linux"))]
+pub fn drop_cached_pages(_file: &File) {}
 
 /// The memory the kernel reports it could give without swapping (`MemAvailable` of
 /// `/proc/meminfo`, free pages plus reclaimable page cache), or `None` where there is no such
