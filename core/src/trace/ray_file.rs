@@ -26,6 +26,7 @@ use std::fs::File;
 use std::io::{self, Read, Write};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use bytemuck::Zeroable;
 use memmap2::Mmap;
@@ -253,6 +254,14 @@ impl RayFile {
             // Never fails: `map_records` keeps a mapping only when it casts.
             Records::Mapped(map) => bytemuck::try_cast_slice(map).unwrap_or_default(),
             Records::Decoded(rays) => rays,
+        }
+    }
+
+    /// Releases the mapped pages of the records in `range`, which are no longer read
+    /// ([`mapping::release_pages`]).
+    fn release(&self, range: Range<usize>) {
+        if let Records::Mapped(map) = &self.records {
+            mapping::release_pages(map, range.start * RAY_BYTES..range.end * RAY_BYTES);
         }
     }
 
@@ -730,6 +739,7 @@ pub fn write_answers(
     let size = answer.record_bytes();
     let records = rays.records();
     let chunks = records.len().div_ceil(QUERY_CHUNK);
+    let traced = TracedRegions::new(chunks);
     atomic::write_behind(out, |behind| {
         (0..chunks)
             .into_par_iter()
@@ -742,11 +752,43 @@ pub fn write_answers(
                 let valid = rays.valid_in(range.clone());
                 let hits =
                     answer_chunk(tracer, &records[range.clone()], valid, answer, &mut buffer);
+                if let Some(region) = traced.chunk_done(chunk) {
+                    rays.release(region.start * QUERY_CHUNK..region.end * QUERY_CHUNK);
+                }
                 behind.write_at(buffer, (range.start * size) as u64)?;
                 Ok(hits)
             })
             .try_reduce(|| 0, |a, b| Ok(a + b))
     })
+}
+
+/// Chunks of [`write_answers`] whose rays' pages are released together, once all are traced:
+/// 8 MiB of rays, so that releasing them interrupts the other tracing threads rarely (each
+/// release flushes their address translations).
+const RELEASE_CHUNKS: usize = 64;
+
+/// Counts the traced chunks of each region of [`RELEASE_CHUNKS`] chunks of [`write_answers`].
+struct TracedRegions {
+    traced: Vec<AtomicUsize>,
+    chunks: usize,
+}
+
+impl TracedRegions {
+    fn new(chunks: usize) -> TracedRegions {
+        let regions = chunks.div_ceil(RELEASE_CHUNKS);
+        TracedRegions {
+            traced: (0..regions).map(|_| AtomicUsize::new(0)).collect(),
+            chunks,
+        }
+    }
+
+    /// Counts `chunk` as traced; the chunks of its region when it was the region's last.
+    fn chunk_done(&self, chunk: usize) -> Option<Range<usize>> {
+        let region = chunk / RELEASE_CHUNKS;
+        let chunks = region * RELEASE_CHUNKS..self.chunks.min((region + 1) * RELEASE_CHUNKS);
+        let traced = self.traced[region].fetch_add(1, Ordering::AcqRel) + 1;
+        (traced == chunks.len()).then_some(chunks)
+    }
 }
 
 /// [`write_answers`] tracing the records in `order` (a permutation of their indices): the
