@@ -402,9 +402,9 @@ fn query(
     invalid_rays: InvalidRays,
 ) -> anyhow::Result<()> {
     let kernel = Kernel::from_env()?;
-    // Opening validates the model and mapping validates the rays: both on every core, together.
+    // Opening validates the model and maps the rays (checked as they are traced), together.
     let (rays, file) = rayon::join(
-        || RayFile::open(rays_path, invalid_rays),
+        || RayFile::open_checked_while_traced(rays_path, invalid_rays),
         || ReducemFile::open(path),
     );
     let (rays, file) = (rays?, file?);
@@ -424,11 +424,15 @@ fn query(
         let tracer = Tracer::new(&file, options);
         let started = Instant::now();
         let hits = match out {
-            AnswerSink::File(out) => ray_file::write_answers(&tracer, &rays, answer, out)?,
+            AnswerSink::File(out) => ray_file::write_answers(&tracer, &rays, answer, out),
             AnswerSink::Stream(out) => {
-                ray_file::write_answers_streamed(&tracer, &rays, answer, out)?
+                ray_file::write_answers_streamed(&tracer, &rays, answer, out)
             }
         };
+        let hits = hits.map_err(|error| match ray_file::invalid_ray(error) {
+            Ok(defect) => anyhow::Error::from(defect),
+            Err(error) => error.into(),
+        })?;
         let seconds = started.elapsed().as_secs_f64();
         // Answers of rays that met a corrupt part of the file are incomplete: nothing is
         // renamed into place (a stream has them, and the exit code says they are not all).
@@ -441,10 +445,13 @@ fn query(
         }
         stream => stream.write(|out| answer_into(AnswerSink::Stream(out))),
     };
-    let (hits, seconds, unmapping) = written.map_err(|error| match error.is::<FormatError>() {
-        true => error,
-        false => error.context(format!("writing {}", output.name())),
-    })?;
+    let (hits, seconds, unmapping) =
+        written.map_err(
+            |error| match error.is::<FormatError>() || error.is::<RayFileError>() {
+                true => error,
+                false => error.context(format!("writing {}", output.name())),
+            },
+        )?;
     let summary = QuerySummary {
         rays: ray_count,
         invalid,

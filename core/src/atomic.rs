@@ -84,12 +84,37 @@ pub fn write_atomically_with<T, E: From<io::Error>>(
     body: impl FnOnce(&mut BufWriter<File>) -> Result<T, E>,
 ) -> Result<T, E> {
     let temporary = temporary_path(path);
-    let result = write_and_sync(&temporary, body)
-        .and_then(|value| replace(&temporary, path).map_err(E::from).map(|()| value));
+    let written = std::thread::scope(|scope| {
+        let evicting = is_large_file(path).then(|| scope.spawn(|| evict_cached_pages(path)));
+        let written = write_and_sync(&temporary, body);
+        if let Some(evicting) = evicting {
+            let _ = evicting.join();
+        }
+        written
+    });
+    let result =
+        written.and_then(|value| replace(&temporary, path).map_err(E::from).map(|()| value));
     if result.is_err() {
         let _ = fs::remove_file(&temporary);
     }
     result
+}
+
+/// Replaced files at least this large have their cached pages dropped while the new file is
+/// written ([`evict_cached_pages`]); a smaller one is not worth starting a thread for.
+const EVICT_BYTES: u64 = 1 << 22;
+
+fn is_large_file(path: &Path) -> bool {
+    fs::metadata(path).is_ok_and(|metadata| metadata.is_file() && metadata.len() >= EVICT_BYTES)
+}
+
+/// Drops the cached pages of the file at `path`, which is about to be replaced, from the page
+/// cache: the rename that replaces it frees them otherwise, while the process waits for it (a
+/// 64 MiB hit file: about half the rename's time). The file's contents are untouched.
+fn evict_cached_pages(path: &Path) {
+    if let Ok(file) = File::open(path) {
+        crate::mapping::drop_cached_pages(&file);
+    }
 }
 
 fn write_and_sync<T, E: From<io::Error>>(

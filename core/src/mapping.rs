@@ -17,7 +17,7 @@ pub fn map_file(file: &File) -> io::Result<Mmap> {
 /// than the file size.
 ///
 /// # Safety
-/// One of the project's few `unsafe` calls outside the tracer's SIMD kernel modules
+/// One of the project's few `unsafe` calls (with [`drop_cached_pages`] and [`release_pages`]) outside the tracer's SIMD kernel modules
 /// (`trace/avx2*.rs`, `trace/prefetch.rs`), besides the signal handling of `signals` and the
 /// report's Embree adapter (`embree_peer.rs`, behind the `embree` feature, whose C callback
 /// counts Embree's allocations): `reducem-core` and `reducem` deny `unsafe_code` everywhere
@@ -54,6 +54,48 @@ pub fn advise_default_reads(map: &Mmap) {
     // A hint only, as above.
     let _ = map.advise(memmap2::Advice::Normal);
 }
+
+/// Offsets of [`release_pages`] are rounded to this, a multiple of every page size in use.
+const RELEASE_ALIGN: usize = 1 << 16;
+
+/// Releases the pages of `map` that lie wholly in its bytes `range` (madvise DONTNEED, rounded
+/// inwards to [`RELEASE_ALIGN`]) once nothing more is read from them: unmapping them then costs
+/// the caller nothing at the end. A hint: a later read of them reads the file's page again.
+#[cfg(unix)]
+#[allow(unsafe_code)]
+pub fn release_pages(map: &Mmap, range: std::ops::Range<usize>) {
+    let start = range.start.next_multiple_of(RELEASE_ALIGN);
+    let end = range.end.min(map.len()) / RELEASE_ALIGN * RELEASE_ALIGN;
+    if start < end {
+        // SAFETY: `map` maps a file shared and read-only: a released page is read again from
+        // the file, whose bytes do not change while mapped (see `map_range`), so references
+        // into the mapping keep seeing the same bytes.
+        let advised = unsafe {
+            map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, start, end - start)
+        };
+        // A hint only, as above.
+        let _ = advised;
+    }
+}
+
+/// Without madvise, the pages stay mapped until the mapping is dropped.
+#[cfg(not(unix))]
+pub fn release_pages(_map: &Mmap, _range: std::ops::Range<usize>) {}
+
+/// Asks the kernel to drop `file`'s clean pages from the page cache (fadvise DONTNEED); the
+/// file's contents stay as they are. A hint: a kernel that refuses it keeps the pages.
+#[cfg(target_os = "linux")]
+#[allow(unsafe_code)]
+pub fn drop_cached_pages(file: &File) {
+    use std::os::fd::AsRawFd;
+    // SAFETY: fadvise reads and writes no memory of this process, and `file` stays open for the
+    // call.
+    let _ = unsafe { libc::posix_fadvise(file.as_raw_fd(), 0, 0, libc::POSIX_FADV_DONTNEED) };
+}
+
+/// Without fadvise, the pages are left to the kernel.
+#[cfg(not(target_os = "linux"))]
+pub fn drop_cached_pages(_file: &File) {}
 
 /// The memory the kernel reports it could give without swapping (`MemAvailable` of
 /// `/proc/meminfo`, free pages plus reclaimable page cache), or `None` where there is no such

@@ -2,9 +2,11 @@
 //!
 //! Rays: little-endian f32 × 8 per ray (`ox oy oz dx dy dz tmin tmax`), 32 bytes, no header.
 //! Hits: f32 × 4 per ray (`t nx ny nz`), `t = +inf` and a zero normal on a miss. Occlusion: one
-//! byte per ray, 1 when occluded. A ray file is validated whole before anything is traced, and
-//! every defect names the file, the ray and the byte offset of the offending field. Output is
-//! written to a temporary file and renamed, so a failed run leaves no partial output.
+//! byte per ray, 1 when occluded. A ray file is validated whole before anything is traced, or
+//! ([`RayFile::open_checked_while_traced`]) chunk by chunk just before each is traced; either
+//! way every defect names the file, the first invalid ray and the byte offset of the offending
+//! field. Output is written to a temporary file and renamed, so a failed run leaves no partial
+//! output.
 //!
 //! Rays may also come from a stream (`-` for standard input, a pipe, a FIFO, a device): a stream
 //! cannot be mapped (a pipe maps as empty), so it is read to its end and decoded. Answers may go
@@ -24,6 +26,7 @@ use std::fs::File;
 use std::io::{self, Read, Write};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use bytemuck::Zeroable;
 use memmap2::Mmap;
@@ -135,6 +138,11 @@ pub enum InvalidRays {
 /// [`InvalidRays::Miss`], which records are valid.
 pub struct RayFile {
     records: Records,
+    /// The file's name in messages.
+    path: PathBuf,
+    /// Whether the records are yet to be checked, as they are traced
+    /// ([`RayFile::open_checked_while_traced`]).
+    unchecked: bool,
     /// Whether each record is valid, when one is not.
     valid: Option<Vec<bool>>,
     invalid: usize,
@@ -154,6 +162,31 @@ impl RayFile {
     /// `-` reads standard input; a path that is not a regular file (a pipe, a FIFO, a device) is
     /// read as a stream to its end; the error of a stream names it and its byte count.
     pub fn open(path: &Path, invalid_rays: InvalidRays) -> Result<RayFile, RayFileError> {
+        let mut file = RayFile::open_unchecked(path)?;
+        file.check(invalid_rays)?;
+        Ok(file)
+    }
+
+    /// [`RayFile::open`] that leaves the records to be checked by [`write_answers`], each chunk
+    /// just before it is traced, when invalid rays are rejected: the rays are then read once,
+    /// by the tracing threads, instead of in a pass of their own before any is traced. An
+    /// invalid ray is the same error, from [`write_answers`] (before any output is renamed into
+    /// place). With [`InvalidRays::Miss`] the records are checked here, as [`RayFile::open`]
+    /// does: the answers need to know which are valid.
+    pub fn open_checked_while_traced(
+        path: &Path,
+        invalid_rays: InvalidRays,
+    ) -> Result<RayFile, RayFileError> {
+        let mut file = RayFile::open_unchecked(path)?;
+        match invalid_rays {
+            InvalidRays::Reject => file.unchecked = true,
+            InvalidRays::Miss => file.check(invalid_rays)?,
+        }
+        Ok(file)
+    }
+
+    /// The records of the ray file at `path` (standard input for `-`), checked for length only.
+    fn open_unchecked(path: &Path) -> Result<RayFile, RayFileError> {
         let (records, path) = match path.as_os_str() == STDIN_ARGUMENT {
             true => {
                 let name = Path::new(STDIN_NAME);
@@ -161,24 +194,57 @@ impl RayFile {
             }
             false => (open_records(path)?, path),
         };
-        let mut file = RayFile {
+        Ok(RayFile {
             records,
+            path: path.to_path_buf(),
+            unchecked: false,
             valid: None,
             invalid: 0,
             first_invalid: None,
-        };
-        if all_valid(file.records()) {
-            return Ok(file);
+        })
+    }
+
+    /// Checks every record, on every core: an invalid one is an error with
+    /// [`InvalidRays::Reject`], else noted as one to answer as a miss.
+    fn check(&mut self, invalid_rays: InvalidRays) -> Result<(), RayFileError> {
+        if all_valid(self.records()) {
+            return Ok(());
         }
-        let first = first_defect(path, file.records());
+        let first = first_defect(&self.path, self.records());
         if invalid_rays == InvalidRays::Reject {
             return Err(first);
         }
-        let valid: Vec<bool> = file.records().par_iter().map(is_valid).collect();
-        file.invalid = valid.iter().filter(|&&valid| !valid).count();
-        file.valid = Some(valid);
-        file.first_invalid = Some(first);
-        Ok(file)
+        let valid: Vec<bool> = self.records().par_iter().map(is_valid).collect();
+        self.invalid = valid.iter().filter(|&&valid| !valid).count();
+        self.valid = Some(valid);
+        self.first_invalid = Some(first);
+        Ok(())
+    }
+
+    /// Checks `records`, some of the file's, if the file's records are yet to be checked: the
+    /// error of the file's first invalid ray if one of them is invalid.
+    fn check_chunk(&self, records: &[Ray]) -> io::Result<()> {
+        let valid = records.iter().fold(true, |all, ray| all & is_valid(ray));
+        match !self.unchecked || valid {
+            true => Ok(()),
+            false => Err(self.first_defect()),
+        }
+    }
+
+    /// Checks every record, on every core, if they are yet to be checked: the error of the
+    /// first invalid ray, if any.
+    fn check_all(&self) -> io::Result<()> {
+        match !self.unchecked || all_valid(self.records()) {
+            true => Ok(()),
+            false => Err(self.first_defect()),
+        }
+    }
+
+    /// The error of the file's first invalid ray (it has one), as an I/O error whose inner
+    /// error is the [`RayFileError`] (see [`invalid_ray`]).
+    fn first_defect(&self) -> io::Error {
+        let defect = first_defect(&self.path, self.records());
+        io::Error::new(io::ErrorKind::InvalidData, defect)
     }
 
     /// Every record: the rays, with [`InvalidRays::Reject`]; with [`InvalidRays::Miss`] invalid
@@ -188,6 +254,14 @@ impl RayFile {
             // Never fails: `map_records` keeps a mapping only when it casts.
             Records::Mapped(map) => bytemuck::try_cast_slice(map).unwrap_or_default(),
             Records::Decoded(rays) => rays,
+        }
+    }
+
+    /// Releases the mapped pages of the records in `range`, which are no longer read
+    /// ([`mapping::release_pages`]).
+    fn release(&self, range: Range<usize>) {
+        if let Records::Mapped(map) = &self.records {
+            mapping::release_pages(map, range.start * RAY_BYTES..range.end * RAY_BYTES);
         }
     }
 
@@ -213,6 +287,24 @@ impl RayFile {
     /// The defect of the first invalid record, if any.
     pub fn first_invalid(&self) -> Option<&RayFileError> {
         self.first_invalid.as_ref()
+    }
+}
+
+/// The invalid ray behind an error of [`write_answers`] or [`write_answers_streamed`], if it is
+/// one (else the error as it was): reported as when the ray file is opened.
+pub fn invalid_ray(error: io::Error) -> Result<RayFileError, io::Error> {
+    if !error
+        .get_ref()
+        .is_some_and(|inner| inner.is::<RayFileError>())
+    {
+        return Err(error);
+    }
+    match error
+        .into_inner()
+        .map(|inner| inner.downcast::<RayFileError>())
+    {
+        Some(Ok(defect)) => Ok(*defect),
+        _ => Err(io::Error::other("an invalid ray")),
     }
 }
 
@@ -632,6 +724,8 @@ fn answer_all(tracer: &Tracer, rays: &[Ray], answer: Answer) -> Vec<u8> {
 /// finish) and hands back: no output-sized buffer, writing overlaps tracing, and the tracing
 /// threads never wait on the file system's locks. An incoherent batch is
 /// traced in a coherent order instead ([`ray_order`]) and its answers put back in input order.
+/// Records yet to be checked are checked each chunk before it is traced (all of them first for
+/// an incoherent batch): an invalid one fails with the file's first invalid ray ([`invalid_ray`]).
 pub fn write_answers(
     tracer: &Tracer,
     rays: &RayFile,
@@ -639,27 +733,62 @@ pub fn write_answers(
     out: &File,
 ) -> io::Result<usize> {
     if let Some(order) = ray_order::coherent_order(rays.records()) {
+        rays.check_all()?;
         return write_answers_in_order(tracer, rays, &order, answer, out);
     }
     let size = answer.record_bytes();
     let records = rays.records();
     let chunks = records.len().div_ceil(QUERY_CHUNK);
+    let traced = TracedRegions::new(chunks);
     atomic::write_behind(out, |behind| {
         (0..chunks)
             .into_par_iter()
             .map(|chunk| {
                 let range = chunk * QUERY_CHUNK..records.len().min((chunk + 1) * QUERY_CHUNK);
+                rays.check_chunk(&records[range.clone()])?;
                 // Every record of the chunk is written over, so a reused buffer's bytes stay.
                 let mut buffer = behind.buffer();
                 buffer.resize(range.len() * size, 0);
                 let valid = rays.valid_in(range.clone());
                 let hits =
                     answer_chunk(tracer, &records[range.clone()], valid, answer, &mut buffer);
+                if let Some(region) = traced.chunk_done(chunk) {
+                    rays.release(region.start * QUERY_CHUNK..region.end * QUERY_CHUNK);
+                }
                 behind.write_at(buffer, (range.start * size) as u64)?;
                 Ok(hits)
             })
             .try_reduce(|| 0, |a, b| Ok(a + b))
     })
+}
+
+/// Chunks of [`write_answers`] whose rays' pages are released together, once all are traced:
+/// 8 MiB of rays, so that releasing them interrupts the other tracing threads rarely (each
+/// release flushes their address translations).
+const RELEASE_CHUNKS: usize = 64;
+
+/// Counts the traced chunks of each region of [`RELEASE_CHUNKS`] chunks of [`write_answers`].
+struct TracedRegions {
+    traced: Vec<AtomicUsize>,
+    chunks: usize,
+}
+
+impl TracedRegions {
+    fn new(chunks: usize) -> TracedRegions {
+        let regions = chunks.div_ceil(RELEASE_CHUNKS);
+        TracedRegions {
+            traced: (0..regions).map(|_| AtomicUsize::new(0)).collect(),
+            chunks,
+        }
+    }
+
+    /// Counts `chunk` as traced; the chunks of its region when it was the region's last.
+    fn chunk_done(&self, chunk: usize) -> Option<Range<usize>> {
+        let region = chunk / RELEASE_CHUNKS;
+        let chunks = region * RELEASE_CHUNKS..self.chunks.min((region + 1) * RELEASE_CHUNKS);
+        let traced = self.traced[region].fetch_add(1, Ordering::AcqRel) + 1;
+        (traced == chunks.len()).then_some(chunks)
+    }
 }
 
 /// [`write_answers`] tracing the records in `order` (a permutation of their indices): the
@@ -742,12 +871,14 @@ const STREAM_BATCH: usize = 64 * QUERY_CHUNK;
 
 /// [`write_answers`] for an output that is a stream (standard output, a pipe, a device): the
 /// answers are written in input order, one batch of chunks after another; the same bytes.
+/// Records yet to be checked are all checked first: nothing is written when one is invalid.
 pub fn write_answers_streamed(
     tracer: &Tracer,
     rays: &RayFile,
     answer: Answer,
     out: &mut dyn Write,
 ) -> io::Result<usize> {
+    rays.check_all()?;
     let size = answer.record_bytes();
     if let Some(order) = ray_order::coherent_order(rays.records()) {
         let (answers, hits) = answer_in_order(tracer, rays, &order, answer);
