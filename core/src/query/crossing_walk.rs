@@ -14,7 +14,9 @@
 use arrayvec::ArrayVec;
 use wide::{f32x4, i32x4};
 
-use crate::format::block_boxes::{BlockBoxes, BoxFrame, BOX_WINDOWS, CODE_BIAS, MAX_CODE};
+use crate::format::block_boxes::{
+    BlockBoxes, BoxFrame, BOX_BYTES, BOX_WINDOWS, CODE_BIAS, EXPONENT_BYTES, MAX_CODE,
+};
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
@@ -297,12 +299,24 @@ pub(super) fn block_boxes(
 ) -> (FourBoxes, u32) {
     let mut codes = [[0i32; BOX_LANES]; 3];
     let mut unreadable = 0;
-    for (lane, block) in (first..first + lanes).enumerate() {
-        match boxes.codes(block) {
-            Some(box_codes) => {
-                (0..3).for_each(|axis| codes[axis][lane] = i32::from(box_codes[axis]))
+    // All the lanes' codes in one bounds check when they are stored (always but in a corrupt
+    // strip), rather than one per box.
+    let start = EXPONENT_BYTES + BOX_BYTES * first;
+    match boxes.bytes().get(start..start + BOX_BYTES * lanes) {
+        Some(run) => {
+            for (lane, box_codes) in run.chunks_exact(BOX_BYTES).enumerate() {
+                (0..3).for_each(|axis| codes[axis][lane] = i32::from(box_codes[axis]));
             }
-            None => unreadable |= 1 << lane,
+        }
+        None => {
+            for (lane, block) in (first..first + lanes).enumerate() {
+                match boxes.codes(block) {
+                    Some(box_codes) => {
+                        (0..3).for_each(|axis| codes[axis][lane] = i32::from(box_codes[axis]))
+                    }
+                    None => unreadable |= 1 << lane,
+                }
+            }
         }
     }
     let planes = |axis: usize| {
