@@ -232,8 +232,9 @@ impl<'a, 'f> Progressive<'a, 'f> {
         let effects = renderer.effects();
         let (width, height) = (renderer.plan.width, renderer.plan.height);
         let factor = scene.image.antialiasing.max(1);
+        // Listed on the tracing threads: a 512² image's 4,096 tiles are thousands of small lists.
         let bands = bands(width, height, factor, band_pixels)
-            .into_iter()
+            .into_par_iter()
             .map(|rows| BandSamples::untraced(width, rows))
             .collect();
         Progressive {
@@ -522,7 +523,6 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
         let traced = band.ao_samples.len() as f32;
         let open_fraction: Option<Vec<f32>> = (!band.ao_samples.is_empty())
             .then(|| band.open_rays.iter().map(|&o| o as f32 / traced).collect());
-        let (exposure, tone_curve) = (shading.exposure, shading.tone_curve);
         let lights = &band.visibility;
         shade(
             &self.scene,
@@ -531,9 +531,6 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             lights,
             open_fraction.as_deref(),
         )
-        .into_iter()
-        .map(|pixel| pixel.map(|channel| tone_curve.apply(channel * exposure)))
-        .collect()
     }
 
     /// The report of the whole image of `scene` (the scene as asked for, before antialiasing's
@@ -766,6 +763,8 @@ fn ao_pass(
     (per_pixel.into_iter().map(|(open, _)| open).collect(), rays)
 }
 
+/// The pixels' linear RGB: each surface lit, times the exposure through the tone curve (the
+/// background too).
 fn shade(
     scene: &Scene,
     plan: &Plan,
@@ -774,12 +773,14 @@ fn shade(
     ambient_open: Option<&[f32]>,
 ) -> Vec<[f32; 3]> {
     let shading = &scene.shading;
+    let (exposure, tone_curve) = (shading.exposure, shading.tone_curve);
+    let toned = |pixel: [f32; 3]| pixel.map(|channel| tone_curve.apply(channel * exposure));
     let albedo = Vec3::from(shading.albedo);
     (0..surfaces.len())
         .into_par_iter()
         .map(|pixel| {
             let Some(surface) = surfaces[pixel] else {
-                return shading.background;
+                return toned(shading.background);
             };
             let open = ambient_open.map_or(1.0, |a| a[pixel]);
             let mut light_sum = shading.ambient * open;
@@ -787,7 +788,7 @@ fn shade(
                 let lit = visibility[index].get(pixel).copied().unwrap_or(1.0);
                 light_sum += lit * irradiance(light, &surface);
             }
-            (albedo * surface.color * light_sum).into()
+            toned((albedo * surface.color * light_sum).into())
         })
         .collect()
 }
