@@ -26,19 +26,32 @@ pub struct ImageError {
 /// The frame as 8-bit sRGB bytes, three per pixel; in parallel (a pixel's bytes depend only on
 /// the pixel), as the viewer encodes a frame between two frames' tracing.
 pub fn srgb_bytes(frame: &Frame) -> Vec<u8> {
-    frame
-        .pixels
-        .par_chunks(SRGB_CHUNK_PIXELS)
-        .flat_map_iter(|pixels| pixels.iter().flat_map(|pixel| pixel.map(encode_srgb)))
-        .collect()
+    let values = frame.pixels.as_flattened();
+    let mut bytes = vec![0; values.len()];
+    // Chunks written in place: collecting them byte by byte cost more than the encoding.
+    bytes
+        .par_chunks_mut(SRGB_CHUNK_VALUES)
+        .zip(values.par_chunks(SRGB_CHUNK_VALUES))
+        .for_each(|(bytes, values)| write_srgb(bytes, values));
+    bytes
 }
 
-/// Pixels one thread encodes to sRGB at a time: enough to outweigh the hand-over.
-const SRGB_CHUNK_PIXELS: usize = 1 << 14;
+/// Channel values one thread encodes to sRGB at a time: enough to outweigh the hand-over.
+const SRGB_CHUNK_VALUES: usize = 3 << 14;
+
+/// The 8-bit sRGB code of each linear value of `values` into the byte beside it in `bytes`.
+fn write_srgb(bytes: &mut [u8], values: &[f32]) {
+    for (byte, &value) in bytes.iter_mut().zip(values) {
+        *byte = encode_srgb(value);
+    }
+}
 
 /// Appends the 8-bit sRGB bytes of `pixels` to `bytes`.
 fn extend_srgb(bytes: &mut Vec<u8>, pixels: &[[f32; 3]]) {
-    bytes.extend(pixels.iter().flat_map(|pixel| pixel.map(encode_srgb)));
+    let start = bytes.len();
+    let values = pixels.as_flattened();
+    bytes.resize(start + values.len(), 0);
+    write_srgb(&mut bytes[start..], values);
 }
 
 /// Linear value in `[0, 1]` (clamped; NaN as 0) to an 8-bit sRGB code: [`srgb_formula`]'s

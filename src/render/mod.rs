@@ -165,7 +165,8 @@ pub fn render_in_bands<E>(
         bands.reverse();
     }
     for band in bands {
-        let mut samples = renderer.trace_band(band, &mut effects);
+        let mut samples = BandSamples::untraced(fine_width, band);
+        renderer.trace_band(&mut samples, &mut effects);
         renderer.add_ao_samples(&mut samples, renderer.ao_samples(), &mut effects);
         rows(&renderer.finished_rows(&samples, factor))?;
     }
@@ -231,8 +232,9 @@ impl<'a, 'f> Progressive<'a, 'f> {
         let effects = renderer.effects();
         let (width, height) = (renderer.plan.width, renderer.plan.height);
         let factor = scene.image.antialiasing.max(1);
+        // Listed on the tracing threads: a 512² image's 4,096 tiles are thousands of small lists.
         let bands = bands(width, height, factor, band_pixels)
-            .into_iter()
+            .into_par_iter()
             .map(|rows| BandSamples::untraced(width, rows))
             .collect();
         Progressive {
@@ -284,7 +286,7 @@ impl<'a, 'f> Progressive<'a, 'f> {
         for band in &mut self.bands {
             between_bands()?;
             if !band.traced {
-                *band = renderer.trace_band(band.rows.clone(), &mut self.effects);
+                renderer.trace_band(band, &mut self.effects);
             }
             let samples = band.ao_samples.end..until.max(band.ao_samples.end);
             renderer.add_ao_samples(band, samples, &mut self.effects);
@@ -385,7 +387,6 @@ struct BandRenderer<'a, 'f> {
 /// A band's per-pixel state after its passes: surfaces, visibility per light, and the AO rays
 /// of the samples traced so far that found the hemisphere open.
 struct BandSamples {
-    rows: Range<u32>,
     band: Band,
     /// The primary and shadow passes ran.
     traced: bool,
@@ -398,8 +399,7 @@ struct BandSamples {
 impl BandSamples {
     fn untraced(width: u32, rows: Range<u32>) -> BandSamples {
         BandSamples {
-            band: Band::new(width, rows.clone()),
-            rows,
+            band: Band::new(width, rows),
             traced: false,
             surfaces: Vec::new(),
             visibility: Vec::new(),
@@ -459,31 +459,28 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
         0..self.plan.ambient_occlusion.map_or(0, |ao| ao.samples)
     }
 
-    /// The primary and shadow passes over the image's `rows`, each pass's rays and time added to
-    /// `effects` (in the order of [`BandRenderer::effects`]).
-    fn trace_band(&self, rows: Range<u32>, effects: &mut [EffectReport]) -> BandSamples {
+    /// The primary and shadow passes over `samples`' band, each pass's rays and time added to
+    /// `effects` (in the order of [`BandRenderer::effects`]); the band's AO samples start again.
+    fn trace_band(&self, samples: &mut BandSamples, effects: &mut [EffectReport]) {
         let (tracer, plan) = (self.tracer, &self.plan);
-        let band = Band::new(plan.width, rows.clone());
+        let band = &samples.band;
         let started = Instant::now();
-        let (surfaces, rays) = primary_pass(tracer, &self.camera, &band, self.used);
+        let points = plan.needs_hit_points();
+        let (surfaces, rays) = primary_pass(tracer, &self.camera, band, self.used, points);
         account(&mut effects[0], rays, started);
 
         let mut visibility = vec![Vec::new(); plan.lights.len()];
         for (pass, &light) in plan.shadow_lights.iter().enumerate() {
             let started = Instant::now();
-            let (visible, rays) = shadow_pass(tracer, &plan.lights[light], &surfaces, &band);
+            let (visible, rays) = shadow_pass(tracer, &plan.lights[light], &surfaces, band);
             visibility[light] = visible;
             account(&mut effects[1 + pass], rays, started);
         }
-        BandSamples {
-            open_rays: vec![0; band.pixel_count()],
-            rows,
-            band,
-            traced: true,
-            surfaces,
-            visibility,
-            ao_samples: 0..0,
-        }
+        samples.open_rays = vec![0; band.pixel_count()];
+        samples.traced = true;
+        samples.surfaces = surfaces;
+        samples.visibility = visibility;
+        samples.ao_samples = 0..0;
     }
 
     /// The AO rays of sample indices `samples` (following those traced) added to `band`'s.
@@ -526,7 +523,6 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
         let traced = band.ao_samples.len() as f32;
         let open_fraction: Option<Vec<f32>> = (!band.ao_samples.is_empty())
             .then(|| band.open_rays.iter().map(|&o| o as f32 / traced).collect());
-        let (exposure, tone_curve) = (shading.exposure, shading.tone_curve);
         let lights = &band.visibility;
         shade(
             &self.scene,
@@ -535,9 +531,6 @@ impl<'a, 'f> BandRenderer<'a, 'f> {
             lights,
             open_fraction.as_deref(),
         )
-        .into_iter()
-        .map(|pixel| pixel.map(|channel| tone_curve.apply(channel * exposure)))
-        .collect()
     }
 
     /// The report of the whole image of `scene` (the scene as asked for, before antialiasing's
@@ -653,12 +646,14 @@ where
 }
 
 /// The surface each pixel of `band` sees, and the rays traced: every pixel's ray, tile by tile
-/// in the tile's order (packets of neighbouring pixels).
+/// in the tile's order (packets of neighbouring pixels); with the hits' points when `points`
+/// (else [`Surface::facing`]).
 fn primary_pass(
     tracer: &Tracer,
     camera: &Camera,
     band: &Band,
     used: AttributeUse,
+    points: bool,
 ) -> (Vec<Option<Surface>>, u64) {
     let (file, width) = (tracer.file(), band.width);
     let surfaces = over_tiles(band, |tile| {
@@ -671,7 +666,11 @@ fn primary_pass(
             .zip(hits)
             .map(|(ray, hit)| {
                 let hit = hit?;
-                Some(Surface::at_hit(file, ray, &hit)?.with_attributes(file, &hit, used))
+                let surface = match points {
+                    true => Surface::at_hit(file, ray, &hit)?,
+                    false => Surface::facing(ray, &hit),
+                };
+                Some(surface.with_attributes(file, &hit, used))
             })
             .collect()
     });
@@ -764,6 +763,8 @@ fn ao_pass(
     (per_pixel.into_iter().map(|(open, _)| open).collect(), rays)
 }
 
+/// The pixels' linear RGB: each surface lit, times the exposure through the tone curve (the
+/// background too).
 fn shade(
     scene: &Scene,
     plan: &Plan,
@@ -772,12 +773,14 @@ fn shade(
     ambient_open: Option<&[f32]>,
 ) -> Vec<[f32; 3]> {
     let shading = &scene.shading;
+    let (exposure, tone_curve) = (shading.exposure, shading.tone_curve);
+    let toned = |pixel: [f32; 3]| pixel.map(|channel| tone_curve.apply(channel * exposure));
     let albedo = Vec3::from(shading.albedo);
     (0..surfaces.len())
         .into_par_iter()
         .map(|pixel| {
             let Some(surface) = surfaces[pixel] else {
-                return shading.background;
+                return toned(shading.background);
             };
             let open = ambient_open.map_or(1.0, |a| a[pixel]);
             let mut light_sum = shading.ambient * open;
@@ -785,7 +788,7 @@ fn shade(
                 let lit = visibility[index].get(pixel).copied().unwrap_or(1.0);
                 light_sum += lit * irradiance(light, &surface);
             }
-            (albedo * surface.color * light_sum).into()
+            toned((albedo * surface.color * light_sum).into())
         })
         .collect()
 }

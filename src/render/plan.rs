@@ -51,6 +51,15 @@ pub struct Plan {
 }
 
 impl Plan {
+    /// Some pass or light reads where the primary rays hit, not only the surfaces' normals and
+    /// colours: shadow and AO rays leave from there, point lights fall off with the distance.
+    pub fn needs_hit_points(&self) -> bool {
+        let point_light = |light: &Light| matches!(light.source, LightSource::Point { .. });
+        !self.shadow_lights.is_empty()
+            || self.ambient_occlusion.is_some()
+            || self.lights.iter().any(point_light)
+    }
+
     /// The plan of `scene` on a model within `bounds`, seen by `camera` (which turns the lights
     /// given relative to it).
     pub fn new(scene: &Scene, bounds: &Aabb, camera: &Camera) -> Plan {

@@ -78,18 +78,29 @@ impl Surface {
             .window_points(hit.window as usize)?;
         let [a, b, c] = corners.map(|p| DVec3::from(Vec3::from(p)));
         let point = a + (b - a) * f64::from(hit.u) + (c - a) * f64::from(hit.v);
+        let facing = Surface::facing(ray, hit);
+        Some(Surface {
+            origin: offset_origin(point.as_vec3(), facing.normal),
+            ..facing
+        })
+    }
+
+    /// [`Surface::at_hit`] without the point secondary rays leave from, for an image that
+    /// traces none and has no point light: its shading reads only the normals and colour, so
+    /// the triangle's corners are not read. The origin is NaN: a ray from it would hit nothing.
+    pub fn facing(ray: &Ray, hit: &Hit) -> Surface {
         let normal = Vec3::from(hit.normal);
         let normal = if normal.dot(Vec3::from(ray.direction)) > 0.0 {
             -normal
         } else {
             normal
         };
-        Some(Surface {
-            origin: offset_origin(point.as_vec3(), normal),
+        Surface {
+            origin: Vec3::NAN,
             normal,
             shading_normal: normal,
             color: Vec3::ONE,
-        })
+        }
     }
 
     /// AO sample `sample_index` of `pixel`: a cosine-weighted direction around the normal, at

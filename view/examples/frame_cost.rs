@@ -24,6 +24,9 @@ use reducem::render::scene::Scene;
 use reducem::render::Progressive;
 use reducem::trace::{TraceOptions, Tracer};
 
+#[path = "../src/jpeg.rs"]
+mod jpeg;
+
 fn main() -> anyhow::Result<()> {
     let arguments: Vec<String> = std::env::args().skip(1).collect();
     let (arguments, band_rows) = match arguments.as_slice() {
@@ -115,13 +118,9 @@ fn own_coarse_frame(tracer: &Tracer, scene: &Scene, bands: u32, cost: &mut Cost)
 fn refined(image: &mut Progressive) -> Phase {
     let started = Instant::now();
     if let Ok(frame) = image.refine(1, || Ok::<(), ()>(())) {
-        let mut jpeg = Vec::new();
         let (width, height) = (frame.width as u16, frame.height as u16);
-        let encoder = jpeg_encoder::Encoder::new(&mut jpeg, 85);
         let srgb = srgb_bytes(&frame);
-        encoder
-            .encode(&srgb, width, height, jpeg_encoder::ColorType::Rgb)
-            .expect("a frame encodes");
+        jpeg::encode(&srgb, width, height, 85).expect("a frame encodes");
     }
     Phase {
         rays: image.rays_traced().0,

@@ -3,6 +3,7 @@
 //! Stdout carries exactly one line, the page's address with its token; logs go to stderr.
 
 mod http;
+mod jpeg;
 mod resident;
 mod session;
 mod stages;

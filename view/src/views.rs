@@ -14,6 +14,7 @@ use reducem::trace::ray_file::{trace_hits_as, HitFormat};
 use reducem::trace::Tracer;
 use serde::{Deserialize, Serialize};
 
+use crate::jpeg;
 use crate::resident::ResidentBytes;
 use crate::stages::Stages;
 
@@ -370,17 +371,11 @@ impl Viewer {
     ) -> EncodedFrame {
         let srgb = srgb_bytes(&frame);
         stages.end("srgb");
-        let mut jpeg = Vec::new();
-        let encoder = jpeg_encoder::Encoder::new(&mut jpeg, JPEG_QUALITY);
-        let encoded = encoder.encode(
-            &srgb,
-            frame.width as u16,
-            frame.height as u16,
-            jpeg_encoder::ColorType::Rgb,
-        );
-        if let Err(error) = encoded {
+        let (width, height) = (frame.width as u16, frame.height as u16);
+        let jpeg = jpeg::encode(&srgb, width, height, JPEG_QUALITY).unwrap_or_else(|error| {
             eprintln!("reducem view: encoding a frame: {error}");
-        }
+            Vec::new()
+        });
         stages.end("jpeg");
         EncodedFrame {
             header: FrameHeader {
