@@ -147,7 +147,7 @@ pub(super) fn trace_strip_alone(
 /// single-ray block does; true when it found a hit and `any_hit` is set (the lane is done).
 /// `SITE` tells its two callers apart, so that each instantiation has one caller and is
 /// inlined into it.
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 fn test_block<const SITE: usize>(
     ray: &LoneRay,
@@ -185,7 +185,7 @@ fn test_block<const SITE: usize>(
 /// few lanes `testing` that test it, alone: the same windows in the same order for each lane
 /// as the window loop of all lanes, at the cost of one lane's pass rather than eight. Returns
 /// the lanes done (a hit found with `any_hit`).
-#[target_feature(enable = "avx2,bmi2")]
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline(never)]
 pub(super) fn trace_block_alone(
     (lanes, testing): (&Lanes, u32),
