@@ -17,11 +17,11 @@ pub fn map_file(file: &File) -> io::Result<Mmap> {
 /// than the file size.
 ///
 /// # Safety
-/// One of the project's few `unsafe` calls (with [`drop_cached_pages`] and [`release_pages`]) outside the tracer's SIMD kernel modules
-/// (`trace/avx2*.rs`, `trace/prefetch.rs`), besides the signal handling of `signals` and the
-/// report's Embree adapter (`embree_peer.rs`, behind the `embree` feature, whose C callback
-/// counts Embree's allocations): `reducem-core` and `reducem` deny `unsafe_code` everywhere
-/// else. A mapping is undefined behaviour if another process truncates
+/// One of the project's few `unsafe` calls (with [`drop_cached_pages`] and [`release_pages`])
+/// outside the tracer's SIMD kernel modules (`trace/kernel/`), besides the signal handling of
+/// `signals` and the report's Embree adapter (`embree_peer.rs`, behind the `embree` feature,
+/// whose C callback counts Embree's allocations): `reducem-core` and `reducem` deny
+/// `unsafe_code` everywhere else. A mapping is undefined behaviour if another process truncates
 /// or rewrites the file while it is mapped. ReduceM files and pipeline outputs are only ever
 /// replaced by atomic rename, never modified in place, so a live mapping keeps
 /// seeing the old inode; inputs belong to the user, who must not edit them during a run. Every
