@@ -224,8 +224,8 @@ impl RayFile {
     /// Checks `records`, some of the file's, if the file's records are yet to be checked: the
     /// error of the file's first invalid ray if one of them is invalid.
     fn check_chunk(&self, records: &[Ray]) -> io::Result<()> {
-        let valid = records.iter().fold(true, |all, ray| all & is_valid(ray));
-        match !self.unchecked || valid {
+        // A branch-free fold: the common all-valid chunk costs no mispredictions.
+        match !self.unchecked || records.iter().fold(true, |all, ray| all & is_valid(ray)) {
             true => Ok(()),
             false => Err(self.first_defect()),
         }
@@ -293,19 +293,7 @@ impl RayFile {
 /// The invalid ray behind an error of [`write_answers`] or [`write_answers_streamed`], if it is
 /// one (else the error as it was): reported as when the ray file is opened.
 pub fn invalid_ray(error: io::Error) -> Result<RayFileError, io::Error> {
-    if !error
-        .get_ref()
-        .is_some_and(|inner| inner.is::<RayFileError>())
-    {
-        return Err(error);
-    }
-    match error
-        .into_inner()
-        .map(|inner| inner.downcast::<RayFileError>())
-    {
-        Some(Ok(defect)) => Ok(*defect),
-        _ => Err(io::Error::other("an invalid ray")),
-    }
+    error.downcast::<RayFileError>()
 }
 
 /// The records of the ray file at `path`, checked for length: the mapping itself when it can
