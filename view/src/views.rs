@@ -25,6 +25,8 @@ const MAX_SIDE: u32 = 16384;
 /// the pure-Rust WebP encoder (image-webp) is lossless only, so lossy WebP would mean a C
 /// library; jpeg-encoder is pure Rust and every browser decodes JPEG.
 const JPEG_QUALITY: u8 = 85;
+// The strips of `jpeg::encode` are whole 16-row MCUs, which needs 2 × 2 chroma (below 90).
+const _: () = assert!(JPEG_QUALITY < 90);
 
 /// The camera as the page holds it and `data-camera` shows it.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
