@@ -13,7 +13,9 @@
 #   * whole process: `reducem query` on the same rays as ray files (open, read, trace, write),
 #     median wall time of WHOLE_RUNS (default 5) alternating runs per thread count, as Mrays/s,
 #     with the median CPU time and the load average: compare with Embree's trace-only figure
-#     above, which is what a batch job would pay on top of reading and building;
+#     above, which is what a batch job would pay on top of reading and building. Each run writes
+#     a new output (the previous run's is removed first, untimed): replacing an existing file
+#     adds the file system's freeing of its blocks, which is not the query's work;
 #   * with CALLGRIND=1: instructions per AO ray (callgrind, the first 100k AO rays, 1 thread,
 #     per kernel; the tracer's inclusive count divided by the rays).
 #
@@ -62,6 +64,7 @@ whole_process() {
         local load_before primary=() ao=()
         load_before=$(cut -d' ' -f1 /proc/loadavg)
         for _ in $(seq "$runs"); do
+            rm -f "$rays_dir/primary.hits" "$rays_dir/ao.occluded"
             primary+=("$(RAYON_NUM_THREADS=$threads timed_run "$reducem" query "$model" \
                 --rays "$rays_dir/primary.rays" -o "$rays_dir/primary.hits")")
             ao+=("$(RAYON_NUM_THREADS=$threads timed_run "$reducem" query "$model" \
