@@ -152,7 +152,7 @@ impl CrossingWalk {
                 let slot = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
                 if let TopSlot::Leaf { first, count } = node.slot(slot) {
-                    for strip in file.leaf_strips(first, count) {
+                    for strip in sections.leaf_strips(first, count) {
                         self.strip::<Q>(file, strip, each);
                     }
                 }
@@ -172,13 +172,16 @@ impl CrossingWalk {
         let view = file.strip(strip as usize);
         let blocks = view.window_count().div_ceil(BOX_WINDOWS);
         let mut candidate = |window: usize, corners: [RayPoint; 3]| each(strip, window, corners);
-        for first_block in (0..blocks).step_by(MASK_BLOCKS) {
+        // A plain loop: a `step_by` range's set-up costs as much as a strip's one pass.
+        let mut first_block = 0;
+        while first_block < blocks {
             let count = (blocks - first_block).min(MASK_BLOCKS);
             let mask = match view.boxes.is_empty() {
                 true => u64::MAX >> (MASK_BLOCKS - count),
                 false => self.entered_blocks(&view, first_block, count),
             };
             self.candidates::<Q>(&view, first_block, mask, &mut candidate);
+            first_block += MASK_BLOCKS;
         }
     }
 
@@ -212,10 +215,12 @@ impl CrossingWalk {
             return all;
         };
         let mut mask = 0u64;
-        for first in (0..count).step_by(BOX_LANES) {
+        let mut first = 0;
+        while first < count {
             let lanes = (count - first).min(BOX_LANES);
             let (boxes, unreadable) = block_boxes(&view.boxes, &frame, first_block + first, lanes);
             mask |= u64::from(self.entered(&boxes) | unreadable) << first;
+            first += BOX_LANES;
         }
         mask & all
     }
