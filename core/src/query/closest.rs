@@ -352,7 +352,10 @@ fn push_spans<Q: QueryKernel>(
         return;
     };
     let blocks = boxes.count();
-    for first in (0..blocks).step_by(BOX_LANES) {
+    // Plain loops here and over a span's blocks: a `step_by` range's set-up costs as much as
+    // the one or two passes a strip takes.
+    let mut first = 0;
+    while first < blocks {
         let lanes = (blocks - first).min(BOX_LANES);
         let ((min, max), unreadable) = block_boxes(boxes, &frame, first, lanes);
         let bounds = Q::child_bounds(&query.wide, &min, &max);
@@ -370,6 +373,7 @@ fn push_spans<Q: QueryKernel>(
                 });
             }
         }
+        first += BOX_LANES;
     }
 }
 
@@ -383,8 +387,8 @@ fn search_windows<V: VertexAccess, Q: QueryKernel>(
     query: &Query,
     best: &mut Best,
 ) {
-    let (first, end) = span.windows;
-    for block in (first..end).step_by(BOX_WINDOWS) {
+    let (mut block, end) = span.windows;
+    while block < end {
         let used = (end - block).min(BOX_WINDOWS);
         let references: [u8; BOX_WINDOWS + 2] = view.references.read_block(block);
         let corners: BlockCorners =
@@ -403,6 +407,7 @@ fn search_windows<V: VertexAccess, Q: QueryKernel>(
             let found = closest_on_triangle(&query.point, &corners);
             best.offer(span.strip, window as u16, found);
         }
+        block += BOX_WINDOWS;
     }
 }
 

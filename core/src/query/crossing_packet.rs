@@ -83,7 +83,8 @@ impl CrossingPacket {
         if nodes.is_empty() || self.valid == 0 {
             return;
         }
-        let prefetch = ChildPrefetch::new(&QuerySections::new(file), nodes);
+        let sections = QuerySections::new(file);
+        let prefetch = ChildPrefetch::new(&sections, nodes);
         let mut stack = NodeStack::<(u32, Lanes)>::default();
         stack.push((0, self.valid));
         let mut visits = file.node_visits();
@@ -127,7 +128,7 @@ impl CrossingPacket {
                 let slot = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
                 if let TopSlot::Leaf { first, count } = node.slot(slot) {
-                    for strip in file.leaf_strips(first, count) {
+                    for strip in sections.leaf_strips(first, count) {
                         self.strip::<Q>(file, strip, by_slot[slot], each);
                     }
                 }
@@ -147,7 +148,9 @@ impl CrossingPacket {
     ) {
         let view = file.strip(strip as usize);
         let blocks = view.window_count().div_ceil(BOX_WINDOWS);
-        for first_block in (0..blocks).step_by(MASK_BLOCKS) {
+        // Plain loops here and over the block boxes, as in `CrossingWalk`.
+        let mut first_block = 0;
+        while first_block < blocks {
             let count = (blocks - first_block).min(MASK_BLOCKS);
             let masks = self.entered_blocks(&view, lanes, first_block, count);
             // A plain loop: as a closure, this body (the kernel's block tests inlined) was
@@ -160,6 +163,7 @@ impl CrossingPacket {
                     |window: usize, corners: [RayPoint; 3]| each(lane, strip, window, corners);
                 self.walks[lane].candidates::<Q>(&view, first_block, masks[lane], &mut candidate);
             }
+            first_block += MASK_BLOCKS;
         }
     }
 
@@ -183,13 +187,15 @@ impl CrossingPacket {
             return [all; PACKET_RAYS];
         };
         let mut masks = [0u64; PACKET_RAYS];
-        for first in (0..count).step_by(BOX_LANES) {
+        let mut first = 0;
+        while first < count {
             let group = (count - first).min(BOX_LANES);
             let (boxes, unreadable) = block_boxes(&view.boxes, &frame, first_block + first, group);
             for_each_lane(lanes, |lane| {
                 let entered = self.walks[lane].entered(&boxes) | unreadable;
                 masks[lane] |= u64::from(entered) << first;
             });
+            first += BOX_LANES;
         }
         masks.map(|mask| mask & all)
     }

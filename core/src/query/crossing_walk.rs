@@ -20,9 +20,7 @@ use crate::format::block_boxes::{
 use crate::format::grid::NodeGrid;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{
-    GridNode, NodeRecord, TopNode, TopSlot, WideNode, INTERNAL_CHILD, TOP_WIDTH, WIDE_WIDTH,
-};
+use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, WideNode, INTERNAL_CHILD, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::trace::kernel::crossing_blocks::{StripBlocks, MASK_BLOCKS};
 use crate::trace::kernel::crossing_nodes::WidenedRay;
@@ -154,7 +152,7 @@ impl CrossingWalk {
                 let slot = leaves.trailing_zeros() as usize;
                 leaves &= leaves - 1;
                 if let TopSlot::Leaf { first, count } = node.slot(slot) {
-                    for strip in file.leaf_strips(first, count) {
+                    for strip in sections.leaf_strips(first, count) {
                         self.strip::<Q>(file, strip, each);
                     }
                 }
@@ -174,13 +172,16 @@ impl CrossingWalk {
         let view = file.strip(strip as usize);
         let blocks = view.window_count().div_ceil(BOX_WINDOWS);
         let mut candidate = |window: usize, corners: [RayPoint; 3]| each(strip, window, corners);
-        for first_block in (0..blocks).step_by(MASK_BLOCKS) {
+        // A plain loop: a `step_by` range's set-up costs as much as a strip's one pass.
+        let mut first_block = 0;
+        while first_block < blocks {
             let count = (blocks - first_block).min(MASK_BLOCKS);
             let mask = match view.boxes.is_empty() {
                 true => u64::MAX >> (MASK_BLOCKS - count),
                 false => self.entered_blocks(&view, first_block, count),
             };
             self.candidates::<Q>(&view, first_block, mask, &mut candidate);
+            first_block += MASK_BLOCKS;
         }
     }
 
@@ -214,10 +215,12 @@ impl CrossingWalk {
             return all;
         };
         let mut mask = 0u64;
-        for first in (0..count).step_by(BOX_LANES) {
+        let mut first = 0;
+        while first < count {
             let lanes = (count - first).min(BOX_LANES);
             let (boxes, unreadable) = block_boxes(&view.boxes, &frame, first_block + first, lanes);
             mask |= u64::from(self.entered(&boxes) | unreadable) << first;
+            first += BOX_LANES;
         }
         mask & all
     }
@@ -360,32 +363,22 @@ impl<T> NodeStack<T> {
     }
 }
 
-/// A top-level node record's child boxes four at a time, axis by axis, as f32, whatever its
-/// layout: the walk's one view of the nodes.
+/// A top-level node record's child boxes as the walk tests them, whatever its layout: the
+/// walk's one view of the nodes.
 pub(super) trait NodeBoxes: NodeRecord {
     /// What decoding the boxes takes besides the node.
     type Grid;
-    /// The boxes of slots `4 group .. 4 group + 4`.
-    fn boxes(&self, grid: &Self::Grid, group: usize) -> FourBoxes;
 
-    /// The children whose box `walk`'s ray may meet ([`CrossingWalk::entered`]), as a bit mask;
-    /// `Q` tests a wide node's eight boxes at once where the kernel can.
-    #[inline(always)]
-    fn entered_children<Q: QueryKernel>(&self, walk: &CrossingWalk, grid: &Self::Grid) -> u32 {
-        let mut entered = 0;
-        for group in 0..Self::WIDTH / TOP_WIDTH {
-            entered |= walk.entered(&self.boxes(grid, group)) << (group * TOP_WIDTH);
-        }
-        entered
-    }
+    /// The children whose box `walk`'s ray may meet ([`CrossingWalk::entered`]), as a bit mask.
+    fn entered_children<Q: QueryKernel>(&self, walk: &CrossingWalk, grid: &Self::Grid) -> u32;
 }
 
 impl NodeBoxes for TopNode {
     type Grid = ();
 
     #[inline(always)]
-    fn boxes(&self, _: &(), _group: usize) -> FourBoxes {
-        (self.min, self.max)
+    fn entered_children<Q: QueryKernel>(&self, walk: &CrossingWalk, _: &()) -> u32 {
+        walk.entered(&(self.min, self.max))
     }
 }
 
@@ -395,36 +388,21 @@ impl NodeBoxes for GridNode {
     /// Through [`NodeGrid::decode_axis`], the expression the writer rounded the boxes outward
     /// with.
     #[inline(always)]
-    fn boxes(&self, grid: &NodeGrid, _group: usize) -> FourBoxes {
+    fn entered_children<Q: QueryKernel>(&self, walk: &CrossingWalk, grid: &NodeGrid) -> u32 {
         let decode = |q: &[[u16; TOP_WIDTH]; 3]| {
             std::array::from_fn(|axis| q[axis].map(|q| grid.decode_axis(q, axis)))
         };
-        (decode(&self.min), decode(&self.max))
+        walk.entered(&(decode(&self.min), decode(&self.max)))
     }
 }
 
 impl NodeBoxes for WideNode {
     type Grid = ();
 
-    /// Through [`WideNode::decode`], the expression the writer rounded the boxes outward with.
-    #[inline(always)]
-    fn boxes(&self, _: &(), group: usize) -> FourBoxes {
-        let decode = |q: &[[u8; WIDE_WIDTH]; 3]| {
-            std::array::from_fn(|axis| {
-                std::array::from_fn(|lane| self.decode(axis, q[axis][group * TOP_WIDTH + lane]))
-            })
-        };
-        (decode(&self.min), decode(&self.max))
-    }
-
-    /// All eight boxes in one register where the kernel has one that wide: the same bits.
+    /// The eight boxes at once in the kernel's lanes, [`WideNode::decode`]'s bits.
     #[inline(always)]
     fn entered_children<Q: QueryKernel>(&self, walk: &CrossingWalk, _: &()) -> u32 {
-        Q::entered_wide(&walk.widened, self).unwrap_or_else(|| {
-            (0..WIDE_WIDTH / TOP_WIDTH).fold(0, |entered, group| {
-                entered | walk.entered(&self.boxes(&(), group)) << (group * TOP_WIDTH)
-            })
-        })
+        Q::entered_wide(&walk.widened, self, |boxes| walk.entered(boxes))
     }
 }
 

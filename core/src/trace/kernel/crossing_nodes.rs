@@ -34,15 +34,14 @@ pub(super) fn entered_wide_avx2(ray: &WidenedRay, node: &WideNode) -> u32 {
     use std::arch::x86_64::*;
 
     // Codes widened to f32 (exact), times the power-of-two scale (exact), plus the origin:
-    // `WideNode::decode`, one rounding.
+    // `WideNode::decode`, one rounding. Each axis's frame is broadcast once for both planes,
+    // which the compiler does not always see for itself.
+    let origin: [__m256; 3] = std::array::from_fn(|axis| _mm256_set1_ps(node.origin[axis]));
+    let scale: [__m256; 3] = std::array::from_fn(|axis| _mm256_set1_ps(node.scale(axis)));
     let decode = |codes: &[u8; 8], axis: usize| {
         let codes = _mm_set_epi64x(0, i64::from_le_bytes(*codes));
         let codes = _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(codes));
-        let origin = _mm256_set1_ps(node.origin[axis]);
-        _mm256_add_ps(
-            origin,
-            _mm256_mul_ps(codes, _mm256_set1_ps(node.scale(axis))),
-        )
+        _mm256_add_ps(origin[axis], _mm256_mul_ps(codes, scale[axis]))
     };
     let magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX));
     let abs = |x: __m256| _mm256_and_ps(x, magnitude);

@@ -14,16 +14,17 @@ use super::crossing_blocks::{candidates_on, StripBlocks};
 use super::crossing_nodes::WidenedRay;
 use super::distance_bounds::{child_lanes, window_lanes, BlockCorners, LaneBoxes};
 use super::portable::Portable;
-use super::{dispatch, Kernel, TraceKernel, Walk, BLOCK};
+use super::{dispatch, ChildBoxes, Kernel, TraceKernel, Walk, BLOCK};
 use crate::format::{WideNode, TOP_WIDTH};
 use crate::trace::watertight::{RayPoint, RaySpace};
 
 /// What the query walks compute in a kernel's lanes; every kernel implements it.
 pub(crate) trait QueryKernel {
     /// The children of `node` whose box, grown as the crossing walk grows boxes, the ray may
-    /// meet, as a bit mask (bit `k`: slot `k`); `None` where the kernel has no eight-lane
-    /// registers and the walk tests four boxes at a time.
-    fn entered_wide(ray: &WidenedRay, node: &WideNode) -> Option<u32>;
+    /// meet, as a bit mask (bit `k`: slot `k`): all eight boxes in one register where the
+    /// kernel has one that wide, else two groups of four decoded in its lanes and tested by
+    /// `four`, the walk's four-box test (the same bits).
+    fn entered_wide(ray: &WidenedRay, node: &WideNode, four: impl Fn(&ChildBoxes) -> u32) -> u32;
 
     /// [`box_bound`](super::distance_bounds::box_bound) of each child box of a top-level node.
     fn child_bounds(
@@ -34,7 +35,7 @@ pub(crate) trait QueryKernel {
 
     /// The eight child boxes of a format 4 node as two groups of four (`(min, max)` by axis
     /// and slot), decoded at once: [`WideNode::decode`]'s bits.
-    fn wide_child_boxes(node: &WideNode) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2];
+    fn wide_child_boxes(node: &WideNode) -> [ChildBoxes; 2];
 
     /// [`box_bound`](super::distance_bounds::box_bound) of the box of each window of a block
     /// (its corners' minima and maxima).
@@ -77,8 +78,9 @@ impl<W: QueryWalk> Walk for AsTraceWalk<W> {
 
 impl QueryKernel for Portable {
     #[inline(always)]
-    fn entered_wide(_: &WidenedRay, _: &WideNode) -> Option<u32> {
-        None
+    fn entered_wide(_: &WidenedRay, node: &WideNode, four: impl Fn(&ChildBoxes) -> u32) -> u32 {
+        let [low, high] = Portable::decode_wide(node);
+        four(&low) | four(&high) << TOP_WIDTH
     }
 
     #[inline(always)]
@@ -91,7 +93,7 @@ impl QueryKernel for Portable {
     }
 
     #[inline(always)]
-    fn wide_child_boxes(node: &WideNode) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2] {
+    fn wide_child_boxes(node: &WideNode) -> [ChildBoxes; 2] {
         Portable::decode_wide(node)
     }
 
@@ -122,9 +124,9 @@ mod avx2 {
     // (`dispatch`), inside the walk compiled for them.
     impl QueryKernel for Avx2 {
         #[inline(always)]
-        fn entered_wide(ray: &WidenedRay, node: &WideNode) -> Option<u32> {
+        fn entered_wide(ray: &WidenedRay, node: &WideNode, _: impl Fn(&ChildBoxes) -> u32) -> u32 {
             // SAFETY: see the impl.
-            Some(unsafe { entered_wide_avx2(ray, node) })
+            unsafe { entered_wide_avx2(ray, node) }
         }
 
         #[inline(always)]
@@ -138,7 +140,7 @@ mod avx2 {
         }
 
         #[inline(always)]
-        fn wide_child_boxes(node: &WideNode) -> [(LaneBoxes<TOP_WIDTH>, LaneBoxes<TOP_WIDTH>); 2] {
+        fn wide_child_boxes(node: &WideNode) -> [ChildBoxes; 2] {
             Avx2::decode_wide(node)
         }
 

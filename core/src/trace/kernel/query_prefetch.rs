@@ -14,6 +14,13 @@ impl<'a> QuerySections<'a> {
     pub(crate) fn new(file: &'a ReducemFile) -> QuerySections<'a> {
         QuerySections(StripSections::new(file))
     }
+
+    /// [`ReducemFile::leaf_strips`] from the strip records looked up with the sections, not per
+    /// leaf.
+    #[inline(always)]
+    pub(crate) fn leaf_strips(&self, first: u32, count: u32) -> std::ops::Range<u32> {
+        self.0.leaf_strips(first, count)
+    }
 }
 
 /// What a query walk over `nodes` (one file's top-level nodes) prefetches from.
