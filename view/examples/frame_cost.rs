@@ -1,6 +1,6 @@
 //! The viewer's work per camera change without the browser: a coarse frame, then the full
 //! primary frame, each turned into sRGB and JPEG as the viewer sends it, FRAMES times over; in
-//! bands of BAND_ROWS rows (default 8, the viewer's), on a tracing thread as the viewer works. Prints the time per change and of each
+//! bands of BAND_ROWS rows (default 8, the viewer's). Prints the time per change and of each
 //! frame, and the primary rays traced. For comparing the ways of making the coarse frame, or of
 //! making none, by instruction counts (valgrind --tool=callgrind), which a shared machine's load
 //! does not change:
@@ -42,32 +42,25 @@ fn main() -> anyhow::Result<()> {
     let tracer = Tracer::new(&file, TraceOptions::default());
     let scene = primary_view(&tracer, side)?;
     let name = mode.trim_end_matches(|c: char| c.is_ascii_digit());
-    let step: u32 = match name {
-        "preview" => mode[name.len()..].parse()?,
-        "own" | "none" => 0,
-        other => anyhow::bail!("unknown mode {other}"),
-    };
-    // On a tracing thread, as the viewer renders its views.
-    let cost = rayon::scope(|_| {
-        let mut cost = Cost::default();
-        for _ in 0..frames {
-            match name {
-                "own" => own_coarse_frame(&tracer, &scene, bands, &mut cost),
-                "preview" => {
-                    let coarse_bands = bands / (step * step);
-                    cost.coarse += refined(&mut Progressive::preview(
-                        &tracer,
-                        &scene,
-                        step,
-                        coarse_bands,
-                    ));
-                    cost.full += refined(&mut Progressive::new(&tracer, &scene, bands));
-                }
-                _ => cost.full += refined(&mut Progressive::new(&tracer, &scene, bands)),
+    let mut cost = Cost::default();
+    for _ in 0..frames {
+        match name {
+            "own" => own_coarse_frame(&tracer, &scene, bands, &mut cost),
+            "preview" => {
+                let step: u32 = mode[name.len()..].parse()?;
+                let coarse_bands = bands / (step * step);
+                cost.coarse += refined(&mut Progressive::preview(
+                    &tracer,
+                    &scene,
+                    step,
+                    coarse_bands,
+                ));
+                cost.full += refined(&mut Progressive::new(&tracer, &scene, bands));
             }
+            "none" => cost.full += refined(&mut Progressive::new(&tracer, &scene, bands)),
+            other => anyhow::bail!("unknown mode {other}"),
         }
-        cost
-    });
+    }
     let per_change = |phase: Phase| phase.time.as_secs_f64() * 1e3 / f64::from(frames);
     println!(
         "{mode}: {frames} camera changes at {side}x{side}, {} primary rays; ms per change: \

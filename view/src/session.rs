@@ -196,12 +196,7 @@ fn render_views(shared: &Shared, sender: &Sender, viewer: &Viewer) {
     while let Some((generation, view, received)) = shared.next_view() {
         let current = (generation, &shared.generation);
         let deliver = |frame| sender.send_frame(frame);
-        // On a tracing thread: the view's serial work then leaves one core to the other
-        // tracing thread instead of three threads sharing two, and each parallel pass starts
-        // there instead of handing over to the pool and back.
-        let _ = rayon::scope(|_| {
-            viewer.render_progressively(&view, received, current, &mut pace, deliver)
-        });
+        let _ = viewer.render_progressively(&view, received, current, &mut pace, deliver);
     }
 }
 
