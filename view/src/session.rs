@@ -2,26 +2,23 @@
 //! answers picks and the cameras framed for the canvas as JSON, and views with frames, each a binary message (a little-endian u32 header length, the JSON
 //! header, the JPEG).
 //!
-//! One thread reads and writes the socket; a renderer thread renders the latest view and leaves
-//! its frame in a one-frame outbox, so a frame the socket has not taken yet is replaced by a
-//! newer one rather than queued. A new view moves the generation on, which abandons the
-//! renderer's image at its next band (a coarse frame waits for the socket only while its view is
-//! the latest, so every view that has one shows it). The socket thread polls only while a frame may come;
-//! otherwise both threads sleep, so a page that is idle, or gone, costs no CPU.
+//! One thread reads the socket and answers the page's messages; a renderer renders the latest
+//! view and sends each frame itself as soon as it is encoded (through a second, write-only
+//! protocol state over a clone of the stream, the sends of both under one lock), so no frame
+//! waits for another thread to wake. A new view moves the generation on, which abandons the
+//! renderer's image at its next band. Both threads sleep while the page sends nothing, so a
+//! page that is idle, or gone, costs no CPU.
 
 use std::net::TcpStream;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
+use tungstenite::protocol::Role;
 use tungstenite::{Message, WebSocket};
 
 use crate::views::{CameraView, Effects, EncodedFrame, Pace, Pick, UpAxis, View, Viewer};
-
-/// How long a read waits before the socket thread looks into the outbox: a frame waits for
-/// its send half of this on average, and a frame comes every few tens of milliseconds.
-const POLL: Duration = Duration::from_millis(1);
 
 /// What the page sends.
 #[derive(Deserialize)]
@@ -76,9 +73,44 @@ struct Cameras {
     z: Option<CameraView>,
 }
 
-fn send(socket: &mut WebSocket<TcpStream>, message: &ServerMessage) -> SocketResult {
-    let text = serde_json::to_string(message).unwrap_or_default();
-    Ok(socket.send(Message::text(text))?)
+/// The socket's sending half: a second protocol state over a clone of the page's stream,
+/// which only ever writes, so that the renderer sends its frames itself as they are ready
+/// while the socket thread waits in a read.
+struct Sender {
+    socket: Mutex<WebSocket<TcpStream>>,
+}
+
+impl Sender {
+    fn of(reading: &WebSocket<TcpStream>) -> std::io::Result<Sender> {
+        let stream = reading.get_ref().try_clone()?;
+        let socket = WebSocket::from_raw_socket(stream, Role::Server, None);
+        Ok(Sender {
+            socket: Mutex::new(socket),
+        })
+    }
+
+    fn send(&self, message: Message) -> SocketResult {
+        let mut socket = self
+            .socket
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        Ok(socket.send(message)?)
+    }
+
+    fn send_text(&self, message: &ServerMessage) -> SocketResult {
+        let text = serde_json::to_string(message).unwrap_or_default();
+        self.send(Message::text(text))
+    }
+
+    /// Sends `frame` at once; a page gone meanwhile is the socket thread's to notice.
+    fn send_frame(&self, mut frame: EncodedFrame) {
+        frame.stages.end("delivered");
+        if self.send(Message::binary(framed(&frame))).is_err() {
+            return;
+        }
+        frame.stages.end("sent");
+        frame.stages.log(&frame.header);
+    }
 }
 
 /// The socket's error, boxed: it is large and only ever ends the page's session.
@@ -89,122 +121,93 @@ type SocketResult = Result<(), Box<tungstenite::Error>>;
 struct Shared {
     /// The generation of the latest view; [`CLOSED`] once the page is gone.
     generation: AtomicU64,
-    state: Mutex<State>,
-    wake: Condvar,
-}
-
-#[derive(Default)]
-struct State {
     /// The latest view not yet rendered, with its generation and when it arrived.
-    latest: Option<(u64, View, Instant)>,
-    outbox: Option<EncodedFrame>,
-    /// The renderer is rendering a view.
-    rendering: bool,
+    latest: Mutex<Option<(u64, View, Instant)>>,
+    wake: Condvar,
 }
 
 /// The generation that tells the renderer the page is gone.
 const CLOSED: u64 = u64::MAX;
 
 impl Shared {
-    fn state(&self) -> MutexGuard<'_, State> {
-        self.state
+    fn latest(&self) -> MutexGuard<'_, Option<(u64, View, Instant)>> {
+        self.latest
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 
     fn ask(&self, view: View) {
         let generation = self.generation.fetch_add(1, Ordering::AcqRel) + 1;
-        self.state().latest = Some((generation, view, Instant::now()));
+        *self.latest() = Some((generation, view, Instant::now()));
         self.wake.notify_all();
     }
 
     fn close(&self) {
         // Under the lock, so a renderer between its check and its wait cannot miss the wake.
-        let _state = self.state();
+        let _latest = self.latest();
         self.generation.store(CLOSED, Ordering::Release);
         self.wake.notify_all();
     }
 
-    /// Leaves `frame` for the socket, replacing a frame of an older view; a frame of its own
-    /// view (the coarse one) is waited for to go first, so that every view with one shows it.
-    fn deliver(&self, mut frame: EncodedFrame) {
-        let generation = frame.header.generation;
-        let mut state = self.state();
-        while state
-            .outbox
-            .as_ref()
-            .is_some_and(|waiting| waiting.header.generation == generation)
-            && self.generation.load(Ordering::Acquire) == generation
-        {
-            state = self.wake.wait(state).unwrap_or_else(|p| p.into_inner());
-        }
-        frame.stages.end("delivered");
-        state.outbox = Some(frame);
-    }
-
-    /// The frame left for the socket, if any, telling a renderer waiting to deliver.
-    fn take_frame(&self) -> Option<EncodedFrame> {
-        let frame = self.state().outbox.take();
-        if frame.is_some() {
-            self.wake.notify_all();
-        }
-        frame
-    }
-
-    /// No frame to come: no view waiting or rendering, no frame to send.
-    fn idle(&self) -> bool {
-        let state = self.state();
-        !state.rendering && state.latest.is_none() && state.outbox.is_none()
-    }
-
     /// The next view to render, waiting for one; `None` once the page is gone.
     fn next_view(&self) -> Option<(u64, View, Instant)> {
-        let mut state = self.state();
-        state.rendering = false;
+        let mut latest = self.latest();
         loop {
             if self.generation.load(Ordering::Acquire) == CLOSED {
                 return None;
             }
-            if let Some(latest) = state.latest.take() {
-                state.rendering = true;
-                return Some(latest);
+            if let Some(view) = latest.take() {
+                return Some(view);
             }
-            state = self.wake.wait(state).unwrap_or_else(|p| p.into_inner());
+            latest = self.wake.wait(latest).unwrap_or_else(|p| p.into_inner());
         }
     }
 }
 
 /// Serves one page until it disconnects.
 pub fn run(mut socket: WebSocket<TcpStream>, viewer: &'static Viewer) {
+    let sender = match Sender::of(&socket) {
+        Ok(sender) => Arc::new(sender),
+        Err(error) => {
+            eprintln!("reducem view: cannot share a page's socket: {error}");
+            return;
+        }
+    };
     let shared = Arc::new(Shared::default());
     let renderer = {
-        let shared = Arc::clone(&shared);
+        let (shared, sender) = (Arc::clone(&shared), Arc::clone(&sender));
         std::thread::Builder::new()
             .name("renderer".into())
-            .spawn(move || render_views(&shared, viewer))
+            .spawn(move || render_views(&shared, &sender, viewer))
     };
     let Ok(renderer) = renderer else {
         eprintln!("reducem view: cannot start a renderer");
         return;
     };
-    if let Err(error) = exchange(&mut socket, &shared, viewer) {
+    if let Err(error) = exchange(&mut socket, &sender, &shared, viewer) {
         eprintln!("reducem view: a page disconnected: {error}");
     }
     shared.close();
     let _ = renderer.join();
 }
 
-fn render_views(shared: &Shared, viewer: &Viewer) {
+fn render_views(shared: &Shared, sender: &Sender, viewer: &Viewer) {
     let mut pace = Pace::default();
     while let Some((generation, view, received)) = shared.next_view() {
         let current = (generation, &shared.generation);
-        let deliver = |frame| shared.deliver(frame);
+        let deliver = |frame| sender.send_frame(frame);
         let _ = viewer.render_progressively(&view, received, current, &mut pace, deliver);
     }
 }
 
-/// Reads the page's messages and sends the latest frame, until the page closes.
-fn exchange(socket: &mut WebSocket<TcpStream>, shared: &Shared, viewer: &Viewer) -> SocketResult {
+/// Reads the page's messages and answers them, until the page closes; the renderer sends
+/// the frames.
+fn exchange(
+    socket: &mut WebSocket<TcpStream>,
+    sender: &Sender,
+    shared: &Shared,
+    viewer: &Viewer,
+) -> SocketResult {
     let file = viewer.tracer.file();
     let (effects, available) = viewer.scene_effects();
     let hello = ServerMessage::Hello {
@@ -214,46 +217,26 @@ fn exchange(socket: &mut WebSocket<TcpStream>, shared: &Shared, viewer: &Viewer)
         triangles: file.header().triangle_count,
         file_bytes: file.file_bytes(),
     };
-    send(socket, &hello)?;
+    sender.send_text(&hello)?;
+    // Reads block until the page sends: an idle page costs no CPU.
+    let unlimited = socket.get_ref().set_read_timeout(None);
+    unlimited.map_err(tungstenite::Error::Io)?;
     loop {
         match socket.read() {
-            Ok(Message::Text(text)) => answer(socket, shared, viewer, &text)?,
-            Ok(Message::Close(_)) => return Ok(()),
+            Ok(Message::Text(text)) => answer(sender, shared, viewer, &text)?,
+            Ok(Message::Close(_)) | Err(tungstenite::Error::ConnectionClosed) => return Ok(()),
             Ok(_) => {}
-            Err(tungstenite::Error::Io(error))
-                if matches!(
-                    error.kind(),
-                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
-                ) => {}
-            Err(tungstenite::Error::ConnectionClosed) => return Ok(()),
             Err(error) => return Err(error.into()),
         }
-        if let Some(mut frame) = shared.take_frame() {
-            socket.send(Message::binary(framed(&frame)))?;
-            frame.stages.end("sent");
-            let header = &frame.header;
-            frame
-                .stages
-                .log(header.generation, header.spp, header.seconds);
-        }
-        // Reads block while no frame can come, so an idle page costs no CPU.
-        let poll = (!shared.idle()).then_some(POLL);
-        let polled = socket.get_ref().set_read_timeout(poll);
-        polled.map_err(tungstenite::Error::Io)?;
     }
 }
 
-fn answer(
-    socket: &mut WebSocket<TcpStream>,
-    shared: &Shared,
-    viewer: &Viewer,
-    text: &str,
-) -> SocketResult {
+fn answer(sender: &Sender, shared: &Shared, viewer: &Viewer, text: &str) -> SocketResult {
     match serde_json::from_str::<PageMessage>(text) {
         Ok(PageMessage::View(view)) => shared.ask(view),
         Ok(PageMessage::Pick { view, x, y }) => {
             let pick = viewer.pick(&view, x, y);
-            send(socket, &ServerMessage::Pick { pick })?;
+            sender.send_text(&ServerMessage::Pick { pick })?;
         }
         Ok(PageMessage::Framing { width, height, up }) => {
             let framed = |axis: UpAxis| {
@@ -264,7 +247,7 @@ fn answer(
                 y: framed(UpAxis::Y),
                 z: framed(UpAxis::Z),
             };
-            send(socket, &ServerMessage::Framing { cameras })?;
+            sender.send_text(&ServerMessage::Framing { cameras })?;
         }
         Err(error) => eprintln!("reducem view: a page message not understood: {error}"),
     }

@@ -5,6 +5,8 @@
 use std::sync::OnceLock;
 use std::time::Instant;
 
+use crate::views::FrameHeader;
+
 /// The stages a frame has passed, each with the moment it ended.
 pub struct Stages {
     received: Instant,
@@ -25,8 +27,9 @@ impl Stages {
         self.ends.push((name, Instant::now()));
     }
 
-    /// The stages on standard error when logging is on: milliseconds since the view arrived.
-    pub fn log(&self, generation: u64, spp: f32, trace_seconds: f64) {
+    /// The stages of the frame `header` describes on standard error when logging is on:
+    /// milliseconds since the view arrived.
+    pub fn log(&self, header: &FrameHeader) {
         if !logging() {
             return;
         }
@@ -37,9 +40,13 @@ impl Stages {
             .map(|&(name, at)| format!("{name} {:.1}", ms(at)))
             .collect();
         eprintln!(
-            "reducem view: stages ms: view {generation} spp {spp}: {} (rays {:.1})",
+            "reducem view: stages ms: view {} {}x{} spp {}: {} (rays {:.1})",
+            header.generation,
+            header.width,
+            header.height,
+            header.spp,
             stages.join(", "),
-            trace_seconds * 1e3
+            header.seconds * 1e3
         );
     }
 }

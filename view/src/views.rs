@@ -140,11 +140,11 @@ fn densest_coarse_step(view: &View) -> u32 {
     step
 }
 
-/// How long after its view arrived a page's last full frame was ready, and of how many pixels,
-/// and how much sparser than the densest its coarse frames are: a coarse frame comes first only
-/// when the next full frame is expected later than [`COARSE_FRAME_AFTER`], since it delays the
-/// full frame, and it is made sparser while coarse frames come later than
-/// [`COARSE_FRAME_BUDGET`].
+/// How long after its view arrived a page's last full frame was ready (without the time of a
+/// coarse frame before it), and of how many pixels, and how much sparser than the densest its
+/// coarse frames are: a coarse frame comes first only when the next full frame is expected
+/// later than [`COARSE_FRAME_AFTER`], since it delays the full frame, and it is made sparser
+/// while coarse frames come later than [`COARSE_FRAME_BUDGET`].
 #[derive(Default)]
 pub struct Pace {
     last_full_frame: Option<(u64, Duration)>,
@@ -154,8 +154,9 @@ pub struct Pace {
 }
 
 /// A full frame expected later than this after its view gets a coarse frame first: the page
-/// should show something of a new camera within 100 ms.
-const COARSE_FRAME_AFTER: Duration = Duration::from_millis(60);
+/// should show something of a new camera within 100 ms, and it takes up, decodes and draws a
+/// frame about 10 ms after the server has it ready (docs/VIEWER.md, "Frames").
+const COARSE_FRAME_AFTER: Duration = Duration::from_millis(80);
 
 impl Pace {
     /// A full frame of `pixels` is expected later than [`COARSE_FRAME_AFTER`]: the last one,
@@ -185,7 +186,8 @@ impl Pace {
         }
     }
 
-    /// A full frame of `pixels` was ready `took` after its view arrived.
+    /// A full frame of `pixels` was ready `took` after its view arrived, less the time of the
+    /// coarse frame made before it.
     fn full_frame(&mut self, pixels: u64, took: Duration) {
         self.last_full_frame = Some((pixels, took));
     }
@@ -328,7 +330,9 @@ impl Viewer {
         };
         let bands = band_pixels(&scene);
         let pixels = u64::from(view.width) * u64::from(view.height);
+        let mut coarse_took = Duration::ZERO;
         if pace.needs_coarse_frame(pixels) {
+            let started = Instant::now();
             let every = pace.coarse_step(view);
             // Bands of as many rows as the full image's.
             let coarse_bands = bands / (every * every);
@@ -341,6 +345,7 @@ impl Viewer {
             let encoded = self.encode(frame, rays, view.camera, current, spp, stages);
             pace.coarse_frame(view, received.elapsed());
             deliver(encoded);
+            coarse_took = started.elapsed();
         }
         let mut image = Progressive::new(self.tracer, &scene, bands);
         let (mut ao_samples, mut before) = (1, Rays::default());
@@ -352,7 +357,9 @@ impl Viewer {
             let spp = image.samples_per_pixel() as f32;
             deliver(self.encode(frame, rays, view.camera, current, spp, stages));
             if ao_samples == 1 {
-                pace.full_frame(pixels, received.elapsed());
+                // Without the coarse frame: whether the next view's full frame comes late
+                // enough to need one.
+                pace.full_frame(pixels, received.elapsed().saturating_sub(coarse_took));
             }
             self.resident.refresh_when_due();
             if image.is_complete() {
@@ -571,11 +578,11 @@ mod tests {
         let mut pace = Pace::default();
         let side = |pixels: u64| pixels * pixels;
         assert!(pace.needs_coarse_frame(side(512)), "no full frame yet");
-        pace.full_frame(side(512), Duration::from_millis(40));
+        pace.full_frame(side(512), Duration::from_millis(80));
         assert!(!pace.needs_coarse_frame(side(512)));
         assert!(!pace.needs_coarse_frame(side(256)));
         assert!(pace.needs_coarse_frame(side(1024)), "four times the pixels");
-        pace.full_frame(side(512), Duration::from_millis(61));
+        pace.full_frame(side(512), Duration::from_millis(81));
         assert!(pace.needs_coarse_frame(side(512)));
         pace.full_frame(side(1024), Duration::from_millis(200));
         assert!(
