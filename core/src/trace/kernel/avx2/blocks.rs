@@ -359,6 +359,34 @@ pub(super) fn transpose_positions<const KX: usize, const KY: usize, const KZ: us
 ) -> ([__m256; 3], [__m256; 3]) {
     let flat = points.as_flattened();
     let v: [__m128; BLOCK + 2] = std::array::from_fn(|k| load_vertex(flat, references[k] as usize));
+    let (head, tail) = transpose(&v);
+    (
+        [head[KX], head[KY], head[KZ]],
+        [tail[KX], tail[KY], tail[KZ]],
+    )
+}
+
+/// [`transpose_positions`] with the ray-space axes known at run time only: `axes` is the
+/// `vpermilps` control `[KX, KY, KZ, 3]`, which puts each vertex's coordinates in ray-space
+/// order as it is loaded (a lane's ray alone, whose axes are not the walk's constants).
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+pub(super) fn transpose_positions_on(
+    points: &[[f32; 3]],
+    references: &[u8; BLOCK + 2],
+    axes: __m128i,
+) -> ([__m256; 3], [__m256; 3]) {
+    let flat = points.as_flattened();
+    let v: [__m128; BLOCK + 2] =
+        std::array::from_fn(|k| _mm_permutevar_ps(load_vertex(flat, references[k] as usize), axes));
+    transpose(&v)
+}
+
+/// Ten positions `[x, y, z, any]` as lanes: x, y and z of the first eight, and of the last
+/// two in lanes 0 and 1 (the other lanes are copies of no meaning).
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+fn transpose(v: &[__m128; BLOCK + 2]) -> ([__m256; 3], [__m256; 3]) {
     // Row `k` holds vertex `k` in its low half and vertex `k + 4` in its high half; a 4×4
     // transpose per half then gives x, y, z of vertices 0-3 | 4-7.
     let row: [__m256; 4] = std::array::from_fn(|k| _mm256_set_m128(v[k + 4], v[k]));
@@ -382,10 +410,7 @@ pub(super) fn transpose_positions<const KX: usize, const KY: usize, const KZ: us
         )),
         zw89,
     ];
-    (
-        [head[KX], head[KY], head[KZ]],
-        [tail[KX], tail[KY], tail[KZ]],
-    )
+    (head, tail)
 }
 
 /// The portable kernel's decoded block (`[axis][position]`) as `[shift][axis]` lanes.

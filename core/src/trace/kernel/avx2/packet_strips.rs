@@ -93,6 +93,20 @@ impl LaneSpaces {
         }
     }
 
+    /// Lane `lane`'s ray space in every lane: the origin on its ray-space axes, its shears and
+    /// its depth scale, each picked by one `vpermps`.
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+    #[inline]
+    pub(super) fn lane(&self, lane: usize) -> ([__m256; 3], [__m256; 2], __m256) {
+        let index = _mm256_set1_epi32(lane as i32);
+        let pick = |values: __m256| _mm256_permutevar8x32_ps(values, index);
+        (
+            self.origin.map(pick),
+            self.shear.map(pick),
+            pick(self.scale_z),
+        )
+    }
+
     /// The model position `[x, y, z, any]` in every lane's ray space: x and y, and the offset
     /// along the lane's ray-space z axis (which the depth scales), with the operations of
     /// `RaySpace::transform` (each lane picks its axes' coordinates with one `vpermps` each).
@@ -164,7 +178,8 @@ pub(super) fn trace_strip_together(
             active &= active - 1;
             let closest = &mut closest[lane % PACKET_WIDTH];
             let strip_at = (view, strip, points);
-            done |= trace_strip_alone((lanes, lane), leaf, strip_at, any_hit, closest);
+            let rays = (lanes, spaces, lane);
+            done |= trace_strip_alone(rays, leaf, strip_at, any_hit, closest);
         }
         return Some(done);
     }
@@ -357,7 +372,7 @@ fn trace_strip(
         if testing & (testing - 1) == 0 {
             let block_at = (&references, first, BLOCK.min(count - first));
             let strip_at = (lanes.strip, points);
-            let packet = (rays, testing);
+            let packet = (rays, spaces, testing);
             let done = trace_block_alone(packet, strip_at, block_at, lanes.any_hit, lanes.closest);
             finished |= done;
             lanes.active &= !done;
