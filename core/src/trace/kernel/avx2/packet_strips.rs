@@ -368,8 +368,8 @@ fn trace_strip(
         }
         // Only the references of the blocks tested are spread, as the lane-by-lane walk does.
         let references = Avx2::references(&view.references, first);
-        // A block that a single lane tests costs that lane's pass alone, not eight lanes'.
-        if testing & (testing - 1) == 0 {
+        // A block that few lanes test costs their passes alone, not eight lanes'.
+        if few_lanes(testing, lanes.any_hit) {
             let block_at = (&references, first, BLOCK.min(count - first));
             let strip_at = (lanes.strip, points);
             let packet = (rays, spaces, testing);
