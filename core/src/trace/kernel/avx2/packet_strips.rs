@@ -10,9 +10,9 @@
 //! the strip is moved to every lane's ray space once (a `vpermps` per ray-space axis picks each
 //! lane's coordinates), each window costs two edge functions for all lanes (its third is the
 //! previous window's first), and the block boxes are clipped for all lanes at once, a box's six
-//! planes decoded in one pass ([`BoxDecoder`]). A block that only one lane tests after the
-//! clip is tested for that lane alone (`super::strip_alone::trace_block_alone`), as a lone lane's
-//! strip is.
+//! planes decoded in one pass ([`BoxDecoder`]). A block that few lanes test after the clip
+//! ([`few_lanes`]) is tested for each of them alone (`super::strip_alone::trace_block_alone`), as
+//! a strip that few lanes reach is.
 //!
 //! Bit-identical to the lane-by-lane walk, also on a corrupt file: a lane tests exactly the
 //! blocks its walk alone would (the same box decisions: planes decoded with
@@ -198,8 +198,8 @@ pub(super) fn trace_strip_together(
     ))
 }
 
-/// Whether so few lanes reach a strip that each tests it alone: below that, a pass of the
-/// packet per window serves too few lanes. Measured on the 10M scan: at most two for closest
+/// Whether so few lanes reach a strip (or test a block of it) that each tests it alone: below
+/// that, a pass of the packet per window serves too few lanes. Measured on the 10M scan: at most two for closest
 /// hits, where each strip view of a camera packet serves few lanes; one for occlusion, whose
 /// strips serve more. Bits cleared (`blsr`) rather than counted.
 #[inline(always)]
