@@ -30,6 +30,7 @@ use std::arch::x86_64::*;
 
 use wide::{f32x8, i32x8};
 
+use super::blocks::BlockVertices;
 use super::simd::{
     candidate_lanes, edge, in_range_lanes_between, lanes as lanes_of, load, load_vertex,
 };
@@ -348,7 +349,6 @@ fn trace_strip(
     mut lanes: StripLanes,
 ) -> u32 {
     let count = view.window_count().min(MAX_WINDOWS);
-    let flat = points.as_flattened();
     let mut finished = 0;
     for (block, first) in (0..count).step_by(BLOCK).enumerate() {
         // As the lane-by-lane walk: a block whose box a lane enters is tested unless a hit
@@ -381,8 +381,9 @@ fn trace_strip(
             }
             continue;
         }
+        let vertices = BlockVertices::new(points, &references);
         let position = |k: usize| {
-            let [x, y, _] = spaces.transform(load_vertex(flat, usize::from(references[k])));
+            let [x, y, _] = spaces.transform(vertices.position(k));
             [x, y]
         };
         let mut corner0 = position(0);
