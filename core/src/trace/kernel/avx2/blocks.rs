@@ -16,7 +16,7 @@
 
 use std::arch::x86_64::*;
 
-use super::simd::{candidate_lanes, edge, in_range_lanes_between, lanes, load_vertex};
+use super::simd::{candidate_lanes, edge, in_range_lanes_between, lanes};
 use crate::format::block_boxes::{BoxFrame, BOX_BYTES, CODE_BIAS, MAX_CODE};
 use crate::format::vertices::VertexAccess;
 use crate::trace::kernel::{BlockEdges, EnteredBoxes, BLOCK, BOX_GROUP};
@@ -357,8 +357,84 @@ pub(super) fn transpose_positions<const KX: usize, const KY: usize, const KZ: us
     points: &[[f32; 3]],
     references: &[u8; BLOCK + 2],
 ) -> ([__m256; 3], [__m256; 3]) {
-    let flat = points.as_flattened();
-    let v: [__m128; BLOCK + 2] = std::array::from_fn(|k| load_vertex(flat, references[k] as usize));
+    let vertices = BlockVertices::new(points, references);
+    let v: [__m128; BLOCK + 2] = std::array::from_fn(|k| vertices.position(k));
+    let (head, tail) = transpose(&v);
+    (
+        [head[KX], head[KY], head[KZ]],
+        [tail[KX], tail[KY], tail[KZ]],
+    )
+}
+
+/// [`transpose_positions`] with the ray-space axes known at run time only: `axes` is the
+/// `vpermilps` control `[KX, KY, KZ, 3]`, which puts each vertex's coordinates in ray-space
+/// order as it is loaded (a lane's ray alone, whose axes are not the walk's constants).
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+pub(super) fn transpose_positions_on(
+    points: &[[f32; 3]],
+    references: &[u8; BLOCK + 2],
+    axes: __m128i,
+) -> ([__m256; 3], [__m256; 3]) {
+    let vertices = BlockVertices::new(points, references);
+    let v: [__m128; BLOCK + 2] =
+        std::array::from_fn(|k| _mm_permutevar_ps(vertices.position(k), axes));
+    transpose(&v)
+}
+
+/// A lossless block's vertices, loaded by the block's references: each reference clamped to the
+/// strip's last vertex once, when made (only a file changed after its validation has larger
+/// ones, which then read the last vertex, as `simd::load_vertex` does), so that a vertex load
+/// needs no clamp of its own, and the last vertex no special case.
+pub(super) struct BlockVertices<'a> {
+    flat: &'a [f32],
+    /// The block's references, at most the last vertex; zeros past them.
+    references: [u8; 16],
+}
+
+impl<'a> BlockVertices<'a> {
+    /// The vertices `points` of the block with `references`.
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+    #[inline]
+    pub(super) fn new(points: &'a [[f32; 3]], references: &[u8; BLOCK + 2]) -> BlockVertices<'a> {
+        let last = points.len().checked_sub(1).expect("a strip has vertices");
+        let mut bytes = [0u8; 16];
+        bytes[..BLOCK + 2].copy_from_slice(references);
+        // SAFETY: `bytes` is sixteen bytes, what the unaligned load reads and the unaligned
+        // store writes; SSE2 is enabled.
+        unsafe {
+            let stored = _mm_loadu_si128(bytes.as_ptr().cast());
+            let bound = _mm_set1_epi8(last.min(255) as u8 as i8);
+            _mm_storeu_si128(bytes.as_mut_ptr().cast(), _mm_min_epu8(stored, bound));
+        }
+        BlockVertices {
+            flat: points.as_flattened(),
+            references: bytes,
+        }
+    }
+
+    /// The vertex of reference `k` as `[x, y, z, 0]`: x and y by one 8-byte load, z inserted.
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+    #[inline]
+    pub(super) fn position(&self, k: usize) -> __m128 {
+        let start = 3 * usize::from(self.references[k]);
+        // SAFETY: the references were clamped to the last vertex in `new`, so `start + 3 <=
+        // flat.len()`: the 8-byte unaligned load reads floats `start` and `start + 1`, the
+        // 4-byte one float `start + 2` (f32-aligned), all inside `flat`; SSE4.1 is enabled.
+        unsafe {
+            let at = self.flat.as_ptr().add(start);
+            let xy = _mm_castsi128_ps(_mm_loadl_epi64(at.cast()));
+            // Lane 0 of the loaded z into lane 2 (bits 5:4), no lane zeroed (bits 3:0).
+            _mm_insert_ps::<0b0010_0000>(xy, _mm_load_ss(at.add(2)))
+        }
+    }
+}
+
+/// Ten positions `[x, y, z, any]` as lanes: x, y and z of the first eight, and of the last
+/// two in lanes 0 and 1 (the other lanes are copies of no meaning).
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+fn transpose(v: &[__m128; BLOCK + 2]) -> ([__m256; 3], [__m256; 3]) {
     // Row `k` holds vertex `k` in its low half and vertex `k + 4` in its high half; a 4×4
     // transpose per half then gives x, y, z of vertices 0-3 | 4-7.
     let row: [__m256; 4] = std::array::from_fn(|k| _mm256_set_m128(v[k + 4], v[k]));
@@ -382,10 +458,7 @@ pub(super) fn transpose_positions<const KX: usize, const KY: usize, const KZ: us
         )),
         zw89,
     ];
-    (
-        [head[KX], head[KY], head[KZ]],
-        [tail[KX], tail[KY], tail[KZ]],
-    )
+    (head, tail)
 }
 
 /// The portable kernel's decoded block (`[axis][position]`) as `[shift][axis]` lanes.

@@ -10,9 +10,9 @@
 //! the strip is moved to every lane's ray space once (a `vpermps` per ray-space axis picks each
 //! lane's coordinates), each window costs two edge functions for all lanes (its third is the
 //! previous window's first), and the block boxes are clipped for all lanes at once, a box's six
-//! planes decoded in one pass ([`BoxDecoder`]). A block that only one lane tests after the
-//! clip is tested for that lane alone (`super::strip_alone::trace_block_alone`), as a lone lane's
-//! strip is.
+//! planes decoded in one pass ([`BoxDecoder`]). A block that few lanes test after the clip
+//! ([`few_lanes`]) is tested for each of them alone (`super::strip_alone::trace_block_alone`), as
+//! a strip that few lanes reach is.
 //!
 //! Bit-identical to the lane-by-lane walk, also on a corrupt file: a lane tests exactly the
 //! blocks its walk alone would (the same box decisions: planes decoded with
@@ -30,6 +30,7 @@ use std::arch::x86_64::*;
 
 use wide::{f32x8, i32x8};
 
+use super::blocks::BlockVertices;
 use super::simd::{
     candidate_lanes, edge, in_range_lanes_between, lanes as lanes_of, load, load_vertex,
 };
@@ -91,6 +92,20 @@ impl LaneSpaces {
             scale_z: wide(lanes.scale_z),
             tmin: wide(lanes.tmin),
         }
+    }
+
+    /// Lane `lane`'s ray space in every lane: the origin on its ray-space axes, its shears and
+    /// its depth scale, each picked by one `vpermps`.
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+    #[inline]
+    pub(super) fn lane(&self, lane: usize) -> ([__m256; 3], [__m256; 2], __m256) {
+        let index = _mm256_set1_epi32(lane as i32);
+        let pick = |values: __m256| _mm256_permutevar8x32_ps(values, index);
+        (
+            self.origin.map(pick),
+            self.shear.map(pick),
+            pick(self.scale_z),
+        )
     }
 
     /// The model position `[x, y, z, any]` in every lane's ray space: x and y, and the offset
@@ -164,7 +179,8 @@ pub(super) fn trace_strip_together(
             active &= active - 1;
             let closest = &mut closest[lane % PACKET_WIDTH];
             let strip_at = (view, strip, points);
-            done |= trace_strip_alone((lanes, lane), leaf, strip_at, any_hit, closest);
+            let rays = (lanes, spaces, lane);
+            done |= trace_strip_alone(rays, leaf, strip_at, any_hit, closest);
         }
         return Some(done);
     }
@@ -183,8 +199,8 @@ pub(super) fn trace_strip_together(
     ))
 }
 
-/// Whether so few lanes reach a strip that each tests it alone: below that, a pass of the
-/// packet per window serves too few lanes. Measured on the 10M scan: at most two for closest
+/// Whether so few lanes reach a strip (or test a block of it) that each tests it alone: below
+/// that, a pass of the packet per window serves too few lanes. Measured on the 10M scan: at most two for closest
 /// hits, where each strip view of a camera packet serves few lanes; one for occlusion, whose
 /// strips serve more. Bits cleared (`blsr`) rather than counted.
 #[inline(always)]
@@ -333,7 +349,6 @@ fn trace_strip(
     mut lanes: StripLanes,
 ) -> u32 {
     let count = view.window_count().min(MAX_WINDOWS);
-    let flat = points.as_flattened();
     let mut finished = 0;
     for (block, first) in (0..count).step_by(BLOCK).enumerate() {
         // As the lane-by-lane walk: a block whose box a lane enters is tested unless a hit
@@ -353,11 +368,11 @@ fn trace_strip(
         }
         // Only the references of the blocks tested are spread, as the lane-by-lane walk does.
         let references = Avx2::references(&view.references, first);
-        // A block that a single lane tests costs that lane's pass alone, not eight lanes'.
-        if testing & (testing - 1) == 0 {
+        // A block that few lanes test costs their passes alone, not eight lanes'.
+        if few_lanes(testing, lanes.any_hit) {
             let block_at = (&references, first, BLOCK.min(count - first));
             let strip_at = (lanes.strip, points);
-            let packet = (rays, testing);
+            let packet = (rays, spaces, testing);
             let done = trace_block_alone(packet, strip_at, block_at, lanes.any_hit, lanes.closest);
             finished |= done;
             lanes.active &= !done;
@@ -366,8 +381,9 @@ fn trace_strip(
             }
             continue;
         }
+        let vertices = BlockVertices::new(points, &references);
         let position = |k: usize| {
-            let [x, y, _] = spaces.transform(load_vertex(flat, usize::from(references[k])));
+            let [x, y, _] = spaces.transform(vertices.position(k));
             [x, y]
         };
         let mut corner0 = position(0);

@@ -16,10 +16,10 @@
 use std::arch::x86_64::*;
 
 use super::blocks::{
-    entered_boxes, in_range_lanes, shift_lanes, shifted_corners, transform, transpose_positions,
+    entered_boxes, in_range_lanes, shift_lanes, shifted_corners, transform, transpose_positions_on,
     window_candidates, BoxRay,
 };
-use super::packet_strips::MAX_WINDOWS;
+use super::packet_strips::{LaneSpaces, MAX_WINDOWS};
 use super::simd::lanes as lanes_of;
 use super::Avx2;
 use crate::format::reader::StripView;
@@ -29,14 +29,14 @@ use crate::trace::lanes::{Lanes, PACKET_WIDTH};
 use crate::trace::watertight::{resolve, RayPoint};
 
 /// One lane's ray: what its box test reads (origin and reciprocals per model axis, direction
-/// signs), and its ray space with each quantity in every SIMD lane (the origin on the ray-space
-/// axes, the shears, the depth scale).
+/// signs), its ray-space axes as a `vpermilps` control, and its ray space with each quantity in
+/// every SIMD lane (the origin on the ray-space axes, the shears, the depth scale).
 struct LoneRay {
     model_origin: [f32; 3],
     entry_reciprocal: [f32; 3],
     exit_reciprocal: [f32; 3],
     negative: [bool; 3],
-    axes: [usize; 3],
+    axes: __m128i,
     origin: [__m256; 3],
     shear: [__m256; 2],
     scale_z: __m256,
@@ -44,28 +44,24 @@ struct LoneRay {
 }
 
 impl LoneRay {
-    /// Lane `lane`'s ray, read from `lanes`.
+    /// Lane `lane`'s ray, read from `lanes` and, already moved to its ray-space axes, from
+    /// `spaces`.
     #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
-    fn new(lanes: &Lanes, lane: usize) -> LoneRay {
+    fn new((lanes, spaces): (&Lanes, &LaneSpaces), lane: usize) -> LoneRay {
         let lane = lane % PACKET_WIDTH;
         let at = |values: &[wide::f32x8; 3]| values.each_ref().map(|v| v.as_array()[lane]);
-        let origin = at(&lanes.origin);
-        // Ray-space axes are model axes 0 to 2; saying so spares the bounds checks.
-        let axes = lanes
-            .space_axes
-            .each_ref()
-            .map(|a| (a.as_array()[lane] as usize).min(2));
-        let one = |values: &wide::f32x8| _mm256_set1_ps(values.as_array()[lane]);
+        let [a, b, c] = lanes.space_axes.each_ref().map(|a| a.as_array()[lane]);
+        let (origin, shear, scale_z) = spaces.lane(lane);
         LoneRay {
-            model_origin: origin,
+            model_origin: at(&lanes.origin),
             entry_reciprocal: at(&lanes.entry_reciprocal),
             exit_reciprocal: at(&lanes.exit_reciprocal),
             negative: lanes.negative(),
-            axes,
-            origin: axes.map(|axis| _mm256_set1_ps(origin[axis])),
-            shear: [one(&lanes.shear[0]), one(&lanes.shear[1])],
-            scale_z: one(&lanes.scale_z),
+            axes: _mm_setr_epi32(a, b, c, 3),
+            origin,
+            shear,
+            scale_z,
             tmin: lanes.tmin.as_array()[lane],
         }
     }
@@ -99,13 +95,13 @@ struct LoneEdges {
 /// bit when it found a hit and `any_hit` is set (it is done).
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 pub(super) fn trace_strip_alone(
-    (lanes, lane): (&Lanes, usize),
+    (lanes, spaces, lane): (&Lanes, &LaneSpaces, usize),
     leaf: &LeafLanes,
     (view, strip, points): (&StripView, u32, &[[f32; 3]]),
     any_hit: bool,
     closest: &mut Closest,
 ) -> u32 {
-    let ray = LoneRay::new(lanes, lane);
+    let ray = LoneRay::new((lanes, spaces), lane);
     let lane = lane % PACKET_WIDTH;
     let t_far = if any_hit {
         leaf.t_far[lane]
@@ -188,7 +184,7 @@ fn test_block<const SITE: usize>(
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline(never)]
 pub(super) fn trace_block_alone(
-    (lanes, testing): (&Lanes, u32),
+    (lanes, spaces, testing): (&Lanes, &LaneSpaces, u32),
     (strip, points): (u32, &[[f32; 3]]),
     block: (&[u8; BLOCK + 2], usize, usize),
     any_hit: bool,
@@ -199,7 +195,7 @@ pub(super) fn trace_block_alone(
     while testing != 0 {
         let lane = testing.trailing_zeros() as usize;
         testing &= testing - 1;
-        let ray = LoneRay::new(lanes, lane);
+        let ray = LoneRay::new((lanes, spaces), lane);
         let closest = &mut closest[lane % PACKET_WIDTH];
         if test_block::<1>(&ray, (strip, points), block, any_hit, closest) {
             done |= 1 << lane;
@@ -220,10 +216,9 @@ fn lone_edges<const SITE: usize>(
     (references, windows): (&[u8; BLOCK + 2], usize),
     tmax: f32,
 ) -> Option<LoneEdges> {
-    let (head, tail) = transpose_positions::<0, 1, 2>(points, references);
-    let [a, b, c] = ray.axes;
-    let [hx, hy, hz] = transform([head[a], head[b], head[c]], &ray.origin, &ray.shear);
-    let [tx, ty, tz] = transform([tail[a], tail[b], tail[c]], &ray.origin, &ray.shear);
+    let (head, tail) = transpose_positions_on(points, references, ray.axes);
+    let [hx, hy, hz] = transform(head, &ray.origin, &ray.shear);
+    let [tx, ty, tz] = transform(tail, &ray.origin, &ray.shear);
     let corners = shifted_corners([hx, hy], [tx, ty]);
     let (weights, candidates) = window_candidates(&corners, references, windows)?;
     let (by_one, by_two) = shift_lanes(hz, tz);
