@@ -56,10 +56,9 @@ use crate::format::INTERNAL_CHILD;
 /// traced alone.
 const MIN_PACKET_LANES: usize = 6;
 
-/// Whether `mask` has one lane at most: an occlusion packet hands a node's subtree that one
-/// lane enters to that lane alone, since a lone lane pays a packet's clip per child for
-/// nothing. Two lanes alone cost the benchmark's AO rays more than they save, since single
-/// rays test strips one ray at a time.
+/// Whether `mask` has one lane at most: a packet hands a node's subtree that one lane enters
+/// to that lane alone, since a lone lane pays a packet's clip per child for nothing. Two lanes
+/// alone cost more than they save, since single rays test strips one ray at a time.
 #[inline(always)]
 fn at_most_one(mask: u32) -> bool {
     mask & mask.wrapping_sub(1) == 0
@@ -371,15 +370,16 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     // `ReducemFile::node_visits`, from the nodes at hand rather than a second look-up.
     let mut visits = nodes.len();
     loop {
-        if ANY_HIT && current.kind == INTERNAL_CHILD && at_most_one(current.mask) {
-            let found = occlude_alone::<N, C, P>(
+        if current.kind == INTERNAL_CHILD && at_most_one(current.mask) {
+            let found = walk_alone::<N, C, P, ANY_HIT>(
                 tracer,
                 (nodes, decoder),
                 (lanes, prepared),
                 &current,
                 closest,
             );
-            if found != 0 {
+            // A closest-hit lane's bound moves with every hit it finds.
+            if !ANY_HIT || found != 0 {
                 finished |= found;
                 (limit, reach) = bounds::<ANY_HIT>(closest, finished);
             }
@@ -439,10 +439,12 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
 }
 
 /// Each lane of `entry` walks its subtree alone with the single-ray walk; returns the lanes
-/// that found an occluder. Occlusion answers do not depend on the order of the visits,
-/// so a lane may leave the packet anywhere.
+/// that found an occluder (`ANY_HIT`). Occlusion answers do not depend on the order of the
+/// visits, so a lane may leave the packet anywhere; a closest-hit lane visits the subtree's
+/// children in the order, and with the bounds, that it would in the packet, all before the
+/// packet's next deferred child.
 #[inline(always)]
-fn occlude_alone<N: TraceNode, C: TraceKernel, P: LaneRays>(
+fn walk_alone<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool>(
     tracer: &Tracer,
     nodes: (&[N], &N::Decoder),
     (lanes, prepared): (&Lanes, &mut P),
@@ -458,8 +460,8 @@ fn occlude_alone<N: TraceNode, C: TraceKernel, P: LaneRays>(
             t_near: t_near[lane],
             t_far: t_far[lane],
         };
-        let query = tracer.query(prepared.ray(lanes, lane), true);
-        if trace_nodes::<N, C, true>(tracer, nodes, &query, start, &mut closest[lane]) {
+        let query = tracer.query(prepared.ray(lanes, lane), ANY_HIT);
+        if trace_nodes::<N, C, ANY_HIT>(tracer, nodes, &query, start, &mut closest[lane]) {
             found |= 1 << lane;
         }
     });
