@@ -111,8 +111,12 @@ pub(super) fn trace_packet(
     closest: &mut [Closest; PACKET_WIDTH],
 ) {
     let rays = &rays[..rays.len().min(PACKET_WIDTH)];
-    for (lane, closest) in closest.iter_mut().enumerate() {
-        *closest = Closest::none(rays.get(lane).map_or(f32::NEG_INFINITY, |ray| ray.tmax));
+    // The lanes with a ray, then the others: no test of each lane for its ray.
+    for (closest, ray) in closest.iter_mut().zip(rays) {
+        *closest = Closest::none(ray.tmax);
+    }
+    for closest in &mut closest[rays.len()..] {
+        *closest = Closest::none(f32::NEG_INFINITY);
     }
     if rays.is_empty() {
         return;
@@ -263,13 +267,14 @@ impl Lanes {
                 entered.push(child);
             }
         });
+        if entered.len() <= 1 {
+            return entered.pop();
+        }
         // The entries' indices are sorted, not the entries.
         let mut order = [0, 1, 2, 3, 4, 5, 6, 7];
         let order = &mut order[..entered.len()];
-        if order.len() > 1 {
-            let keys = C::plane_order_keys(&planes, &self.negative());
-            sort_by_keys(order, &slots, &keys);
-        }
+        let keys = C::plane_order_keys(&planes, &self.negative());
+        sort_by_keys(order, &slots, &keys);
         for &index in order.iter().skip(1).rev() {
             stack.push(entered[index]);
         }
