@@ -27,9 +27,11 @@
 //! corrupt file whose boxes do not bound their strips (on a valid file the closest-hit rule
 //! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
 //! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children
-//! unsorted (the lowest slot entered first), which costs fewer instructions than either sorted order; and a subtree
-//! below a node that only one lane of an occlusion packet enters is walked by that lane alone
-//! (the single-ray walk), where one clip tests all of a node's children. A leaf that one lane
+//! unsorted (the lowest slot entered first), which costs fewer instructions than either sorted order. A subtree
+//! below a node that only one lane of a packet enters is walked by that lane alone (the
+//! single-ray walk), where one clip tests all of a node's children; a closest-hit lane visits it
+//! in the order and with the bounds it would in the packet, before the packet's next deferred
+//! child, so its answer is unchanged. A leaf that one lane
 //! reaches stays with the packet, whose kernel may test a strip for a lone lane more cheaply
 //! than the single-ray walk does.
 //!
@@ -56,10 +58,9 @@ use crate::format::INTERNAL_CHILD;
 /// traced alone.
 const MIN_PACKET_LANES: usize = 6;
 
-/// Whether `mask` has one lane at most: an occlusion packet hands a node's subtree that one
-/// lane enters to that lane alone, since a lone lane pays a packet's clip per child for
-/// nothing. Two lanes alone cost the benchmark's AO rays more than they save, since single
-/// rays test strips one ray at a time.
+/// Whether `mask` has one lane at most: a packet hands a node's subtree that one lane enters
+/// to that lane alone, since a lone lane pays a packet's clip per child for nothing. Two lanes
+/// alone cost more than they save, since single rays test strips one ray at a time.
 #[inline(always)]
 fn at_most_one(mask: u32) -> bool {
     mask & mask.wrapping_sub(1) == 0
@@ -112,8 +113,12 @@ pub(super) fn trace_packet(
     closest: &mut [Closest; PACKET_WIDTH],
 ) {
     let rays = &rays[..rays.len().min(PACKET_WIDTH)];
-    for (lane, closest) in closest.iter_mut().enumerate() {
-        *closest = Closest::none(rays.get(lane).map_or(f32::NEG_INFINITY, |ray| ray.tmax));
+    // The lanes with a ray, then the others: no test of each lane for its ray.
+    for (closest, ray) in closest.iter_mut().zip(rays) {
+        *closest = Closest::none(ray.tmax);
+    }
+    for closest in &mut closest[rays.len()..] {
+        *closest = Closest::none(f32::NEG_INFINITY);
     }
     if rays.is_empty() {
         return;
@@ -264,13 +269,14 @@ impl Lanes {
                 entered.push(child);
             }
         });
+        if entered.len() <= 1 {
+            return entered.pop();
+        }
         // The entries' indices are sorted, not the entries.
         let mut order = [0, 1, 2, 3, 4, 5, 6, 7];
         let order = &mut order[..entered.len()];
-        if order.len() > 1 {
-            let keys = C::plane_order_keys(&planes, &self.negative());
-            sort_by_keys(order, &slots, &keys);
-        }
+        let keys = C::plane_order_keys(&planes, &self.negative());
+        sort_by_keys(order, &slots, &keys);
         for &index in order.iter().skip(1).rev() {
             stack.push(entered[index]);
         }
@@ -371,15 +377,16 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     // `ReducemFile::node_visits`, from the nodes at hand rather than a second look-up.
     let mut visits = nodes.len();
     loop {
-        if ANY_HIT && current.kind == INTERNAL_CHILD && at_most_one(current.mask) {
-            let found = occlude_alone::<N, C, P>(
+        if current.kind == INTERNAL_CHILD && at_most_one(current.mask) {
+            let found = walk_alone::<N, C, P, ANY_HIT>(
                 tracer,
                 (nodes, decoder),
                 (lanes, prepared),
                 &current,
                 closest,
             );
-            if found != 0 {
+            // A closest-hit lane's bound moves with every hit it finds.
+            if !ANY_HIT || found != 0 {
                 finished |= found;
                 (limit, reach) = bounds::<ANY_HIT>(closest, finished);
             }
@@ -439,10 +446,12 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
 }
 
 /// Each lane of `entry` walks its subtree alone with the single-ray walk; returns the lanes
-/// that found an occluder. Occlusion answers do not depend on the order of the visits,
-/// so a lane may leave the packet anywhere.
+/// that found an occluder (`ANY_HIT`). Occlusion answers do not depend on the order of the
+/// visits, so a lane may leave the packet anywhere; a closest-hit lane visits the subtree's
+/// children in the order, and with the bounds, that it would in the packet, all before the
+/// packet's next deferred child.
 #[inline(always)]
-fn occlude_alone<N: TraceNode, C: TraceKernel, P: LaneRays>(
+fn walk_alone<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool>(
     tracer: &Tracer,
     nodes: (&[N], &N::Decoder),
     (lanes, prepared): (&Lanes, &mut P),
@@ -458,8 +467,8 @@ fn occlude_alone<N: TraceNode, C: TraceKernel, P: LaneRays>(
             t_near: t_near[lane],
             t_far: t_far[lane],
         };
-        let query = tracer.query(prepared.ray(lanes, lane), true);
-        if trace_nodes::<N, C, true>(tracer, nodes, &query, start, &mut closest[lane]) {
+        let query = tracer.query(prepared.ray(lanes, lane), ANY_HIT);
+        if trace_nodes::<N, C, ANY_HIT>(tracer, nodes, &query, start, &mut closest[lane]) {
             found |= 1 << lane;
         }
     });
