@@ -27,13 +27,13 @@
 //! corrupt file whose boxes do not bound their strips (on a valid file the closest-hit rule
 //! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
 //! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children
-//! unsorted (the lowest slot entered first), which costs fewer instructions than either sorted order. A subtree
-//! below a node that only one lane of a packet enters is walked by that lane alone (the
-//! single-ray walk), where one clip tests all of a node's children; a closest-hit lane visits it
-//! in the order and with the bounds it would in the packet, before the packet's next deferred
-//! child, so its answer is unchanged. A leaf that one lane
-//! reaches stays with the packet, whose kernel may test a strip for a lone lane more cheaply
-//! than the single-ray walk does.
+//! unsorted (the lowest slot entered first), which costs fewer instructions than either sorted
+//! order. A subtree below a node that only one lane of a packet enters is walked by that lane
+//! alone (the single-ray walk), where one clip tests all of a node's children; a closest-hit
+//! lane visits it in the order and with the bounds it would in the packet, before the packet's
+//! next deferred child, so its answer is unchanged. A leaf that one lane reaches stays with the
+//! packet, whose kernel may test a strip for a lone lane more cheaply than the single-ray walk
+//! does.
 //!
 //! [`order_keys`]: super::top::order_keys
 

@@ -200,9 +200,9 @@ pub(super) fn trace_strip_together(
 }
 
 /// Whether so few lanes reach a strip (or test a block of it) that each tests it alone: below
-/// that, a pass of the packet per window serves too few lanes. Measured on the 10M scan: at most two for closest
-/// hits, where each strip view of a camera packet serves few lanes; one for occlusion, whose
-/// strips serve more. Bits cleared (`blsr`) rather than counted.
+/// that, a pass of the packet per window serves too few lanes. Measured on the 10M scan: at
+/// most two for closest hits, where each strip view of a camera packet serves few lanes; one
+/// for occlusion, whose strips serve more. Bits cleared (`blsr`) rather than counted.
 #[inline(always)]
 fn few_lanes(active: u32, any_hit: bool) -> bool {
     let past_one = active & active.wrapping_sub(1);
