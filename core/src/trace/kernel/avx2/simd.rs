@@ -6,25 +6,24 @@ use std::arch::x86_64::*;
 
 use crate::trace::kernel::BLOCK;
 
-/// `watertight::candidate_lanes` lanewise: `vminps`/`vmaxps` are the portable `minps`/`maxps`
-/// on eight lanes (the second operand where either is NaN).
+/// Lanes that `watertight::candidate_lanes` takes, and a few more that [`resolve`] rejects:
+/// those whose weights' sign bits agree (all of one sign), or whose product is zero or NaN (a
+/// zero weight, which `resolve` settles in f64; also a product that underflows, or a NaN or
+/// infinite weight). Every lane `candidate_lanes` takes is among them (a weight of either zero
+/// makes the product a zero or, times an infinity, NaN), and a lane past them has weights of
+/// both signs and none zero, which `resolve` rejects: the answers are the same, in fewer
+/// instructions than the minimum, maximum and three compares with zero.
+///
+/// [`resolve`]: crate::trace::watertight::resolve
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn candidate_lanes(w: &[__m256; 3]) -> u32 {
-    let zero = _mm256_setzero_ps();
-    let min = _mm256_min_ps(_mm256_min_ps(w[0], w[1]), w[2]);
-    let max = _mm256_max_ps(_mm256_max_ps(w[0], w[1]), w[2]);
-    let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(min, zero);
-    let negative = _mm256_cmp_ps::<_CMP_LT_OQ>(max, zero);
-    let on_edge = _mm256_or_ps(
-        _mm256_or_ps(
-            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[0], zero),
-            _mm256_cmp_ps::<_CMP_EQ_OQ>(w[1], zero),
-        ),
-        _mm256_cmp_ps::<_CMP_EQ_OQ>(w[2], zero),
-    );
-    let any = _mm256_or_ps(_mm256_or_ps(positive, negative), on_edge);
-    _mm256_movemask_ps(any) as u32
+    let signs_differ = _mm256_or_ps(_mm256_xor_ps(w[0], w[1]), _mm256_xor_ps(w[1], w[2]));
+    let product = _mm256_mul_ps(_mm256_mul_ps(w[0], w[1]), w[2]);
+    let zero_or_nan = _mm256_cmp_ps::<_CMP_EQ_UQ>(product, _mm256_setzero_ps());
+    let differ = _mm256_movemask_ps(signs_differ) as u32;
+    let zero = _mm256_movemask_ps(zero_or_nan) as u32;
+    (!differ | zero) & 0xFF
 }
 
 /// [`in_range_lanes`] with a range per lane.
