@@ -110,14 +110,16 @@ impl LaneSpaces {
 
     /// The model position `[x, y, z, any]` in every lane's ray space: x and y, and the offset
     /// along the lane's ray-space z axis (which the depth scales), with the operations of
-    /// `RaySpace::transform` (each lane picks its axes' coordinates with one `vpermps` each).
+    /// `RaySpace::transform`. Each lane picks its axes' coordinates from the position held in
+    /// both halves with one in-lane `vpermilps` each, whose control (unlike `vpermps`'s index)
+    /// may be read from memory when the window loop runs out of registers.
     #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
     fn transform(&self, position: __m128) -> [__m256; 3] {
         let both = _mm256_set_m128(position, position);
         let a = [0, 1, 2].map(|role| {
             _mm256_sub_ps(
-                _mm256_permutevar8x32_ps(both, self.axis[role]),
+                _mm256_permutevar_ps(both, self.axis[role]),
                 self.origin[role],
             )
         });
