@@ -221,18 +221,18 @@ pub fn edge_lanes(p: &RayPoints, q: &RayPoints) -> f32x8 {
     q.x * p.y - q.y * p.x
 }
 
-/// Lanes whose three edge weights could make a hit: all of one sign (the smallest positive or
-/// the largest negative), or one exactly zero (which [`resolve`] settles in f64). Every lane
-/// [`resolve`] accepts is among them. A lane with a NaN weight and no zero one may be too (the
-/// minimum and maximum do not order NaN), and [`resolve`] rejects it: its sum, and so its `t`,
-/// is NaN, or its other weights have opposite signs.
+/// Lanes whose three edge weights could make a hit: all of one sign (their sign bits agree), or
+/// one exactly zero (which [`resolve`] settles in f64), found as a product that is zero or NaN
+/// (a zero times an infinity). Every lane [`resolve`] accepts is among them. So are some it
+/// rejects, which cost a test but change no answer: a product that underflows, a NaN or
+/// infinite weight. Sign bits and one product take fewer operations than the weights' minimum
+/// and maximum and three compares with zero.
 #[inline(always)]
 pub fn candidate_lanes(w: [f32x8; 3]) -> u32 {
-    let zero = f32x8::ZERO;
-    let positive = w[0].fast_min(w[1]).fast_min(w[2]).simd_gt(zero);
-    let negative = w[0].fast_max(w[1]).fast_max(w[2]).simd_lt(zero);
-    let on_edge = w[0].simd_eq(zero) | w[1].simd_eq(zero) | w[2].simd_eq(zero);
-    (positive | negative | on_edge).to_bitmask()
+    let signs_differ = (w[0] ^ w[1]) | (w[1] ^ w[2]);
+    let product = w[0] * w[1] * w[2];
+    let zero_or_nan = product.simd_eq(f32x8::ZERO) | product.simd_ne(product);
+    (!signs_differ.to_bitmask() | zero_or_nan.to_bitmask()) & 0xFF
 }
 
 /// Edge function of the directed edge `p → q`: positive when the ray passes on one side,

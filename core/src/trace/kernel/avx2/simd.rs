@@ -6,15 +6,8 @@ use std::arch::x86_64::*;
 
 use crate::trace::kernel::BLOCK;
 
-/// Lanes that `watertight::candidate_lanes` takes, and a few more that [`resolve`] rejects:
-/// those whose weights' sign bits agree (all of one sign), or whose product is zero or NaN (a
-/// zero weight, which `resolve` settles in f64; also a product that underflows, or a NaN or
-/// infinite weight). Every lane `candidate_lanes` takes is among them (a weight of either zero
-/// makes the product a zero or, times an infinity, NaN), and a lane past them has weights of
-/// both signs and none zero, which `resolve` rejects: the answers are the same, in fewer
-/// instructions than the minimum, maximum and three compares with zero.
-///
-/// [`resolve`]: crate::trace::watertight::resolve
+/// `watertight::candidate_lanes` lanewise: the weights' sign bits compared by `vxorps`, their
+/// product compared with zero unordered (`vcmpeq_uqps`, true also for NaN).
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn candidate_lanes(w: &[__m256; 3]) -> u32 {
