@@ -271,87 +271,60 @@ impl<'a, 'f> Progressive<'a, 'f> {
         self.traced() && self.ao_samples_done() == self.renderer.ao_samples().end
     }
 
-    /// The image's width and height in pixels.
-    pub fn size(&self) -> (u32, u32) {
-        (self.scene.image.width, self.scene.image.height)
-    }
-
     /// One more round: the primary rays and shadows when not yet traced, and AO samples up to
     /// `ao_samples_until` (at most the scene's); `before_band` is asked before each band and
     /// its error abandons the round (the bands already begun are finished). The image after the
     /// round.
+    ///
+    /// The bands run side by side, each band's passes one after another, so that a round joins
+    /// its threads once: a join per pass and band (two a band for the viewer's primary frame)
+    /// left one core idle at each while the other finished its last tiles.
     pub fn refine<E: Send>(
         &mut self,
         ao_samples_until: u32,
         before_band: impl Fn() -> Result<(), E> + Sync,
     ) -> Result<Frame, E> {
-        let pixels = self.refine_with(ao_samples_until, before_band, |rows| rows)?;
-        let (width, height) = self.size();
-        Ok(Frame {
-            width,
-            height,
-            pixels,
-        })
-    }
-
-    /// [`Progressive::refine`], each band's finished rows turned by `finish` on the band's
-    /// thread (the viewer's sRGB bytes), the bands' results in the image's order.
-    ///
-    /// The bands run side by side, each band's passes one after another, so that a round joins
-    /// its threads once: a join per pass and band (two a band for the viewer's primary frame)
-    /// left one core idle at each while the other finished its last tiles.
-    pub fn refine_with<E: Send, T: Send>(
-        &mut self,
-        ao_samples_until: u32,
-        before_band: impl Fn() -> Result<(), E> + Sync,
-        finish: impl Fn(Vec<[f32; 3]>) -> Vec<T> + Sync,
-    ) -> Result<Vec<T>, E> {
         let renderer = &self.renderer;
         let until = ao_samples_until.min(renderer.ao_samples().end);
         let factor = self.scene.image.antialiasing.max(1);
         let started = Instant::now();
-        let bands: Vec<Result<FinishedBand<T>, E>> = self
+        let bands: Vec<Result<(Vec<[f32; 3]>, Vec<EffectReport>), E>> = self
             .bands
             .par_iter_mut()
             .map(|band| {
                 before_band()?;
-                let band_started = Instant::now();
                 let mut effects = renderer.effects();
                 if !band.traced {
                     renderer.trace_band(band, &mut effects);
                 }
                 let samples = band.ao_samples.end..until.max(band.ao_samples.end);
                 renderer.add_ao_samples(band, samples, &mut effects);
-                let values = finish(renderer.finished_rows(band, factor));
-                let seconds = band_started.elapsed().as_secs_f64();
-                Ok(FinishedBand {
-                    values,
-                    effects,
-                    seconds,
-                })
+                Ok((renderer.finished_rows(band, factor), effects))
             })
             .collect();
-        let mut round = Round {
-            effects: renderer.effects(),
-            band_seconds: 0.0,
-            wall_seconds: 0.0,
-        };
-        let mut values = Vec::new();
+        let mut round = renderer.effects();
+        let mut pixels = Vec::new();
         let mut abandoned = None;
         for band in bands {
             match band {
-                Ok(band) => {
-                    values.extend(band.values);
-                    round.add(band.effects, band.seconds);
+                Ok((rows, effects)) => {
+                    pixels.extend(rows);
+                    for (sum, effect) in round.iter_mut().zip(effects) {
+                        sum.rays += effect.rays;
+                        sum.seconds += effect.seconds;
+                    }
                 }
                 Err(error) => abandoned = abandoned.or(Some(error)),
             }
         }
-        round.wall_seconds = started.elapsed().as_secs_f64();
-        round.add_to(&mut self.effects);
+        add_round(&mut self.effects, round, started.elapsed().as_secs_f64());
         match abandoned {
             Some(error) => Err(error),
-            None => Ok(values),
+            None => Ok(Frame {
+                width: self.scene.image.width,
+                height: self.scene.image.height,
+                pixels,
+            }),
         }
     }
 
@@ -368,40 +341,15 @@ impl<'a, 'f> Progressive<'a, 'f> {
     }
 }
 
-/// A band of a round, done: its finished rows as the caller asked, its passes' rays and times,
-/// and the seconds it took in all.
-struct FinishedBand<T> {
-    values: Vec<T>,
-    effects: Vec<EffectReport>,
-    seconds: f64,
-}
-
-/// A round's passes summed over its bands, with the bands' seconds in all and the round's.
-struct Round {
-    effects: Vec<EffectReport>,
-    band_seconds: f64,
-    wall_seconds: f64,
-}
-
-impl Round {
-    fn add(&mut self, effects: Vec<EffectReport>, band_seconds: f64) {
-        for (sum, effect) in self.effects.iter_mut().zip(effects) {
-            sum.rays += effect.rays;
-            sum.seconds += effect.seconds;
-        }
-        self.band_seconds += band_seconds;
-    }
-
-    /// The round's rays added to `effects`, and its wall time as the passes' share of it: bands
-    /// ran side by side, so their summed times are the threads', not the round's.
-    fn add_to(self, effects: &mut [EffectReport]) {
-        let scale = match self.band_seconds > 0.0 {
-            true => self.wall_seconds / self.band_seconds,
-            false => 0.0,
-        };
-        for (sum, effect) in effects.iter_mut().zip(self.effects) {
-            sum.rays += effect.rays;
-            sum.seconds += effect.seconds * scale;
+/// A round's passes added to `effects`: their rays, and the round's `wall_seconds` shared among
+/// them in proportion to their bands' summed times (bands ran side by side, so those sums are
+/// the threads' time, not the round's).
+fn add_round(effects: &mut [EffectReport], round: Vec<EffectReport>, wall_seconds: f64) {
+    let threads_seconds: f64 = round.iter().map(|e| e.seconds).sum();
+    for (sum, effect) in effects.iter_mut().zip(round) {
+        sum.rays += effect.rays;
+        if threads_seconds > 0.0 {
+            sum.seconds += wall_seconds * effect.seconds / threads_seconds;
         }
     }
 }
