@@ -272,60 +272,31 @@ impl<'a, 'f> Progressive<'a, 'f> {
     }
 
     /// One more round: the primary rays and shadows when not yet traced, and AO samples up to
-    /// `ao_samples_until` (at most the scene's); `before_band` is asked before each band and
-    /// its error abandons the round (the bands already begun are finished). The image after the
-    /// round.
-    ///
-    /// The bands run side by side, each band's passes one after another, so that a round joins
-    /// its threads once: a join per pass and band (two a band for the viewer's primary frame)
-    /// left one core idle at each while the other finished its last tiles.
-    pub fn refine<E: Send>(
+    /// `ao_samples_until` (at most the scene's); `between_bands` is asked before each band and
+    /// its error abandons the round. The image after the round.
+    pub fn refine<E>(
         &mut self,
         ao_samples_until: u32,
-        before_band: impl Fn() -> Result<(), E> + Sync,
+        mut between_bands: impl FnMut() -> Result<(), E>,
     ) -> Result<Frame, E> {
         let renderer = &self.renderer;
         let until = ao_samples_until.min(renderer.ao_samples().end);
         let factor = self.scene.image.antialiasing.max(1);
-        let started = Instant::now();
-        let bands: Vec<Result<(Vec<[f32; 3]>, Vec<EffectReport>), E>> = self
-            .bands
-            .par_iter_mut()
-            .map(|band| {
-                before_band()?;
-                let mut effects = renderer.effects();
-                if !band.traced {
-                    renderer.trace_band(band, &mut effects);
-                }
-                let samples = band.ao_samples.end..until.max(band.ao_samples.end);
-                renderer.add_ao_samples(band, samples, &mut effects);
-                Ok((renderer.finished_rows(band, factor), effects))
-            })
-            .collect();
-        let mut round = renderer.effects();
         let mut pixels = Vec::new();
-        let mut abandoned = None;
-        for band in bands {
-            match band {
-                Ok((rows, effects)) => {
-                    pixels.extend(rows);
-                    for (sum, effect) in round.iter_mut().zip(effects) {
-                        sum.rays += effect.rays;
-                        sum.seconds += effect.seconds;
-                    }
-                }
-                Err(error) => abandoned = abandoned.or(Some(error)),
+        for band in &mut self.bands {
+            between_bands()?;
+            if !band.traced {
+                renderer.trace_band(band, &mut self.effects);
             }
+            let samples = band.ao_samples.end..until.max(band.ao_samples.end);
+            renderer.add_ao_samples(band, samples, &mut self.effects);
+            pixels.extend(renderer.finished_rows(band, factor));
         }
-        add_round(&mut self.effects, round, started.elapsed().as_secs_f64());
-        match abandoned {
-            Some(error) => Err(error),
-            None => Ok(Frame {
-                width: self.scene.image.width,
-                height: self.scene.image.height,
-                pixels,
-            }),
-        }
+        Ok(Frame {
+            width: self.scene.image.width,
+            height: self.scene.image.height,
+            pixels,
+        })
     }
 
     /// The rays of every round so far and their tracing time in seconds: [`Progressive::report`]
@@ -338,19 +309,6 @@ impl<'a, 'f> Progressive<'a, 'f> {
     /// The rays and times of every round so far, with residency measured now.
     pub fn report(&self) -> RenderReport {
         self.renderer.report(&self.scene, self.effects.clone())
-    }
-}
-
-/// A round's passes added to `effects`: their rays, and the round's `wall_seconds` shared among
-/// them in proportion to their bands' summed times (bands ran side by side, so those sums are
-/// the threads' time, not the round's).
-fn add_round(effects: &mut [EffectReport], round: Vec<EffectReport>, wall_seconds: f64) {
-    let threads_seconds: f64 = round.iter().map(|e| e.seconds).sum();
-    for (sum, effect) in effects.iter_mut().zip(round) {
-        sum.rays += effect.rays;
-        if threads_seconds > 0.0 {
-            sum.seconds += wall_seconds * effect.seconds / threads_seconds;
-        }
     }
 }
 
@@ -906,7 +864,6 @@ mod tests {
     use crate::format::reader::ReducemFile;
     use crate::mesh::Mesh;
     use crate::trace::TraceOptions;
-    use std::sync::atomic::Ordering;
 
     /// A bumpy 24 × 24 quad grid, two triangles per quad.
     fn bumpy_grid() -> Mesh {
@@ -1089,12 +1046,13 @@ mod tests {
         let scene = lit_scene((16, 24), 1, false, 3);
         let (whole, _) = render(&tracer, &scene);
         let mut progressive = Progressive::new(&tracer, &scene, 1);
-        let bands_left = std::sync::atomic::AtomicU32::new(2);
+        let mut bands_left = 2;
         let abandoned = progressive.refine(3, || {
-            let taken = bands_left.fetch_update(Ordering::AcqRel, Ordering::Acquire, |left| {
-                left.checked_sub(1)
-            });
-            taken.map(|_| ()).map_err(|_| "stale")
+            if bands_left == 0 {
+                return Err("stale");
+            }
+            bands_left -= 1;
+            Ok(())
         });
         assert_eq!(abandoned, Err("stale"));
         assert!(!progressive.is_complete());
