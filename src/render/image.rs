@@ -46,6 +46,14 @@ fn write_srgb(bytes: &mut [u8], values: &[f32]) {
     }
 }
 
+/// The 8-bit sRGB bytes of `pixels`, three per pixel, on the calling thread (the viewer's bands
+/// are encoded each on its own thread).
+pub fn srgb_bytes_of(pixels: &[[f32; 3]]) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    extend_srgb(&mut bytes, pixels);
+    bytes
+}
+
 /// Appends the 8-bit sRGB bytes of `pixels` to `bytes`.
 fn extend_srgb(bytes: &mut Vec<u8>, pixels: &[[f32; 3]]) {
     let start = bytes.len();

@@ -271,32 +271,88 @@ impl<'a, 'f> Progressive<'a, 'f> {
         self.traced() && self.ao_samples_done() == self.renderer.ao_samples().end
     }
 
+    /// The image's width and height in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.scene.image.width, self.scene.image.height)
+    }
+
     /// One more round: the primary rays and shadows when not yet traced, and AO samples up to
-    /// `ao_samples_until` (at most the scene's); `between_bands` is asked before each band and
-    /// its error abandons the round. The image after the round.
-    pub fn refine<E>(
+    /// `ao_samples_until` (at most the scene's); `before_band` is asked before each band and
+    /// its error abandons the round (the bands already begun are finished). The image after the
+    /// round.
+    pub fn refine<E: Send>(
         &mut self,
         ao_samples_until: u32,
-        mut between_bands: impl FnMut() -> Result<(), E>,
+        before_band: impl Fn() -> Result<(), E> + Sync,
     ) -> Result<Frame, E> {
+        let pixels = self.refine_with(ao_samples_until, before_band, |rows| rows)?;
+        let (width, height) = self.size();
+        Ok(Frame {
+            width,
+            height,
+            pixels,
+        })
+    }
+
+    /// [`Progressive::refine`], each band's finished rows turned by `finish` on the band's
+    /// thread (the viewer's sRGB bytes), the bands' results in the image's order.
+    ///
+    /// The bands run side by side, each band's passes one after another, so that a round joins
+    /// its threads once: a join per pass and band (two a band for the viewer's primary frame)
+    /// left one core idle at each while the other finished its last tiles.
+    pub fn refine_with<E: Send, T: Send>(
+        &mut self,
+        ao_samples_until: u32,
+        before_band: impl Fn() -> Result<(), E> + Sync,
+        finish: impl Fn(Vec<[f32; 3]>) -> Vec<T> + Sync,
+    ) -> Result<Vec<T>, E> {
         let renderer = &self.renderer;
         let until = ao_samples_until.min(renderer.ao_samples().end);
         let factor = self.scene.image.antialiasing.max(1);
-        let mut pixels = Vec::new();
-        for band in &mut self.bands {
-            between_bands()?;
-            if !band.traced {
-                renderer.trace_band(band, &mut self.effects);
+        let started = Instant::now();
+        let bands: Vec<Result<FinishedBand<T>, E>> = self
+            .bands
+            .par_iter_mut()
+            .map(|band| {
+                before_band()?;
+                let band_started = Instant::now();
+                let mut effects = renderer.effects();
+                if !band.traced {
+                    renderer.trace_band(band, &mut effects);
+                }
+                let samples = band.ao_samples.end..until.max(band.ao_samples.end);
+                renderer.add_ao_samples(band, samples, &mut effects);
+                let values = finish(renderer.finished_rows(band, factor));
+                let seconds = band_started.elapsed().as_secs_f64();
+                Ok(FinishedBand {
+                    values,
+                    effects,
+                    seconds,
+                })
+            })
+            .collect();
+        let mut round = Round {
+            effects: renderer.effects(),
+            band_seconds: 0.0,
+            wall_seconds: 0.0,
+        };
+        let mut values = Vec::new();
+        let mut abandoned = None;
+        for band in bands {
+            match band {
+                Ok(band) => {
+                    values.extend(band.values);
+                    round.add(band.effects, band.seconds);
+                }
+                Err(error) => abandoned = abandoned.or(Some(error)),
             }
-            let samples = band.ao_samples.end..until.max(band.ao_samples.end);
-            renderer.add_ao_samples(band, samples, &mut self.effects);
-            pixels.extend(renderer.finished_rows(band, factor));
         }
-        Ok(Frame {
-            width: self.scene.image.width,
-            height: self.scene.image.height,
-            pixels,
-        })
+        round.wall_seconds = started.elapsed().as_secs_f64();
+        round.add_to(&mut self.effects);
+        match abandoned {
+            Some(error) => Err(error),
+            None => Ok(values),
+        }
     }
 
     /// The rays of every round so far and their tracing time in seconds: [`Progressive::report`]
@@ -309,6 +365,44 @@ impl<'a, 'f> Progressive<'a, 'f> {
     /// The rays and times of every round so far, with residency measured now.
     pub fn report(&self) -> RenderReport {
         self.renderer.report(&self.scene, self.effects.clone())
+    }
+}
+
+/// A band of a round, done: its finished rows as the caller asked, its passes' rays and times,
+/// and the seconds it took in all.
+struct FinishedBand<T> {
+    values: Vec<T>,
+    effects: Vec<EffectReport>,
+    seconds: f64,
+}
+
+/// A round's passes summed over its bands, with the bands' seconds in all and the round's.
+struct Round {
+    effects: Vec<EffectReport>,
+    band_seconds: f64,
+    wall_seconds: f64,
+}
+
+impl Round {
+    fn add(&mut self, effects: Vec<EffectReport>, band_seconds: f64) {
+        for (sum, effect) in self.effects.iter_mut().zip(effects) {
+            sum.rays += effect.rays;
+            sum.seconds += effect.seconds;
+        }
+        self.band_seconds += band_seconds;
+    }
+
+    /// The round's rays added to `effects`, and its wall time as the passes' share of it: bands
+    /// ran side by side, so their summed times are the threads', not the round's.
+    fn add_to(self, effects: &mut [EffectReport]) {
+        let scale = match self.band_seconds > 0.0 {
+            true => self.wall_seconds / self.band_seconds,
+            false => 0.0,
+        };
+        for (sum, effect) in effects.iter_mut().zip(self.effects) {
+            sum.rays += effect.rays;
+            sum.seconds += effect.seconds * scale;
+        }
     }
 }
 
@@ -864,6 +958,7 @@ mod tests {
     use crate::format::reader::ReducemFile;
     use crate::mesh::Mesh;
     use crate::trace::TraceOptions;
+    use std::sync::atomic::Ordering;
 
     /// A bumpy 24 × 24 quad grid, two triangles per quad.
     fn bumpy_grid() -> Mesh {
@@ -1046,13 +1141,12 @@ mod tests {
         let scene = lit_scene((16, 24), 1, false, 3);
         let (whole, _) = render(&tracer, &scene);
         let mut progressive = Progressive::new(&tracer, &scene, 1);
-        let mut bands_left = 2;
+        let bands_left = std::sync::atomic::AtomicU32::new(2);
         let abandoned = progressive.refine(3, || {
-            if bands_left == 0 {
-                return Err("stale");
-            }
-            bands_left -= 1;
-            Ok(())
+            let taken = bands_left.fetch_update(Ordering::AcqRel, Ordering::Acquire, |left| {
+                left.checked_sub(1)
+            });
+            taken.map(|_| ()).map_err(|_| "stale")
         });
         assert_eq!(abandoned, Err("stale"));
         assert!(!progressive.is_complete());

@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use reducem::format::reader::ReducemFile;
 use reducem::render::camera::placement;
-use reducem::render::image::srgb_bytes;
+use reducem::render::image::srgb_bytes_of;
 use reducem::render::scene::Scene;
 use reducem::render::Progressive;
 use reducem::trace::{TraceOptions, Tracer};
@@ -117,10 +117,9 @@ fn own_coarse_frame(tracer: &Tracer, scene: &Scene, bands: u32, cost: &mut Cost)
 /// The image's first round, encoded as the viewer sends it: the rays it traced and the time.
 fn refined(image: &mut Progressive) -> Phase {
     let started = Instant::now();
-    if let Ok(frame) = image.refine(1, || Ok::<(), ()>(())) {
-        let (width, height) = (frame.width as u16, frame.height as u16);
-        let srgb = srgb_bytes(&frame);
-        jpeg::encode(&srgb, width, height, 85).expect("a frame encodes");
+    if let Ok(srgb) = image.refine_with(1, || Ok::<(), ()>(()), |rows| srgb_bytes_of(&rows)) {
+        let (width, height) = image.size();
+        jpeg::encode(&srgb, width as u16, height as u16, 85).expect("a frame encodes");
     }
     Phase {
         rays: image.rays_traced().0,

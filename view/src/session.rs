@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 use tungstenite::protocol::Role;
 use tungstenite::{Message, WebSocket};
 
+use crate::stages;
 use crate::views::{CameraView, Effects, EncodedFrame, Pace, Pick, UpAxis, View, Viewer};
 
 /// What the page sends.
@@ -193,10 +194,13 @@ pub fn run(mut socket: WebSocket<TcpStream>, viewer: &'static Viewer) {
 
 fn render_views(shared: &Shared, sender: &Sender, viewer: &Viewer) {
     let mut pace = Pace::default();
+    let mut idle_since = None;
     while let Some((generation, view, received)) = shared.next_view() {
+        stages::log_idle(generation, received, idle_since);
         let current = (generation, &shared.generation);
         let deliver = |frame| sender.send_frame(frame);
         let _ = viewer.render_progressively(&view, received, current, &mut pace, deliver);
+        idle_since = Some(Instant::now());
     }
 }
 

@@ -51,6 +51,17 @@ impl Stages {
     }
 }
 
+/// On standard error when logging is on: how long the renderer waited for the view `generation`
+/// that arrived at `received` since its last frame was sent at `idle_since` (0 when the view
+/// came while it was busy): the closed loop's time on the way to the page and back.
+pub fn log_idle(generation: u64, received: Instant, idle_since: Option<Instant>) {
+    if let Some(idle_since) = idle_since.filter(|_| logging()) {
+        let idle = received.saturating_duration_since(idle_since);
+        let ms = idle.as_secs_f64() * 1e3;
+        eprintln!("reducem view: idle ms before view {generation}: {ms:.1}");
+    }
+}
+
 fn logging() -> bool {
     static LOGGING: OnceLock<bool> = OnceLock::new();
     *LOGGING.get_or_init(|| std::env::var_os("REDUCEM_VIEW_STAGES").is_some_and(|v| v != "0"))

@@ -7,9 +7,9 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 use reducem::format::attributes::NormalEncoding;
 use reducem::render::camera::{placement, Camera};
-use reducem::render::image::srgb_bytes;
+use reducem::render::image::srgb_bytes_of;
 use reducem::render::scene::{Scene, ShadingMode};
-use reducem::render::{Frame, Progressive};
+use reducem::render::Progressive;
 use reducem::trace::ray_file::{trace_hits_as, HitFormat};
 use reducem::trace::Tracer;
 use serde::{Deserialize, Serialize};
@@ -338,11 +338,12 @@ impl Viewer {
             let coarse_bands = bands / (every * every);
             let mut coarse = Progressive::preview(self.tracer, &scene, every, coarse_bands);
             let mut stages = Stages::since(received);
-            let frame = coarse.refine(1, is_current)?;
+            let srgb = coarse.refine_with(1, is_current, |rows| srgb_bytes_of(&rows))?;
             stages.end("traced");
             let rays = Rays::of(&coarse);
             let spp = 1.0 / (every * every) as f32;
-            let encoded = self.encode(frame, rays, view.camera, current, spp, stages);
+            let image = (srgb, coarse.size());
+            let encoded = self.encode(image, rays, view.camera, current, spp, stages);
             pace.coarse_frame(view, received.elapsed());
             deliver(encoded);
             coarse_took = started.elapsed();
@@ -351,10 +352,11 @@ impl Viewer {
         let (mut ao_samples, mut before) = (1, Rays::default());
         loop {
             let mut stages = Stages::since(received);
-            let frame = image.refine(ao_samples, is_current)?;
+            let srgb = image.refine_with(ao_samples, is_current, |rows| srgb_bytes_of(&rows))?;
             stages.end("traced");
             let rays = Rays::of(&image).since(before);
             let spp = image.samples_per_pixel() as f32;
+            let frame = (srgb, image.size());
             deliver(self.encode(frame, rays, view.camera, current, spp, stages));
             if ao_samples == 1 {
                 // Without the coarse frame: whether the next view's full frame comes late
@@ -369,28 +371,28 @@ impl Viewer {
         }
     }
 
+    /// The JPEG of an image's sRGB bytes and its width and height, with its header.
     fn encode(
         &self,
-        frame: Frame,
+        (srgb, (width, height)): (Vec<u8>, (u32, u32)),
         rays: Rays,
         camera: CameraView,
         generation: u64,
         spp: f32,
         mut stages: Stages,
     ) -> EncodedFrame {
-        let srgb = srgb_bytes(&frame);
-        stages.end("srgb");
-        let (width, height) = (frame.width as u16, frame.height as u16);
-        let jpeg = jpeg::encode(&srgb, width, height, JPEG_QUALITY).unwrap_or_else(|error| {
-            eprintln!("reducem view: encoding a frame: {error}");
-            Vec::new()
-        });
+        let jpeg = jpeg::encode(&srgb, width as u16, height as u16, JPEG_QUALITY).unwrap_or_else(
+            |error| {
+                eprintln!("reducem view: encoding a frame: {error}");
+                Vec::new()
+            },
+        );
         stages.end("jpeg");
         EncodedFrame {
             header: FrameHeader {
                 generation,
-                width: frame.width,
-                height: frame.height,
+                width,
+                height,
                 spp,
                 camera,
                 rays: rays.rays,
