@@ -21,10 +21,15 @@ const CELL_BITS: u32 = 6;
 /// Bits of the sort key: the octant (3) above the Morton code of the cell.
 const KEY_BITS: u32 = 3 + 3 * CELL_BITS;
 
-/// Rays sampled, evenly spaced, to decide whether a batch is coherent (each with the next) and
-/// to bound its origins: the fraction of neighbours in one cell is then known to about ±1.5%,
-/// at a small cost per batch.
+/// Rays sampled to decide whether a batch is coherent (each with the next) and to bound its
+/// origins, at a small cost per batch.
 const SAMPLES: usize = 1 << 12;
+
+/// Evenly spaced runs of consecutive rays the sample is drawn in: 64 rays (2 KiB) a run, so
+/// that sampling a mapped ray file faults in 64 of its pages on the one thread that decides,
+/// not one read-around window per sampled ray (the whole file), which the tracing threads
+/// then fault in together instead.
+const SAMPLE_RUNS: usize = 64;
 
 /// Batches smaller than this are never reordered: the per-chunk octant grouping of the tracer
 /// already forms their packets, and the sort would not pay for itself.
@@ -40,18 +45,24 @@ pub fn coherent_order(rays: &[Ray]) -> Option<Vec<u32>> {
     if rays.len() < MIN_RAYS || u32::try_from(rays.len()).is_err() {
         return None;
     }
-    let step = (rays.len() / SAMPLES).max(1);
-    let grid = CellGrid::around(rays.iter().step_by(step));
-    let neighbours = (0..rays.len() - 1).step_by(step);
-    let samples = neighbours.len();
-    let same_cell = neighbours
+    let grid = CellGrid::around(sampled(rays.len()).map(|i| &rays[i]));
+    let same_cell = sampled(rays.len())
         .filter(|&i| grid.cell(&rays[i]) == grid.cell(&rays[i + 1]))
         .count();
-    if same_cell as f64 >= COHERENT_NEIGHBOURS * samples as f64 {
+    if same_cell as f64 >= COHERENT_NEIGHBOURS * SAMPLES as f64 {
         return None;
     }
     let keys: Vec<u32> = rays.par_iter().map(|ray| grid.key(ray)).collect();
     Some(radix_order(&keys))
+}
+
+/// The indices of the sampled rays of a batch of `rays` rays ([`MIN_RAYS`] at least): runs of
+/// [`SAMPLES`] / [`SAMPLE_RUNS`] consecutive rays, evenly spaced, each sampled ray followed by
+/// another in the batch.
+fn sampled(rays: usize) -> impl Iterator<Item = usize> {
+    let run = SAMPLES / SAMPLE_RUNS;
+    let spacing = rays / SAMPLE_RUNS;
+    (0..SAMPLE_RUNS).flat_map(move |k| k * spacing..k * spacing + run)
 }
 
 /// The grid of [`CELL_BITS`] per axis over the sampled origins' bounds; origins outside the
@@ -183,7 +194,7 @@ mod tests {
             assert!(!std::mem::replace(&mut seen[index as usize], true));
         }
         assert!(seen.iter().all(|&seen| seen));
-        let grid = CellGrid::around(rays.iter().step_by(MIN_RAYS / SAMPLES));
+        let grid = CellGrid::around(sampled(rays.len()).map(|i| &rays[i]));
         let key = |index: u32| grid.key(&rays[index as usize]);
         for pair in order.windows(2) {
             let (a, b) = (pair[0], pair[1]);
