@@ -11,7 +11,6 @@
 //! those roundings on any axis) before the conservative slab test of
 //! [`crate::trace::prepared`], and the ray's `[tmin, tmax]` by the same relative margin.
 
-use arrayvec::ArrayVec;
 use wide::{f32x4, i32x4};
 
 use crate::format::block_boxes::{
@@ -37,11 +36,11 @@ const MARGIN: f32 = 1.0 / 65_536.0;
 
 /// Leaves queued before the walk views the oldest: their strips' records and blocks are asked
 /// for from memory when queued and arrive meanwhile.
-const LEAVES_AHEAD: usize = 4;
+pub(super) const LEAVES_AHEAD: usize = 4;
 
 /// How many leaves before its turn a leaf's block is asked for (its record was asked for when
 /// it was queued).
-const BLOCKS_AHEAD: usize = 2;
+pub(super) const BLOCKS_AHEAD: usize = 2;
 
 /// Boxes tested together, in the lanes of one register.
 pub(super) const BOX_LANES: usize = 4;
@@ -419,29 +418,6 @@ impl<T: Copy, const N: usize> Pending<T, N> {
     #[inline(always)]
     pub(super) fn is_empty(&self) -> bool {
         self.len() == 0
-    }
-}
-
-/// Nodes pending in a walk (a node index, or one with what enters it): inline, then on the heap
-/// (only in trees deeper than any built).
-#[derive(Default)]
-pub(super) struct NodeStack<T> {
-    inline: ArrayVec<T, 64>,
-    spill: Vec<T>,
-}
-
-impl<T> NodeStack<T> {
-    #[inline(always)]
-    pub(super) fn push(&mut self, node: T) {
-        if let Err(full) = self.inline.try_push(node) {
-            self.spill.push(full.element());
-        }
-    }
-
-    /// The node pushed last: spilled ones are newer than every inline one.
-    #[inline(always)]
-    pub(super) fn pop(&mut self) -> Option<T> {
-        self.spill.pop().or_else(|| self.inline.pop())
     }
 }
 
