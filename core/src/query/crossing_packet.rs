@@ -8,7 +8,9 @@
 
 use arrayvec::ArrayVec;
 
-use super::crossing_walk::{block_boxes, box_frame, CrossingWalk, NodeBoxes, NodeStack, BOX_LANES};
+use super::crossing_walk::{
+    block_boxes, box_frame, CrossingWalk, NodeBoxes, Pending, BLOCKS_AHEAD, BOX_LANES, LEAVES_AHEAD,
+};
 use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::reader::{ReducemFile, StripView, TopNodes};
 use crate::format::{TopSlot, INTERNAL_CHILD, WIDE_WIDTH};
@@ -85,10 +87,26 @@ impl CrossingPacket {
         }
         let sections = QuerySections::new(file);
         let prefetch = ChildPrefetch::new(&sections, nodes);
-        let mut stack = NodeStack::<(u32, Lanes)>::default();
-        stack.push((0, self.valid));
+        let mut pending_nodes = Pending::<(u32, Lanes), 64>::default();
+        let mut pending_leaves = Pending::<((u32, u32), Lanes), 32>::default();
+        pending_nodes.push((0, self.valid));
         let mut visits = file.node_visits();
-        while let Some((index, lanes)) = stack.pop() {
+        loop {
+            if pending_leaves.len() > LEAVES_AHEAD || pending_nodes.is_empty() {
+                let Some(((first, count), lanes)) = pending_leaves.pop() else {
+                    return;
+                };
+                if let Some(((later, _), _)) = pending_leaves.get(BLOCKS_AHEAD - 1) {
+                    prefetch.leaf_block(later);
+                }
+                for strip in sections.leaf_strips(first, count) {
+                    self.strip::<Q>(file, strip, lanes, each);
+                }
+                continue;
+            }
+            let Some((index, lanes)) = pending_nodes.pop() else {
+                return;
+            };
             // A file changed in place after its validation may link nodes in circles.
             visits = match visits.checked_sub(1) {
                 Some(left) => left,
@@ -107,30 +125,22 @@ impl CrossingPacket {
                     entered &= entered - 1;
                 }
             });
-            // Every entered child asked for before the first leaf is walked.
-            let mut leaves = 0u32;
             while entered_any != 0 {
                 let slot = entered_any.trailing_zeros();
                 entered_any &= entered_any - 1;
                 match node.slot(slot as usize) {
                     TopSlot::Internal(child) => {
                         prefetch.child((child, INTERNAL_CHILD));
-                        stack.push((child, by_slot[slot as usize]));
+                        pending_nodes.push((child, by_slot[slot as usize]));
                     }
                     TopSlot::Leaf { first, count } => {
-                        prefetch.child((first, count));
-                        leaves |= 1 << slot;
+                        match pending_leaves.len() < BLOCKS_AHEAD {
+                            true => prefetch.leaf_block(first),
+                            false => prefetch.leaf_record(first),
+                        }
+                        pending_leaves.push(((first, count), by_slot[slot as usize]));
                     }
                     TopSlot::Empty | TopSlot::Invalid(_) => {}
-                }
-            }
-            while leaves != 0 {
-                let slot = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                if let TopSlot::Leaf { first, count } = node.slot(slot) {
-                    for strip in sections.leaf_strips(first, count) {
-                        self.strip::<Q>(file, strip, by_slot[slot], each);
-                    }
                 }
             }
         }

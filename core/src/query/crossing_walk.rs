@@ -11,7 +11,6 @@
 //! those roundings on any axis) before the conservative slab test of
 //! [`crate::trace::prepared`], and the ray's `[tmin, tmax]` by the same relative margin.
 
-use arrayvec::ArrayVec;
 use wide::{f32x4, i32x4};
 
 use crate::format::block_boxes::{
@@ -34,6 +33,14 @@ use crate::trace::Ray;
 /// Relative growth of boxes and of the ray's interval: far above the few f32 roundings of the
 /// ray-space transform and of the slab test.
 const MARGIN: f32 = 1.0 / 65_536.0;
+
+/// Leaves queued before the walk views the oldest: their strips' records and blocks are asked
+/// for from memory when queued and arrive meanwhile.
+pub(super) const LEAVES_AHEAD: usize = 4;
+
+/// How many leaves before its turn a leaf's block is asked for (its record was asked for when
+/// it was queued).
+pub(super) const BLOCKS_AHEAD: usize = 2;
 
 /// Boxes tested together, in the lanes of one register.
 pub(super) const BOX_LANES: usize = 4;
@@ -118,10 +125,26 @@ impl CrossingWalk {
             return;
         }
         let prefetch = ChildPrefetch::new(sections, nodes);
-        let mut stack = NodeStack::<u32>::default();
-        stack.push(0);
+        let mut pending_nodes = Pending::<u32, 64>::default();
+        let mut pending_leaves = Pending::<(u32, u32), 32>::default();
+        pending_nodes.push(0);
         let mut visits = file.node_visits();
-        while let Some(index) = stack.pop() {
+        loop {
+            if pending_leaves.len() > LEAVES_AHEAD || pending_nodes.is_empty() {
+                let Some((first, count)) = pending_leaves.pop() else {
+                    return;
+                };
+                if let Some((later, _)) = pending_leaves.get(BLOCKS_AHEAD - 1) {
+                    prefetch.leaf_block(later);
+                }
+                for strip in sections.leaf_strips(first, count) {
+                    self.strip::<Q>(file, strip, each);
+                }
+                continue;
+            }
+            let Some(index) = pending_nodes.pop() else {
+                return;
+            };
             // A file changed in place after its validation may link nodes in circles.
             visits = match visits.checked_sub(1) {
                 Some(left) => left,
@@ -131,30 +154,22 @@ impl CrossingWalk {
                 continue;
             };
             let mut entered = node.entered_children::<Q>(self, grid);
-            // Every entered child asked for before the first leaf is walked.
-            let mut leaves = 0u32;
             while entered != 0 {
                 let slot = entered.trailing_zeros();
                 entered &= entered - 1;
                 match node.slot(slot as usize) {
                     TopSlot::Internal(child) => {
                         prefetch.child((child, INTERNAL_CHILD));
-                        stack.push(child);
+                        pending_nodes.push(child);
                     }
                     TopSlot::Leaf { first, count } => {
-                        prefetch.child((first, count));
-                        leaves |= 1 << slot;
+                        match pending_leaves.len() < BLOCKS_AHEAD {
+                            true => prefetch.leaf_block(first),
+                            false => prefetch.leaf_record(first),
+                        }
+                        pending_leaves.push((first, count));
                     }
                     TopSlot::Empty | TopSlot::Invalid(_) => {}
-                }
-            }
-            while leaves != 0 {
-                let slot = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                if let TopSlot::Leaf { first, count } = node.slot(slot) {
-                    for strip in sections.leaf_strips(first, count) {
-                        self.strip::<Q>(file, strip, each);
-                    }
                 }
             }
         }
@@ -229,8 +244,12 @@ impl CrossingWalk {
     /// documentation), as a bit mask. A NaN plane (only in a corrupt box) is entered.
     #[inline(always)]
     pub(super) fn entered(&self, (min, max): &FourBoxes) -> u32 {
-        let low = [0, 1, 2].map(|axis| f32x4::from(min[axis]) - self.origin[axis]);
-        let high = [0, 1, 2].map(|axis| f32x4::from(max[axis]) - self.origin[axis]);
+        // Arrays written out: as `[0, 1, 2].map` the compiler may leave them out of line.
+        let relative = |planes: &[[f32; BOX_LANES]; 3], axis: usize| {
+            f32x4::from(planes[axis]) - self.origin[axis]
+        };
+        let low = [relative(min, 0), relative(min, 1), relative(min, 2)];
+        let high = [relative(max, 0), relative(max, 1), relative(max, 2)];
         let reach = |axis: usize| low[axis].abs() + high[axis].abs();
         let widen = (reach(0) + reach(1) + reach(2)) * f32x4::splat(MARGIN);
         let mut near = f32x4::splat(self.t_near);
@@ -340,26 +359,65 @@ pub(super) fn block_boxes(
     )
 }
 
-/// Nodes pending in a walk (a node index, or one with what enters it): inline, then on the heap
-/// (only in trees deeper than any built).
-#[derive(Default)]
-pub(super) struct NodeStack<T> {
-    inline: ArrayVec<T, 64>,
+/// Work pending in an unordered walk, first in first out (so that what was asked for from
+/// memory when it was queued has time to arrive): inline, then on the heap (only in trees wider
+/// than any built).
+pub(super) struct Pending<T, const N: usize> {
+    ring: [T; N],
+    head: usize,
+    inline: usize,
     spill: Vec<T>,
 }
 
-impl<T> NodeStack<T> {
+impl<T: Copy + Default, const N: usize> Default for Pending<T, N> {
+    fn default() -> Self {
+        Pending {
+            ring: [T::default(); N],
+            head: 0,
+            inline: 0,
+            spill: Vec::new(),
+        }
+    }
+}
+
+impl<T: Copy, const N: usize> Pending<T, N> {
     #[inline(always)]
-    pub(super) fn push(&mut self, node: T) {
-        if let Err(full) = self.inline.try_push(node) {
-            self.spill.push(full.element());
+    pub(super) fn push(&mut self, item: T) {
+        match self.inline < N {
+            true => {
+                self.ring[(self.head + self.inline) % N] = item;
+                self.inline += 1;
+            }
+            false => self.spill.push(item),
         }
     }
 
-    /// The node pushed last: spilled ones are newer than every inline one.
+    /// The oldest inline item, then the spilled ones.
     #[inline(always)]
     pub(super) fn pop(&mut self) -> Option<T> {
-        self.spill.pop().or_else(|| self.inline.pop())
+        if self.inline == 0 {
+            return self.spill.pop();
+        }
+        let item = self.ring[self.head];
+        self.head = (self.head + 1) % N;
+        self.inline -= 1;
+        Some(item)
+    }
+
+    /// The item `k` places after the next one to pop, when inline.
+    #[inline(always)]
+    pub(super) fn get(&self, k: usize) -> Option<T> {
+        (k < self.inline).then(|| self.ring[(self.head + k) % N])
+    }
+
+    #[inline(always)]
+    pub(super) fn len(&self) -> usize {
+        self.inline + self.spill.len()
+    }
+
+    #[inline(always)]
+    pub(super) fn is_empty(&self) -> bool {
+        self.len() == 0
     }
 }
 

@@ -74,10 +74,17 @@ impl<'a, N> Targets<'a, N> {
         }
     }
 
+    /// Asks for strip `strip`'s record alone, not the block it locates: a walk that views the
+    /// strip later asks for the block once the record has arrived ([`Targets::block`]).
+    #[inline(always)]
+    pub(in crate::trace) fn strip_record(&self, strip: usize) {
+        record(self.records, strip);
+    }
+
     /// The lines of strip `strip`'s block from its start, its length estimated from its record
     /// as a lossless block's: its vertices and [`BLOCK_TAIL_BYTES`].
     #[inline(always)]
-    fn block(&self, strip: usize) {
+    pub(in crate::trace) fn block(&self, strip: usize) {
         let Some(record) = self.records.get(strip) else {
             return;
         };

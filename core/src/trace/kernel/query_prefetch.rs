@@ -39,4 +39,17 @@ impl<'a, N> ChildPrefetch<'a, N> {
     pub(crate) fn child(&self, link: (u32, u32)) {
         self.0.child(link)
     }
+
+    /// Asks for the record of a leaf's first strip `first` alone, no load waiting on it.
+    #[inline(always)]
+    pub(crate) fn leaf_record(&self, first: u32) {
+        self.0.strip_record(first as usize)
+    }
+
+    /// Asks for the block of a leaf's first strip `first`, which its record (asked for by
+    /// [`ChildPrefetch::leaf_record`] some steps before) locates.
+    #[inline(always)]
+    pub(crate) fn leaf_block(&self, first: u32) {
+        self.0.block(first as usize)
+    }
 }
