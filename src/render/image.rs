@@ -24,7 +24,7 @@ pub struct ImageError {
 }
 
 /// The frame as 8-bit sRGB bytes, three per pixel; in parallel (a pixel's bytes depend only on
-/// the pixel), as the viewer encodes a frame between two frames' tracing.
+/// the pixel), for a whole frame that nothing else is working on (PNG output, Python).
 pub fn srgb_bytes(frame: &Frame) -> Vec<u8> {
     let values = frame.pixels.as_flattened();
     let mut bytes = vec![0; values.len()];

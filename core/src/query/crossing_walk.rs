@@ -360,8 +360,8 @@ pub(super) fn block_boxes(
 }
 
 /// Work pending in an unordered walk, first in first out (so that what was asked for from
-/// memory when it was queued has time to arrive): inline, then on the heap (only in trees wider
-/// than any built).
+/// memory when it was queued has time to arrive): inline, then on the heap once more are
+/// pending than the ring holds (a ray that enters many nodes of one level, as along a surface).
 pub(super) struct Pending<T, const N: usize> {
     ring: [T; N],
     head: usize,
