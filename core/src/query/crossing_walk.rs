@@ -178,7 +178,7 @@ impl CrossingWalk {
     /// The candidate windows of strip `strip` in the blocks whose box the ray may meet (every
     /// block when the strip stores no boxes).
     #[inline(always)]
-    fn strip<Q: QueryKernel>(
+    pub(super) fn strip<Q: QueryKernel>(
         &self,
         file: &ReducemFile,
         strip: u32,

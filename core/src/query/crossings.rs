@@ -22,6 +22,7 @@ use rayon::prelude::*;
 
 use super::crossing_packet::CrossingPacket;
 pub use super::crossing_packet::PACKET_RAYS;
+use super::crossing_stream::CrossingStream;
 use super::crossing_walk::CrossingWalk;
 use super::FaceIds;
 use crate::format::reader::ReducemFile;
@@ -54,7 +55,8 @@ pub struct AllHits {
     pub hits: Vec<RayHit>,
 }
 
-/// Rays per rayon task of [`all_hits`]: each task fills one hit list, not one per ray.
+/// Rays per rayon task of [`count_crossings`] (one interleaved stream of walks) and of
+/// [`all_hits`] (one hit list, not one per ray).
 const RAYS_PER_TASK: usize = 1024;
 
 /// The number of crossings of every ray in `[tmin, tmax]`, in parallel (rayon's current pool).
@@ -65,13 +67,19 @@ pub fn count_crossings(file: &ReducemFile, rays: &[Ray]) -> Vec<u32> {
 /// [`count_crossings`] on `kernel`.
 pub fn count_crossings_on(file: &ReducemFile, rays: &[Ray], kernel: Kernel) -> Vec<u32> {
     let sections = QuerySections::new(file);
-    rays.par_iter()
-        .map(|ray| {
-            let mut count = 0u32;
-            crossings_in(file, &sections, ray, kernel, |_, _, _| count += 1);
-            count
-        })
-        .collect()
+    let mut counts = vec![0u32; rays.len()];
+    counts
+        .par_chunks_mut(RAYS_PER_TASK)
+        .zip(rays.par_chunks(RAYS_PER_TASK))
+        .for_each(|(counts, rays)| {
+            let stream = CrossingStream::new(rays, kernel, valid);
+            stream.run(file, &sections, &mut |ray, _, window, corners| {
+                if settle_window(window, corners, &rays[ray]).is_some() {
+                    counts[ray] += 1;
+                }
+            });
+        });
+    counts
 }
 
 /// Every crossing of every ray in `[tmin, tmax]`, in parallel (rayon's current pool).

@@ -10,6 +10,7 @@
 mod child_box;
 pub mod closest;
 mod crossing_packet;
+mod crossing_stream;
 mod crossing_walk;
 pub mod crossings;
 pub mod occupancy;
