@@ -22,12 +22,19 @@ pub(super) const STREAM_RAYS: usize = 4;
 /// Leaves queued before the stream views the oldest, for all its rays together.
 const STREAM_LEAVES_AHEAD: usize = 4 * STREAM_RAYS;
 
-/// One ray walking in a slot of the stream.
+/// The node queue: the root of every ray and the nodes they enter, with their slots.
+type PendingNodes = Pending<(u32, u32), 256>;
+
+/// The leaf queue: `(first strip, strip count)` and the slot of the ray that entered it.
+type PendingLeaves = Pending<((u32, u32), u32), 128>;
+
+/// One ray walking in a slot of the stream. A slot whose ray is done and that the batch has
+/// no ray left for has nothing queued, so no item names it.
 struct Slot {
     /// The ray's index in the batch.
     ray: usize,
     walk: CrossingWalk,
-    /// The ray's queued nodes and leaves: the slot is free again when none is left.
+    /// The ray's queued nodes and leaves: the slot takes the next ray when none is left.
     queued: u32,
     /// Node visits left before the walk is cut short (a file linking nodes in circles).
     visits: usize,
@@ -72,30 +79,29 @@ impl<'r, V: Fn(&Ray) -> bool> CrossingStream<'r, V> {
         )
     }
 
-    /// The slot of the first valid ray from `*next` on (`*next` moved past it), its root
-    /// queued; `None` when the batch has no ray left.
-    #[inline(always)]
+    /// Gives slot `k` the first valid ray from `*next` on (`*next` moved past it) and queues
+    /// its root; leaves the slot idle when the batch has no ray left. Out of line: once a ray,
+    /// it would crowd the node test out of the walk's loop.
+    #[inline(never)]
     fn start(
         &self,
+        (slot, k): (&mut Slot, u32),
         next: &mut usize,
         visits: usize,
-        pending_nodes: &mut Pending<(u32, u32), 256>,
-        slot: usize,
-    ) -> Option<Slot> {
+        pending_nodes: &mut PendingNodes,
+    ) {
         while let Some(ray) = self.rays.get(*next) {
             *next += 1;
             if (self.valid)(ray) {
-                pending_nodes.push((0, slot as u32));
-                return Some(Slot {
-                    ray: *next - 1,
-                    walk: CrossingWalk::new(ray, self.kernel),
-                    queued: 1,
-                    visits,
-                    cut: false,
-                });
+                slot.ray = *next - 1;
+                slot.walk = CrossingWalk::new(ray, self.kernel);
+                slot.queued = 1;
+                slot.visits = visits;
+                slot.cut = false;
+                pending_nodes.push((0, k));
+                return;
             }
         }
-        None
     }
 
     #[inline(always)]
@@ -110,76 +116,74 @@ impl<'r, V: Fn(&Ray) -> bool> CrossingStream<'r, V> {
             return;
         }
         let prefetch = ChildPrefetch::new(sections, nodes);
-        let mut pending_nodes = Pending::<(u32, u32), 256>::default();
-        let mut pending_leaves = Pending::<((u32, u32), u32), 128>::default();
+        let mut pending_nodes = PendingNodes::default();
+        let mut pending_leaves = PendingLeaves::default();
         let visits = file.node_visits();
         let mut next = 0;
-        let mut slots: [Option<Slot>; STREAM_RAYS] = Default::default();
+        let idle = || Slot {
+            ray: 0,
+            walk: CrossingWalk::new(&IDLE_RAY, self.kernel),
+            queued: 0,
+            visits: 0,
+            cut: true,
+        };
+        let mut slots: [Slot; STREAM_RAYS] = std::array::from_fn(|_| idle());
         for (k, slot) in slots.iter_mut().enumerate() {
-            *slot = self.start(&mut next, visits, &mut pending_nodes, k);
+            self.start((slot, k as u32), &mut next, visits, &mut pending_nodes);
         }
         loop {
             if pending_leaves.len() > STREAM_LEAVES_AHEAD || pending_nodes.is_empty() {
                 let Some(((first, count), k)) = pending_leaves.pop() else {
                     return;
                 };
-                if let Some(((later, _), _)) = pending_leaves.get(BLOCKS_AHEAD - 1) {
-                    prefetch.leaf_block(later);
+                if let Some((later, _)) = pending_leaves.get(BLOCKS_AHEAD - 1) {
+                    prefetch.leaf_block(later.0);
                 }
-                if let Some(slot) = slots[k as usize].as_ref().filter(|slot| !slot.cut) {
-                    let mut candidate =
-                        |strip, window, corners| each(slot.ray, strip, window, corners);
+                let slot = &mut slots[k as usize % STREAM_RAYS];
+                if !slot.cut {
+                    let ray = slot.ray;
+                    let mut candidate = |strip, window, corners| each(ray, strip, window, corners);
                     for strip in sections.leaf_strips(first, count) {
                         slot.walk.strip::<Q>(file, strip, &mut candidate);
                     }
                 }
-                self.done(
-                    &mut slots,
-                    k as usize,
-                    (&mut next, visits),
-                    &mut pending_nodes,
-                );
+                self.done((slot, k), &mut next, visits, &mut pending_nodes);
                 continue;
             }
             let Some((index, k)) = pending_nodes.pop() else {
                 return;
             };
-            if let Some(slot) = slots[k as usize].as_mut().filter(|slot| !slot.cut) {
-                if slot.visits > 0 {
-                    slot.visits -= 1;
-                    self.visit::<N, Q>(
-                        (file, &prefetch, nodes, grid),
-                        index,
-                        (slot, k),
-                        (&mut pending_nodes, &mut pending_leaves),
-                    );
-                } else {
+            let slot = &mut slots[k as usize % STREAM_RAYS];
+            if !slot.cut {
+                match slot.visits.checked_sub(1) {
+                    Some(left) => {
+                        slot.visits = left;
+                        let on = (file, &prefetch, nodes, grid);
+                        self.visit::<N, Q>(
+                            on,
+                            index,
+                            (slot, k),
+                            &mut pending_nodes,
+                            &mut pending_leaves,
+                        );
+                    }
                     // A file changed in place after its validation may link nodes in circles.
-                    slot.cut = true;
+                    None => slot.cut = true,
                 }
             }
-            self.done(
-                &mut slots,
-                k as usize,
-                (&mut next, visits),
-                &mut pending_nodes,
-            );
+            self.done((slot, k), &mut next, visits, &mut pending_nodes);
         }
     }
 
-    /// Tests node `index` for the ray of `slot` (slot number `k`) and queues the children it
-    /// enters.
+    /// Tests node `index` for the ray of slot `k` and queues the children it enters.
     #[inline(always)]
-    #[allow(clippy::type_complexity)]
     fn visit<N: NodeBoxes, Q: QueryKernel>(
         &self,
         (file, prefetch, nodes, grid): (&ReducemFile, &ChildPrefetch<N>, &[N], &N::Grid),
         index: u32,
         (slot, k): (&mut Slot, u32),
-        (pending_nodes, pending_leaves): (
-            &mut Pending<(u32, u32), 256>,
-            &mut Pending<((u32, u32), u32), 128>,
-        ),
+        pending_nodes: &mut PendingNodes,
+        pending_leaves: &mut PendingLeaves,
     ) {
         let Some(node) = file.top_node(nodes, index as usize) else {
             return;
@@ -212,20 +216,25 @@ impl<'r, V: Fn(&Ray) -> bool> CrossingStream<'r, V> {
     #[inline(always)]
     fn done(
         &self,
-        slots: &mut [Option<Slot>; STREAM_RAYS],
-        k: usize,
-        (next, visits): (&mut usize, usize),
-        pending_nodes: &mut Pending<(u32, u32), 256>,
+        (slot, k): (&mut Slot, u32),
+        next: &mut usize,
+        visits: usize,
+        pending_nodes: &mut PendingNodes,
     ) {
-        let Some(slot) = &mut slots[k] else {
-            return;
-        };
         slot.queued -= 1;
         if slot.queued == 0 {
-            slots[k] = self.start(next, visits, pending_nodes, k);
+            self.start((slot, k), next, visits, pending_nodes);
         }
     }
 }
+
+/// The ray of an idle slot, never walked.
+const IDLE_RAY: Ray = Ray {
+    origin: [0.0; 3],
+    direction: [1.0, 0.0, 0.0],
+    tmin: 0.0,
+    tmax: 0.0,
+};
 
 /// [`CrossingStream::run`]'s walk of one file, for [`dispatch_query`].
 struct StreamWalk<'s, 'r, 'f, V, F> {
