@@ -285,7 +285,47 @@ fn assert_kernels_equal_the_scalar_rule(what: &str, file: &ReducemFile) {
         }
     }
     assert_packets_list_what_single_rays_list(what, file, &rays, &expected);
+    assert_batches_with_invalid_rays_count_each_ray(what, file, &rays, &expected);
     assert!(file.defect().is_none(), "{what}");
+}
+
+/// A batch of the rays twice over (longer than one task's interleaved walks) with an invalid
+/// ray after every seventh counts each valid ray's `expected` hits and nothing for the others.
+fn assert_batches_with_invalid_rays_count_each_ray(
+    what: &str,
+    file: &ReducemFile,
+    rays: &[Ray],
+    expected: &[Vec<RayHit>],
+) {
+    let invalid = Ray {
+        origin: [0.0; 3],
+        direction: [0.0; 3],
+        tmin: 0.0,
+        tmax: f32::INFINITY,
+    };
+    let mut batch = Vec::new();
+    let mut wanted = Vec::new();
+    for (k, (ray, hits)) in rays
+        .iter()
+        .zip(expected)
+        .cycle()
+        .take(2 * rays.len())
+        .enumerate()
+    {
+        batch.push(*ray);
+        wanted.push(hits.len() as u32);
+        if k % 7 == 6 {
+            batch.push(invalid);
+            wanted.push(0);
+        }
+    }
+    for kernel in Kernel::supported() {
+        assert_eq!(
+            count_crossings_on(file, &batch, kernel),
+            wanted,
+            "{what} {kernel}"
+        );
+    }
 }
 
 /// Rays walked in packets of several sizes up to [`PACKET_RAYS`] (with an invalid ray among
