@@ -346,7 +346,7 @@ EOF
 # pinhole camera (shaped (H, W, 6) and flat), test_occlusions on incoherent rays and
 # compute_closest_points on the points above, against Open3D in the same process, and `reducem
 # query` on the same rays (its own timing of the tracing, RAYON_NUM_THREADS=THREADS); medians of
-# RUNS calls each.
+# RUNS calls each, after one untimed call.
 python_rows() {
   "$PYTHON" -c "import reducem" 2>/dev/null || {
     echo "reducem (Python): not importable, Python rows skipped"
@@ -380,6 +380,9 @@ write_ray_file(incoherent, f"{work}/incoherent.rays")
 
 
 def rate(call, queries=count):
+    # One untimed call first, for either engine: the medians are of calls on a warm scene
+    # (reducem's first query builds its primitive ids and validates strips as rays reach them).
+    call()
     times = []
     for _ in range(runs):
         started = time.perf_counter()

@@ -13,6 +13,7 @@ use reducem_core::trace::{Hit, HitAttributes};
 
 use crate::order::CHUNK;
 use crate::primitive_ids::NO_PRIMITIVE;
+use crate::rays::Gathered;
 
 /// The arrays `cast_rays` returns, shaped as the rays' leading shape (and a last axis for the
 /// vector answers).
@@ -173,12 +174,13 @@ impl Answers<'_> {
             .collect()
     }
 
-    /// `traced`, the answers of rays traced out of their order, put at their rays' `positions`
-    /// among these; misses elsewhere (rays left out as invalid). On every core.
-    pub fn place(&mut self, traced: &AnswerBuffers, positions: &[usize]) {
+    /// `traced`, the answers of the rays of `gathered` in the order they were traced, put at
+    /// their rays' positions among these; misses elsewhere (rays left out as invalid). On
+    /// every core.
+    pub fn place(&mut self, traced: &AnswerBuffers, gathered: &Gathered) {
         let mut source = vec![usize::MAX; self.len()];
-        for (k, &at) in positions.iter().enumerate() {
-            source[at] = k;
+        for k in 0..gathered.rays.len() {
+            source[gathered.position(k)] = k;
         }
         self.chunks(CHUNK)
             .into_par_iter()

@@ -11,10 +11,9 @@
 
 use std::ops::Range;
 
-use rayon::prelude::*;
 use reducem_core::trace::{coherent_order, Ray};
 
-use crate::rays::{self, Components, Rays};
+use crate::rays::{self, Components, Gathered, Rays};
 
 /// Rays traced by one task in input order: the chunk size of `reducem query` (large enough to
 /// amortize scheduling and keep packets of consecutive rays, small enough to balance).
@@ -107,38 +106,32 @@ pub struct Chunk {
     pub places: Vec<u32>,
 }
 
-/// The rays of `rays` gathered in the order `reducem query` traces an incoherent batch, each
-/// with its position among the caller's rays; `Ok(None)` when their order is coherent enough
-/// (or too few to reorder), `Err` with the first invalid ray's index.
+/// The rays of `rays` to be traced in the order `reducem query` traces an incoherent batch
+/// ([`coherent_order`]), each with its position among the caller's rays; `Ok(None)` when their
+/// order is coherent enough (or too few to reorder), `Err` with the first invalid ray's index.
 pub fn sorted(rays: &Rays) -> Result<Option<Rays<'static>>, usize> {
-    let read;
-    let (all, positions, total): (&[Ray], _, _) = match rays {
+    let sorted = match rays {
         Rays::All {
             components,
             tnear,
             tfar,
         } => {
-            read = rays::read_all(*components, (*tnear, *tfar))?;
-            (&read, None, components.len())
+            let all = rays::read_all(*components, (*tnear, *tfar))?;
+            coherent_order(&all).map(|order| Gathered {
+                rays: all,
+                order: Some(order),
+                positions: None,
+                total: components.len(),
+            })
         }
-        Rays::Gathered {
-            rays,
-            positions,
-            total,
-        } => (rays, Some(positions), *total),
+        Rays::Gathered(gathered) => coherent_order(&gathered.rays).map(|order| Gathered {
+            rays: gathered.rays.clone(),
+            order: Some(order),
+            positions: gathered.positions.clone(),
+            total: gathered.total,
+        }),
     };
-    let Some(order) = coherent_order(all) else {
-        return Ok(None);
-    };
-    let position = |index: usize| positions.map_or(index, |positions| positions[index]);
-    Ok(Some(Rays::Gathered {
-        rays: order.par_iter().map(|&index| all[index as usize]).collect(),
-        positions: order
-            .par_iter()
-            .map(|&index| position(index as usize))
-            .collect(),
-        total,
-    }))
+    Ok(sorted.map(Rays::Gathered))
 }
 
 /// The offsets in a band of `rows` rows, `width` wide, tile by tile in packet order.

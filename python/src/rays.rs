@@ -7,6 +7,7 @@
 
 use std::ops::Range;
 use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use numpy::{PyArrayDyn, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -45,13 +46,33 @@ pub enum Rays<'a> {
         tnear: f32,
         tfar: f32,
     },
-    /// Rays gathered out of the caller's array (the valid ones, for `invalid="miss"`, or all
-    /// of them in the order they are traced in) and each one's position among `total`.
-    Gathered {
-        rays: Vec<Ray>,
-        positions: Vec<usize>,
-        total: usize,
-    },
+    /// Rays read out of the caller's array (the valid ones, for `invalid="miss"`, or all of
+    /// them to be traced in another order).
+    Gathered(Gathered),
+}
+
+/// Rays read out of the caller's array, traced in `order` (indices into `rays`) when it is
+/// given, else in theirs; ray `j` of `rays` is ray `positions[j]` (or `j`) among `total`.
+/// Tracing reads them through `order`, chunk by chunk, as `reducem query` reads its records,
+/// rather than copying them all into that order first.
+pub struct Gathered {
+    pub rays: Vec<Ray>,
+    pub order: Option<Vec<u32>>,
+    pub positions: Option<Vec<usize>>,
+    pub total: usize,
+}
+
+impl Gathered {
+    /// The index in `rays` of the `k`th ray traced.
+    fn traced_index(&self, k: usize) -> usize {
+        self.order.as_ref().map_or(k, |order| order[k] as usize)
+    }
+
+    /// The position among the caller's rays of the `k`th ray traced.
+    pub fn position(&self, k: usize) -> usize {
+        let j = self.traced_index(k);
+        self.positions.as_ref().map_or(j, |positions| positions[j])
+    }
 }
 
 impl Rays<'_> {
@@ -59,7 +80,7 @@ impl Rays<'_> {
     pub fn traced(&self) -> usize {
         match self {
             Rays::All { components, .. } => components.len(),
-            Rays::Gathered { rays, .. } => rays.len(),
+            Rays::Gathered(gathered) => gathered.rays.len(),
         }
     }
 
@@ -69,8 +90,18 @@ impl Rays<'_> {
     pub fn chunk_into(&self, range: Range<usize>, into: &mut Vec<Ray>) -> Option<usize> {
         into.clear();
         match self {
-            Rays::Gathered { rays, .. } => {
+            Rays::Gathered(Gathered {
+                rays, order: None, ..
+            }) => {
                 into.extend_from_slice(&rays[range]);
+                None
+            }
+            Rays::Gathered(Gathered {
+                rays,
+                order: Some(order),
+                ..
+            }) => {
+                into.extend(order[range].iter().map(|&j| rays[j as usize]));
                 None
             }
             Rays::All {
@@ -94,8 +125,10 @@ impl Rays<'_> {
     pub fn gather_into(&self, start: usize, offsets: &[u32], into: &mut Vec<Ray>) -> Option<usize> {
         into.clear();
         match self {
-            Rays::Gathered { rays, .. } => {
-                into.extend(offsets.iter().map(|&offset| rays[start + offset as usize]));
+            Rays::Gathered(gathered) => {
+                let ray =
+                    |offset: u32| gathered.rays[gathered.traced_index(start + offset as usize)];
+                into.extend(offsets.iter().map(|&offset| ray(offset)));
                 None
             }
             Rays::All {
@@ -162,18 +195,18 @@ fn read_rays<T: Copy>(
 }
 
 /// Every ray of `components` on `[tnear, tfar]` in their order, read on every core; or the
-/// first invalid one's index. Slices of six components are collected by index into one
-/// vector: no per-ray lookup by index, and no list of pieces copied again as a
-/// short-circuiting collect of `Option`s makes.
+/// first invalid one's index. Each ray is checked as it is converted (no second pass over
+/// them), and collected by index into one vector: no per-ray lookup by index, and no list of
+/// pieces copied again as a short-circuiting collect of `Option`s makes.
 pub fn read_all(components: Components<'_>, interval: (f32, f32)) -> Result<Vec<Ray>, usize> {
+    let first_invalid = AtomicUsize::new(usize::MAX);
     let rays = match components {
-        Components::F32(values) => read_all_of(values, |x| x, interval),
-        Components::F64(values) => read_all_of(values, |x| x as f32, interval),
+        Components::F32(values) => read_all_of(values, |x| x, interval, &first_invalid),
+        Components::F64(values) => read_all_of(values, |x| x as f32, interval, &first_invalid),
     };
-    let invalid = |ray: &Ray| !is_valid(&components_of(ray));
-    match rays.par_iter().position_first(invalid) {
-        Some(index) => Err(index),
-        None => Ok(rays),
+    match first_invalid.into_inner() {
+        usize::MAX => Ok(rays),
+        index => Err(index),
     }
 }
 
@@ -181,10 +214,18 @@ fn read_all_of<T: Copy + Sync>(
     values: &[T],
     to_f32: impl Fn(T) -> f32 + Sync,
     (tnear, tfar): (f32, f32),
+    first_invalid: &AtomicUsize,
 ) -> Vec<Ray> {
     values
         .par_chunks_exact(6)
-        .map(|ray| to_ray(std::array::from_fn(|k| to_f32(ray[k])), tnear, tfar))
+        .enumerate()
+        .map(|(i, ray)| {
+            let ray: [f32; 6] = std::array::from_fn(|k| to_f32(ray[k]));
+            if !is_valid(&ray) {
+                first_invalid.fetch_min(i, Ordering::Relaxed);
+            }
+            to_ray(ray, tnear, tfar)
+        })
         .collect()
 }
 
@@ -314,11 +355,12 @@ pub fn valid_only<'a>(components: Components<'a>, tnear: f32, tfar: f32) -> Rays
         .filter(|(_, ray)| is_valid(ray))
         .map(|(i, ray)| (i, to_ray(ray, tnear, tfar)))
         .unzip();
-    Rays::Gathered {
+    Rays::Gathered(Gathered {
         rays,
-        positions,
+        order: None,
+        positions: Some(positions),
         total: components.len(),
-    }
+    })
 }
 
 /// Why ray `index` of `components` (an invalid one, leading shape `shape`) is invalid.
@@ -335,11 +377,6 @@ pub fn describe_invalid(
 /// [`check_interval`] accepted: finite components and a non-zero direction.
 fn is_valid(ray: &[f32; 6]) -> bool {
     ray.iter().all(|x| x.is_finite()) && ray[3..] != [0.0; 3]
-}
-
-fn components_of(ray: &Ray) -> [f32; 6] {
-    let ([ox, oy, oz], [dx, dy, dz]) = (ray.origin, ray.direction);
-    [ox, oy, oz, dx, dy, dz]
 }
 
 fn to_ray([ox, oy, oz, dx, dy, dz]: [f32; 6], tmin: f32, tmax: f32) -> Ray {

@@ -519,12 +519,12 @@ impl Scene {
     ) -> Result<(), usize> {
         let (sorted, order) = trace_order(rays, shape)?;
         let rays = sorted.as_ref().unwrap_or(rays);
-        let Rays::Gathered { positions, .. } = rays else {
+        let Rays::Gathered(gathered) = rays else {
             return self.cast_into(rays, &order, kernel, out);
         };
         let mut traced = AnswerBuffers::new(rays.traced(), self.file.attributes());
         self.cast_into(rays, &order, kernel, &mut traced.answers())?;
-        out.place(&traced, positions);
+        out.place(&traced, gathered);
         Ok(())
     }
 
@@ -588,15 +588,12 @@ impl Scene {
                 }
             });
         check_valid(first_invalid)?;
-        let Rays::Gathered {
-            positions, total, ..
-        } = rays
-        else {
+        let Rays::Gathered(gathered) = rays else {
             return Ok(occluded);
         };
-        let mut all = vec![false; *total];
-        for (&at, answer) in positions.iter().zip(occluded) {
-            all[at] = answer;
+        let mut all = vec![false; gathered.total];
+        for (k, answer) in occluded.into_iter().enumerate() {
+            all[gathered.position(k)] = answer;
         }
         Ok(all)
     }
