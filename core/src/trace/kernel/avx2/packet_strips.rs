@@ -61,6 +61,9 @@ pub(in crate::trace) struct LaneSpaces {
     shear: [__m256; 2],
     scale_z: __m256,
     tmin: __m256,
+    /// Per model axis all ones in the lanes whose direction sign is not lane 0's (occlusion
+    /// packets may mix signs): their entry and exit planes are lane 0's swapped.
+    flip: [__m256; 3],
 }
 
 impl LaneSpaces {
@@ -91,6 +94,12 @@ impl LaneSpaces {
             shear: [wide(lanes.shear[0]), wide(lanes.shear[1])],
             scale_z: wide(lanes.scale_z),
             tmin: wide(lanes.tmin),
+            flip: lanes.signs.map(|signs| {
+                let differ = (signs ^ 0u32.wrapping_sub(signs & 1)) as i32;
+                let each = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+                let set = _mm256_and_si256(_mm256_set1_epi32(differ), each);
+                _mm256_castsi256_ps(_mm256_cmpeq_epi32(set, each))
+            }),
         }
     }
 
@@ -186,7 +195,7 @@ pub(super) fn trace_strip_together(
         }
         return Some(done);
     }
-    let blocks = entered_blocks(lanes, leaf, (view, points), any_hit, closest);
+    let blocks = entered_blocks((spaces, lanes), leaf, (view, points), any_hit, closest);
     let strip_lanes = StripLanes {
         strip,
         active: leaf.active,
@@ -234,7 +243,7 @@ const MAX_BLOCKS: usize = MAX_WINDOWS.div_ceil(BLOCK);
 /// the distances as `PreparedRay` computes them, folded into `[t_near, min(t_far, reach)]`).
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 fn entered_blocks(
-    lanes: &Lanes,
+    (spaces, lanes): (&LaneSpaces, &Lanes),
     leaf: &LeafLanes,
     (view, points): (&StripView, &[[f32; 3]]),
     any_hit: bool,
@@ -270,13 +279,22 @@ fn entered_blocks(
         let mut far = t_far;
         for axis in 0..3 {
             let origin = wide(lanes.origin[axis]);
+            let (entry, exit) = (
+                _mm256_set1_ps(planes[axis]),
+                _mm256_set1_ps(planes[ENTRY_LANES + axis]),
+            );
+            let flip = spaces.flip[axis];
+            let (entry, exit) = (
+                _mm256_blendv_ps(entry, exit, flip),
+                _mm256_blendv_ps(exit, entry, flip),
+            );
             let entry = _mm256_mul_ps(
-                _mm256_sub_ps(_mm256_set1_ps(planes[axis]), origin),
+                _mm256_sub_ps(entry, origin),
                 wide(lanes.entry_reciprocal[axis]),
             );
             let exit = _mm256_mul_ps(
                 _mm256_mul_ps(
-                    _mm256_sub_ps(_mm256_set1_ps(planes[ENTRY_LANES + axis]), origin),
+                    _mm256_sub_ps(exit, origin),
                     wide(lanes.exit_reciprocal[axis]),
                 ),
                 _mm256_set1_ps(FAR_INFLATION),

@@ -57,7 +57,7 @@ impl LoneRay {
             model_origin: at(&lanes.origin),
             entry_reciprocal: at(&lanes.entry_reciprocal),
             exit_reciprocal: at(&lanes.exit_reciprocal),
-            negative: lanes.negative(),
+            negative: lanes.signs.map(|signs| signs >> lane & 1 != 0),
             axes: _mm_setr_epi32(a, b, c, 3),
             origin,
             shear,
