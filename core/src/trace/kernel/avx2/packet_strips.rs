@@ -195,7 +195,12 @@ pub(super) fn trace_strip_together(
         }
         return Some(done);
     }
-    let blocks = entered_blocks((spaces, lanes), leaf, (view, points), any_hit, closest);
+    let strip_at = (view, points);
+    // Only occlusion packets mix direction signs: closest-hit packets skip the planes' swaps.
+    let blocks = match any_hit {
+        true => entered_blocks::<true>((spaces, lanes), leaf, strip_at, closest),
+        false => entered_blocks::<false>((spaces, lanes), leaf, strip_at, closest),
+    };
     let strip_lanes = StripLanes {
         strip,
         active: leaf.active,
@@ -242,11 +247,10 @@ const MAX_BLOCKS: usize = MAX_WINDOWS.div_ceil(BLOCK);
 /// lane with `BoxTest`'s decisions (its planes decoded as `block_boxes::decode_plane` does,
 /// the distances as `PreparedRay` computes them, folded into `[t_near, min(t_far, reach)]`).
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
-fn entered_blocks(
+fn entered_blocks<const ANY_HIT: bool>(
     (spaces, lanes): (&LaneSpaces, &Lanes),
     leaf: &LeafLanes,
     (view, points): (&StripView, &[[f32; 3]]),
-    any_hit: bool,
     closest: &[Closest; PACKET_WIDTH],
 ) -> EnteredBlocks {
     let mut entered = EnteredBlocks {
@@ -259,7 +263,7 @@ fn entered_blocks(
     };
     let t_near = load(leaf.t_near);
     // An occlusion lane's bound is its interval's end until it finds a hit, which ends it.
-    let t_far = if any_hit {
+    let t_far = if ANY_HIT {
         load(leaf.t_far)
     } else {
         _mm256_min_ps(
@@ -283,11 +287,16 @@ fn entered_blocks(
                 _mm256_set1_ps(planes[axis]),
                 _mm256_set1_ps(planes[ENTRY_LANES + axis]),
             );
-            let flip = spaces.flip[axis];
-            let (entry, exit) = (
-                _mm256_blendv_ps(entry, exit, flip),
-                _mm256_blendv_ps(exit, entry, flip),
-            );
+            let (entry, exit) = match ANY_HIT {
+                true => {
+                    let flip = spaces.flip[axis];
+                    (
+                        _mm256_blendv_ps(entry, exit, flip),
+                        _mm256_blendv_ps(exit, entry, flip),
+                    )
+                }
+                false => (entry, exit),
+            };
             let entry = _mm256_mul_ps(
                 _mm256_sub_ps(entry, origin),
                 wide(lanes.entry_reciprocal[axis]),
