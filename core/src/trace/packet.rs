@@ -165,7 +165,10 @@ fn trace_lanes<C: TraceKernel, P: LaneRays>(
     any_hit: bool,
     closest: &mut [Closest; PACKET_WIDTH],
 ) {
-    let mut packet_mask = lanes.octant_lanes(count);
+    let mut packet_mask = match any_hit && C::MIXED_OCCLUSION {
+        true => (1 << count) - 1,
+        false => lanes.octant_lanes(count),
+    };
     if (packet_mask.count_ones() as usize) < MIN_PACKET_LANES {
         packet_mask = 0;
     }
@@ -187,6 +190,14 @@ fn trace_lanes<C: TraceKernel, P: LaneRays>(
     }
 }
 
+/// How a packet culls a node's slots before clipping them lane by lane: by its frustum when
+/// its lanes share their direction signs, else (occlusion packets of a kernel that mixes signs)
+/// by the box of its segments, each lane clipped with its own planes.
+enum Cull<C: TraceKernel> {
+    Frustum(C::Frustum),
+    Mixed(C::Mixed),
+}
+
 /// The packet walk's steps at a node.
 impl Lanes {
     /// Child `slot` of `node` (whose group's box planes are `planes`) if some `active` lane
@@ -196,10 +207,13 @@ impl Lanes {
     fn clip_child<N: TraceNode, C: TraceKernel>(
         &self,
         (node, planes, targets): (&N, &C::Planes, &Targets<N>),
-        slot: usize,
+        (slot, cull): (usize, &Cull<C>),
         (active, limit): (u32, f32x8),
     ) -> Option<PacketDeferred> {
-        let (t_near, t_far, mask) = C::clip_slot(self, planes, slot, limit);
+        let (t_near, t_far, mask) = match cull {
+            Cull::Frustum(_) => C::clip_slot(self, planes, slot, limit),
+            Cull::Mixed(mixed) => C::clip_slot_mixed(self, mixed, planes, slot, limit),
+        };
         let mask = mask & active;
         if mask == 0 {
             return None;
@@ -228,7 +242,7 @@ impl Lanes {
     #[inline(always)]
     fn enter_children<N: TraceNode, C: TraceKernel, const ANY_HIT: bool>(
         &self,
-        (targets, frustum): (&Targets<N>, &C::Frustum),
+        (targets, cull): (&Targets<N>, &Cull<C>),
         node: &N,
         decoder: &N::Decoder,
         active: u32,
@@ -237,8 +251,12 @@ impl Lanes {
     ) -> Option<PacketDeferred> {
         let occupied = (node.occupied_mask().trailing_ones() as usize).min(MAX_WIDTH);
         let planes = node.planes::<C>(decoder, self);
-        // Only the slots the packet's frustum may enter are clipped lane by lane.
-        let candidates = C::frustum_slots(frustum, &planes, reach) & ((1 << occupied) - 1);
+        // Only the slots the packet may enter are clipped lane by lane.
+        let culled = match cull {
+            Cull::Frustum(frustum) => C::frustum_slots(frustum, &planes, reach),
+            Cull::Mixed(mixed) => C::mixed_slots(mixed, &planes),
+        };
+        let candidates = culled & ((1 << occupied) - 1);
         let clipped = (node, &planes, targets);
         let bounds = (active, limit);
         if ANY_HIT {
@@ -246,7 +264,7 @@ impl Lanes {
             // which only a leaf changes), the others deferred as they come.
             let mut first = None;
             for_each_bit(candidates, |slot| {
-                if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
+                if let Some(child) = self.clip_child::<N, C>(clipped, (slot, cull), bounds) {
                     match first {
                         None => first = Some(child),
                         Some(_) if child.kind == INTERNAL_CHILD => internal.push(Internal {
@@ -264,7 +282,7 @@ impl Lanes {
         let mut entered = ArrayVec::<PacketDeferred, MAX_WIDTH>::new();
         let mut slots = [0; MAX_WIDTH];
         for_each_bit(candidates, |slot| {
-            if let Some(child) = self.clip_child::<N, C>(clipped, slot, bounds) {
+            if let Some(child) = self.clip_child::<N, C>(clipped, (slot, cull), bounds) {
                 slots[entered.len() % MAX_WIDTH] = slot;
                 entered.push(child);
             }
@@ -362,10 +380,13 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
     let mut stack = DeferStack::default();
     let mut internal = DeferStack::default();
     let together = C::together(lanes);
-    let frustum = C::frustum(lanes, packet_mask);
     let targets = Targets::new(tracer.strip_sections(), nodes);
     // The lanes' culling bounds change only at leaves: gathered once per leaf, not per node.
     let (mut limit, mut reach) = bounds::<ANY_HIT>(closest, finished);
+    let cull = match ANY_HIT && C::MIXED_OCCLUSION {
+        true => Cull::Mixed(C::mixed(lanes, packet_mask, limit)),
+        false => Cull::Frustum(C::frustum(lanes, packet_mask)),
+    };
     // The root has no box: every lane starts with its own interval.
     let mut current = PacketDeferred {
         child: 0,
@@ -399,7 +420,7 @@ fn traverse_nodes<N: TraceNode, C: TraceKernel, P: LaneRays, const ANY_HIT: bool
                 let node = tracer.file().top_node(nodes, current.child as usize);
                 let entered = node.and_then(|n| {
                     lanes.enter_children::<N, C, ANY_HIT>(
-                        (&targets, &frustum),
+                        (&targets, &cull),
                         n,
                         decoder,
                         current.mask,

@@ -113,6 +113,16 @@ impl Kernel {
         }
     }
 
+    /// Whether this kernel's occlusion packets may mix direction signs
+    /// ([`TraceKernel::MIXED_OCCLUSION`]) on this CPU, where `dispatch` runs it.
+    pub(super) fn mixes_occlusion_signs(self) -> bool {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2 if detect::avx2() => <avx2::Avx2 as TraceKernel>::MIXED_OCCLUSION,
+            _ => <portable::Portable as TraceKernel>::MIXED_OCCLUSION,
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Kernel::Sse2 => "sse2",
@@ -299,6 +309,36 @@ pub(super) trait TraceKernel: query_kernel::QueryKernel {
     /// [`TraceKernel::clip_slot`] would find entered by none of them, so culling by it changes
     /// no answer.
     fn frustum_slots(frustum: &Self::Frustum, planes: &Self::Planes, reach: f32) -> u32;
+
+    /// Whether occlusion packets may hold rays of differing direction signs (see
+    /// [`TraceKernel::Mixed`]): then a batch's occlusion rays are cut into packets in their
+    /// order, eight rays of one hit point's sixteen together, rather than grouped by octant.
+    const MIXED_OCCLUSION: bool;
+
+    /// An occlusion packet whose lanes' direction signs may differ, for
+    /// [`TraceKernel::mixed_slots`] and [`TraceKernel::clip_slot_mixed`]: per axis the lanes
+    /// whose sign is not lane 0's (their entry and exit planes are lane 0's swapped), and the
+    /// box of the lanes' segments.
+    type Mixed;
+
+    /// [`TraceKernel::Mixed`] of the lanes `packet_mask` (lane 0 among them), whose culling
+    /// bounds are `limit` (they only shrink while the packet walks).
+    fn mixed(lanes: &Lanes, packet_mask: u32, limit: f32x8) -> Self::Mixed;
+
+    /// The slots of `planes` whose box meets the box of the packet's segments, as a bit mask:
+    /// a slot left out is one that [`TraceKernel::clip_slot_mixed`] would find entered by none
+    /// of the lanes.
+    fn mixed_slots(mixed: &Self::Mixed, planes: &Self::Planes) -> u32;
+
+    /// [`TraceKernel::clip_slot`] with each lane's own entry and exit planes: lane 0's swapped
+    /// on the axes where the lane's direction sign differs.
+    fn clip_slot_mixed(
+        lanes: &Lanes,
+        mixed: &Self::Mixed,
+        planes: &Self::Planes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32);
 
     /// `node`'s child boxes as [`WideNode::decode`] decodes them, in two groups of four.
     fn decode_wide(node: &WideNode) -> [ChildBoxes; 2];

@@ -239,6 +239,31 @@ impl TraceKernel for Portable {
         Frustum::new(lanes, packet_mask)
     }
 
+    /// Packets keep one octant: the portable packet strip test and box clips pick their planes
+    /// by lane 0's signs.
+    const MIXED_OCCLUSION: bool = false;
+
+    type Mixed = ();
+
+    #[inline(always)]
+    fn mixed(_lanes: &Lanes, _packet_mask: u32, _limit: f32x8) {}
+
+    #[inline(always)]
+    fn mixed_slots(_mixed: &(), _planes: &SlotPlanes) -> u32 {
+        u32::MAX
+    }
+
+    #[inline(always)]
+    fn clip_slot_mixed(
+        lanes: &Lanes,
+        _mixed: &(),
+        planes: &SlotPlanes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32) {
+        Portable::clip_slot(lanes, planes, slot, t_far)
+    }
+
     /// Per axis a lane's entry distance `(entry - o) * r` is at least the lesser of
     /// `(entry - o') * r_low` and `(entry - o') * r_high` with `o'` the frustum's entry origin
     /// (each rounded operation is monotone in each operand, and `r` has one sign), and its

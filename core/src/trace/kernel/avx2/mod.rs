@@ -137,6 +137,34 @@ impl TraceKernel for Avx2 {
         unsafe { packets::clip_slot(lanes, planes, slot, t_far) }
     }
 
+    const MIXED_OCCLUSION: bool = true;
+
+    type Mixed = packets::Avx2Mixed;
+
+    #[inline(always)]
+    fn mixed(lanes: &Lanes, packet_mask: u32, limit: f32x8) -> packets::Avx2Mixed {
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
+        unsafe { packets::mixed(lanes, packet_mask, limit) }
+    }
+
+    #[inline(always)]
+    fn mixed_slots(mixed: &packets::Avx2Mixed, planes: &packets::Avx2Planes) -> u32 {
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
+        unsafe { packets::mixed_slots(mixed, planes) }
+    }
+
+    #[inline(always)]
+    fn clip_slot_mixed(
+        lanes: &Lanes,
+        mixed: &packets::Avx2Mixed,
+        planes: &packets::Avx2Planes,
+        slot: usize,
+        t_far: f32x8,
+    ) -> (f32x8, f32x8, u32) {
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
+        unsafe { packets::clip_slot_mixed(lanes, mixed, planes, slot, t_far) }
+    }
+
     #[inline(always)]
     fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
         // SAFETY: as in `compiled`: the kernel's features were detected before this runs.

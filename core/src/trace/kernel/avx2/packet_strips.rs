@@ -61,6 +61,9 @@ pub(in crate::trace) struct LaneSpaces {
     shear: [__m256; 2],
     scale_z: __m256,
     tmin: __m256,
+    /// Per model axis all ones in the lanes whose direction sign is not lane 0's (occlusion
+    /// packets may mix signs): their entry and exit planes are lane 0's swapped.
+    flip: [__m256; 3],
 }
 
 impl LaneSpaces {
@@ -91,6 +94,12 @@ impl LaneSpaces {
             shear: [wide(lanes.shear[0]), wide(lanes.shear[1])],
             scale_z: wide(lanes.scale_z),
             tmin: wide(lanes.tmin),
+            flip: lanes.signs.map(|signs| {
+                let differ = (signs ^ 0u32.wrapping_sub(signs & 1)) as i32;
+                let each = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+                let set = _mm256_and_si256(_mm256_set1_epi32(differ), each);
+                _mm256_castsi256_ps(_mm256_cmpeq_epi32(set, each))
+            }),
         }
     }
 
@@ -186,7 +195,12 @@ pub(super) fn trace_strip_together(
         }
         return Some(done);
     }
-    let blocks = entered_blocks(lanes, leaf, (view, points), any_hit, closest);
+    let strip_at = (view, points);
+    // Only occlusion packets mix direction signs: closest-hit packets skip the planes' swaps.
+    let blocks = match any_hit {
+        true => entered_blocks::<true>((spaces, lanes), leaf, strip_at, closest),
+        false => entered_blocks::<false>((spaces, lanes), leaf, strip_at, closest),
+    };
     let strip_lanes = StripLanes {
         strip,
         active: leaf.active,
@@ -233,11 +247,10 @@ const MAX_BLOCKS: usize = MAX_WINDOWS.div_ceil(BLOCK);
 /// lane with `BoxTest`'s decisions (its planes decoded as `block_boxes::decode_plane` does,
 /// the distances as `PreparedRay` computes them, folded into `[t_near, min(t_far, reach)]`).
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
-fn entered_blocks(
-    lanes: &Lanes,
+fn entered_blocks<const ANY_HIT: bool>(
+    (spaces, lanes): (&LaneSpaces, &Lanes),
     leaf: &LeafLanes,
     (view, points): (&StripView, &[[f32; 3]]),
-    any_hit: bool,
     closest: &[Closest; PACKET_WIDTH],
 ) -> EnteredBlocks {
     let mut entered = EnteredBlocks {
@@ -250,7 +263,7 @@ fn entered_blocks(
     };
     let t_near = load(leaf.t_near);
     // An occlusion lane's bound is its interval's end until it finds a hit, which ends it.
-    let t_far = if any_hit {
+    let t_far = if ANY_HIT {
         load(leaf.t_far)
     } else {
         _mm256_min_ps(
@@ -270,13 +283,27 @@ fn entered_blocks(
         let mut far = t_far;
         for axis in 0..3 {
             let origin = wide(lanes.origin[axis]);
+            let (entry, exit) = (
+                _mm256_set1_ps(planes[axis]),
+                _mm256_set1_ps(planes[ENTRY_LANES + axis]),
+            );
+            let (entry, exit) = match ANY_HIT {
+                true => {
+                    let flip = spaces.flip[axis];
+                    (
+                        _mm256_blendv_ps(entry, exit, flip),
+                        _mm256_blendv_ps(exit, entry, flip),
+                    )
+                }
+                false => (entry, exit),
+            };
             let entry = _mm256_mul_ps(
-                _mm256_sub_ps(_mm256_set1_ps(planes[axis]), origin),
+                _mm256_sub_ps(entry, origin),
                 wide(lanes.entry_reciprocal[axis]),
             );
             let exit = _mm256_mul_ps(
                 _mm256_mul_ps(
-                    _mm256_sub_ps(_mm256_set1_ps(planes[ENTRY_LANES + axis]), origin),
+                    _mm256_sub_ps(exit, origin),
                     wide(lanes.exit_reciprocal[axis]),
                 ),
                 _mm256_set1_ps(FAR_INFLATION),

@@ -25,14 +25,50 @@ pub(super) fn clip_slot(
     slot: usize,
     t_far: f32x8,
 ) -> (f32x8, f32x8, u32) {
-    let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
-    let inflation = _mm256_set1_ps(FAR_INFLATION);
     let pick = _mm256_set1_epi32(slot as i32);
-    let mut near = wide(lanes.tmin);
-    let mut far = wide(t_far);
-    for axis in 0..3 {
+    let slot_planes = std::array::from_fn(|axis| {
+        (
+            _mm256_permutevar8x32_ps(planes.entry[axis], pick),
+            _mm256_permutevar8x32_ps(planes.exit[axis], pick),
+        )
+    });
+    clip_lanes(lanes, &slot_planes, t_far)
+}
+
+/// `TraceKernel::clip_slot_mixed`: [`clip_slot`] with a lane's entry and exit planes swapped
+/// on the axes where its direction sign is not lane 0's, by which the planes were picked.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+pub(super) fn clip_slot_mixed(
+    lanes: &Lanes,
+    mixed: &Avx2Mixed,
+    planes: &Avx2Planes,
+    slot: usize,
+    t_far: f32x8,
+) -> (f32x8, f32x8, u32) {
+    let pick = _mm256_set1_epi32(slot as i32);
+    let slot_planes = std::array::from_fn(|axis| {
         let entry = _mm256_permutevar8x32_ps(planes.entry[axis], pick);
         let exit = _mm256_permutevar8x32_ps(planes.exit[axis], pick);
+        let flip = mixed.flip[axis];
+        (
+            _mm256_blendv_ps(entry, exit, flip),
+            _mm256_blendv_ps(exit, entry, flip),
+        )
+    });
+    clip_lanes(lanes, &slot_planes, t_far)
+}
+
+/// The lanes' interval in the box whose entry and exit planes are `planes` (per axis, each in
+/// the lanes that cross it) within `[tmin, t_far]`, and the mask of the lanes entering it.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+fn clip_lanes(lanes: &Lanes, planes: &[(__m256, __m256); 3], t_far: f32x8) -> (f32x8, f32x8, u32) {
+    let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
+    let inflation = _mm256_set1_ps(FAR_INFLATION);
+    let mut near = wide(lanes.tmin);
+    let mut far = wide(t_far);
+    for (axis, &(entry, exit)) in planes.iter().enumerate() {
         let origin = wide(lanes.origin[axis]);
         let entry = _mm256_mul_ps(
             _mm256_sub_ps(entry, origin),
@@ -218,6 +254,112 @@ pub(super) fn frustum_slots(frustum: &Avx2Frustum, planes: &Avx2Planes, reach: f
     }
     let missed = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(near, far)) as u32;
     !missed & 0xFF
+}
+
+/// An occlusion packet whose lanes' direction signs may differ ([`TraceKernel::Mixed`]).
+///
+/// [`TraceKernel::Mixed`]: crate::trace::kernel::TraceKernel::Mixed
+pub(in crate::trace) struct Avx2Mixed {
+    /// Per axis all ones in the lanes whose direction sign is not lane 0's.
+    pub(super) flip: [__m256; 3],
+    /// Per axis all ones where lane 0's direction is negative: its entry planes are maxima.
+    negative: [__m256; 3],
+    /// Per axis the least and greatest coordinate of the lanes' segments, padded; `None` when
+    /// a lane's segment is not finite, and nothing is culled.
+    segments: Option<([__m256; 3], [__m256; 3])>,
+}
+
+/// Lanes whose bit is set in `bits`, as all-ones lanes.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+fn lanes_of_bits(bits: u32) -> __m256 {
+    let each = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+        _mm256_and_si256(_mm256_set1_epi32(bits as i32), each),
+        each,
+    ))
+}
+
+/// `TraceKernel::mixed`: the flips, and the box of the segments `o + t d`, `t` in
+/// `[tmin, limit]`, over the lanes of `packet_mask` (the others take lane 0's values). A lane's
+/// displacement `t d` is taken as `t / r` with `r` its exit reciprocal, and the box padded by
+/// `2^-12` of each lane's coordinates' magnitudes, far above the relative error of the clips'
+/// distances (a few units in 2^-24, with `FAR_INFLATION` 2^-20): a plane beyond the padded box
+/// gives every lane an entry distance beyond its bound or an exit distance below its `tmin`.
+/// Segments are bounded only where every lane has a finite origin, `limit` and nonzero finite
+/// reciprocals and a `tmin` of at least zero (the exit argument needs `near >= 0` there).
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+pub(super) fn mixed(lanes: &Lanes, packet_mask: u32, limit: f32x8) -> Avx2Mixed {
+    let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
+    let in_packet = lanes_of_bits(packet_mask);
+    let packet = |v: __m256| {
+        let first = _mm256_permutevar8x32_ps(v, _mm256_setzero_si256());
+        _mm256_blendv_ps(first, v, in_packet)
+    };
+    let magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX));
+    let abs = |v: __m256| _mm256_and_ps(v, magnitude);
+    let infinity = _mm256_set1_ps(f32::INFINITY);
+    let finite = |v: __m256| _mm256_cmp_ps::<_CMP_LT_OQ>(abs(v), infinity);
+    let tmin = packet(wide(lanes.tmin));
+    let limit = packet(wide(limit));
+    let mut usable = _mm256_and_ps(
+        _mm256_and_ps(finite(tmin), finite(limit)),
+        _mm256_cmp_ps::<_CMP_GE_OQ>(tmin, _mm256_setzero_ps()),
+    );
+    let pad = _mm256_set1_ps(1.0 / 4096.0);
+    let mut low = [_mm256_setzero_ps(); 3];
+    let mut high = [_mm256_setzero_ps(); 3];
+    for axis in 0..3 {
+        let origin = packet(wide(lanes.origin[axis]));
+        let reciprocal = packet(wide(lanes.exit_reciprocal[axis]));
+        usable = _mm256_and_ps(usable, _mm256_and_ps(finite(origin), finite(reciprocal)));
+        usable = _mm256_and_ps(
+            usable,
+            _mm256_cmp_ps::<_CMP_GT_OQ>(abs(reciprocal), _mm256_setzero_ps()),
+        );
+        let start = _mm256_div_ps(tmin, reciprocal);
+        let end = _mm256_div_ps(limit, reciprocal);
+        let margin = _mm256_mul_ps(
+            _mm256_add_ps(abs(origin), _mm256_add_ps(abs(start), abs(end))),
+            pad,
+        );
+        let margin = _mm256_add_ps(margin, _mm256_set1_ps(f32::MIN_POSITIVE));
+        let lowest = _mm256_sub_ps(_mm256_add_ps(origin, _mm256_min_ps(start, end)), margin);
+        let highest = _mm256_add_ps(_mm256_add_ps(origin, _mm256_max_ps(start, end)), margin);
+        low[axis] = least(lowest);
+        high[axis] = greatest(highest);
+    }
+    let signs = |axis: usize| lanes.signs[axis];
+    Avx2Mixed {
+        flip: std::array::from_fn(|axis| {
+            let first = 0u32.wrapping_sub(signs(axis) & 1);
+            lanes_of_bits((signs(axis) ^ first) & 0xFF)
+        }),
+        negative: std::array::from_fn(|axis| lanes_of_bits(0u32.wrapping_sub(signs(axis) & 1))),
+        segments: (_mm256_movemask_ps(usable) == 0xFF).then_some((low, high)),
+    }
+}
+
+/// `TraceKernel::mixed_slots`: per axis a slot's box (its minimum and maximum, lane 0's entry
+/// and exit planes picked back by lane 0's signs) against the segments' box; a NaN plane
+/// compares false and culls nothing.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+pub(super) fn mixed_slots(mixed: &Avx2Mixed, planes: &Avx2Planes) -> u32 {
+    let Some((low, high)) = &mixed.segments else {
+        return 0xFF;
+    };
+    let mut missed = _mm256_setzero_ps();
+    for axis in 0..3 {
+        let negative = mixed.negative[axis];
+        let min = _mm256_blendv_ps(planes.entry[axis], planes.exit[axis], negative);
+        let max = _mm256_blendv_ps(planes.exit[axis], planes.entry[axis], negative);
+        let below = _mm256_cmp_ps::<_CMP_LT_OQ>(max, low[axis]);
+        let above = _mm256_cmp_ps::<_CMP_GT_OQ>(min, high[axis]);
+        missed = _mm256_or_ps(missed, _mm256_or_ps(below, above));
+    }
+    !(_mm256_movemask_ps(missed) as u32) & 0xFF
 }
 
 /// `TraceKernel::plane_order_keys`: `order_keys`' operations in its order on eight lanes, each

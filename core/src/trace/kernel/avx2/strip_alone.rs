@@ -28,14 +28,12 @@ use crate::trace::kernel::{EnteredBoxes, LeafLanes, TraceKernel, BLOCK, BOX_GROU
 use crate::trace::lanes::{Lanes, PACKET_WIDTH};
 use crate::trace::watertight::{resolve, RayPoint};
 
-/// One lane's ray: what its box test reads (origin and reciprocals per model axis, direction
-/// signs), its ray-space axes as a `vpermilps` control, and its ray space with each quantity in
+/// One lane's ray: what its box test reads (origin and reciprocals per model axis), its ray-space axes as a `vpermilps` control, and its ray space with each quantity in
 /// every SIMD lane (the origin on the ray-space axes, the shears, the depth scale).
 struct LoneRay {
     model_origin: [f32; 3],
     entry_reciprocal: [f32; 3],
     exit_reciprocal: [f32; 3],
-    negative: [bool; 3],
     axes: __m128i,
     origin: [__m256; 3],
     shear: [__m256; 2],
@@ -57,7 +55,6 @@ impl LoneRay {
             model_origin: at(&lanes.origin),
             entry_reciprocal: at(&lanes.entry_reciprocal),
             exit_reciprocal: at(&lanes.exit_reciprocal),
-            negative: lanes.negative(),
             axes: _mm_setr_epi32(a, b, c, 3),
             origin,
             shear,
@@ -66,14 +63,14 @@ impl LoneRay {
         }
     }
 
-    /// What the box test reads.
+    /// What the box test reads, for a direction of signs `negative`.
     #[inline(always)]
-    fn boxes(&self) -> BoxRay<'_> {
+    fn boxes<'a>(&'a self, negative: &'a [bool; 3]) -> BoxRay<'a> {
         BoxRay {
             origin: &self.model_origin,
             entry_reciprocal: &self.entry_reciprocal,
             exit_reciprocal: &self.exit_reciprocal,
-            negative: &self.negative,
+            negative,
         }
     }
 }
@@ -113,7 +110,18 @@ pub(super) fn trace_strip_alone(
     let entered = match view.boxes.frame(points[0]) {
         Some(frame) => {
             let interval = (leaf.t_near[lane], t_far);
-            entered_boxes(ray.boxes(), view.boxes.bytes(), &frame, 0, interval)
+            // Only occlusion packets mix direction signs: the lane's own, else the packet's.
+            let negative = match any_hit {
+                true => lanes.signs.map(|signs| signs >> lane & 1 != 0),
+                false => lanes.negative(),
+            };
+            entered_boxes(
+                ray.boxes(&negative),
+                view.boxes.bytes(),
+                &frame,
+                0,
+                interval,
+            )
         }
         // A strip without boxes is one kd leaf, whose blocks the walk tests without culling.
         None => EnteredBoxes {

@@ -164,7 +164,7 @@ pub(super) fn clip_wide(
 mod tests {
     use super::*;
     use crate::trace::kernel::avx2::packets::{
-        clip_slot, frustum, frustum_slots, plane_order_keys,
+        clip_slot, clip_slot_mixed, frustum, frustum_slots, mixed, mixed_slots, plane_order_keys,
     };
     use crate::trace::kernel::portable::Portable;
     use crate::trace::kernel::TraceKernel;
@@ -299,6 +299,80 @@ mod tests {
                     entered += 1;
                     assert_ne!(kept & 1 << slot, 0, "slot {slot} of {node:?} {rays:?}");
                     assert_ne!(portable & 1 << slot, 0, "slot {slot} of {node:?} {rays:?}");
+                } else if kept & 1 << slot == 0 {
+                    culled += 1;
+                }
+            }
+        }
+        assert!(entered > 500 && culled > 5_000, "{entered} {culled}");
+    }
+
+    /// Occlusion packets of mixed direction signs: each lane clips a slot as its ray alone
+    /// does ([`Portable::clip_wide`], the same bits), and the segments' box keeps every slot
+    /// a lane of the packet enters.
+    #[test]
+    fn mixed_sign_lanes_clip_as_single_rays_and_their_segments_keep_every_slot() {
+        if !crate::trace::kernel::detect::avx2() {
+            return;
+        }
+        let mut bits = Bits(0x082e_fa98_ec4e_6c89);
+        let (mut entered, mut culled) = (0, 0);
+        for _ in 0..20_000 {
+            let node = random_node(&mut bits);
+            // One origin for all lanes (a hit point's AO rays), nearby ones, or anywhere.
+            let spread = bits.pick(&[0.0, 1.0e-3, 1.0, 3.0e38]);
+            let centre = [0; 3].map(|_| bits.coordinate());
+            let rays: Vec<Ray> = (0..PACKET_WIDTH)
+                .map(|_| Ray {
+                    origin: centre.map(|c| c + spread * (bits.coordinate() / 3.0e38)),
+                    direction: [0; 3].map(|_| {
+                        bits.pick(&[1.0f32, -1.0]) * bits.pick(&[0.0, 1.0, 0.5, 1e-30, 3.0, 0.01])
+                    }),
+                    tmin: bits.pick(&[0.0, 0.0, 1.0e-3, 1.0]),
+                    tmax: bits.pick(&[f32::INFINITY, 10.0, 0.2, 1.0e-3]),
+                })
+                .collect();
+            let prepared: Vec<PreparedRay> = rays.iter().map(PreparedRay::new).collect();
+            // SAFETY: the CPU has AVX2 and BMI2, checked above.
+            let lanes = unsafe { crate::trace::kernel::avx2::setup::lanes(&rays) };
+            let packet_mask = 1 | (bits.next() as u32 & 0xFE);
+            let bounds = std::array::from_fn::<f32, PACKET_WIDTH, _>(|lane| {
+                prepared[lane].tmax * crate::trace::prepared::FAR_INFLATION
+            });
+            let limit = f32x8::from(bounds);
+            // SAFETY: as above.
+            let (planes, mixed) = unsafe {
+                (
+                    wide_planes(&lanes, &node),
+                    mixed(&lanes, packet_mask, limit),
+                )
+            };
+            // SAFETY: as above.
+            let kept = unsafe { mixed_slots(&mixed, &planes) };
+            let alone: Vec<WideClip> = prepared
+                .iter()
+                .zip(bounds)
+                .map(|(ray, bound)| {
+                    let wide = WideRay::new(ray);
+                    Portable::clip_wide(ray, &wide, &node, (ray.tmin, bound))
+                })
+                .collect();
+            for slot in 0..8 {
+                // SAFETY: as above.
+                let (near, far, mask) =
+                    unsafe { clip_slot_mixed(&lanes, &mixed, &planes, slot, limit) };
+                let (near, far) = (near.to_array(), far.to_array());
+                for (lane, (alone_near, alone_far, alone_mask)) in alone.iter().enumerate() {
+                    let inside = alone_mask >> slot & 1;
+                    assert_eq!(mask >> lane & 1, inside, "slot {slot} lane {lane} {rays:?}");
+                    if inside != 0 {
+                        assert_eq!(near[lane].to_bits(), alone_near[slot].to_bits());
+                        assert_eq!(far[lane].to_bits(), alone_far[slot].to_bits());
+                    }
+                }
+                if mask & packet_mask != 0 {
+                    entered += 1;
+                    assert_ne!(kept & 1 << slot, 0, "slot {slot} of {node:?} {rays:?}");
                 } else if kept & 1 << slot == 0 {
                     culled += 1;
                 }
