@@ -17,7 +17,9 @@
 //!
 //! Bit-identical to single rays: a packet is formed only from rays whose direction signs match
 //! the first ray's (the others are traced alone), so all lanes pick the same entry and exit
-//! planes; the lanewise box arithmetic is the scalar arithmetic of `PreparedRay::clip_box`
+//! planes (deviation: occlusion packets of a kernel with [`TraceKernel::MIXED_OCCLUSION`] take
+//! any signs, each lane swapping lane 0's planes where its sign differs, and cull slots by the
+//! box of their segments instead of the frustum); the lanewise box arithmetic is the scalar arithmetic of `PreparedRay::clip_box`
 //! operation for operation, so a lane enters exactly the boxes its ray enters alone, with the
 //! same interval for the same closest-hit bound; children are visited in an order that depends
 //! on the direction signs alone, as closest-hit single rays visit them (sorted by keys that are
