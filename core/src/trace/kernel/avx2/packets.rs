@@ -25,14 +25,7 @@ pub(super) fn clip_slot(
     slot: usize,
     t_far: f32x8,
 ) -> (f32x8, f32x8, u32) {
-    let pick = _mm256_set1_epi32(slot as i32);
-    let slot_planes = std::array::from_fn(|axis| {
-        (
-            _mm256_permutevar8x32_ps(planes.entry[axis], pick),
-            _mm256_permutevar8x32_ps(planes.exit[axis], pick),
-        )
-    });
-    clip_lanes(lanes, &slot_planes, t_far)
+    clip_lanes(lanes, &slot_planes(planes, slot), t_far)
 }
 
 /// `TraceKernel::clip_slot_mixed`: [`clip_slot`] with a lane's entry and exit planes swapped
@@ -46,17 +39,29 @@ pub(super) fn clip_slot_mixed(
     slot: usize,
     t_far: f32x8,
 ) -> (f32x8, f32x8, u32) {
-    let pick = _mm256_set1_epi32(slot as i32);
-    let slot_planes = std::array::from_fn(|axis| {
-        let entry = _mm256_permutevar8x32_ps(planes.entry[axis], pick);
-        let exit = _mm256_permutevar8x32_ps(planes.exit[axis], pick);
+    let picked = slot_planes(planes, slot);
+    let swapped = std::array::from_fn(|axis| {
+        let (entry, exit) = picked[axis];
         let flip = mixed.flip[axis];
         (
             _mm256_blendv_ps(entry, exit, flip),
             _mm256_blendv_ps(exit, entry, flip),
         )
     });
-    clip_lanes(lanes, &slot_planes, t_far)
+    clip_lanes(lanes, &swapped, t_far)
+}
+
+/// Slot `slot`'s entry and exit planes per axis, in every lane.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+fn slot_planes(planes: &Avx2Planes, slot: usize) -> [(__m256, __m256); 3] {
+    let pick = _mm256_set1_epi32(slot as i32);
+    std::array::from_fn(|axis| {
+        (
+            _mm256_permutevar8x32_ps(planes.entry[axis], pick),
+            _mm256_permutevar8x32_ps(planes.exit[axis], pick),
+        )
+    })
 }
 
 /// The lanes' interval in the box whose entry and exit planes are `planes` (per axis, each in
