@@ -15,27 +15,26 @@
 //! The packet's rays are prepared once by the kernel, as `PreparedRay::new` prepares a single
 //! ray, into structure-of-arrays [`Lanes`], with the same bits.
 //!
-//! Bit-identical to single rays: a packet is formed only from rays whose direction signs match
-//! the first ray's (the others are traced alone), so all lanes pick the same entry and exit
-//! planes (deviation: occlusion packets of a kernel with [`TraceKernel::MIXED_OCCLUSION`] take
-//! any signs, each lane swapping lane 0's planes where its sign differs, and cull slots by the
-//! box of their segments instead of the frustum); the lanewise box arithmetic is the scalar arithmetic of `PreparedRay::clip_box`
-//! operation for operation, so a lane enters exactly the boxes its ray enters alone, with the
-//! same interval for the same closest-hit bound; children are visited in an order that depends
-//! on the direction signs alone, as closest-hit single rays visit them (sorted by keys that are
-//! never NaN, the children any lane entered come in each lane's own order); and a lane that is
-//! inactive in a subtree tests nothing there. Each lane thus visits the same leaves in the same
-//! order with the same bounds as its ray alone, so the results agree bit for bit even on a
-//! corrupt file whose boxes do not bound their strips (on a valid file the closest-hit rule
-//! alone, smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do
-//! not depend on the order (see [`super::top`]), so occlusion packets visit a node's children
-//! unsorted (the lowest slot entered first), which costs fewer instructions than either sorted
-//! order. A subtree below a node that only one lane of a packet enters is walked by that lane
-//! alone (the single-ray walk), where one clip tests all of a node's children; a closest-hit
-//! lane visits it in the order and with the bounds it would in the packet, before the packet's
-//! next deferred child, so its answer is unchanged. A leaf that one lane reaches stays with the
-//! packet, whose kernel may test a strip for a lone lane more cheaply than the single-ray walk
-//! does.
+//! Bit-identical to single rays: a packet is formed only from rays whose direction signs match the
+//! first ray's (the others are traced alone), so all lanes pick the same entry and exit planes
+//! (deviation: occlusion packets of a kernel with [`TraceKernel::MIXED_OCCLUSION`] take any signs,
+//! each lane swapping lane 0's planes where its sign differs, and cull slots by the box of their
+//! segments instead of the frustum); the lanewise box arithmetic is the scalar arithmetic of
+//! `PreparedRay::clip_box` operation for operation, so a lane enters exactly the boxes its ray
+//! enters alone, with the same interval for the same closest-hit bound; children are visited in an
+//! order that depends on the direction signs alone, as closest-hit single rays visit them (sorted
+//! by keys that are never NaN, the children any lane entered come in each lane's own order); and a
+//! lane that is inactive in a subtree tests nothing there. Each lane thus visits the same leaves in
+//! the same order with the same bounds as its ray alone, so the results agree bit for bit even on a
+//! corrupt file whose boxes do not bound their strips (on a valid file the closest-hit rule alone,
+//! smallest `(t, strip, window)`, would make the order irrelevant). Occlusion answers do not depend
+//! on the order (see [`super::top`]), so occlusion packets visit a node's children unsorted (the
+//! lowest slot entered first), which costs fewer instructions than either sorted order. A subtree
+//! below a node that only one lane of a packet enters is walked by that lane alone (the single-ray
+//! walk), where one clip tests all of a node's children; a closest-hit lane visits it in the order
+//! and with the bounds it would in the packet, before the packet's next deferred child, so its
+//! answer is unchanged. A leaf that one lane reaches stays with the packet, whose kernel may test a
+//! strip for a lone lane more cheaply than the single-ray walk does.
 //!
 //! [`order_keys`]: super::top::order_keys
 

@@ -28,8 +28,9 @@ use crate::trace::kernel::{EnteredBoxes, LeafLanes, TraceKernel, BLOCK, BOX_GROU
 use crate::trace::lanes::{Lanes, PACKET_WIDTH};
 use crate::trace::watertight::{resolve, RayPoint};
 
-/// One lane's ray: what its box test reads (origin and reciprocals per model axis), its ray-space axes as a `vpermilps` control, and its ray space with each quantity in
-/// every SIMD lane (the origin on the ray-space axes, the shears, the depth scale).
+/// One lane's ray: what its box test reads (origin and reciprocals per model axis), its ray-space
+/// axes as a `vpermilps` control, and its ray space with each quantity in every SIMD lane (the
+/// origin on the ray-space axes, the shears, the depth scale).
 struct LoneRay {
     model_origin: [f32; 3],
     entry_reciprocal: [f32; 3],
