@@ -106,32 +106,33 @@ pub struct Chunk {
     pub places: Vec<u32>,
 }
 
-/// The rays of `rays` to be traced in the order `reducem query` traces an incoherent batch
-/// ([`coherent_order`]), each with its position among the caller's rays; `Ok(None)` when their
-/// order is coherent enough (or too few to reorder), `Err` with the first invalid ray's index.
-pub fn sorted(rays: &Rays) -> Result<Option<Rays<'static>>, usize> {
-    let sorted = match rays {
+/// `rays` to be traced in the order `reducem query` traces an incoherent batch
+/// ([`coherent_order`]), each with its position among the caller's rays; `rays` as they are
+/// when their order is coherent enough (or too few to reorder), `Err` with the first invalid
+/// ray's index.
+pub fn sorted(rays: Rays) -> Result<Rays, usize> {
+    match rays {
         Rays::All {
             components,
             tnear,
             tfar,
         } => {
-            let all = rays::read_all(*components, (*tnear, *tfar))?;
-            coherent_order(&all).map(|order| Gathered {
-                rays: all,
-                order: Some(order),
-                positions: None,
-                total: components.len(),
+            let all = rays::read_all(components, (tnear, tfar))?;
+            Ok(match coherent_order(&all) {
+                Some(order) => Rays::Gathered(Gathered {
+                    rays: all,
+                    order: Some(order),
+                    positions: None,
+                    total: components.len(),
+                }),
+                None => rays,
             })
         }
-        Rays::Gathered(gathered) => coherent_order(&gathered.rays).map(|order| Gathered {
-            rays: gathered.rays.clone(),
-            order: Some(order),
-            positions: gathered.positions.clone(),
-            total: gathered.total,
-        }),
-    };
-    Ok(sorted.map(Rays::Gathered))
+        Rays::Gathered(mut gathered) => {
+            gathered.order = coherent_order(&gathered.rays);
+            Ok(Rays::Gathered(gathered))
+        }
+    }
 }
 
 /// The offsets in a band of `rows` rows, `width` wide, tile by tile in packet order.

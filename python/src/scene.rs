@@ -88,7 +88,7 @@ impl Scene {
             let mut borrowed = arrays.borrow();
             let mut out = borrowed.slices()?;
             // A retry with the valid rays alone (`invalid="miss"`) writes every answer again.
-            let cast = |scene: &Scene, rays: &Rays, shape: &[usize], kernel| {
+            let cast = |scene: &Scene, rays: Rays, shape: &[usize], kernel| {
                 scene.cast(rays, shape, kernel, &mut out)
             };
             py.detach(|| self.answer_rays(components, &shape, query, cast))
@@ -171,7 +171,7 @@ impl Scene {
     ) -> PyResult<Bound<'py, PyAny>> {
         let query = RayQuery::new(tnear, tfar, nthreads, "raise")?;
         let (shape, counts) = self.trace(py, rays, query, |scene, rays, _, _| {
-            crossings::count(&scene.file, rays)
+            crossings::count(&scene.file, &rays)
         })?;
         ndarray(py, counts, &shape)
     }
@@ -193,7 +193,7 @@ impl Scene {
         check_ids_fit(&self.file)?;
         let query = RayQuery::new(tnear, tfar, nthreads, "raise")?;
         let (_, found) = self.trace(py, rays, query, |scene, rays, _, _| {
-            crossings::list(&scene.file, scene.primitive_ids(), rays)
+            crossings::list(&scene.file, scene.primitive_ids(), &rays)
         })?;
         let hits = found.t.len();
         let result = PyDict::new(py);
@@ -384,7 +384,7 @@ impl Scene {
         py: Python<'_>,
         rays: &Bound<'_, PyAny>,
         query: RayQuery,
-        answer: impl FnMut(&Scene, &Rays, &[usize], Kernel) -> Result<T, usize> + Send,
+        answer: impl FnMut(&Scene, Rays, &[usize], Kernel) -> Result<T, usize> + Send,
     ) -> PyResult<(Vec<usize>, T)> {
         let traced = rays::with_components(rays, |shape, components| {
             let answers = py.detach(|| self.answer_rays(components, &shape, query, answer));
@@ -401,7 +401,7 @@ impl Scene {
         components: Components<'_>,
         shape: &[usize],
         query: RayQuery,
-        mut answer: impl FnMut(&Scene, &Rays, &[usize], Kernel) -> Result<T, usize> + Send,
+        mut answer: impl FnMut(&Scene, Rays, &[usize], Kernel) -> Result<T, usize> + Send,
     ) -> Result<T, String> {
         let RayQuery {
             tnear,
@@ -416,7 +416,7 @@ impl Scene {
                 tnear,
                 tfar,
             };
-            let first_invalid = match answer(self, &all, shape, kernel) {
+            let first_invalid = match answer(self, all, shape, kernel) {
                 Ok(answers) => return Ok(answers),
                 Err(index) => index,
             };
@@ -430,7 +430,7 @@ impl Scene {
                 ));
             }
             let valid = rays::valid_only(components, tnear, tfar);
-            answer(self, &valid, shape, kernel)
+            answer(self, valid, shape, kernel)
                 .map_err(|index| format!("ray {index} is invalid after filtering"))
         })
     }
@@ -512,18 +512,17 @@ impl Scene {
     /// straight into `out`; rays gathered in another order into buffers, then placed.
     fn cast(
         &self,
-        rays: &Rays,
+        rays: Rays,
         shape: &[usize],
         kernel: Kernel,
         out: &mut Answers,
     ) -> Result<(), usize> {
-        let (sorted, order) = trace_order(rays, shape)?;
-        let rays = sorted.as_ref().unwrap_or(rays);
-        let Rays::Gathered(gathered) = rays else {
-            return self.cast_into(rays, &order, kernel, out);
+        let (rays, order) = trace_order(rays, shape)?;
+        let Rays::Gathered(gathered) = &rays else {
+            return self.cast_into(&rays, &order, kernel, out);
         };
         let mut traced = AnswerBuffers::new(rays.traced(), self.file.attributes());
-        self.cast_into(rays, &order, kernel, &mut traced.answers())?;
+        self.cast_into(&rays, &order, kernel, &mut traced.answers())?;
         out.place(&traced, gathered);
         Ok(())
     }
@@ -566,9 +565,8 @@ impl Scene {
 
     /// Whether each of `rays` (leading shape `shape`) is occluded, or the index of the first
     /// invalid ray among them.
-    fn occlusions(&self, rays: &Rays, shape: &[usize], kernel: Kernel) -> Result<Vec<bool>, usize> {
-        let (sorted, order) = trace_order(rays, shape)?;
-        let rays = sorted.as_ref().unwrap_or(rays);
+    fn occlusions(&self, rays: Rays, shape: &[usize], kernel: Kernel) -> Result<Vec<bool>, usize> {
+        let (rays, order) = trace_order(rays, shape)?;
         let tracer = Tracer::new(&self.file, trace_options(kernel));
         let mut occluded = vec![false; rays.traced()];
         let chunk_rays = order.chunk_rays();
@@ -578,7 +576,7 @@ impl Scene {
             .enumerate()
             .for_each_init(Chunk::default, |traced, (chunk, out)| {
                 let range = chunk * chunk_rays..chunk * chunk_rays + out.len();
-                if let Some(invalid) = order.read(rays, range, traced) {
+                if let Some(invalid) = order.read(&rays, range, traced) {
                     first_invalid.fetch_min(invalid, Ordering::Relaxed);
                     return;
                 }
@@ -605,13 +603,13 @@ impl Scene {
     }
 }
 
-/// The rays to trace (`Some` when they are gathered out of `rays` in another order) and how to
-/// cut them into chunks: camera rays in bands of tiles, an incoherent batch sorted as
+/// The rays to trace (gathered out of `rays` in another order, or `rays` as they are) and how
+/// to cut them into chunks: camera rays in bands of tiles, an incoherent batch sorted as
 /// `reducem query` sorts it, anything else as it comes ([`order`]).
-fn trace_order(rays: &Rays, shape: &[usize]) -> Result<(Option<Rays<'static>>, ChunkOrder), usize> {
-    match ChunkOrder::of(rays, shape) {
+fn trace_order<'a>(rays: Rays<'a>, shape: &[usize]) -> Result<(Rays<'a>, ChunkOrder), usize> {
+    match ChunkOrder::of(&rays, shape) {
         ChunkOrder::Input => Ok((order::sorted(rays)?, ChunkOrder::Input)),
-        bands => Ok((None, bands)),
+        bands => Ok((rays, bands)),
     }
 }
 
