@@ -189,16 +189,22 @@ fn sync_behind(file: &File, written: &AtomicUsize, done: &AtomicBool) -> io::Res
 /// file's inode lock, and on ext4 its block reservation waits for the lock that background
 /// writeback holds while it allocates blocks; with two threads writing their own blocks, one
 /// stalled there (60 ms at a time on a busy disk) stalled the other on the inode lock. The
+/// writing thread first allocates the file's first `bytes_ahead` bytes
+/// ([`crate::mapping::allocate_ahead`]), off the producers' way: 0.1 to 7 ms for 64 MiB. The
 /// writing thread's error, if any, is returned first.
 pub fn write_behind<T>(
     file: &File,
+    bytes_ahead: u64,
     produce: impl FnOnce(&WriteBehind) -> io::Result<T>,
 ) -> io::Result<T> {
     write_syncing_behind(file, |written| {
         let spare = Mutex::new(Vec::new());
         let (blocks, queued) = mpsc::sync_channel(WRITE_BEHIND_BLOCKS);
         std::thread::scope(|scope| {
-            let writer = scope.spawn(|| write_queued(file, queued, &spare, written));
+            let writer = scope.spawn(|| {
+                crate::mapping::allocate_ahead(file, bytes_ahead);
+                write_queued(file, queued, &spare, written)
+            });
             let behind = WriteBehind {
                 blocks: Some(blocks),
                 spare: &spare,
@@ -634,7 +640,7 @@ mod tests {
         let file = File::create(&path).expect("create");
         let (block_bytes, blocks) = (1000, 3 * WRITE_BEHIND_BLOCKS + 5);
         let expected: Vec<u8> = (0..blocks * block_bytes).map(|i| (i % 251) as u8).collect();
-        let value = write_behind(&file, |behind| {
+        let value = write_behind(&file, 0, |behind| {
             std::thread::scope(|scope| {
                 for first in 0..4 {
                     let expected = &expected;
@@ -656,7 +662,7 @@ mod tests {
         assert_eq!(value, 7);
         assert_eq!(fs::read(&path).expect("read"), expected);
         let read_only = File::open(&path).expect("open");
-        let failed = write_behind(&read_only, |behind| behind.write_at(vec![1; 10], 0));
+        let failed = write_behind(&read_only, 0, |behind| behind.write_at(vec![1; 10], 0));
         assert!(failed.is_err());
         fs::remove_file(&path).expect("remove");
     }
@@ -673,7 +679,7 @@ mod tests {
         let tail = 1000;
         let total = blocks * block_bytes + tail;
         let mut expected: Vec<u8> = (0..total).map(|i| (i % 251) as u8).collect();
-        write_behind(&file, |behind| {
+        write_behind(&file, total as u64, |behind| {
             std::thread::scope(|scope| {
                 for first in 0..3 {
                     let expected = &expected;
