@@ -362,7 +362,7 @@ impl<'a> BlockWriter<'a> {
 
     /// Writes `bytes` at `offset`, or gathers them for a later direct write.
     fn write(&mut self, bytes: &[u8], offset: u64) -> io::Result<()> {
-        let aligned = |value: u64| value % DIRECT_ALIGN as u64 == 0;
+        let aligned = |value: u64| value.is_multiple_of(DIRECT_ALIGN as u64);
         let gathered = aligned(offset) && aligned(bytes.len() as u64);
         if !self.direct || !gathered || bytes.len() > DIRECT_RUN_BYTES {
             self.stop_direct()?;
