@@ -189,16 +189,22 @@ fn sync_behind(file: &File, written: &AtomicUsize, done: &AtomicBool) -> io::Res
 /// file's inode lock, and on ext4 its block reservation waits for the lock that background
 /// writeback holds while it allocates blocks; with two threads writing their own blocks, one
 /// stalled there (60 ms at a time on a busy disk) stalled the other on the inode lock. The
+/// writing thread first allocates the file's first `bytes_ahead` bytes
+/// ([`crate::mapping::allocate_ahead`]), off the producers' way: 0.1 to 7 ms for 64 MiB. The
 /// writing thread's error, if any, is returned first.
 pub fn write_behind<T>(
     file: &File,
+    bytes_ahead: u64,
     produce: impl FnOnce(&WriteBehind) -> io::Result<T>,
 ) -> io::Result<T> {
     write_syncing_behind(file, |written| {
         let spare = Mutex::new(Vec::new());
         let (blocks, queued) = mpsc::sync_channel(WRITE_BEHIND_BLOCKS);
         std::thread::scope(|scope| {
-            let writer = scope.spawn(|| write_queued(file, queued, &spare, written));
+            let writer = scope.spawn(|| {
+                crate::mapping::allocate_ahead(file, bytes_ahead);
+                write_queued(file, queued, &spare, written)
+            });
             let behind = WriteBehind {
                 blocks: Some(blocks),
                 spare: &spare,
@@ -273,6 +279,7 @@ fn write_queued(
     spare: &Mutex<Vec<Vec<u8>>>,
     written: &(dyn Fn(usize) + Sync),
 ) -> io::Result<()> {
+    let mut out = BlockWriter::start(file, written);
     loop {
         let (offset, bytes) = match queued.try_recv() {
             Ok(block) => block,
@@ -280,13 +287,174 @@ fn write_queued(
                 std::thread::park();
                 continue;
             }
-            Err(TryRecvError::Disconnected) => return Ok(()),
+            Err(TryRecvError::Disconnected) => return out.finish(),
         };
-        write_all_at(file, &bytes, offset)?;
-        written(bytes.len());
+        out.write(&bytes, offset)?;
         // Dropped rather than waited for while a producer takes a spare.
         if let Ok(mut spare) = spare.try_lock() {
             spare.push(bytes);
+        }
+    }
+}
+
+/// Alignment of the offsets, lengths and buffers of [`BlockWriter`]'s direct writes: a
+/// multiple of any device's logical block size up to 4 KiB, and of the page size.
+const DIRECT_ALIGN: usize = 4096;
+
+/// Bytes of consecutive blocks that [`BlockWriter`] gathers into one direct write: on a
+/// virtual disk each request costs an exit to the host, so 64 KiB requests cost more system
+/// time than the page cache they avoid.
+const DIRECT_RUN_BYTES: usize = 1 << 20;
+
+/// Runs of consecutive blocks [`BlockWriter`] gathers at once: the tracing threads each finish
+/// chunks in their own stretch of the file.
+const DIRECT_RUNS: usize = 4;
+
+/// How [`write_queued`] writes blocks: past the page cache (O_DIRECT) while the file system
+/// allows it and the blocks are aligned, gathered into runs of consecutive blocks; else through
+/// the page cache, counted for the syncing thread. Direct writes spare the writing thread the
+/// copy into cached pages and their block reservations, leave nothing for the syncing thread
+/// to write back and no cached pages for a later run's rename to free. Durability is
+/// unchanged: the final fsync still flushes the device's cache and commits the file's blocks.
+struct BlockWriter<'a> {
+    file: &'a File,
+    written: &'a (dyn Fn(usize) + Sync),
+    direct: bool,
+    runs: Vec<DirectRun>,
+}
+
+/// Consecutive blocks gathered for one direct write, from `start` in the file.
+struct DirectRun {
+    start: u64,
+    /// An aligned stretch of it holds the gathered bytes.
+    staging: Vec<u8>,
+    len: usize,
+}
+
+impl DirectRun {
+    fn new(start: u64) -> DirectRun {
+        DirectRun {
+            start,
+            staging: vec![0; DIRECT_RUN_BYTES + DIRECT_ALIGN],
+            len: 0,
+        }
+    }
+
+    fn end(&self) -> u64 {
+        self.start + self.len as u64
+    }
+
+    fn gathered(&mut self) -> &mut [u8] {
+        let skip = self.staging.as_ptr().align_offset(DIRECT_ALIGN);
+        &mut self.staging[skip..skip + DIRECT_RUN_BYTES]
+    }
+}
+
+impl<'a> BlockWriter<'a> {
+    fn start(file: &'a File, written: &'a (dyn Fn(usize) + Sync)) -> BlockWriter<'a> {
+        BlockWriter {
+            file,
+            written,
+            direct: crate::mapping::set_direct_io(file, true),
+            runs: Vec::new(),
+        }
+    }
+
+    /// Writes `bytes` at `offset`, or gathers them for a later direct write.
+    fn write(&mut self, bytes: &[u8], offset: u64) -> io::Result<()> {
+        let aligned = |value: u64| value.is_multiple_of(DIRECT_ALIGN as u64);
+        let gathered = aligned(offset) && aligned(bytes.len() as u64);
+        if !self.direct || !gathered || bytes.len() > DIRECT_RUN_BYTES {
+            self.stop_direct()?;
+            write_all_at(self.file, bytes, offset)?;
+            (self.written)(bytes.len());
+            return Ok(());
+        }
+        let index = self.run_ending_at(offset, bytes.len())?;
+        let run = &mut self.runs[index];
+        let at = run.len;
+        run.gathered()[at..at + bytes.len()].copy_from_slice(bytes);
+        run.len += bytes.len();
+        Ok(())
+    }
+
+    /// The run that `len` bytes at `offset` continue, with room for them: an open one, else a
+    /// new one in place of the longest once [`DIRECT_RUNS`] are open.
+    fn run_ending_at(&mut self, offset: u64, len: usize) -> io::Result<usize> {
+        let continued = |run: &DirectRun| run.end() == offset;
+        if let Some(index) = self.runs.iter().position(continued) {
+            if self.runs[index].len + len > DIRECT_RUN_BYTES {
+                self.write_run(index)?;
+            }
+            return Ok(index);
+        }
+        if self.runs.len() < DIRECT_RUNS {
+            self.runs.push(DirectRun::new(offset));
+            return Ok(self.runs.len() - 1);
+        }
+        let longest = (0..self.runs.len())
+            .max_by_key(|&index| self.runs[index].len)
+            .unwrap_or_default();
+        self.write_run(longest)?;
+        self.runs[longest].start = offset;
+        Ok(longest)
+    }
+
+    /// Writes run `index`'s gathered bytes, directly or (when the file system refuses the
+    /// direct write) through the page cache from then on; the run then continues after them.
+    fn write_run(&mut self, index: usize) -> io::Result<()> {
+        let (file, written) = (self.file, self.written);
+        let run = &mut self.runs[index];
+        let (start, len) = (run.start, run.len);
+        if len == 0 {
+            return Ok(());
+        }
+        let bytes = &run.gathered()[..len];
+        let refused = match self.direct {
+            true => match write_all_at(file, bytes, start) {
+                Err(error) if error.kind() == io::ErrorKind::InvalidInput => true,
+                done => {
+                    done?;
+                    false
+                }
+            },
+            false => true,
+        };
+        if refused {
+            if std::mem::take(&mut self.direct) {
+                crate::mapping::set_direct_io(file, false);
+            }
+            write_all_at(file, bytes, start)?;
+            written(len);
+        }
+        run.start += len as u64;
+        run.len = 0;
+        Ok(())
+    }
+
+    /// Writes every gathered run, then writes through the page cache.
+    fn stop_direct(&mut self) -> io::Result<()> {
+        for index in 0..self.runs.len() {
+            self.write_run(index)?;
+        }
+        self.runs.clear();
+        if self.direct {
+            self.direct = false;
+            crate::mapping::set_direct_io(self.file, false);
+        }
+        Ok(())
+    }
+
+    fn finish(mut self) -> io::Result<()> {
+        self.stop_direct()
+    }
+}
+
+impl Drop for BlockWriter<'_> {
+    /// The file's page-cache mode restored, also after an error.
+    fn drop(&mut self) {
+        if self.direct {
+            crate::mapping::set_direct_io(self.file, false);
         }
     }
 }
@@ -472,7 +640,7 @@ mod tests {
         let file = File::create(&path).expect("create");
         let (block_bytes, blocks) = (1000, 3 * WRITE_BEHIND_BLOCKS + 5);
         let expected: Vec<u8> = (0..blocks * block_bytes).map(|i| (i % 251) as u8).collect();
-        let value = write_behind(&file, |behind| {
+        let value = write_behind(&file, 0, |behind| {
             std::thread::scope(|scope| {
                 for first in 0..4 {
                     let expected = &expected;
@@ -494,8 +662,47 @@ mod tests {
         assert_eq!(value, 7);
         assert_eq!(fs::read(&path).expect("read"), expected);
         let read_only = File::open(&path).expect("open");
-        let failed = write_behind(&read_only, |behind| behind.write_at(vec![1; 10], 0));
+        let failed = write_behind(&read_only, 0, |behind| behind.write_at(vec![1; 10], 0));
         assert!(failed.is_err());
+        fs::remove_file(&path).expect("remove");
+    }
+
+    /// Aligned blocks (written past the page cache where the file system allows it, gathered
+    /// into runs) from several threads, then an unaligned last block (through the page cache),
+    /// land at their offsets, and the file reads back through the page cache afterwards.
+    #[test]
+    fn aligned_blocks_then_an_unaligned_one_land_at_their_offsets() {
+        let path = std::env::temp_dir().join(format!("write-direct-{}", std::process::id()));
+        let file = File::create(&path).expect("create");
+        let block_bytes = 3 * DIRECT_ALIGN;
+        let blocks = DIRECT_RUNS * DIRECT_RUN_BYTES / block_bytes + 9;
+        let tail = 1000;
+        let total = blocks * block_bytes + tail;
+        let mut expected: Vec<u8> = (0..total).map(|i| (i % 251) as u8).collect();
+        write_behind(&file, total as u64, |behind| {
+            std::thread::scope(|scope| {
+                for first in 0..3 {
+                    let expected = &expected;
+                    scope.spawn(move || {
+                        for block in (first..blocks).step_by(3) {
+                            let mut buffer = behind.buffer();
+                            buffer.clear();
+                            buffer
+                                .extend_from_slice(&expected[block * block_bytes..][..block_bytes]);
+                            let offset = (block * block_bytes) as u64;
+                            behind.write_at(buffer, offset).expect("queued");
+                        }
+                    });
+                }
+            });
+            let last = expected[blocks * block_bytes..].to_vec();
+            behind.write_at(last, (blocks * block_bytes) as u64)
+        })
+        .expect("written");
+        // One byte at an unaligned offset: refused if the file were still in direct mode.
+        write_all_at(&file, &[7], total as u64).expect("written through the page cache");
+        expected.push(7);
+        assert_eq!(fs::read(&path).expect("read"), expected);
         fs::remove_file(&path).expect("remove");
     }
 

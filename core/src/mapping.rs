@@ -116,6 +116,33 @@ pub fn allocate_ahead(file: &File, bytes: u64) {
 #[cfg(not(target_os = "linux"))]
 pub fn allocate_ahead(_file: &File, _bytes: u64) {}
 
+/// Switches `file`'s reads and writes to bypass the page cache (O_DIRECT) or back to it;
+/// false when the file system refuses (tmpfs, say) or the flags cannot be read.
+#[cfg(target_os = "linux")]
+#[allow(unsafe_code)]
+pub fn set_direct_io(file: &File, direct: bool) -> bool {
+    use std::os::fd::AsRawFd;
+    let descriptor = file.as_raw_fd();
+    // SAFETY: fcntl reads and writes no memory of this process, and `file` stays open for the
+    // calls.
+    let flags = unsafe { libc::fcntl(descriptor, libc::F_GETFL) };
+    if flags < 0 {
+        return false;
+    }
+    let wanted = match direct {
+        true => flags | libc::O_DIRECT,
+        false => flags & !libc::O_DIRECT,
+    };
+    // SAFETY: as above.
+    unsafe { libc::fcntl(descriptor, libc::F_SETFL, wanted) == 0 }
+}
+
+/// Without O_DIRECT, every write goes through the page cache.
+#[cfg(not(target_os = "linux"))]
+pub fn set_direct_io(_file: &File, direct: bool) -> bool {
+    !direct
+}
+
 /// The memory the kernel reports it could give without swapping (`MemAvailable` of
 /// `/proc/meminfo`, free pages plus reclaimable page cache), or `None` where there is no such
 /// file (not Linux) or it does not say.

@@ -726,10 +726,9 @@ pub fn write_answers(
     }
     let size = answer.record_bytes();
     let records = rays.records();
-    mapping::allocate_ahead(out, (records.len() * size) as u64);
     let chunks = records.len().div_ceil(QUERY_CHUNK);
     let traced = TracedRegions::new(chunks);
-    atomic::write_behind(out, |behind| {
+    atomic::write_behind(out, (records.len() * size) as u64, |behind| {
         (0..chunks)
             .into_par_iter()
             .map(|chunk| {
@@ -793,8 +792,7 @@ fn write_answers_in_order(
     let size = answer.record_bytes();
     let (answers, hits) = answer_in_order(tracer, rays, order, answer);
     let places = input_places(order);
-    mapping::allocate_ahead(out, answers.len() as u64);
-    atomic::write_behind(out, |behind| {
+    atomic::write_behind(out, answers.len() as u64, |behind| {
         places
             .par_chunks(QUERY_CHUNK)
             .enumerate()
