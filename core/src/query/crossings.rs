@@ -97,15 +97,7 @@ pub fn all_hits_on(
     let sections = QuerySections::new(file);
     let per_task: Vec<(Vec<usize>, Vec<RayHit>)> = rays
         .par_chunks(RAYS_PER_TASK)
-        .map(|rays| {
-            let (mut counts, mut hits) = (Vec::with_capacity(rays.len()), Vec::new());
-            for ray in rays {
-                let before = hits.len();
-                push_ray_hits((file, &sections), ray, face_ids, kernel, &mut hits);
-                counts.push(hits.len() - before);
-            }
-            (counts, hits)
-        })
+        .map(|rays| task_hits((file, &sections), rays, face_ids, kernel))
         .collect();
     let mut splits = Vec::with_capacity(rays.len() + 1);
     splits.push(0u32);
@@ -119,6 +111,40 @@ pub fn all_hits_on(
         hits.extend(task_hits);
     }
     AllHits { splits, hits }
+}
+
+/// The crossing counts and the crossings of `rays` (one task's), walked as one interleaved
+/// stream like [`count_crossings_on`]'s: the hits come in any order and are sorted by ray, then
+/// `t`, then face id, as [`push_ray_hits`] sorts one ray's.
+fn task_hits(
+    (file, sections): (&ReducemFile, &QuerySections),
+    rays: &[Ray],
+    face_ids: &FaceIds,
+    kernel: Kernel,
+) -> (Vec<usize>, Vec<RayHit>) {
+    let mut found: Vec<(u32, RayHit)> = Vec::new();
+    let stream = CrossingStream::new(rays, kernel, valid);
+    stream.run(file, sections, &mut |ray, strip, window, corners| {
+        if let Some(hit) = settle_window(window, corners, &rays[ray]) {
+            let hit = RayHit {
+                t: hit.t,
+                face_id: face_ids.id(file, strip, window as u16).unwrap_or(NO_FACE),
+                u: hit.weights[1],
+                v: hit.weights[2],
+            };
+            found.push((ray as u32, hit));
+        }
+    });
+    found.sort_unstable_by(|(ray_a, a), (ray_b, b)| {
+        (ray_a.cmp(ray_b))
+            .then(a.t.total_cmp(&b.t))
+            .then(a.face_id.cmp(&b.face_id))
+    });
+    let mut counts = vec![0; rays.len()];
+    for (ray, _) in &found {
+        counts[*ray as usize] += 1;
+    }
+    (counts, found.into_iter().map(|(_, hit)| hit).collect())
 }
 
 /// The crossings of one ray, `t` ascending, ties by face id.
