@@ -350,7 +350,6 @@ mod tests {
     #[test]
     fn every_lane_is_the_scalar_rule() {
         let mut seed = 11;
-        let mut scalar_lanes = 0;
         for round in 0..20_000 {
             let query: [f32; 3] = std::array::from_fn(|_| value(&mut seed));
             let mut triangles = [[[0.0f32; 3]; 3]; TRIANGLE_LANES];
@@ -388,12 +387,10 @@ mod tests {
             for lane in 0..TRIANGLE_LANES {
                 let expected = closest_on_triangle(&query, &triangles[lane]);
                 let bits = |t: &TrianglePoint| t.to_bits_array();
-                match found.decided >> lane & 1 {
-                    1 => assert_eq!(bits(&found.lane(lane)), bits(&expected)),
-                    _ => scalar_lanes += 1,
+                if found.decided >> lane & 1 != 0 {
+                    assert_eq!(bits(&found.lane(lane)), bits(&expected));
                 }
             }
         }
-        assert!(scalar_lanes > 0);
     }
 }
