@@ -384,8 +384,8 @@ mod tests {
                     }
                 }
             }
-            for lane in 0..TRIANGLE_LANES {
-                let expected = closest_on_triangle(&query, &triangles[lane]);
+            for (lane, triangle) in triangles.iter().enumerate() {
+                let expected = closest_on_triangle(&query, triangle);
                 let bits = |t: &TrianglePoint| t.to_bits_array();
                 if found.decided >> lane & 1 != 0 {
                     assert_eq!(bits(&found.lane(lane)), bits(&expected));
