@@ -19,6 +19,8 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
+use arrayvec::ArrayVec;
+
 use super::child_box::ChildBox;
 use super::crossing_walk::{block_boxes, box_frame, BOX_LANES};
 use super::triangle_distance::{closest_on_triangle, TrianglePoint};
@@ -31,6 +33,7 @@ use crate::strip_windows::window_corners;
 use crate::trace::kernel::distance_bounds::BlockCorners;
 use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
 use crate::trace::kernel::query_prefetch::{ChildPrefetch, QuerySections};
+use crate::trace::kernel::triangle_lanes::{CornerLanes, TRIANGLE_LANES};
 use crate::trace::kernel::Kernel;
 
 /// The closest point of the surface to a query point.
@@ -378,7 +381,8 @@ fn push_spans<Q: QueryKernel>(
 }
 
 /// Tests the span's windows whose own box may beat `best` exactly, a block of windows at a
-/// time: its references and vertices read once, its windows' box bounds computed together.
+/// time: its references and vertices read once, its windows' box bounds computed together, and
+/// its candidates' exact distances four at a time in lanes.
 #[inline(always)]
 fn search_windows<V: VertexAccess, Q: QueryKernel>(
     vertices: V,
@@ -387,6 +391,7 @@ fn search_windows<V: VertexAccess, Q: QueryKernel>(
     query: &Query,
     best: &mut Best,
 ) {
+    let mut batch = Candidates::new();
     let (mut block, end) = span.windows;
     while block < end {
         let used = (end - block).min(BOX_WINDOWS);
@@ -403,11 +408,64 @@ fn search_windows<V: VertexAccess, Q: QueryKernel>(
             let Some(corners) = window_corners(stored, window) else {
                 continue;
             };
-            let corners = corners.map(|r| vertices.point(r as usize));
-            let found = closest_on_triangle(&query.point, &corners);
-            best.offer(span.strip, window as u16, found);
+            batch.push(window, corners.map(|r| vertices.point(r as usize)));
+            if batch.windows.len() == TRIANGLE_LANES {
+                batch.offer::<Q>(span.strip, query, best);
+            }
         }
+        batch.offer::<Q>(span.strip, query, best);
         block += BOX_WINDOWS;
+    }
+}
+
+/// Windows whose exact distances are computed together, with their corners in lanes.
+struct Candidates {
+    windows: ArrayVec<usize, TRIANGLE_LANES>,
+    corners: CornerLanes,
+}
+
+impl Candidates {
+    fn new() -> Candidates {
+        Candidates {
+            windows: ArrayVec::new(),
+            corners: [[[0.0; TRIANGLE_LANES]; 3]; 3],
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, window: usize, corners: [Point; 3]) {
+        let lane = self.windows.len();
+        for (k, corner) in corners.iter().enumerate() {
+            for (axis, &x) in corner.iter().enumerate() {
+                self.corners[k][axis][lane] = f64::from(x);
+            }
+        }
+        self.windows.push(window);
+    }
+
+    /// Offers every window's closest point to `best`, and empties the batch.
+    #[inline(always)]
+    fn offer<Q: QueryKernel>(&mut self, strip: u32, query: &Query, best: &mut Best) {
+        if self.windows.is_empty() {
+            return;
+        }
+        let found = Q::closest_on_triangles(&query.wide, &self.corners);
+        for (lane, &window) in self.windows.iter().enumerate() {
+            let candidate = match found.decided >> lane & 1 {
+                1 if found.distance_squared[lane] > best.limit => continue,
+                1 => found.lane(lane),
+                _ => self.scalar(lane, query),
+            };
+            best.offer(strip, window as u16, candidate);
+        }
+        self.windows.clear();
+    }
+
+    /// The scalar rule for a lane the region masks leave undecided.
+    #[cold]
+    fn scalar(&self, lane: usize, query: &Query) -> TrianglePoint {
+        let corner = |k: usize| self.corners[k].map(|axis| axis[lane] as f32);
+        closest_on_triangle(&query.point, &[corner(0), corner(1), corner(2)])
     }
 }
 

@@ -24,10 +24,10 @@ where
     let Some(order) = spatial_order(points) else {
         return points.par_iter().map_init(init, answer).collect();
     };
-    let sorted: Vec<T> = order
-        .par_iter()
-        .map_init(init, |state, &index| answer(state, &points[index as usize]))
-        .collect();
+    // Copied into curve order first: each query then reads the next point in sequence, where
+    // reading it through `order` waited on a cache miss per query.
+    let sorted_points: Vec<Point> = order.par_iter().map(|&i| points[i as usize]).collect();
+    let sorted: Vec<T> = sorted_points.par_iter().map_init(init, answer).collect();
     in_input_order(&order, sorted)
 }
 

@@ -27,6 +27,7 @@ mod portable;
 pub(super) mod prefetch;
 pub(crate) mod query_kernel;
 pub(crate) mod query_prefetch;
+pub(crate) mod triangle_lanes;
 
 use std::fmt;
 

@@ -14,9 +14,11 @@ use super::crossing_blocks::{candidates_on, StripBlocks};
 use super::crossing_nodes::WidenedRay;
 use super::distance_bounds::{child_lanes, window_lanes, BlockCorners, LaneBoxes};
 use super::portable::Portable;
+use super::triangle_lanes::{closest_on_triangles, CornerLanes, LanePoints};
 use super::{dispatch, ChildBoxes, Kernel, TraceKernel, Walk, BLOCK};
 use crate::format::{WideNode, TOP_WIDTH};
 use crate::trace::watertight::{RayPoint, RaySpace};
+use wide::f64x4;
 
 /// What the query walks compute in a kernel's lanes; every kernel implements it.
 pub(crate) trait QueryKernel {
@@ -40,6 +42,9 @@ pub(crate) trait QueryKernel {
     /// [`box_bound`](super::distance_bounds::box_bound) of the box of each window of a block
     /// (its corners' minima and maxima).
     fn window_bounds(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK];
+
+    /// [`closest_on_triangles`] of four triangles to `p`.
+    fn closest_on_triangles(p: &[f64; 3], corners: &CornerLanes) -> LanePoints;
 
     /// `each(window, corners)` for every candidate window of `blocks`
     /// ([`candidates_on`](super::crossing_blocks::candidates_on)).
@@ -103,6 +108,11 @@ impl QueryKernel for Portable {
     }
 
     #[inline(always)]
+    fn closest_on_triangles(p: &[f64; 3], corners: &CornerLanes) -> LanePoints {
+        closest_on_triangles::<f64x4>(p, corners)
+    }
+
+    #[inline(always)]
     fn for_each_candidate<F: FnMut(usize, [RayPoint; 3])>(
         space: &RaySpace,
         range: (f32, f32),
@@ -119,6 +129,7 @@ mod avx2 {
     use crate::trace::kernel::avx2::Avx2;
     use crate::trace::kernel::crossing_nodes::entered_wide_avx2;
     use crate::trace::kernel::distance_bounds::{child_bounds_avx2, window_bounds_avx2};
+    use crate::trace::kernel::triangle_lanes::avx2::closest_on_triangles_avx2;
 
     // SAFETY (each call below): `Avx2` runs only once the CPU was found to have AVX2 and BMI2
     // (`dispatch`), inside the walk compiled for them.
@@ -148,6 +159,12 @@ mod avx2 {
         fn window_bounds(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
             // SAFETY: see the impl.
             unsafe { window_bounds_avx2(query, corners) }
+        }
+
+        #[inline(always)]
+        fn closest_on_triangles(p: &[f64; 3], corners: &CornerLanes) -> LanePoints {
+            // SAFETY: see the impl.
+            unsafe { closest_on_triangles_avx2(p, corners) }
         }
 
         #[inline(always)]
