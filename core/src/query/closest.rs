@@ -1,9 +1,10 @@
 //! The closest point of the surface to a query point: a best-first walk over the top-level
-//! hierarchy (nodes and leaves in a heap ordered by the squared distance from the point to
-//! their boxes, a node's nearest child entered without it), then the blocks of a leaf's strips nearest first (by their block boxes, or the
-//! leaf's box for a strip without them), and in a block entered each window whose own box may
-//! beat the best tested exactly ([`closest_on_triangle`]). Box bounds of a node's children and
-//! of a block's windows are computed together by the kernel in `distance_bounds`.
+//! hierarchy (nodes and leaves in a heap ordered by the squared distance from the point to their
+//! boxes, a node's nearest child entered without it), then the blocks of a leaf's strips nearest
+//! first (by their block boxes, or the leaf's box for a strip without them), and in a block entered
+//! each window whose own box may beat the best tested exactly ([`closest_on_triangle`]). Box bounds
+//! of a node's children and of a block's windows are computed together by the kernel in
+//! `distance_bounds`.
 //!
 //! Exactness: a box's bound is computed in f64 and then lowered by a relative margin larger
 //! than its rounding error (`BOUND_SHRINK`), so it is never above the true distance from the
@@ -327,9 +328,9 @@ impl<'f> ClosestPointSearch<'f> {
     }
 }
 
-/// The spans of strip `strip` (view `view`) that may beat `limit`: one per block box when it
-/// stores them (bounded four at a time, each as `distance_bounds::box_bound` bounds it; up to the first box
-/// that cannot be read), else the whole strip at its leaf's bound.
+/// The spans of strip `strip` (view `view`) that may beat `limit`: one per block box when it stores
+/// them (bounded four at a time, each as `distance_bounds::box_bound` bounds it; up to the first
+/// box that cannot be read), else the whole strip at its leaf's bound.
 #[inline(always)]
 fn push_spans<Q: QueryKernel>(
     spans: &mut Vec<Span>,

@@ -1,6 +1,7 @@
-//! The exact closest points of four triangles to one point at once, for the closest-point
-//! search: [`closest_on_triangle`](crate::query::triangle_distance::closest_on_triangle)'s Voronoi-region rule with every region's weights computed in
-//! every lane and the first region that holds picked by masks, so that no lane branches.
+//! The exact closest points of four triangles to one point at once, for the closest-point search:
+//! [`closest_on_triangle`](crate::query::triangle_distance::closest_on_triangle)'s Voronoi-region
+//! rule with every region's weights computed in every lane and the first region that holds picked
+//! by masks, so that no lane branches.
 //!
 //! Each lane runs the scalar function's f64 operations in its order (no fused multiply-add; the
 //! regions' comparisons are the same ordered comparisons), so a lane's distance, weights and
