@@ -632,6 +632,35 @@ mod tests {
         fs::remove_file(&path).expect("remove");
     }
 
+    /// Hands `expected`'s blocks of `block_bytes` to `behind` from `threads` threads, thread `k`
+    /// taking every `threads`th block from block `k` (last first when `reversed`).
+    fn write_blocks_from_threads(
+        behind: &WriteBehind,
+        expected: &[u8],
+        block_bytes: usize,
+        threads: usize,
+        reversed: bool,
+    ) {
+        let blocks = expected.len() / block_bytes;
+        std::thread::scope(|scope| {
+            for first in 0..threads {
+                scope.spawn(move || {
+                    let mut order: Vec<usize> = (first..blocks).step_by(threads).collect();
+                    if reversed {
+                        order.reverse();
+                    }
+                    for block in order {
+                        let mut buffer = behind.buffer();
+                        buffer.clear();
+                        buffer.extend_from_slice(&expected[block * block_bytes..][..block_bytes]);
+                        let offset = (block * block_bytes) as u64;
+                        behind.write_at(buffer, offset).expect("queued");
+                    }
+                });
+            }
+        });
+    }
+
     /// Blocks handed to the writing thread by several threads, in any order and more than its
     /// queue holds, land at their offsets; a failed write is the error returned.
     #[test]
@@ -641,21 +670,7 @@ mod tests {
         let (block_bytes, blocks) = (1000, 3 * WRITE_BEHIND_BLOCKS + 5);
         let expected: Vec<u8> = (0..blocks * block_bytes).map(|i| (i % 251) as u8).collect();
         let value = write_behind(&file, 0, |behind| {
-            std::thread::scope(|scope| {
-                for first in 0..4 {
-                    let expected = &expected;
-                    scope.spawn(move || {
-                        for block in (first..blocks).step_by(4).rev() {
-                            let mut buffer = behind.buffer();
-                            buffer.clear();
-                            buffer
-                                .extend_from_slice(&expected[block * block_bytes..][..block_bytes]);
-                            let offset = (block * block_bytes) as u64;
-                            behind.write_at(buffer, offset).expect("queued");
-                        }
-                    });
-                }
-            });
+            write_blocks_from_threads(behind, &expected, block_bytes, 4, true);
             Ok(7)
         })
         .expect("written");
@@ -680,21 +695,13 @@ mod tests {
         let total = blocks * block_bytes + tail;
         let mut expected: Vec<u8> = (0..total).map(|i| (i % 251) as u8).collect();
         write_behind(&file, total as u64, |behind| {
-            std::thread::scope(|scope| {
-                for first in 0..3 {
-                    let expected = &expected;
-                    scope.spawn(move || {
-                        for block in (first..blocks).step_by(3) {
-                            let mut buffer = behind.buffer();
-                            buffer.clear();
-                            buffer
-                                .extend_from_slice(&expected[block * block_bytes..][..block_bytes]);
-                            let offset = (block * block_bytes) as u64;
-                            behind.write_at(buffer, offset).expect("queued");
-                        }
-                    });
-                }
-            });
+            write_blocks_from_threads(
+                behind,
+                &expected[..blocks * block_bytes],
+                block_bytes,
+                3,
+                false,
+            );
             let last = expected[blocks * block_bytes..].to_vec();
             behind.write_at(last, (blocks * block_bytes) as u64)
         })
