@@ -24,15 +24,16 @@ use arrayvec::ArrayVec;
 
 use super::child_box::ChildBox;
 use super::crossing_walk::{block_boxes, box_frame, BOX_LANES};
+use super::top_walk::{dispatch_top_walk, QueryNode, TopWalk};
 use super::triangle_distance::{closest_on_triangle, TrianglePoint};
 use crate::format::block_boxes::BOX_WINDOWS;
-use crate::format::reader::{ReducemFile, StripView, TopNodes};
+use crate::format::reader::{ReducemFile, StripView};
 use crate::format::vertices::{StripVertices, VertexAccess};
 use crate::format::{TopSlot, INTERNAL_CHILD, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::strip_windows::window_corners;
 use crate::trace::kernel::distance_bounds::BlockCorners;
-use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+use crate::trace::kernel::query_kernel::QueryKernel;
 use crate::trace::kernel::query_prefetch::{ChildPrefetch, QuerySections};
 use crate::trace::kernel::triangle_lanes::{CornerLanes, TRIANGLE_LANES};
 use crate::trace::kernel::Kernel;
@@ -125,8 +126,9 @@ impl<'f> ClosestPointSearch<'f> {
             limit: (max * max).min(self.previous_bound(point)),
             found: None,
         };
-        dispatch_query(
+        dispatch_top_walk(
             self.kernel,
+            self.file,
             Search {
                 search: self,
                 point,
@@ -248,28 +250,24 @@ impl<'f> ClosestPointSearch<'f> {
     }
 }
 
-/// [`ClosestPointSearch::closest`]'s walk of one point, for [`dispatch_query`].
+/// [`ClosestPointSearch::closest`]'s walk of one point, for [`dispatch_top_walk`].
 struct Search<'s, 'f> {
     search: &'s mut ClosestPointSearch<'f>,
     point: &'s Point,
     best: &'s mut Best,
 }
 
-impl QueryWalk for Search<'_, '_> {
+impl TopWalk for Search<'_, '_> {
     type Output = ();
 
     #[inline(always)]
-    fn run<Q: QueryKernel>(self) {
+    fn run<Q: QueryKernel, N: QueryNode>(self, nodes: &[N], grid: &N::Grid) {
         let Search {
             search,
             point,
             best,
         } = self;
-        match search.file.top_nodes() {
-            TopNodes::F32(nodes) => search.walk::<_, Q>(nodes, &(), point, best),
-            TopNodes::Grid(nodes, grid) => search.walk::<_, Q>(nodes, &grid, point, best),
-            TopNodes::Wide(nodes) => search.walk::<_, Q>(nodes, &(), point, best),
-        }
+        search.walk::<_, Q>(nodes, grid, point, best)
     }
 }
 

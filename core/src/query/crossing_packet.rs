@@ -11,11 +11,12 @@ use arrayvec::ArrayVec;
 use super::crossing_walk::{
     block_boxes, box_frame, CrossingWalk, NodeBoxes, Pending, BLOCKS_AHEAD, BOX_LANES, LEAVES_AHEAD,
 };
+use super::top_walk::{dispatch_top_walk, QueryNode, TopWalk};
 use crate::format::block_boxes::BOX_WINDOWS;
-use crate::format::reader::{ReducemFile, StripView, TopNodes};
+use crate::format::reader::{ReducemFile, StripView};
 use crate::format::{TopSlot, INTERNAL_CHILD, WIDE_WIDTH};
 use crate::trace::kernel::crossing_blocks::MASK_BLOCKS;
-use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+use crate::trace::kernel::query_kernel::QueryKernel;
 use crate::trace::kernel::query_prefetch::{ChildPrefetch, QuerySections};
 use crate::trace::kernel::Kernel;
 use crate::trace::watertight::RayPoint;
@@ -71,7 +72,7 @@ impl CrossingPacket {
             file,
             each,
         };
-        dispatch_query(self.kernel, walk)
+        dispatch_top_walk(self.kernel, file, walk)
     }
 
     #[inline(always)]
@@ -220,23 +221,19 @@ fn for_each_lane(mut lanes: Lanes, mut each: impl FnMut(usize)) {
     }
 }
 
-/// [`CrossingPacket::run`]'s walk of one file, for [`dispatch_query`].
+/// [`CrossingPacket::run`]'s walk of one file, for [`dispatch_top_walk`].
 struct PacketWalk<'p, 'f, F> {
     packet: &'p CrossingPacket,
     file: &'f ReducemFile,
     each: &'p mut F,
 }
 
-impl<F: FnMut(usize, u32, usize, [RayPoint; 3])> QueryWalk for PacketWalk<'_, '_, F> {
+impl<F: FnMut(usize, u32, usize, [RayPoint; 3])> TopWalk for PacketWalk<'_, '_, F> {
     type Output = ();
 
     #[inline(always)]
-    fn run<Q: QueryKernel>(self) {
+    fn run<Q: QueryKernel, N: QueryNode>(self, nodes: &[N], grid: &N::Grid) {
         let PacketWalk { packet, file, each } = self;
-        match file.top_nodes() {
-            TopNodes::F32(nodes) => packet.nodes::<_, Q>(file, nodes, &(), each),
-            TopNodes::Grid(nodes, grid) => packet.nodes::<_, Q>(file, nodes, &grid, each),
-            TopNodes::Wide(nodes) => packet.nodes::<_, Q>(file, nodes, &(), each),
-        }
+        packet.nodes::<_, Q>(file, nodes, grid, each)
     }
 }

@@ -8,9 +8,10 @@
 //! walk finds, in another order.
 
 use super::crossing_walk::{CrossingWalk, NodeBoxes, Pending, BLOCKS_AHEAD};
-use crate::format::reader::{ReducemFile, TopNodes};
+use super::top_walk::{dispatch_top_walk, QueryNode, TopWalk};
+use crate::format::reader::ReducemFile;
 use crate::format::{TopSlot, INTERNAL_CHILD};
-use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+use crate::trace::kernel::query_kernel::QueryKernel;
 use crate::trace::kernel::query_prefetch::{ChildPrefetch, QuerySections};
 use crate::trace::kernel::Kernel;
 use crate::trace::watertight::RayPoint;
@@ -68,8 +69,9 @@ impl<'r, V: Fn(&Ray) -> bool> CrossingStream<'r, V> {
         sections: &QuerySections,
         each: &mut impl FnMut(usize, u32, usize, [RayPoint; 3]),
     ) {
-        dispatch_query(
+        dispatch_top_walk(
             self.kernel,
+            file,
             StreamWalk {
                 stream: self,
                 file,
@@ -236,7 +238,7 @@ const IDLE_RAY: Ray = Ray {
     tmax: 0.0,
 };
 
-/// [`CrossingStream::run`]'s walk of one file, for [`dispatch_query`].
+/// [`CrossingStream::run`]'s walk of one file, for [`dispatch_top_walk`].
 struct StreamWalk<'s, 'r, 'f, V, F> {
     stream: &'s CrossingStream<'r, V>,
     file: &'f ReducemFile,
@@ -244,24 +246,19 @@ struct StreamWalk<'s, 'r, 'f, V, F> {
     each: &'s mut F,
 }
 
-impl<V: Fn(&Ray) -> bool, F: FnMut(usize, u32, usize, [RayPoint; 3])> QueryWalk
+impl<V: Fn(&Ray) -> bool, F: FnMut(usize, u32, usize, [RayPoint; 3])> TopWalk
     for StreamWalk<'_, '_, '_, V, F>
 {
     type Output = ();
 
     #[inline(always)]
-    fn run<Q: QueryKernel>(self) {
+    fn run<Q: QueryKernel, N: QueryNode>(self, nodes: &[N], grid: &N::Grid) {
         let StreamWalk {
             stream,
             file,
             sections,
             each,
         } = self;
-        let on = (file, sections);
-        match file.top_nodes() {
-            TopNodes::F32(nodes) => stream.nodes::<_, Q>(on, nodes, &(), each),
-            TopNodes::Grid(nodes, grid) => stream.nodes::<_, Q>(on, nodes, &grid, each),
-            TopNodes::Wide(nodes) => stream.nodes::<_, Q>(on, nodes, &(), each),
-        }
+        stream.nodes::<_, Q>((file, sections), nodes, grid, each)
     }
 }

@@ -13,17 +13,19 @@
 
 use wide::{f32x4, i32x4};
 
+use super::child_box::ChildBox;
+use super::top_walk::{dispatch_top_walk, QueryNode, TopWalk};
 use crate::format::block_boxes::{
     BlockBoxes, BoxFrame, BOX_BYTES, BOX_WINDOWS, CODE_BIAS, EXPONENT_BYTES, MAX_CODE,
 };
 use crate::format::grid::NodeGrid;
-use crate::format::reader::{ReducemFile, StripView, TopNodes};
+use crate::format::reader::{ReducemFile, StripView};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{GridNode, NodeRecord, TopNode, TopSlot, WideNode, INTERNAL_CHILD, TOP_WIDTH};
+use crate::format::{GridNode, TopNode, TopSlot, WideNode, INTERNAL_CHILD, TOP_WIDTH};
 use crate::geometry::Point;
 use crate::trace::kernel::crossing_blocks::{StripBlocks, MASK_BLOCKS};
 use crate::trace::kernel::crossing_nodes::WidenedRay;
-use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
+use crate::trace::kernel::query_kernel::QueryKernel;
 use crate::trace::kernel::query_prefetch::{ChildPrefetch, QuerySections};
 use crate::trace::kernel::Kernel;
 use crate::trace::prepared::{max_not_nan_x4, min_not_nan_x4, PreparedRay, FAR_INFLATION};
@@ -102,8 +104,9 @@ impl CrossingWalk {
         sections: &QuerySections,
         each: &mut impl FnMut(u32, usize, [RayPoint; 3]),
     ) {
-        dispatch_query(
+        dispatch_top_walk(
             self.kernel,
+            file,
             FileWalk {
                 walk: self,
                 file,
@@ -269,7 +272,7 @@ impl CrossingWalk {
     }
 }
 
-/// [`CrossingWalk::run`]'s walk of one file, for [`dispatch_query`].
+/// [`CrossingWalk::run`]'s walk of one file, for [`dispatch_top_walk`].
 struct FileWalk<'w, 'f, F> {
     walk: &'w CrossingWalk,
     file: &'f ReducemFile,
@@ -277,23 +280,18 @@ struct FileWalk<'w, 'f, F> {
     each: &'w mut F,
 }
 
-impl<F: FnMut(u32, usize, [RayPoint; 3])> QueryWalk for FileWalk<'_, '_, F> {
+impl<F: FnMut(u32, usize, [RayPoint; 3])> TopWalk for FileWalk<'_, '_, F> {
     type Output = ();
 
     #[inline(always)]
-    fn run<Q: QueryKernel>(self) {
+    fn run<Q: QueryKernel, N: QueryNode>(self, nodes: &[N], grid: &N::Grid) {
         let FileWalk {
             walk,
             file,
             sections,
             each,
         } = self;
-        let on = (file, sections);
-        match file.top_nodes() {
-            TopNodes::F32(nodes) => walk.nodes::<_, Q>(on, nodes, &(), each),
-            TopNodes::Grid(nodes, grid) => walk.nodes::<_, Q>(on, nodes, &grid, each),
-            TopNodes::Wide(nodes) => walk.nodes::<_, Q>(on, nodes, &(), each),
-        }
+        walk.nodes::<_, Q>((file, sections), nodes, grid, each)
     }
 }
 
@@ -423,17 +421,12 @@ impl<T: Copy, const N: usize> Pending<T, N> {
 
 /// A top-level node record's child boxes as the walk tests them, whatever its layout: the
 /// walk's one view of the nodes.
-pub(super) trait NodeBoxes: NodeRecord {
-    /// What decoding the boxes takes besides the node.
-    type Grid;
-
+pub(super) trait NodeBoxes: ChildBox {
     /// The children whose box `walk`'s ray may meet ([`CrossingWalk::entered`]), as a bit mask.
     fn entered_children<Q: QueryKernel>(&self, walk: &CrossingWalk, grid: &Self::Grid) -> u32;
 }
 
 impl NodeBoxes for TopNode {
-    type Grid = ();
-
     #[inline(always)]
     fn entered_children<Q: QueryKernel>(&self, walk: &CrossingWalk, _: &()) -> u32 {
         walk.entered(&(self.min, self.max))
@@ -441,8 +434,6 @@ impl NodeBoxes for TopNode {
 }
 
 impl NodeBoxes for GridNode {
-    type Grid = NodeGrid;
-
     /// Through [`NodeGrid::decode_axis`], the expression the writer rounded the boxes outward
     /// with.
     #[inline(always)]
@@ -455,8 +446,6 @@ impl NodeBoxes for GridNode {
 }
 
 impl NodeBoxes for WideNode {
-    type Grid = ();
-
     /// The eight boxes at once in the kernel's lanes, [`WideNode::decode`]'s bits.
     #[inline(always)]
     fn entered_children<Q: QueryKernel>(&self, walk: &CrossingWalk, _: &()) -> u32 {

@@ -16,6 +16,7 @@ pub mod crossings;
 pub mod occupancy;
 mod point_order;
 pub mod signed;
+mod top_walk;
 pub mod triangle_distance;
 
 use crate::format::reader::ReducemFile;

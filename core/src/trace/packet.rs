@@ -38,6 +38,8 @@
 //!
 //! [`order_keys`]: super::top::order_keys
 
+use std::marker::PhantomData;
+
 use arrayvec::ArrayVec;
 use wide::f32x8;
 
@@ -48,10 +50,10 @@ use super::lanes::{LaneRays, Lanes, PACKET_WIDTH};
 use super::prepared::{max_not_nan, min_not_nan_x8};
 use super::ray::Ray;
 use super::top::{
-    for_each_bit, trace_nodes, DeferStack, Deferred, NodeGridLanes, RayWalk, TraceNode, MAX_WIDTH,
+    for_each_bit, trace_nodes, walk_top_level, DeferStack, Deferred, RayWalk, TopLevelWalk,
+    TraceNode, MAX_WIDTH,
 };
 use super::Tracer;
-use crate::format::reader::TopNodes;
 use crate::format::INTERNAL_CHILD;
 
 /// Fewest rays sharing the first ray's direction signs for a packet to be traced as one: with
@@ -354,18 +356,40 @@ fn traverse_file<C: TraceKernel, P: LaneRays, const ANY_HIT: bool>(
     packet_mask: u32,
     closest: &mut [Closest; PACKET_WIDTH],
 ) {
-    match tracer.file().top_nodes() {
-        TopNodes::F32(nodes) => {
-            traverse_nodes::<_, C, P, ANY_HIT>(tracer, (nodes, &()), packet, packet_mask, closest)
-        }
-        TopNodes::Grid(nodes, grid) => {
-            let decoder = NodeGridLanes::new(&grid);
-            let nodes = (nodes, &decoder);
-            traverse_nodes::<_, C, P, ANY_HIT>(tracer, nodes, packet, packet_mask, closest)
-        }
-        TopNodes::Wide(nodes) => {
-            traverse_nodes::<_, C, P, ANY_HIT>(tracer, (nodes, &()), packet, packet_mask, closest)
-        }
+    let walk = PacketNodes::<C, P, ANY_HIT> {
+        tracer,
+        packet,
+        packet_mask,
+        closest,
+        kernel: PhantomData,
+    };
+    walk_top_level(tracer.file(), walk)
+}
+
+/// [`traverse_file`]'s walk from the root, for [`walk_top_level`].
+struct PacketNodes<'a, C, P, const ANY_HIT: bool> {
+    tracer: &'a Tracer<'a>,
+    packet: (&'a Lanes, &'a mut P),
+    packet_mask: u32,
+    closest: &'a mut [Closest; PACKET_WIDTH],
+    kernel: PhantomData<C>,
+}
+
+impl<C: TraceKernel, P: LaneRays, const ANY_HIT: bool> TopLevelWalk
+    for PacketNodes<'_, C, P, ANY_HIT>
+{
+    type Output = ();
+
+    #[inline(always)]
+    fn run<N: TraceNode>(self, nodes: &[N], decoder: &N::Decoder) {
+        let PacketNodes {
+            tracer,
+            packet,
+            packet_mask,
+            closest,
+            ..
+        } = self;
+        traverse_nodes::<_, C, P, ANY_HIT>(tracer, (nodes, decoder), packet, packet_mask, closest)
     }
 }
 

@@ -16,6 +16,8 @@
 //! a leaf is then a function of the leaf's box and the closest hit so far alone, as it was with
 //! the binary hierarchy, whatever the path to it.
 
+use std::marker::PhantomData;
+
 use arrayvec::ArrayVec;
 use wide::{f32x4, u32x4};
 
@@ -28,7 +30,7 @@ use super::prepared::{PreparedRay, WideRay};
 use super::strip::StripQuery;
 use super::Tracer;
 use crate::format::grid::NodeGrid;
-use crate::format::reader::TopNodes;
+use crate::format::reader::{ReducemFile, TopNodes};
 use crate::format::{
     GridNode, NodeRecord, TopNode, WideNode, GRID_LINK_INDEX, GRID_LINK_INDEX_BITS,
     GRID_LINK_INTERNAL, INTERNAL_CHILD, TOP_WIDTH, WIDE_WIDTH,
@@ -325,6 +327,24 @@ fn trace_ray<K: TraceKernel>(tracer: &Tracer, query: &StripQuery, closest: &mut 
     }
 }
 
+/// A walk of the top level generic over its node record, for [`walk_top_level`]: each of the
+/// tracer's walks is written once over [`TraceNode`] and compiled for every record.
+pub(super) trait TopLevelWalk {
+    type Output;
+
+    fn run<N: TraceNode>(self, nodes: &[N], decoder: &N::Decoder) -> Self::Output;
+}
+
+/// Runs `walk` over `file`'s top-level nodes: the tracer's one dispatch on the record.
+#[inline(always)]
+pub(super) fn walk_top_level<W: TopLevelWalk>(file: &ReducemFile, walk: W) -> W::Output {
+    match file.top_nodes() {
+        TopNodes::F32(nodes) => walk.run(nodes, &()),
+        TopNodes::Grid(nodes, grid) => walk.run(nodes, &NodeGridLanes::new(&grid)),
+        TopNodes::Wide(nodes) => walk.run(nodes, &()),
+    }
+}
+
 /// [`trace_ray`] for occlusion (`ANY_HIT`) or closest hits.
 #[inline(always)]
 fn trace_file<K: TraceKernel, const ANY_HIT: bool>(
@@ -332,18 +352,36 @@ fn trace_file<K: TraceKernel, const ANY_HIT: bool>(
     query: &StripQuery,
     closest: &mut Closest,
 ) -> bool {
-    let root = Deferred::root(query.ray);
-    match tracer.file().top_nodes() {
-        TopNodes::F32(nodes) => {
-            trace_nodes::<_, K, ANY_HIT>(tracer, (nodes, &()), query, root, closest)
-        }
-        TopNodes::Grid(nodes, grid) => {
-            let decoder = NodeGridLanes::new(&grid);
-            trace_nodes::<_, K, ANY_HIT>(tracer, (nodes, &decoder), query, root, closest)
-        }
-        TopNodes::Wide(nodes) => {
-            trace_nodes::<_, K, ANY_HIT>(tracer, (nodes, &()), query, root, closest)
-        }
+    let walk = FileRay::<K, ANY_HIT> {
+        tracer,
+        query,
+        closest,
+        kernel: PhantomData,
+    };
+    walk_top_level(tracer.file(), walk)
+}
+
+/// [`trace_file`]'s walk from the root, for [`walk_top_level`].
+struct FileRay<'a, 'q, K, const ANY_HIT: bool> {
+    tracer: &'a Tracer<'a>,
+    query: &'a StripQuery<'q>,
+    closest: &'a mut Closest,
+    kernel: PhantomData<K>,
+}
+
+impl<K: TraceKernel, const ANY_HIT: bool> TopLevelWalk for FileRay<'_, '_, K, ANY_HIT> {
+    type Output = bool;
+
+    #[inline(always)]
+    fn run<N: TraceNode>(self, nodes: &[N], decoder: &N::Decoder) -> bool {
+        let FileRay {
+            tracer,
+            query,
+            closest,
+            ..
+        } = self;
+        let root = Deferred::root(query.ray);
+        trace_nodes::<_, K, ANY_HIT>(tracer, (nodes, decoder), query, root, closest)
     }
 }
 
