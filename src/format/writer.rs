@@ -22,7 +22,7 @@ use super::{
     ENDIAN_MARKER, HEADER_CHECKSUMMED_BYTES, HEADER_PAGE, MAGIC, POOLED_MINOR, PRECISION_OFFSET,
     SECTION_ALIGN, SECTION_COUNT, VERSION_MAJOR, VERSION_MINOR,
 };
-use crate::atomic::write_atomically;
+use crate::atomic::{write_atomically, WholeRuns};
 use crate::geometry::Aabb;
 
 /// What the header records about the build besides the sections.
@@ -98,7 +98,8 @@ fn write_sections(
     info: &FileInfo,
     source: &mut impl SectionSource,
 ) -> io::Result<()> {
-    let mut out = SectionWriter::new(file);
+    let mut runs = WholeRuns(&mut *file);
+    let mut out = SectionWriter::new(&mut runs);
     out.pad_to(HEADER_PAGE)?;
     let mut entries = [SectionEntry::default(); SECTION_COUNT];
     for (entry, kind) in entries.iter_mut().zip(SectionKind::ALL) {

@@ -24,7 +24,7 @@ use super::{
     section_slot, FormatError, NodeLayout, PartTable, ReducemFile, StripView, Validation,
     EAGER_VALIDATION_BYTES, NO_TREE,
 };
-use crate::mapping::{map_file, map_range};
+use crate::mapping::{advise_default_reads, map_file, map_range};
 use header::Checker;
 use nodes::{node_bytes, TreeCheck};
 use strips::{strip_error, BlockShape, RECORD_BYTES};
@@ -67,6 +67,7 @@ pub(super) fn open(
         let detail = "the file changed size while it was being opened".to_string();
         return Err(checker.invalid(FilePart::File, 0, Defect::ChangedWhileMapped, detail));
     }
+    advise_default_reads(&map);
     let validation = validation.unwrap_or(match file_len <= EAGER_VALIDATION_BYTES {
         true => Validation::Full,
         false => Validation::Lazy,
