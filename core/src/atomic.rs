@@ -261,9 +261,9 @@ const WRITE_BEHIND_BLOCKS: usize = 256;
 /// Where the producers of [`write_behind`] hand their blocks.
 pub struct WriteBehind<'a> {
     /// Taken when dropped, which tells the writing thread that no more blocks come.
-    blocks: Option<SyncSender<(u64, Vec<u8>)>>,
+    blocks: Option<SyncSender<(u64, Block)>>,
     /// Buffers whose bytes were written, for the producers to fill again.
-    spare: &'a Mutex<Vec<Vec<u8>>>,
+    spare: &'a Mutex<Vec<Block>>,
     /// Woken after each block. It polls the queue and parks rather than waiting on the
     /// channel, so that a send never takes the channel's lock of waiting receivers: under load,
     /// a preempted writer holding that lock stalled the tracing threads (120-160 ms a run).
@@ -273,14 +273,14 @@ pub struct WriteBehind<'a> {
 impl WriteBehind<'_> {
     /// A buffer to fill: one whose bytes were written already (its length and contents as they
     /// were), else a new one. Never waits: a new one while the writing thread holds the spares.
-    pub fn buffer(&self) -> Vec<u8> {
+    pub fn buffer(&self) -> Block {
         let spare = self.spare.try_lock().ok().and_then(|mut spare| spare.pop());
         spare.unwrap_or_default()
     }
 
     /// Queues `bytes` to be written at `offset`; fails once the writing thread stopped on an
     /// error (which [`write_behind`] then returns).
-    pub fn write_at(&self, bytes: Vec<u8>, offset: u64) -> io::Result<()> {
+    pub fn write_at(&self, bytes: Block, offset: u64) -> io::Result<()> {
         let sent = self
             .blocks
             .as_ref()
@@ -306,13 +306,13 @@ impl Drop for WriteBehind<'_> {
 /// for the syncing thread and keeps its buffer for the producers, until they are done.
 fn write_queued(
     file: &File,
-    queued: Receiver<(u64, Vec<u8>)>,
-    spare: &Mutex<Vec<Vec<u8>>>,
+    queued: Receiver<(u64, Block)>,
+    spare: &Mutex<Vec<Block>>,
     written: &(dyn Fn(usize) + Sync),
 ) -> io::Result<()> {
-    let mut out = BlockWriter::start(file, written);
+    let mut out = BlockWriter::start(file, written, spare);
     loop {
-        let (offset, bytes) = match queued.try_recv() {
+        let (offset, block) = match queued.try_recv() {
             Ok(block) => block,
             Err(TryRecvError::Empty) => {
                 std::thread::park();
@@ -320,11 +320,7 @@ fn write_queued(
             }
             Err(TryRecvError::Disconnected) => return out.finish(),
         };
-        out.write(&bytes, offset)?;
-        // Dropped rather than waited for while a producer takes a spare.
-        if let Ok(mut spare) = spare.try_lock() {
-            spare.push(bytes);
-        }
+        out.write(block, offset)?;
     }
 }
 
@@ -341,15 +337,63 @@ const DIRECT_RUN_BYTES: usize = 1 << 20;
 /// chunks in their own stretch of the file.
 const DIRECT_RUNS: usize = 4;
 
+/// One aligned page of a [`Block`].
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C, align(4096))]
+struct Page([u8; DIRECT_ALIGN]);
+
+/// A buffer of [`write_behind`]'s producers, aligned in memory as direct writes need it, so
+/// that the writing thread hands it to the kernel as it is rather than copying it into an
+/// aligned run. Its length is any; only whole pages are allocated.
+#[derive(Default)]
+pub struct Block {
+    pages: Vec<Page>,
+    len: usize,
+}
+
+impl Block {
+    /// The block of `bytes`' length holding them.
+    pub fn from_bytes(bytes: &[u8]) -> Block {
+        let mut block = Block::default();
+        block.resize(bytes.len());
+        block.copy_from_slice(bytes);
+        block
+    }
+
+    /// Makes the block `len` bytes long: bytes it had stay, new ones are zero.
+    pub fn resize(&mut self, len: usize) {
+        self.pages
+            .resize(len.div_ceil(DIRECT_ALIGN), Page([0; DIRECT_ALIGN]));
+        self.len = len;
+    }
+}
+
+impl std::ops::Deref for Block {
+    type Target = [u8];
+
+    fn deref(&self) -> &[u8] {
+        &bytemuck::cast_slice(&self.pages)[..self.len]
+    }
+}
+
+impl std::ops::DerefMut for Block {
+    fn deref_mut(&mut self) -> &mut [u8] {
+        &mut bytemuck::cast_slice_mut(&mut self.pages)[..self.len]
+    }
+}
+
 /// How [`write_queued`] writes blocks: past the page cache (O_DIRECT) while the file system
-/// allows it and the blocks are aligned, gathered into runs of consecutive blocks; else through
-/// the page cache, counted for the syncing thread. Direct writes spare the writing thread the
-/// copy into cached pages and their block reservations, leave nothing for the syncing thread
-/// to write back and no cached pages for a later run's rename to free. Durability is
-/// unchanged: the final fsync still flushes the device's cache and commits the file's blocks.
+/// allows it and the blocks are aligned, runs of consecutive blocks in one vectored write each;
+/// else through the page cache, counted for the syncing thread. Direct writes spare the writing
+/// thread the copy into cached pages and their block reservations, leave nothing for the
+/// syncing thread to write back and no cached pages for a later run's rename to free.
+/// Durability is unchanged: the final fsync still flushes the device's cache and commits the
+/// file's blocks.
 struct BlockWriter<'a> {
     file: &'a File,
     written: &'a (dyn Fn(usize) + Sync),
+    /// Where written blocks go back to the producers.
+    spare: &'a Mutex<Vec<Block>>,
     direct: bool,
     runs: Vec<DirectRun>,
 }
@@ -357,8 +401,7 @@ struct BlockWriter<'a> {
 /// Consecutive blocks gathered for one direct write, from `start` in the file.
 struct DirectRun {
     start: u64,
-    /// An aligned stretch of it holds the gathered bytes.
-    staging: Vec<u8>,
+    blocks: Vec<Block>,
     len: usize,
 }
 
@@ -366,7 +409,7 @@ impl DirectRun {
     fn new(start: u64) -> DirectRun {
         DirectRun {
             start,
-            staging: vec![0; DIRECT_RUN_BYTES + DIRECT_ALIGN],
+            blocks: Vec::new(),
             len: 0,
         }
     }
@@ -374,39 +417,47 @@ impl DirectRun {
     fn end(&self) -> u64 {
         self.start + self.len as u64
     }
-
-    fn gathered(&mut self) -> &mut [u8] {
-        let skip = self.staging.as_ptr().align_offset(DIRECT_ALIGN);
-        &mut self.staging[skip..skip + DIRECT_RUN_BYTES]
-    }
 }
 
 impl<'a> BlockWriter<'a> {
-    fn start(file: &'a File, written: &'a (dyn Fn(usize) + Sync)) -> BlockWriter<'a> {
+    fn start(
+        file: &'a File,
+        written: &'a (dyn Fn(usize) + Sync),
+        spare: &'a Mutex<Vec<Block>>,
+    ) -> BlockWriter<'a> {
         BlockWriter {
             file,
             written,
+            spare,
             direct: crate::mapping::set_direct_io(file, true),
             runs: Vec::new(),
         }
     }
 
-    /// Writes `bytes` at `offset`, or gathers them for a later direct write.
-    fn write(&mut self, bytes: &[u8], offset: u64) -> io::Result<()> {
+    /// Writes `block` at `offset`, or gathers it for a later direct write.
+    fn write(&mut self, block: Block, offset: u64) -> io::Result<()> {
         let aligned = |value: u64| value.is_multiple_of(DIRECT_ALIGN as u64);
-        let gathered = aligned(offset) && aligned(bytes.len() as u64);
-        if !self.direct || !gathered || bytes.len() > DIRECT_RUN_BYTES {
+        let gathered = aligned(offset) && aligned(block.len() as u64);
+        if !self.direct || !gathered || block.len() > DIRECT_RUN_BYTES {
             self.stop_direct()?;
-            write_all_at(self.file, bytes, offset)?;
-            (self.written)(bytes.len());
+            write_all_at(self.file, &block, offset)?;
+            (self.written)(block.len());
+            self.recycle([block]);
             return Ok(());
         }
-        let index = self.run_ending_at(offset, bytes.len())?;
+        let index = self.run_ending_at(offset, block.len())?;
         let run = &mut self.runs[index];
-        let at = run.len;
-        run.gathered()[at..at + bytes.len()].copy_from_slice(bytes);
-        run.len += bytes.len();
+        run.len += block.len();
+        run.blocks.push(block);
         Ok(())
+    }
+
+    /// Hands written blocks back to the producers; dropped rather than waited for while a
+    /// producer takes a spare.
+    fn recycle(&self, blocks: impl IntoIterator<Item = Block>) {
+        if let Ok(mut spare) = self.spare.try_lock() {
+            spare.extend(blocks);
+        }
     }
 
     /// The run that `len` bytes at `offset` continue, with room for them: an open one, else a
@@ -431,8 +482,8 @@ impl<'a> BlockWriter<'a> {
         Ok(longest)
     }
 
-    /// Writes run `index`'s gathered bytes, directly or (when the file system refuses the
-    /// direct write) through the page cache from then on; the run then continues after them.
+    /// Writes run `index`'s blocks, directly or (when the file system refuses the direct
+    /// write) through the page cache from then on; the run then continues after them.
     fn write_run(&mut self, index: usize) -> io::Result<()> {
         let (file, written) = (self.file, self.written);
         let run = &mut self.runs[index];
@@ -440,9 +491,11 @@ impl<'a> BlockWriter<'a> {
         if len == 0 {
             return Ok(());
         }
-        let bytes = &run.gathered()[..len];
+        let blocks = std::mem::take(&mut run.blocks);
+        run.start += len as u64;
+        run.len = 0;
         let refused = match self.direct {
-            true => match write_all_at(file, bytes, start) {
+            true => match write_blocks_at(file, &blocks, start) {
                 Err(error) if error.kind() == io::ErrorKind::InvalidInput => true,
                 done => {
                     done?;
@@ -455,11 +508,10 @@ impl<'a> BlockWriter<'a> {
             if std::mem::take(&mut self.direct) {
                 crate::mapping::set_direct_io(file, false);
             }
-            write_all_at(file, bytes, start)?;
+            write_blocks_at(file, &blocks, start)?;
             written(len);
         }
-        run.start += len as u64;
-        run.len = 0;
+        self.recycle(blocks);
         Ok(())
     }
 
@@ -488,6 +540,13 @@ impl Drop for BlockWriter<'_> {
             crate::mapping::set_direct_io(self.file, false);
         }
     }
+}
+
+/// Writes consecutive `blocks` from `offset` of `file` in one vectored write (as few as the
+/// kernel takes).
+fn write_blocks_at(file: &File, blocks: &[Block], offset: u64) -> io::Result<()> {
+    let mut parts: Vec<io::IoSlice> = blocks.iter().map(|block| io::IoSlice::new(block)).collect();
+    crate::mapping::write_all_vectored_at(file, &mut parts, offset)
 }
 
 /// Writes all of `bytes` at `offset` of `file`, leaving the file's cursor alone on Unix.
@@ -682,8 +741,8 @@ mod tests {
                     }
                     for block in order {
                         let mut buffer = behind.buffer();
-                        buffer.clear();
-                        buffer.extend_from_slice(&expected[block * block_bytes..][..block_bytes]);
+                        buffer.resize(block_bytes);
+                        buffer.copy_from_slice(&expected[block * block_bytes..][..block_bytes]);
                         let offset = (block * block_bytes) as u64;
                         behind.write_at(buffer, offset).expect("queued");
                     }
@@ -708,7 +767,9 @@ mod tests {
         assert_eq!(value, 7);
         assert_eq!(fs::read(&path).expect("read"), expected);
         let read_only = File::open(&path).expect("open");
-        let failed = write_behind(&read_only, 0, |behind| behind.write_at(vec![1; 10], 0));
+        let failed = write_behind(&read_only, 0, |behind| {
+            behind.write_at(Block::from_bytes(&[1; 10]), 0)
+        });
         assert!(failed.is_err());
         fs::remove_file(&path).expect("remove");
     }
@@ -733,7 +794,7 @@ mod tests {
                 3,
                 false,
             );
-            let last = expected[blocks * block_bytes..].to_vec();
+            let last = Block::from_bytes(&expected[blocks * block_bytes..]);
             behind.write_at(last, (blocks * block_bytes) as u64)
         })
         .expect("written");

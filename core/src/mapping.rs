@@ -161,6 +161,57 @@ pub fn set_direct_io(_file: &File, direct: bool) -> bool {
     !direct
 }
 
+/// Writes all of `parts`, one after the other, from `offset` of `file`: one pwritev for up to
+/// [`VECTORED_PARTS`] of them, again for what a short write left.
+#[cfg(target_os = "linux")]
+#[allow(unsafe_code)]
+pub fn write_all_vectored_at(
+    file: &File,
+    mut parts: &mut [io::IoSlice<'_>],
+    mut offset: u64,
+) -> io::Result<()> {
+    use std::os::fd::AsRawFd;
+    while !parts.is_empty() {
+        let at = libc::off_t::try_from(offset).map_err(io::Error::other)?;
+        let count = parts.len().min(VECTORED_PARTS) as libc::c_int;
+        // SAFETY: an IoSlice has an iovec's layout on Unix; the kernel only reads the first
+        // `count` of them and the bytes they describe, all borrowed for the call, and `file`
+        // stays open for it.
+        let wrote = unsafe { libc::pwritev(file.as_raw_fd(), parts.as_ptr().cast(), count, at) };
+        if wrote < 0 {
+            let error = io::Error::last_os_error();
+            if error.kind() == io::ErrorKind::Interrupted {
+                continue;
+            }
+            return Err(error);
+        }
+        if wrote == 0 {
+            return Err(io::ErrorKind::WriteZero.into());
+        }
+        offset += wrote as u64;
+        io::IoSlice::advance_slices(&mut parts, wrote as usize);
+    }
+    Ok(())
+}
+
+/// Parts one pwritev takes at most: Linux's IOV_MAX.
+#[cfg(target_os = "linux")]
+const VECTORED_PARTS: usize = 1024;
+
+/// Without pwritev, one write per part.
+#[cfg(not(target_os = "linux"))]
+pub fn write_all_vectored_at(
+    file: &File,
+    parts: &mut [io::IoSlice<'_>],
+    mut offset: u64,
+) -> io::Result<()> {
+    for part in parts.iter() {
+        crate::atomic::write_all_at(file, part, offset)?;
+        offset += part.len() as u64;
+    }
+    Ok(())
+}
+
 /// The memory the kernel reports it could give without swapping (`MemAvailable` of
 /// `/proc/meminfo`, free pages plus reclaimable page cache), or `None` where there is no such
 /// file (not Linux) or it does not say.

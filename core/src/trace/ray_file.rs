@@ -736,7 +736,7 @@ pub fn write_answers(
                 rays.check_chunk(&records[range.clone()])?;
                 // Every record of the chunk is written over, so a reused buffer's bytes stay.
                 let mut buffer = behind.buffer();
-                buffer.resize(range.len() * size, 0);
+                buffer.resize(range.len() * size);
                 let valid = rays.valid_in(range.clone());
                 let hits =
                     answer_chunk(tracer, &records[range.clone()], valid, answer, &mut buffer);
@@ -798,6 +798,7 @@ fn write_answers_in_order(
             .enumerate()
             .try_for_each(|(chunk, places)| {
                 let mut buffer = behind.buffer();
+                buffer.resize(places.len() * size);
                 gather(&answers, places, size, &mut buffer);
                 behind.write_at(buffer, (chunk * QUERY_CHUNK * size) as u64)
             })
@@ -844,12 +845,12 @@ fn input_places(order: &[u32]) -> Vec<u32> {
     places
 }
 
-/// Replaces `buffer` with the records of `answers` (`size` bytes each) at `places`, in turn.
-fn gather(answers: &[u8], places: &[u32], size: usize, buffer: &mut Vec<u8>) {
-    buffer.clear();
-    for &position in places {
+/// Fills `buffer` (`places.len() * size` bytes) with the records of `answers` (`size` bytes
+/// each) at `places`, in turn.
+fn gather(answers: &[u8], places: &[u32], size: usize, buffer: &mut [u8]) {
+    for (out, &position) in buffer.chunks_exact_mut(size).zip(places) {
         let start = position as usize * size;
-        buffer.extend_from_slice(&answers[start..start + size]);
+        out.copy_from_slice(&answers[start..start + size]);
     }
 }
 
@@ -872,6 +873,7 @@ pub fn write_answers_streamed(
         let (answers, hits) = answer_in_order(tracer, rays, &order, answer);
         let mut buffer = Vec::new();
         for places in input_places(&order).chunks(QUERY_CHUNK) {
+            buffer.resize(places.len() * size, 0);
             gather(&answers, places, size, &mut buffer);
             out.write_all(&buffer)?;
         }
