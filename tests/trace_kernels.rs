@@ -140,9 +140,16 @@ fn occlusion_groups(file: &ReducemFile, moved: Option<usize>) -> Vec<Ray> {
     let (primary, _) = renderer_rays(file);
     let tracer = Tracer::new(file, TraceOptions::default());
     let (min, max) = (file.header().bounds_min, file.header().bounds_max);
-    let diagonal = (0..3).map(|a| (max[a] - min[a]).powi(2)).sum::<f32>().sqrt();
+    let diagonal = (0..3)
+        .map(|a| (max[a] - min[a]).powi(2))
+        .sum::<f32>()
+        .sqrt();
     let mut rays = Vec::new();
-    for (point, (ray, hit)) in primary.iter().zip(tracer.intersect_batch(&primary)).enumerate() {
+    for (point, (ray, hit)) in primary
+        .iter()
+        .zip(tracer.intersect_batch(&primary))
+        .enumerate()
+    {
         let Some(hit) = hit else { continue };
         let origin: [f32; 3] = std::array::from_fn(|a| ray.origin[a] + hit.t * ray.direction[a]);
         for k in 0..16 {

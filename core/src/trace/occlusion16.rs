@@ -105,7 +105,7 @@ impl Walk for PairWalk<'_, '_> {
             K::lanes(first, &prepared[0]),
             K::lanes(second, &prepared[1]),
         ];
-        let pair = Pair::<K>::new(&lanes, self.closest);
+        let mut pair = Pair::<K>::new(&lanes, self.closest);
         match self.tracer.file().top_nodes() {
             TopNodes::F32(nodes) => pair.walk(self.tracer, (nodes, &()), &mut prepared),
             TopNodes::Grid(nodes, grid) => {
@@ -181,7 +181,7 @@ impl<'l, 'c, C: TraceKernel> Pair<'l, 'c, C> {
     /// of leaves.
     #[inline(always)]
     fn walk<N: TraceNode>(
-        mut self,
+        &mut self,
         tracer: &Tracer,
         (nodes, decoder): (&[N], &N::Decoder),
         prepared: &mut [C::PreparedRays; 2],
