@@ -11,7 +11,7 @@ use reducem::format::reader::ReducemFile;
 use reducem::input::read_mesh;
 use reducem::render::rays::RendererRays;
 use reducem::render::scene::Scene;
-use reducem::trace::{Kernel, Ray};
+use reducem::trace::{Kernel, Ray, TraceOptions, Tracer};
 use reducem_gen::{generate, Kind};
 
 /// The benchmarks' view (`configs/scenes/ao16.toml`) at 48² pixels with 4 AO samples.
@@ -130,5 +130,98 @@ fn every_kernel_agrees_on_grid_files() {
 fn every_kernel_agrees_on_pipeline_length_strips() {
     for kind in Kind::ALL {
         check_kind_with(kind, None, PIPELINE_MAX_STRIP_LENGTH);
+    }
+}
+
+/// Sixteen occlusion rays per camera hit, all from the hit point and spread over the sphere
+/// (every direction sign), as a renderer's ambient-occlusion rays come; with `moved`, the
+/// origin of each group's ray `moved` nudged off the point.
+fn occlusion_groups(file: &ReducemFile, moved: Option<usize>) -> Vec<Ray> {
+    let (primary, _) = renderer_rays(file);
+    let tracer = Tracer::new(file, TraceOptions::default());
+    let (min, max) = (file.header().bounds_min, file.header().bounds_max);
+    let diagonal = (0..3)
+        .map(|a| (max[a] - min[a]).powi(2))
+        .sum::<f32>()
+        .sqrt();
+    let mut rays = Vec::new();
+    for (point, (ray, hit)) in primary
+        .iter()
+        .zip(tracer.intersect_batch(&primary))
+        .enumerate()
+    {
+        let Some(hit) = hit else { continue };
+        let origin: [f32; 3] = std::array::from_fn(|a| ray.origin[a] + hit.t * ray.direction[a]);
+        for k in 0..16 {
+            // A Fibonacci sphere turned by the point's index.
+            let z = 1.0 - (2 * k + 1) as f32 / 16.0;
+            let angle = k as f32 * 2.399_963 + point as f32 * 0.37;
+            let radius = (1.0 - z * z).sqrt();
+            let mut origin = origin;
+            if moved == Some(k) {
+                origin[0] += diagonal * 1e-3;
+            }
+            rays.push(Ray {
+                origin,
+                direction: [radius * angle.cos(), radius * angle.sin(), z],
+                tmin: diagonal * 1e-4,
+                tmax: diagonal * 0.3,
+            });
+        }
+    }
+    // A batch whose length is not a multiple of sixteen.
+    rays.truncate(rays.len() - 5);
+    rays
+}
+
+/// Occlusion packets of a hit point's sixteen rays (walked together where the two halves share
+/// their origin, as eight-ray packets where they do not) answer as single rays do, whatever
+/// the kernel.
+#[test]
+fn sixteen_ray_occlusion_packets_agree_with_single_rays() {
+    for (kind, grid_bits) in [(Kind::ALL[0], None), (Kind::ALL[1], Some(16))] {
+        let name = format!("sixteen-{kind:?}-{grid_bits:?}");
+        let ply = temp_path(&format!("{name}.ply"));
+        generate(kind, 6000, 5, &ply).expect("generate");
+        let mesh = read_mesh(&ply).expect("read");
+        let path = temp_path(&format!("{name}.rdm"));
+        let params = BuildParams {
+            grid_bits,
+            ..BuildParams::default()
+        };
+        convert_mesh(&mesh, &params, &path).expect("convert");
+        let file = ReducemFile::open(&path).expect("open");
+        let single = Tracer::new(
+            &file,
+            TraceOptions {
+                packets: false,
+                kernel: Kernel::Sse2,
+                ..TraceOptions::default()
+            },
+        );
+        // Shared origins; one ray of the first half moved; the second half's first ray moved.
+        for moved in [None, Some(3), Some(8)] {
+            let rays = occlusion_groups(&file, moved);
+            let expected = single.occluded_batch(&rays);
+            let occluded = expected.iter().filter(|&&o| o).count();
+            assert!(
+                occluded > rays.len() / 10 && occluded < rays.len() * 9 / 10,
+                "{name}: {occluded} of {} rays occluded, too few or too many to compare",
+                rays.len()
+            );
+            for kernel in Kernel::supported() {
+                let options = TraceOptions {
+                    kernel,
+                    ..TraceOptions::default()
+                };
+                let packets = Tracer::new(&file, options).occluded_batch(&rays);
+                for (i, ray) in rays.iter().enumerate() {
+                    assert_eq!(
+                        expected[i], packets[i],
+                        "{name} {kernel} {moved:?}: occlusion differs for {ray:?}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -24,6 +24,7 @@ mod attributes;
 mod closest;
 pub mod kernel;
 mod lanes;
+mod occlusion16;
 mod packet;
 pub mod prepared;
 mod ray;
@@ -191,12 +192,12 @@ impl<'f> Tracer<'f> {
         mut answer: impl FnMut(usize, &Closest),
     ) {
         // Occlusion packets of a kernel that mixes direction signs take the rays in their order:
-        // eight of a hit point's sixteen ambient-occlusion rays share their origin, where a
-        // packet of one octant holds the rays of two or three hit points.
-        let order = match any_hit && self.options.kernel.mixes_occlusion_signs() {
-            true => None,
-            false => octant_order(rays),
-        };
+        // a hit point's sixteen ambient-occlusion rays share their origin, where a packet of
+        // one octant holds the rays of two or three hit points.
+        if any_hit && self.options.kernel.mixes_occlusion_signs() {
+            return occlusion16::trace_occlusion(self, rays, answer);
+        }
+        let order = octant_order(rays);
         let ray_at = |k: usize| order.as_ref().map_or(k, |order| order[k] as usize);
         let mut gathered = ArrayVec::<Ray, { PACKET_WIDTH }>::new();
         let mut found = [Closest::none(f32::NEG_INFINITY); PACKET_WIDTH];

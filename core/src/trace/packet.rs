@@ -65,7 +65,7 @@ const MIN_PACKET_LANES: usize = 6;
 /// to that lane alone, since a lone lane pays a packet's clip per child for nothing. Two lanes
 /// alone cost more than they save, since single rays test strips one ray at a time.
 #[inline(always)]
-fn at_most_one(mask: u32) -> bool {
+pub(super) fn at_most_one(mask: u32) -> bool {
     mask & mask.wrapping_sub(1) == 0
 }
 
@@ -584,7 +584,7 @@ fn trace_leaf_lanes<C: TraceKernel, P: LaneRays, const ANY_HIT: bool>(
 /// Each of the `reaching` lanes traverses the strip alone; returns the lanes that found an
 /// occluder when `ANY_HIT` is set.
 #[inline(always)]
-fn trace_strip_lanes<C: TraceKernel, P: LaneRays, const ANY_HIT: bool>(
+pub(super) fn trace_strip_lanes<C: TraceKernel, P: LaneRays, const ANY_HIT: bool>(
     (tracer, lanes, prepared): (&Tracer, &Lanes, &mut P),
     strip: &LeafStrip,
     reaching: &LeafLanes,

@@ -158,6 +158,20 @@ pub(super) fn dispatch<W: Walk>(kernel: Kernel, walk: W) -> W::Output {
     }
 }
 
+/// Runs `walk` on the kernel of `kernel` if its occlusion packets mix direction signs
+/// ([`TraceKernel::MIXED_OCCLUSION`]) on this CPU, else returns `None`: walks written for such
+/// packets are compiled for those kernels alone.
+#[inline(always)]
+pub(super) fn dispatch_mixed_occlusion<W: Walk>(kernel: Kernel, walk: W) -> Option<W::Output> {
+    match kernel {
+        #[cfg(target_arch = "x86_64")]
+        Kernel::Avx2 if detect::avx2() && <avx2::Avx2 as TraceKernel>::MIXED_OCCLUSION => {
+            Some(avx2::Avx2::compiled(walk))
+        }
+        _ => None,
+    }
+}
+
 /// A walk generic over the kernel: what [`dispatch`] and [`TraceKernel::compiled`] run.
 pub(super) trait Walk {
     type Output;
@@ -325,6 +339,10 @@ pub(super) trait TraceKernel: query_kernel::QueryKernel {
     /// [`TraceKernel::Mixed`] of the lanes `packet_mask` (lane 0 among them), whose culling
     /// bounds are `limit` (they only shrink while the packet walks).
     fn mixed(lanes: &Lanes, packet_mask: u32, limit: f32x8) -> Self::Mixed;
+
+    /// [`TraceKernel::mixed`] of `lanes` for the planes picked by lane 0 of `first` (another
+    /// packet's lanes, which a node's planes were decoded for): flips against `first`'s lane 0.
+    fn mixed_against(lanes: &Lanes, packet_mask: u32, limit: f32x8, first: &Lanes) -> Self::Mixed;
 
     /// The slots of `planes` whose box meets the box of the packet's segments, as a bit mask:
     /// a slot left out is one that [`TraceKernel::clip_slot_mixed`] would find entered by none

@@ -133,7 +133,12 @@ impl TraceKernel for Portable {
     #[inline(always)]
     fn wide_planes(lanes: &Lanes, node: &WideNode) -> SlotPlanes {
         let negative = lanes.negative();
-        let planes = [0, 1, 2].map(|axis| wide_axis_planes(node, axis, negative[axis]));
+        // Axis by axis, not through `array::map`, whose closure may stay a call.
+        let planes = [
+            wide_axis_planes(node, 0, negative[0]),
+            wide_axis_planes(node, 1, negative[1]),
+            wide_axis_planes(node, 2, negative[2]),
+        ];
         let slots = |lanes: [f32x4; 2]| -> [f32; WIDE_WIDTH] { bytemuck::cast(lanes) };
         SlotPlanes {
             entry: planes.map(|(entry, _)| slots(entry)),
@@ -247,6 +252,9 @@ impl TraceKernel for Portable {
 
     #[inline(always)]
     fn mixed(_lanes: &Lanes, _packet_mask: u32, _limit: f32x8) {}
+
+    #[inline(always)]
+    fn mixed_against(_lanes: &Lanes, _packet_mask: u32, _limit: f32x8, _first: &Lanes) {}
 
     #[inline(always)]
     fn mixed_slots(_mixed: &(), _planes: &SlotPlanes) -> u32 {

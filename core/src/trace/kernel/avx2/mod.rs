@@ -148,6 +148,17 @@ impl TraceKernel for Avx2 {
     }
 
     #[inline(always)]
+    fn mixed_against(
+        lanes: &Lanes,
+        packet_mask: u32,
+        limit: f32x8,
+        first: &Lanes,
+    ) -> packets::Avx2Mixed {
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
+        unsafe { packets::mixed_against(lanes, packet_mask, limit, &first.signs) }
+    }
+
+    #[inline(always)]
     fn mixed_slots(mixed: &packets::Avx2Mixed, planes: &packets::Avx2Planes) -> u32 {
         // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packets::mixed_slots(mixed, planes) }

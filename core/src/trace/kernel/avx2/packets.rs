@@ -296,6 +296,19 @@ fn lanes_of_bits(bits: u32) -> __m256 {
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
 pub(super) fn mixed(lanes: &Lanes, packet_mask: u32, limit: f32x8) -> Avx2Mixed {
+    mixed_against(lanes, packet_mask, limit, &lanes.signs)
+}
+
+/// `TraceKernel::mixed_against`: [`mixed`] with the flips and lane 0's signs taken from
+/// `first_signs` (a packet's `Lanes::signs`, whose lane 0 picked the planes).
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+pub(super) fn mixed_against(
+    lanes: &Lanes,
+    packet_mask: u32,
+    limit: f32x8,
+    first_signs: &[u32; 3],
+) -> Avx2Mixed {
     let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
     let in_packet = lanes_of_bits(packet_mask);
     let packet = |v: __m256| {
@@ -336,12 +349,10 @@ pub(super) fn mixed(lanes: &Lanes, packet_mask: u32, limit: f32x8) -> Avx2Mixed 
         high[axis] = greatest(highest);
     }
     let signs = |axis: usize| lanes.signs[axis];
+    let first = |axis: usize| 0u32.wrapping_sub(first_signs[axis] & 1);
     Avx2Mixed {
-        flip: std::array::from_fn(|axis| {
-            let first = 0u32.wrapping_sub(signs(axis) & 1);
-            lanes_of_bits((signs(axis) ^ first) & 0xFF)
-        }),
-        negative: std::array::from_fn(|axis| lanes_of_bits(0u32.wrapping_sub(signs(axis) & 1))),
+        flip: std::array::from_fn(|axis| lanes_of_bits((signs(axis) ^ first(axis)) & 0xFF)),
+        negative: std::array::from_fn(|axis| lanes_of_bits(first(axis))),
         segments: (_mm256_movemask_ps(usable) == 0xFF).then_some((low, high)),
     }
 }

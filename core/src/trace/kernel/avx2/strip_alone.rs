@@ -90,8 +90,10 @@ struct LoneEdges {
 /// windows) for lane `lane` of the leaf alone, as the single-ray walk does: its boxes against
 /// the lane's interval (clipped to its culling bound for closest hits), the blocks entered in
 /// strip order, each skipped when a hit found since is nearer than its box. Returns the lane's
-/// bit when it found a hit and `any_hit` is set (it is done).
+/// bit when it found a hit and `any_hit` is set (it is done). `#[inline]` so that it is
+/// compiled with its one caller wherever the compiler places that caller's module.
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
 pub(super) fn trace_strip_alone(
     (lanes, spaces, lane): (&Lanes, &LaneSpaces, usize),
     leaf: &LeafLanes,
