@@ -21,10 +21,10 @@ use super::lanes::{LaneRays, Lanes, PACKET_WIDTH};
 use super::packet::{at_most_one, trace_packet, trace_strip_lanes};
 use super::ray::Ray;
 use super::top::{
-    for_each_bit, trace_nodes, DeferStack, Deferred, NodeGridLanes, TraceNode, MAX_WIDTH,
+    for_each_bit, trace_nodes, walk_top_level, DeferStack, Deferred, TopLevelWalk, TraceNode,
+    MAX_WIDTH,
 };
 use super::Tracer;
-use crate::format::reader::TopNodes;
 use crate::format::INTERNAL_CHILD;
 
 /// Rays walked together: two packets.
@@ -105,15 +105,28 @@ impl Walk for PairWalk<'_, '_> {
             K::lanes(first, &prepared[0]),
             K::lanes(second, &prepared[1]),
         ];
-        let mut pair = Pair::<K>::new(&lanes, self.closest);
-        match self.tracer.file().top_nodes() {
-            TopNodes::F32(nodes) => pair.walk(self.tracer, (nodes, &()), &mut prepared),
-            TopNodes::Grid(nodes, grid) => {
-                let decoder = NodeGridLanes::new(&grid);
-                pair.walk(self.tracer, (nodes, &decoder), &mut prepared)
-            }
-            TopNodes::Wide(nodes) => pair.walk(self.tracer, (nodes, &()), &mut prepared),
-        }
+        let walk = PairNodes {
+            pair: &mut Pair::<K>::new(&lanes, self.closest),
+            tracer: self.tracer,
+            prepared: &mut prepared,
+        };
+        walk_top_level(self.tracer.file(), walk)
+    }
+}
+
+/// [`PairWalk`]'s walk from the root, for [`walk_top_level`].
+struct PairNodes<'p, 'l, 'c, 't, K: TraceKernel> {
+    pair: &'p mut Pair<'l, 'c, K>,
+    tracer: &'p Tracer<'t>,
+    prepared: &'p mut [K::PreparedRays; 2],
+}
+
+impl<K: TraceKernel> TopLevelWalk for PairNodes<'_, '_, '_, '_, K> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<N: TraceNode>(self, nodes: &[N], decoder: &N::Decoder) {
+        self.pair.walk(self.tracer, (nodes, decoder), self.prepared)
     }
 }
 
