@@ -390,9 +390,14 @@ fn search_windows<V: VertexAccess, Q: QueryKernel>(
     while block < end {
         let used = (end - block).min(BOX_WINDOWS);
         let references: [u8; BOX_WINDOWS + 2] = view.references.read_block(block);
-        let corners: BlockCorners =
-            vertices.gather::<0, 1, 2, { BOX_WINDOWS + 2 }>(&references, used + 2);
-        let bounds = Q::window_bounds(&query.wide, &corners);
+        let bounds = match vertices.lossless() {
+            Some(points) => Q::vertex_window_bounds(&query.wide, points, &references),
+            None => {
+                let corners: BlockCorners =
+                    vertices.gather::<0, 1, 2, { BOX_WINDOWS + 2 }>(&references, used + 2);
+                Q::window_bounds(&query.wide, &corners)
+            }
+        };
         for (lane, &bound) in bounds.iter().enumerate().take(used) {
             if bound > best.limit {
                 continue;
