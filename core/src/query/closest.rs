@@ -159,7 +159,7 @@ impl<'f> ClosestPointSearch<'f> {
     }
 
     /// Depth-first over the top level, a node's nearest child entered at once and its others
-    /// stacked farthest first. Not best-first as the paper's: the previous point's bound makes
+    /// stacked farthest first. Not best-first: the previous point's bound makes
     /// the limit tight from the start, so the order hardly changes what is visited, and a stack
     /// costs less than a heap; the answer does not depend on the order (see the module's notes).
     #[inline(always)]
