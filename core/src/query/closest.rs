@@ -1,6 +1,6 @@
-//! The closest point of the surface to a query point: a best-first walk over the top-level
-//! hierarchy (nodes and leaves in a heap ordered by the squared distance from the point to their
-//! boxes, a node's nearest child entered without it), then the blocks of a leaf's strips nearest
+//! The closest point of the surface to a query point: a depth-first walk over the top-level
+//! hierarchy (a node's children that may beat the best entered nearest first by the squared
+//! distance from the point to their boxes, the others kept on a stack), then the blocks of a leaf's strips nearest
 //! first (by their block boxes, or the leaf's box for a strip without them), and in a block entered
 //! each window whose own box may beat the best tested exactly ([`closest_on_triangle`]). Box bounds
 //! of a node's children and of a block's windows are computed together by the kernel in
@@ -17,9 +17,6 @@
 //! wins, and a box at exactly the best distance is still entered, so the answer does not depend
 //! on the visiting order.
 
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
-
 use arrayvec::ArrayVec;
 
 use super::child_box::ChildBox;
@@ -29,7 +26,7 @@ use super::triangle_distance::{closest_on_triangle, TrianglePoint};
 use crate::format::block_boxes::BOX_WINDOWS;
 use crate::format::reader::{ReducemFile, StripView};
 use crate::format::vertices::{StripVertices, VertexAccess};
-use crate::format::{TopSlot, INTERNAL_CHILD, TOP_WIDTH};
+use crate::format::{TopSlot, INTERNAL_CHILD, TOP_WIDTH, WIDE_WIDTH};
 use crate::geometry::Point;
 use crate::strip_windows::window_corners;
 use crate::trace::kernel::distance_bounds::BlockCorners;
@@ -58,7 +55,7 @@ pub struct ClosestPointSearch<'f> {
     file: &'f ReducemFile,
     sections: QuerySections<'f>,
     kernel: Kernel,
-    pending: BinaryHeap<Reverse<Pending>>,
+    pending: Vec<Pending>,
     spans: Vec<Span>,
     views: Vec<StripView<'f>>,
     /// The closest point found for the previous query, a point of the surface: its distance
@@ -73,10 +70,9 @@ struct Query {
     wide: [f64; 3],
 }
 
-/// A node or leaf waiting in the heap: the bits of its box's squared-distance bound (ordered
-/// as the f64 they are: a sum of squares is never negative, nor -0.0), then its link as a node
-/// slot holds it.
-type Pending = (u64, u32, u32);
+/// A node or leaf waiting on the stack: its box's squared-distance bound, then its link as a
+/// node slot holds it.
+type Pending = (f64, (u32, u32));
 
 /// The best triangle so far and the squared distance a triangle must not exceed to beat it.
 struct Best {
@@ -109,7 +105,7 @@ impl<'f> ClosestPointSearch<'f> {
             file,
             sections: QuerySections::new(file),
             kernel,
-            pending: BinaryHeap::new(),
+            pending: Vec::new(),
             spans: Vec::new(),
             views: Vec::new(),
             previous: None,
@@ -164,9 +160,10 @@ impl<'f> ClosestPointSearch<'f> {
         }
     }
 
-    /// Best-first over the top level, except that a node's nearest child that may beat `best`
-    /// is entered at once rather than through the heap: that child would most often be popped
-    /// next anyway, and the answer does not depend on the order (see the module's notes).
+    /// Depth-first over the top level, a node's nearest child entered at once and its others
+    /// stacked farthest first. Not best-first: the previous point's bound makes
+    /// the limit tight from the start, so the order hardly changes what is visited, and a stack
+    /// costs less than a heap; the answer does not depend on the order (see the module's notes).
     #[inline(always)]
     fn walk<N: ChildBox, Q: QueryKernel>(
         &mut self,
@@ -186,12 +183,12 @@ impl<'f> ClosestPointSearch<'f> {
             let (bound, (child, kind)) = match next.take() {
                 Some(entered) => entered,
                 None => match self.pending.pop() {
-                    Some(Reverse((bound, child, kind))) => (f64::from_bits(bound), (child, kind)),
+                    Some(pending) => pending,
                     None => break,
                 },
             };
             if bound > best.limit {
-                break;
+                continue;
             }
             if kind != INTERNAL_CHILD {
                 self.search_leaf::<Q>((child, kind), bound, &query, best);
@@ -203,8 +200,9 @@ impl<'f> ClosestPointSearch<'f> {
         }
     }
 
-    /// Pushes the children of `node` whose bound does not exceed `limit`, but for the nearest,
-    /// returned with its bound; each is asked for from memory before the walk reaches it.
+    /// Stacks the children of `node` whose bound does not exceed `limit`, the farthest lowest,
+    /// but for the nearest, returned with its bound; each is asked for from memory before the
+    /// walk reaches it.
     #[inline(always)]
     fn push_children<N: ChildBox, Q: QueryKernel>(
         &mut self,
@@ -214,7 +212,7 @@ impl<'f> ClosestPointSearch<'f> {
         limit: f64,
         prefetch: &ChildPrefetch<N>,
     ) -> Option<(f64, (u32, u32))> {
-        let mut nearest: Option<(f64, (u32, u32))> = None;
+        let mut children: ArrayVec<Pending, WIDE_WIDTH> = ArrayVec::new();
         let groups = node.child_boxes::<Q>(grid);
         for (group, (min, max)) in groups.as_ref().iter().enumerate() {
             if node.slot(group * TOP_WIDTH) == TopSlot::Empty {
@@ -231,22 +229,17 @@ impl<'f> ClosestPointSearch<'f> {
                     continue;
                 }
                 prefetch.child(link);
-                let candidate = (bound, link);
-                match nearest {
-                    Some((nearest_bound, _)) if nearest_bound <= bound => self.defer(candidate),
-                    Some(entered) => {
-                        self.defer(entered);
-                        nearest = Some(candidate);
-                    }
-                    None => nearest = Some(candidate),
+                // Insertion by falling bound: a node has at most eight children.
+                let mut at = children.len();
+                while at > 0 && children[at - 1].0 < bound {
+                    at -= 1;
                 }
+                children.insert(at, (bound, link));
             }
         }
+        let nearest = children.pop();
+        self.pending.extend(children);
         nearest
-    }
-
-    fn defer(&mut self, (bound, (child, kind)): (f64, (u32, u32))) {
-        self.pending.push(Reverse((bound.to_bits(), child, kind)));
     }
 }
 
@@ -395,9 +388,14 @@ fn search_windows<V: VertexAccess, Q: QueryKernel>(
     while block < end {
         let used = (end - block).min(BOX_WINDOWS);
         let references: [u8; BOX_WINDOWS + 2] = view.references.read_block(block);
-        let corners: BlockCorners =
-            vertices.gather::<0, 1, 2, { BOX_WINDOWS + 2 }>(&references, used + 2);
-        let bounds = Q::window_bounds(&query.wide, &corners);
+        let bounds = match vertices.lossless() {
+            Some(points) => Q::vertex_window_bounds(&query.wide, points, &references),
+            None => {
+                let corners: BlockCorners =
+                    vertices.gather::<0, 1, 2, { BOX_WINDOWS + 2 }>(&references, used + 2);
+                Q::window_bounds(&query.wide, &corners)
+            }
+        };
         for (lane, &bound) in bounds.iter().enumerate().take(used) {
             if bound > best.limit {
                 continue;

@@ -10,7 +10,11 @@
 #![allow(unsafe_code)]
 
 use super::BLOCK;
+#[cfg(target_arch = "x86_64")]
+use crate::format::vertices::VertexAccess;
 use crate::format::TOP_WIDTH;
+#[cfg(target_arch = "x86_64")]
+use crate::geometry::Point;
 
 /// The factor that lowers a box's squared distance below its f64 rounding: a subtraction, three
 /// squares and two sums, each rounded by at most 2^-53 relative, stay within 2^-50.
@@ -136,6 +140,46 @@ pub(super) fn window_bounds_avx2(query: &[f64; 3], corners: &BlockCorners) -> [f
     std::array::from_fn(|lane| if lane < 4 { low[lane] } else { high[lane - 4] })
 }
 
+/// [`window_lanes`] in AVX2 of a lossless block read from the strip's vertices by its
+/// `references`: each vertex's offset as one register (x, y, z, 0), a window's minima and maxima
+/// across three of them, four windows' gaps transposed into axes; the same operations lane by
+/// lane. Rows gathered on the stack would be read back by loads wider than their stores, which
+/// stall.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn vertex_window_bounds_avx2(
+    query: &[f64; 3],
+    vertices: &[Point],
+    references: &[u8; BLOCK + 2],
+) -> [f64; BLOCK] {
+    use std::arch::x86_64::*;
+    let q = _mm256_setr_pd(query[0], query[1], query[2], 0.0);
+    let offsets: [__m256d; BLOCK + 2] = std::array::from_fn(|k| {
+        let [x, y, z] = vertices.point(references[k] as usize);
+        _mm256_sub_pd(_mm256_cvtps_pd(_mm_setr_ps(x, y, z, 0.0)), q)
+    });
+    let gaps: [__m256d; BLOCK] = std::array::from_fn(|window| {
+        let (a, b, c) = (offsets[window], offsets[window + 1], offsets[window + 2]);
+        let low = _mm256_min_pd(_mm256_min_pd(a, b), c);
+        let high = _mm256_max_pd(_mm256_max_pd(a, b), c);
+        gap_avx2(low, _mm256_xor_pd(high, _mm256_set1_pd(-0.0)))
+    });
+    let half = |first: usize| {
+        let [g0, g1, g2, g3] = [0, 1, 2, 3].map(|k| gaps[first + k]);
+        // (x0, x1, z0, z1) and (y0, y1, _, _), then the halves of two such pairs joined.
+        let (xz01, y01) = (_mm256_unpacklo_pd(g0, g1), _mm256_unpackhi_pd(g0, g1));
+        let (xz23, y23) = (_mm256_unpacklo_pd(g2, g3), _mm256_unpackhi_pd(g2, g3));
+        squared_bound_avx2([
+            _mm256_permute2f128_pd::<0x20>(xz01, xz23),
+            _mm256_permute2f128_pd::<0x20>(y01, y23),
+            _mm256_permute2f128_pd::<0x31>(xz01, xz23),
+        ])
+    };
+    let (low, high) = (half(0), half(4));
+    std::array::from_fn(|lane| if lane < 4 { low[lane] } else { high[lane - 4] })
+}
+
 /// [`gap`] lane by lane.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
@@ -169,6 +213,7 @@ fn squared_bound_avx2([x, y, z]: [std::arch::x86_64::__m256d; 3]) -> [f64; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::Point;
     use crate::trace::kernel::query_kernel::{dispatch_query, QueryKernel, QueryWalk};
     use crate::trace::kernel::Kernel;
 
@@ -209,10 +254,17 @@ mod tests {
 
         fn run<Q: QueryKernel>(self) -> Self::Output {
             let (min, max) = self.boxes;
-            (
-                Q::child_bounds(self.query, min, max),
-                Q::window_bounds(self.query, self.corners),
-            )
+            let windows = Q::window_bounds(self.query, self.corners);
+            // The same corners as a strip's vertices, referenced in order.
+            let vertices: [Point; BLOCK + 2] =
+                std::array::from_fn(|k| self.corners.map(|axis| axis[k]));
+            let references = std::array::from_fn(|k| k as u8);
+            let from_vertices = Q::vertex_window_bounds(self.query, &vertices, &references);
+            assert!(windows
+                .iter()
+                .zip(from_vertices)
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
+            (Q::child_bounds(self.query, min, max), windows)
         }
     }
 

@@ -16,7 +16,9 @@ use super::distance_bounds::{child_lanes, window_lanes, BlockCorners, LaneBoxes}
 use super::portable::Portable;
 use super::triangle_lanes::{closest_on_triangles, CornerLanes, LanePoints};
 use super::{dispatch, ChildBoxes, Kernel, TraceKernel, Walk, BLOCK};
+use crate::format::vertices::VertexAccess;
 use crate::format::{WideNode, TOP_WIDTH};
+use crate::geometry::Point;
 use crate::trace::watertight::{RayPoint, RaySpace};
 use wide::f64x4;
 
@@ -42,6 +44,13 @@ pub(crate) trait QueryKernel {
     /// [`box_bound`](super::distance_bounds::box_bound) of the box of each window of a block
     /// (its corners' minima and maxima).
     fn window_bounds(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK];
+
+    /// [`QueryKernel::window_bounds`] of a block of lossless `vertices` named by `references`.
+    fn vertex_window_bounds(
+        query: &[f64; 3],
+        vertices: &[Point],
+        references: &[u8; BLOCK + 2],
+    ) -> [f64; BLOCK];
 
     /// [`closest_on_triangles`] of four triangles to `p`.
     fn closest_on_triangles(p: &[f64; 3], corners: &CornerLanes) -> LanePoints;
@@ -108,6 +117,18 @@ impl QueryKernel for Portable {
     }
 
     #[inline(always)]
+    fn vertex_window_bounds(
+        query: &[f64; 3],
+        vertices: &[Point],
+        references: &[u8; BLOCK + 2],
+    ) -> [f64; BLOCK] {
+        window_lanes(
+            query,
+            &vertices.gather::<0, 1, 2, { BLOCK + 2 }>(references, BLOCK + 2),
+        )
+    }
+
+    #[inline(always)]
     fn closest_on_triangles(p: &[f64; 3], corners: &CornerLanes) -> LanePoints {
         closest_on_triangles::<f64x4>(p, corners)
     }
@@ -128,7 +149,9 @@ mod avx2 {
     use super::*;
     use crate::trace::kernel::avx2::Avx2;
     use crate::trace::kernel::crossing_nodes::entered_wide_avx2;
-    use crate::trace::kernel::distance_bounds::{child_bounds_avx2, window_bounds_avx2};
+    use crate::trace::kernel::distance_bounds::{
+        child_bounds_avx2, vertex_window_bounds_avx2, window_bounds_avx2,
+    };
     use crate::trace::kernel::triangle_lanes::avx2::closest_on_triangles_avx2;
 
     // SAFETY (each call below): `Avx2` runs only once the CPU was found to have AVX2 and BMI2
@@ -159,6 +182,16 @@ mod avx2 {
         fn window_bounds(query: &[f64; 3], corners: &BlockCorners) -> [f64; BLOCK] {
             // SAFETY: see the impl.
             unsafe { window_bounds_avx2(query, corners) }
+        }
+
+        #[inline(always)]
+        fn vertex_window_bounds(
+            query: &[f64; 3],
+            vertices: &[Point],
+            references: &[u8; BLOCK + 2],
+        ) -> [f64; BLOCK] {
+            // SAFETY: see the impl.
+            unsafe { vertex_window_bounds_avx2(query, vertices, references) }
         }
 
         #[inline(always)]
