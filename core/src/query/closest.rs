@@ -1,10 +1,10 @@
 //! The closest point of the surface to a query point: a depth-first walk over the top-level
-//! hierarchy (a node's children that may beat the best entered nearest first by the squared
-//! distance from the point to their boxes, the others kept on a stack), then the blocks of a leaf's strips nearest
-//! first (by their block boxes, or the leaf's box for a strip without them), and in a block entered
-//! each window whose own box may beat the best tested exactly ([`closest_on_triangle`]). Box bounds
-//! of a node's children and of a block's windows are computed together by the kernel in
-//! `distance_bounds`.
+//! hierarchy (of a node's children that may beat the best, the nearest by the squared distance
+//! from the point to their boxes entered first, the others kept on a stack), then the blocks of
+//! a leaf's strips nearest first (by their block boxes, or the leaf's box for a strip without
+//! them), and in a block entered each window whose own box may beat the best tested exactly
+//! ([`closest_on_triangle`]). Box bounds of a node's children and of a block's windows are
+//! computed together by the kernel in `distance_bounds`.
 //!
 //! Exactness: a box's bound is computed in f64 and then lowered by a relative margin larger
 //! than its rounding error (`BOUND_SHRINK`), so it is never above the true distance from the
@@ -161,9 +161,9 @@ impl<'f> ClosestPointSearch<'f> {
     }
 
     /// Depth-first over the top level, a node's nearest child entered at once and its others
-    /// stacked farthest first. Not best-first: the previous point's bound makes
-    /// the limit tight from the start, so the order hardly changes what is visited, and a stack
-    /// costs less than a heap; the answer does not depend on the order (see the module's notes).
+    /// stacked farthest first. Not best-first: the previous point's bound makes the limit tight
+    /// from the start, so the order hardly changes what is visited, and a stack costs less than
+    /// a heap; the answer does not depend on the order (see the module's notes).
     #[inline(always)]
     fn walk<N: ChildBox, Q: QueryKernel>(
         &mut self,
