@@ -313,7 +313,7 @@ impl<'l, 'c, C: TraceKernel> Pair<'l, 'c, C> {
     ) -> u32 {
         let mut found = 0;
         for_each_bit(entry.mask, |bit| {
-            let (half, lane) = (bit / PACKET_WIDTH % 2, bit % PACKET_WIDTH);
+            let (half, lane) = (bit / PACKET_WIDTH, bit % PACKET_WIDTH);
             let lanes = &self.lanes[half];
             let start = Deferred {
                 child: entry.node,
