@@ -795,7 +795,10 @@ pub(super) fn try_view_block<'a>(
         VertexLayout::F32 { boxes } => {
             let parts = BlockParts::new(record, parts, &VertexLayout::F32 { boxes });
             let (vertices, after) = block.split_at_checked(count * F32_VERTEX_BYTES)?;
-            parts.view(after, StripVertices::F32(bytemuck::cast_slice(vertices)))
+            // Cast as whole vertices, whose length needs no check that it divides.
+            let (vertices, _) = vertices.as_chunks::<F32_VERTEX_BYTES>();
+            let vertices: &[Point] = bytemuck::cast_slice(vertices);
+            parts.view(after, StripVertices::F32(vertices))
         }
         VertexLayout::Grid {
             grid,

@@ -96,6 +96,25 @@ impl FieldMasks {
     }
 }
 
+/// A limit in every field of one load, its top bits and its other bits apart.
+struct FieldLimit {
+    masks: FieldMasks,
+    top: u64,
+    low: u64,
+}
+
+impl FieldLimit {
+    #[inline(always)]
+    fn new(masks: FieldMasks, width: usize, limit: usize) -> FieldLimit {
+        let spread = (masks.top >> (width - 1)) * limit as u64;
+        FieldLimit {
+            masks,
+            top: spread & masks.top,
+            low: spread & masks.low,
+        }
+    }
+}
+
 /// [`FieldMasks`] by width, for every width a strip record can give (1 to 16; 0 unused).
 const FIELD_MASKS: [FieldMasks; 17] = {
     let mut masks = [FieldMasks {
@@ -354,53 +373,57 @@ impl<'a> References<'a> {
             .get(width)
             .copied()
             .unwrap_or_else(|| FieldMasks::of(width));
-        let FieldMasks { per_load, top, low } = masks;
-        let limit = (top >> (width - 1)) * limit as u64;
-        let (limit_top, limit_low) = (limit & top, limit & low);
+        let limit = FieldLimit::new(masks, width, limit);
         let mut first = 0;
         while first < self.count {
-            let bit = first * width;
-            let stream = self.load(bit / 8) >> (bit % 8);
-            let kept = (self.count - first).min(per_load) * width;
-            let (value_top, value_low) = (stream & top, stream & low);
-            let low_reaches = ((value_low | top) - limit_low) & top;
-            let at_least = (value_top & !limit_top) | (!(value_top ^ limit_top) & low_reaches);
-            let found = at_least & top & ((1u64 << kept) - 1);
+            let kept = (self.count - first).min(masks.per_load) * width;
+            let found = self.fields_at_least(first, &limit) & ((1u64 << kept) - 1);
             if found != 0 {
                 return Some(first + found.trailing_zeros() as usize / width);
             }
-            first += per_load;
+            first += masks.per_load;
         }
         None
     }
 
     /// Whether every reference is below `limit`: [`References::first_at_least`] deciding only,
-    /// inlined into a strip's first view. One pass over the area's bits a load at a time, the
-    /// fields past the last reference masked off in the last load only.
+    /// inlined into a strip's first view. Loads of as many fields as one holds, the last ending
+    /// at the last reference (checking again some that an earlier load checked), so that no
+    /// load but a lone short one masks off fields past the references: most strips take two
+    /// loads and no loop.
     #[inline(always)]
     pub fn all_below(&self, limit: usize) -> bool {
         let width = self.width as usize;
         if limit >> width != 0 {
             return true;
         }
-        let Some(&FieldMasks { per_load, top, low }) = FIELD_MASKS.get(width) else {
+        let Some(&masks) = FIELD_MASKS.get(width) else {
             return self.first_at_least(limit).is_none();
         };
-        let limit = (top >> (width - 1)) * limit as u64;
-        let (limit_top, limit_low) = (limit & top, limit & low);
-        let (load_bits, area_bits) = (per_load * width, self.count * width);
-        let mut found = 0;
-        let mut bit = 0;
-        while bit < area_bits {
-            let stream = self.load(bit / 8) >> (bit % 8);
-            let kept = (area_bits - bit).min(load_bits);
-            let (value_top, value_low) = (stream & top, stream & low);
-            let low_reaches = ((value_low | top) - limit_low) & top;
-            let at_least = (value_top & !limit_top) | (!(value_top ^ limit_top) & low_reaches);
-            found |= at_least & ((1u64 << kept) - 1);
-            bit += load_bits;
+        let limit = FieldLimit::new(masks, width, limit);
+        let Some(last) = self.count.checked_sub(masks.per_load) else {
+            let kept = (1u64 << (self.count * width)) - 1;
+            return self.fields_at_least(0, &limit) & kept == 0;
+        };
+        let mut found = self.fields_at_least(last, &limit);
+        let mut first = 0;
+        while first < last {
+            found |= self.fields_at_least(first, &limit);
+            first += masks.per_load;
         }
-        found & top == 0
+        found == 0
+    }
+
+    /// The top bit of each field of one load, from reference `first` on, that is `limit`'s or
+    /// more (fields past the references included).
+    #[inline(always)]
+    fn fields_at_least(&self, first: usize, limit: &FieldLimit) -> u64 {
+        let FieldMasks { top, low, .. } = limit.masks;
+        let bit = first * self.width as usize;
+        let stream = self.load(bit / 8) >> (bit % 8);
+        let (value_top, value_low) = (stream & top, stream & low);
+        let low_reaches = ((value_low | top) - limit.low) & top;
+        (value_top & !limit.top) | (!(value_top ^ limit.top) & low_reaches)
     }
 
     /// Every reference, one byte each.
