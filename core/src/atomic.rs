@@ -360,10 +360,16 @@ impl Block {
         block
     }
 
-    /// Makes the block `len` bytes long: bytes it had stay, new ones are zero.
+    /// Makes the block `len` bytes long: bytes it had stay, new ones are zero. New pages are
+    /// populated in one call before they are zeroed: a run's new blocks took a page fault
+    /// every 4 KiB.
     pub fn resize(&mut self, len: usize) {
-        self.pages
-            .resize(len.div_ceil(DIRECT_ALIGN), Page([0; DIRECT_ALIGN]));
+        let pages = len.div_ceil(DIRECT_ALIGN);
+        if let Some(more) = pages.checked_sub(self.pages.len()).filter(|&more| more > 0) {
+            self.pages.reserve_exact(more);
+            crate::mapping::populate_for_writing(&mut self.pages.spare_capacity_mut()[..more]);
+        }
+        self.pages.resize(pages, Page([0; DIRECT_ALIGN]));
         self.len = len;
     }
 }
@@ -394,6 +400,8 @@ struct BlockWriter<'a> {
     written: &'a (dyn Fn(usize) + Sync),
     /// Where written blocks go back to the producers.
     spare: &'a Mutex<Vec<Block>>,
+    /// Written blocks not handed back yet: the producers held the spares.
+    unreturned: Vec<Block>,
     direct: bool,
     runs: Vec<DirectRun>,
 }
@@ -429,6 +437,7 @@ impl<'a> BlockWriter<'a> {
             file,
             written,
             spare,
+            unreturned: Vec::new(),
             direct: crate::mapping::set_direct_io(file, true),
             runs: Vec::new(),
         }
@@ -452,11 +461,12 @@ impl<'a> BlockWriter<'a> {
         Ok(())
     }
 
-    /// Hands written blocks back to the producers; dropped rather than waited for while a
-    /// producer takes a spare.
-    fn recycle(&self, blocks: impl IntoIterator<Item = Block>) {
+    /// Hands written blocks back to the producers; kept for the next time rather than waited
+    /// for while a producer takes a spare, since a dropped block is a new one's page faults.
+    fn recycle(&mut self, blocks: impl IntoIterator<Item = Block>) {
+        self.unreturned.extend(blocks);
         if let Ok(mut spare) = self.spare.try_lock() {
-            spare.extend(blocks);
+            spare.append(&mut self.unreturned);
         }
     }
 
