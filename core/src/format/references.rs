@@ -426,6 +426,41 @@ impl<'a> References<'a> {
         (value_top & !limit.top) | (!(value_top ^ limit.top) & low_reaches)
     }
 
+    /// How many of the first `windows` windows (at most [`References::len`] less 2) name three
+    /// different references, that is are not swaps (`strip_windows::window_corners`).
+    ///
+    /// Counted on the packed fields a load at a time, without spreading them into bytes: a
+    /// load's fields xor-ed with the same load shifted by one and two fields, a field that is
+    /// not zero found as in [`References::first_at_least`], the windows counted by one
+    /// popcount. The face-row index counts every strip of a file so.
+    #[inline]
+    pub fn distinct_windows(&self, windows: usize) -> usize {
+        let width = self.width as usize;
+        let Some(&FieldMasks { per_load, top, low }) = FIELD_MASKS.get(width) else {
+            return (0..windows)
+                .filter(|&k| {
+                    let [a, b, c] = [self.get(k), self.get(k + 1), self.get(k + 2)];
+                    a != b && b != c && a != c
+                })
+                .count();
+        };
+        // A window needs its two following fields in the same load.
+        let windows_per_load = per_load - 2;
+        let nonzero = |x: u64| (((x & low) + low) | x) & top;
+        let mut real = 0;
+        let mut first = 0;
+        while first < windows {
+            let bit = first * width;
+            let a = self.load(bit / 8) >> (bit % 8);
+            let (b, c) = (a >> width, a >> (2 * width));
+            let kept = (windows - first).min(windows_per_load) * width;
+            let distinct = nonzero(a ^ b) & nonzero(b ^ c) & nonzero(a ^ c);
+            real += (distinct & ((1u64 << kept) - 1)).count_ones() as usize;
+            first += windows_per_load;
+        }
+        real
+    }
+
     /// Every reference, one byte each.
     pub fn to_vec(&self) -> Vec<u8> {
         let mut all = vec![0; self.count];
@@ -503,6 +538,41 @@ mod tests {
                     );
                     assert_eq!(packed.all_below(limit), scan.is_none(), "{count} {limit}");
                     assert_eq!(unpacked.all_below(limit), scan.is_none(), "{count} {limit}");
+                }
+            }
+        }
+    }
+
+    /// The count of windows with three different references is that of a scan, for every
+    /// width and for one byte per reference, from few references to more than a load holds.
+    #[test]
+    fn distinct_windows_match_a_scan_of_the_windows() {
+        let mut seed = 7u64;
+        for vertices in [2usize, 3, 4, 5, 8, 9, 17, 32, 33, 64, 65, 128, 129, 256] {
+            for count in [2usize, 3, 4, 9, 13, 14, 22, 57, 60, 130, 258] {
+                let references: Vec<u8> = (0..count)
+                    .map(|_| {
+                        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
+                        // Mostly a few small values, so that swaps are common.
+                        let value = match seed >> 62 {
+                            0 => seed >> 33,
+                            _ => seed >> 61,
+                        };
+                        (value as usize % vertices) as u8
+                    })
+                    .collect();
+                let mut bytes = pack(&references, vertices);
+                let stored = bytes.len();
+                bytes.extend([0xff; 5]);
+                let packed = References::packed_before(&bytes, stored, count, vertices);
+                let unpacked = References::bytes(&references);
+                for windows in 0..=count - 2 {
+                    let scan = references[..windows + 2]
+                        .windows(3)
+                        .filter(|c| c[0] != c[1] && c[1] != c[2] && c[0] != c[2])
+                        .count();
+                    assert_eq!(packed.distinct_windows(windows), scan, "{vertices} {count}");
+                    assert_eq!(unpacked.distinct_windows(windows), scan, "bytes {count}");
                 }
             }
         }

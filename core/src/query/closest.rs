@@ -212,7 +212,10 @@ impl<'f> ClosestPointSearch<'f> {
         limit: f64,
         prefetch: &ChildPrefetch<N>,
     ) -> Option<(f64, (u32, u32))> {
-        let mut children: ArrayVec<Pending, WIDE_WIDTH> = ArrayVec::new();
+        // A plain array shifted in place: `ArrayVec::insert`'s checks and move cost more than
+        // the few comparisons of an insertion among at most eight.
+        let mut children: [Pending; WIDE_WIDTH] = [(0.0, (0, 0)); WIDE_WIDTH];
+        let mut count = 0;
         let groups = node.child_boxes::<Q>(grid);
         for (group, (min, max)) in groups.as_ref().iter().enumerate() {
             if node.slot(group * TOP_WIDTH) == TopSlot::Empty {
@@ -230,16 +233,18 @@ impl<'f> ClosestPointSearch<'f> {
                 }
                 prefetch.child(link);
                 // Insertion by falling bound: a node has at most eight children.
-                let mut at = children.len();
+                let mut at = count;
                 while at > 0 && children[at - 1].0 < bound {
+                    children[at] = children[at - 1];
                     at -= 1;
                 }
-                children.insert(at, (bound, link));
+                children[at] = (bound, link);
+                count += 1;
             }
         }
-        let nearest = children.pop();
-        self.pending.extend(children);
-        nearest
+        let (nearest, farther) = children[..count].split_last()?;
+        self.pending.extend_from_slice(farther);
+        Some(*nearest)
     }
 }
 
