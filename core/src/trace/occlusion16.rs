@@ -351,22 +351,38 @@ impl<'l, 'c, C: TraceKernel> Pair<'l, 'c, C> {
                 index: strip,
                 leaf_windows: tracer.file().leaf_windows(),
             };
-            for half in 0..2 {
-                let reaching = LeafLanes {
-                    active: active >> (PACKET_WIDTH * half) & HALF_LANES,
-                    t_near: &t_near[half],
-                    t_far: &t_far[half],
-                };
+            let reaching: [LeafLanes; 2] = std::array::from_fn(|half| LeafLanes {
+                active: active >> (PACKET_WIDTH * half) & HALF_LANES,
+                t_near: &t_near[half],
+                t_far: &t_far[half],
+            });
+            // Both halves in one pass where each has lanes enough for a pass of its own.
+            let paired = reaching.iter().all(|leaf| !at_most_one(leaf.active));
+            let together = [&self.together[0], &self.together[1]];
+            let pair = (together, [&self.lanes[0], &self.lanes[1]]);
+            let leaves = [&reaching[0], &reaching[1]];
+            if let Some(done) = paired
+                .then(|| C::trace_strip_pair(pair.0, pair.1, &offered, leaves, self.closest))
+                .flatten()
+            {
+                finished |= done;
+                active &= !finished;
+                if active == 0 {
+                    break;
+                }
+                continue;
+            }
+            for (half, reaching) in reaching.iter().enumerate() {
                 if reaching.active == 0 {
                     continue;
                 }
                 let (lanes, closest) = (&self.lanes[half], &mut self.closest[half]);
                 let together = &self.together[half];
                 let tested =
-                    C::trace_strip_together(together, lanes, &offered, &reaching, true, closest);
+                    C::trace_strip_together(together, lanes, &offered, reaching, true, closest);
                 let done = tested.unwrap_or_else(|| {
                     let packet = (tracer, lanes, &mut prepared[half]);
-                    trace_strip_lanes::<C, _, true>(packet, &offered, &reaching, closest)
+                    trace_strip_lanes::<C, _, true>(packet, &offered, reaching, closest)
                 });
                 finished |= done << (PACKET_WIDTH * half);
             }

@@ -400,6 +400,20 @@ pub(super) trait TraceKernel: query_kernel::QueryKernel {
         any_hit: bool,
         closest: &mut [Closest; PACKET_WIDTH],
     ) -> Option<u32>;
+
+    /// [`TraceKernel::trace_strip_together`] for the two halves of a sixteen-ray occlusion
+    /// packet (`leaves[h]` the active lanes of half `h`) in one pass, or `None` to leave the
+    /// strip to each half's own test; returns the lanes that found an occluder (bit `8 h + i`
+    /// for lane `i` of half `h`). Kernels whose occlusion packets keep one octant never run it.
+    fn trace_strip_pair(
+        _together: [&Self::Together; 2],
+        _lanes: [&Lanes; 2],
+        _strip: &LeafStrip,
+        _leaves: [&LeafLanes; 2],
+        _closest: &mut [[Closest; PACKET_WIDTH]; 2],
+    ) -> Option<u32> {
+        None
+    }
 }
 
 #[cfg(test)]
