@@ -70,7 +70,7 @@ fn same_origin(rays: &[Ray; PAIR_WIDTH]) -> bool {
 
 /// Traces sixteen rays into `closest` (`closest[h][i]` for ray `8 h + i`), overwritten; false
 /// (nothing traced) on a kernel whose occlusion packets keep one octant, for which the walk is
-/// not compiled.
+/// not compiled, or when ray `i`'s origin is not ray `8 + i`'s (bit for bit) for some `i`.
 fn trace_pair(
     tracer: &Tracer,
     rays: &[Ray; PAIR_WIDTH],
@@ -84,7 +84,7 @@ fn trace_pair(
         rays,
         closest,
     };
-    dispatch_mixed_occlusion(tracer.options().kernel, walk).is_some()
+    dispatch_mixed_occlusion(tracer.options().kernel, walk) == Some(true)
 }
 
 /// [`trace_pair`]'s walk, for the kernels to run.
@@ -95,23 +95,35 @@ struct PairWalk<'a, 't> {
 }
 
 impl Walk for PairWalk<'_, '_> {
-    type Output = ();
+    type Output = bool;
 
     #[inline(always)]
-    fn run<K: TraceKernel>(self) {
+    fn run<K: TraceKernel>(self) -> bool {
         let (first, second) = self.rays.split_at(PACKET_WIDTH);
         let mut prepared = [K::prepared_rays(first), K::prepared_rays(second)];
         let lanes = [
             K::lanes(first, &prepared[0]),
             K::lanes(second, &prepared[1]),
         ];
+        // The slot clips share the planes' differences from the origins.
+        if !same_origins(&lanes) {
+            return false;
+        }
         let walk = PairNodes {
             pair: &mut Pair::<K>::new(&lanes, self.closest),
             tracer: self.tracer,
             prepared: &mut prepared,
         };
-        walk_top_level(self.tracer.file(), walk)
+        walk_top_level(self.tracer.file(), walk);
+        true
     }
+}
+
+/// Whether lane `i` of both halves starts at the same point, bit for bit, for every `i`.
+#[inline(always)]
+fn same_origins(lanes: &[Lanes; 2]) -> bool {
+    let bits = |origin: &f32x8| bytemuck::cast::<f32x8, [u32; PACKET_WIDTH]>(*origin);
+    (0..3).all(|axis| bits(&lanes[0].origin[axis]) == bits(&lanes[1].origin[axis]))
 }
 
 /// [`PairWalk`]'s walk from the root, for [`walk_top_level`].
@@ -277,7 +289,15 @@ impl<'l, 'c, C: TraceKernel> Pair<'l, 'c, C> {
                     C::clip_slot_mixed(lanes, mixed, &planes, slot, self.limit[half])
                 }
             };
-            let ((near_0, far_0, mask_0), (near_1, far_1, mask_1)) = (clip(0), clip(1));
+            let both = (candidates[0] & candidates[1]) >> slot & 1 != 0;
+            let [(near_0, far_0, mask_0), (near_1, far_1, mask_1)] = match both {
+                true => {
+                    let lanes = [&self.lanes[0], &self.lanes[1]];
+                    let mixed = [&self.mixed[0], &self.mixed[1]];
+                    C::clip_slot_pair(lanes, mixed, &planes, slot, self.limit)
+                }
+                false => [clip(0), clip(1)],
+            };
             let mask = (mask_0 & halves[0]) | (mask_1 & halves[1]) << PACKET_WIDTH;
             if mask == 0 {
                 return;

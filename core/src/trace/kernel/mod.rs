@@ -359,6 +359,21 @@ pub(super) trait TraceKernel: query_kernel::QueryKernel {
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32);
 
+    /// [`TraceKernel::clip_slot_mixed`] of the two halves of a sixteen-ray packet (`mixed[1]`
+    /// taken against `lanes[0]`) whose halves' origins are equal lane for lane, so that a
+    /// kernel may share the work that depends on the origin alone.
+    #[inline(always)]
+    fn clip_slot_pair(
+        lanes: [&Lanes; 2],
+        mixed: [&Self::Mixed; 2],
+        planes: &Self::Planes,
+        slot: usize,
+        t_far: [f32x8; 2],
+    ) -> [(f32x8, f32x8, u32); 2] {
+        [0, 1]
+            .map(|half| Self::clip_slot_mixed(lanes[half], mixed[half], planes, slot, t_far[half]))
+    }
+
     /// `node`'s child boxes as [`WideNode::decode`] decodes them, in two groups of four.
     fn decode_wide(node: &WideNode) -> [ChildBoxes; 2];
 

@@ -179,6 +179,18 @@ impl TraceKernel for Avx2 {
     }
 
     #[inline(always)]
+    fn clip_slot_pair(
+        lanes: [&Lanes; 2],
+        mixed: [&packets::Avx2Mixed; 2],
+        planes: &packets::Avx2Planes,
+        slot: usize,
+        t_far: [f32x8; 2],
+    ) -> [(f32x8, f32x8, u32); 2] {
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
+        unsafe { packets::clip_slot_pair(lanes, mixed, planes, slot, t_far) }
+    }
+
+    #[inline(always)]
     fn decode_wide(node: &WideNode) -> [ChildBoxes; 2] {
         // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { wide_nodes::decode_wide(node) }
