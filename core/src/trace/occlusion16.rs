@@ -276,9 +276,10 @@ impl<'l, 'c, C: TraceKernel> Pair<'l, 'c, C> {
         let occupied = (1u32 << occupied) - 1;
         let planes = node.planes::<C>(decoder, &self.lanes[0]);
         let halves = [active & HALF_LANES, active >> PACKET_WIDTH];
+        let slots = C::mixed_slots_pair([&self.mixed[0], &self.mixed[1]], &planes);
         let candidates: [u32; 2] = std::array::from_fn(|half| match halves[half] {
             0 => 0,
-            _ => C::mixed_slots(&self.mixed[half], &planes) & occupied,
+            _ => slots[half] & occupied,
         });
         let mut first = None;
         for_each_bit(candidates[0] | candidates[1], |slot| {

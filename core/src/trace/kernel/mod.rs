@@ -349,6 +349,13 @@ pub(super) trait TraceKernel: query_kernel::QueryKernel {
     /// of the lanes.
     fn mixed_slots(mixed: &Self::Mixed, planes: &Self::Planes) -> u32;
 
+    /// [`TraceKernel::mixed_slots`] of the two halves of a sixteen-ray packet, `mixed[1]`
+    /// taken against the lanes of `mixed[0]` ([`TraceKernel::mixed_against`]).
+    #[inline(always)]
+    fn mixed_slots_pair(mixed: [&Self::Mixed; 2], planes: &Self::Planes) -> [u32; 2] {
+        mixed.map(|mixed| Self::mixed_slots(mixed, planes))
+    }
+
     /// [`TraceKernel::clip_slot`] with each lane's own entry and exit planes: lane 0's swapped
     /// on the axes where the lane's direction sign differs.
     fn clip_slot_mixed(

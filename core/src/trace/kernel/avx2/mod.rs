@@ -167,6 +167,12 @@ impl TraceKernel for Avx2 {
     }
 
     #[inline(always)]
+    fn mixed_slots_pair(mixed: [&packets::Avx2Mixed; 2], planes: &packets::Avx2Planes) -> [u32; 2] {
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
+        unsafe { packets::mixed_slots_pair(mixed, planes) }
+    }
+
+    #[inline(always)]
     fn clip_slot_mixed(
         lanes: &Lanes,
         mixed: &packets::Avx2Mixed,

@@ -438,6 +438,41 @@ pub(super) fn mixed_slots(mixed: &Avx2Mixed, planes: &Avx2Planes) -> u32 {
     !(_mm256_movemask_ps(missed) as u32) & 0xFF
 }
 
+/// `TraceKernel::mixed_slots_pair`: [`mixed_slots`] of both halves of a sixteen-ray packet,
+/// whose `negative` are both the first half's lane 0's: each slot's box picked back once.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+pub(super) fn mixed_slots_pair(mixed: [&Avx2Mixed; 2], planes: &Avx2Planes) -> [u32; 2] {
+    let boxes: [(__m256, __m256); 3] = std::array::from_fn(|axis| {
+        let negative = mixed[0].negative[axis];
+        (
+            _mm256_blendv_ps(planes.entry[axis], planes.exit[axis], negative),
+            _mm256_blendv_ps(planes.exit[axis], planes.entry[axis], negative),
+        )
+    });
+    [
+        slots_meeting(mixed[0], &boxes),
+        slots_meeting(mixed[1], &boxes),
+    ]
+}
+
+/// The slots whose box (per axis its minimum and maximum) meets the box of `mixed`'s
+/// segments, as [`mixed_slots`] finds them.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+fn slots_meeting(mixed: &Avx2Mixed, boxes: &[(__m256, __m256); 3]) -> u32 {
+    let Some((low, high)) = &mixed.segments else {
+        return 0xFF;
+    };
+    let mut missed = _mm256_setzero_ps();
+    for (axis, &(min, max)) in boxes.iter().enumerate() {
+        let below = _mm256_cmp_ps::<_CMP_LT_OQ>(max, low[axis]);
+        let above = _mm256_cmp_ps::<_CMP_GT_OQ>(min, high[axis]);
+        missed = _mm256_or_ps(missed, _mm256_or_ps(below, above));
+    }
+    !(_mm256_movemask_ps(missed) as u32) & 0xFF
+}
+
 /// `TraceKernel::plane_order_keys`: `order_keys`' operations in its order on eight lanes, each
 /// centre the sum of a slot's entry and exit planes.
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
