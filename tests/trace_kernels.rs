@@ -174,9 +174,10 @@ fn occlusion_groups(file: &ReducemFile, moved: Option<usize>) -> Vec<Ray> {
     rays
 }
 
-/// Occlusion packets of a hit point's sixteen rays (walked together where the two halves share
-/// their origin, as eight-ray packets where they do not) answer as single rays do, whatever
-/// the kernel.
+/// Occlusion packets of a hit point's sixteen rays (walked together where ray `i` shares its
+/// origin with ray `8 + i` for every `i`, as eight-ray packets where one does not) answer as
+/// single rays do, whatever the kernel; the sixteen walk tests short lossless strips for both
+/// halves in one pass.
 #[test]
 fn sixteen_ray_occlusion_packets_agree_with_single_rays() {
     for (kind, grid_bits) in [(Kind::ALL[0], None), (Kind::ALL[1], Some(16))] {
@@ -199,8 +200,9 @@ fn sixteen_ray_occlusion_packets_agree_with_single_rays() {
                 ..TraceOptions::default()
             },
         );
-        // Shared origins; one ray of the first half moved; the second half's first ray moved.
-        for moved in [None, Some(3), Some(8)] {
+        // Shared origins; one ray of the first half moved; the second half's first ray moved;
+        // another ray of the second half moved.
+        for moved in [None, Some(3), Some(8), Some(11)] {
             let rays = occlusion_groups(&file, moved);
             let expected = single.occluded_batch(&rays);
             let occluded = expected.iter().filter(|&&o| o).count();

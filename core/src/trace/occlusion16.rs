@@ -70,7 +70,7 @@ fn same_origin(rays: &[Ray; PAIR_WIDTH]) -> bool {
 
 /// Traces sixteen rays into `closest` (`closest[h][i]` for ray `8 h + i`), overwritten; false
 /// (nothing traced) on a kernel whose occlusion packets keep one octant, for which the walk is
-/// not compiled.
+/// not compiled, or when ray `i`'s origin is not ray `8 + i`'s (bit for bit) for some `i`.
 fn trace_pair(
     tracer: &Tracer,
     rays: &[Ray; PAIR_WIDTH],
@@ -84,7 +84,7 @@ fn trace_pair(
         rays,
         closest,
     };
-    dispatch_mixed_occlusion(tracer.options().kernel, walk).is_some()
+    dispatch_mixed_occlusion(tracer.options().kernel, walk) == Some(true)
 }
 
 /// [`trace_pair`]'s walk, for the kernels to run.
@@ -95,23 +95,35 @@ struct PairWalk<'a, 't> {
 }
 
 impl Walk for PairWalk<'_, '_> {
-    type Output = ();
+    type Output = bool;
 
     #[inline(always)]
-    fn run<K: TraceKernel>(self) {
+    fn run<K: TraceKernel>(self) -> bool {
         let (first, second) = self.rays.split_at(PACKET_WIDTH);
         let mut prepared = [K::prepared_rays(first), K::prepared_rays(second)];
         let lanes = [
             K::lanes(first, &prepared[0]),
             K::lanes(second, &prepared[1]),
         ];
+        // The slot clips share the planes' differences from the origins.
+        if !same_origins(&lanes) {
+            return false;
+        }
         let walk = PairNodes {
             pair: &mut Pair::<K>::new(&lanes, self.closest),
             tracer: self.tracer,
             prepared: &mut prepared,
         };
-        walk_top_level(self.tracer.file(), walk)
+        walk_top_level(self.tracer.file(), walk);
+        true
     }
+}
+
+/// Whether lane `i` of both halves starts at the same point, bit for bit, for every `i`.
+#[inline(always)]
+fn same_origins(lanes: &[Lanes; 2]) -> bool {
+    let bits = |origin: &f32x8| bytemuck::cast::<f32x8, [u32; PACKET_WIDTH]>(*origin);
+    (0..3).all(|axis| bits(&lanes[0].origin[axis]) == bits(&lanes[1].origin[axis]))
 }
 
 /// [`PairWalk`]'s walk from the root, for [`walk_top_level`].
@@ -264,9 +276,10 @@ impl<'l, 'c, C: TraceKernel> Pair<'l, 'c, C> {
         let occupied = (1u32 << occupied) - 1;
         let planes = node.planes::<C>(decoder, &self.lanes[0]);
         let halves = [active & HALF_LANES, active >> PACKET_WIDTH];
+        let slots = C::mixed_slots_pair([&self.mixed[0], &self.mixed[1]], &planes);
         let candidates: [u32; 2] = std::array::from_fn(|half| match halves[half] {
             0 => 0,
-            _ => C::mixed_slots(&self.mixed[half], &planes) & occupied,
+            _ => slots[half] & occupied,
         });
         let mut first = None;
         for_each_bit(candidates[0] | candidates[1], |slot| {
@@ -277,7 +290,15 @@ impl<'l, 'c, C: TraceKernel> Pair<'l, 'c, C> {
                     C::clip_slot_mixed(lanes, mixed, &planes, slot, self.limit[half])
                 }
             };
-            let ((near_0, far_0, mask_0), (near_1, far_1, mask_1)) = (clip(0), clip(1));
+            let both = (candidates[0] & candidates[1]) >> slot & 1 != 0;
+            let [(near_0, far_0, mask_0), (near_1, far_1, mask_1)] = match both {
+                true => {
+                    let lanes = [&self.lanes[0], &self.lanes[1]];
+                    let mixed = [&self.mixed[0], &self.mixed[1]];
+                    C::clip_slot_pair(lanes, mixed, &planes, slot, self.limit)
+                }
+                false => [clip(0), clip(1)],
+            };
             let mask = (mask_0 & halves[0]) | (mask_1 & halves[1]) << PACKET_WIDTH;
             if mask == 0 {
                 return;
@@ -351,22 +372,38 @@ impl<'l, 'c, C: TraceKernel> Pair<'l, 'c, C> {
                 index: strip,
                 leaf_windows: tracer.file().leaf_windows(),
             };
-            for half in 0..2 {
-                let reaching = LeafLanes {
-                    active: active >> (PACKET_WIDTH * half) & HALF_LANES,
-                    t_near: &t_near[half],
-                    t_far: &t_far[half],
-                };
+            let reaching: [LeafLanes; 2] = std::array::from_fn(|half| LeafLanes {
+                active: active >> (PACKET_WIDTH * half) & HALF_LANES,
+                t_near: &t_near[half],
+                t_far: &t_far[half],
+            });
+            // Both halves in one pass where each has lanes enough for a pass of its own.
+            let paired = reaching.iter().all(|leaf| !at_most_one(leaf.active));
+            let together = [&self.together[0], &self.together[1]];
+            let pair = (together, [&self.lanes[0], &self.lanes[1]]);
+            let leaves = [&reaching[0], &reaching[1]];
+            if let Some(done) = paired
+                .then(|| C::trace_strip_pair(pair.0, pair.1, &offered, leaves, self.closest))
+                .flatten()
+            {
+                finished |= done;
+                active &= !finished;
+                if active == 0 {
+                    break;
+                }
+                continue;
+            }
+            for (half, reaching) in reaching.iter().enumerate() {
                 if reaching.active == 0 {
                     continue;
                 }
                 let (lanes, closest) = (&self.lanes[half], &mut self.closest[half]);
                 let together = &self.together[half];
                 let tested =
-                    C::trace_strip_together(together, lanes, &offered, &reaching, true, closest);
+                    C::trace_strip_together(together, lanes, &offered, reaching, true, closest);
                 let done = tested.unwrap_or_else(|| {
                     let packet = (tracer, lanes, &mut prepared[half]);
-                    trace_strip_lanes::<C, _, true>(packet, &offered, &reaching, closest)
+                    trace_strip_lanes::<C, _, true>(packet, &offered, reaching, closest)
                 });
                 finished |= done << (PACKET_WIDTH * half);
             }

@@ -349,6 +349,13 @@ pub(super) trait TraceKernel: query_kernel::QueryKernel {
     /// of the lanes.
     fn mixed_slots(mixed: &Self::Mixed, planes: &Self::Planes) -> u32;
 
+    /// [`TraceKernel::mixed_slots`] of the two halves of a sixteen-ray packet, `mixed[1]`
+    /// taken against the lanes of `mixed[0]` ([`TraceKernel::mixed_against`]).
+    #[inline(always)]
+    fn mixed_slots_pair(mixed: [&Self::Mixed; 2], planes: &Self::Planes) -> [u32; 2] {
+        mixed.map(|mixed| Self::mixed_slots(mixed, planes))
+    }
+
     /// [`TraceKernel::clip_slot`] with each lane's own entry and exit planes: lane 0's swapped
     /// on the axes where the lane's direction sign differs.
     fn clip_slot_mixed(
@@ -358,6 +365,21 @@ pub(super) trait TraceKernel: query_kernel::QueryKernel {
         slot: usize,
         t_far: f32x8,
     ) -> (f32x8, f32x8, u32);
+
+    /// [`TraceKernel::clip_slot_mixed`] of the two halves of a sixteen-ray packet (`mixed[1]`
+    /// taken against `lanes[0]`) whose halves' origins are equal lane for lane, so that a
+    /// kernel may share the work that depends on the origin alone.
+    #[inline(always)]
+    fn clip_slot_pair(
+        lanes: [&Lanes; 2],
+        mixed: [&Self::Mixed; 2],
+        planes: &Self::Planes,
+        slot: usize,
+        t_far: [f32x8; 2],
+    ) -> [(f32x8, f32x8, u32); 2] {
+        [0, 1]
+            .map(|half| Self::clip_slot_mixed(lanes[half], mixed[half], planes, slot, t_far[half]))
+    }
 
     /// `node`'s child boxes as [`WideNode::decode`] decodes them, in two groups of four.
     fn decode_wide(node: &WideNode) -> [ChildBoxes; 2];
@@ -400,6 +422,20 @@ pub(super) trait TraceKernel: query_kernel::QueryKernel {
         any_hit: bool,
         closest: &mut [Closest; PACKET_WIDTH],
     ) -> Option<u32>;
+
+    /// [`TraceKernel::trace_strip_together`] for the two halves of a sixteen-ray occlusion
+    /// packet (`leaves[h]` the active lanes of half `h`) in one pass, or `None` to leave the
+    /// strip to each half's own test; returns the lanes that found an occluder (bit `8 h + i`
+    /// for lane `i` of half `h`). Kernels whose occlusion packets keep one octant never run it.
+    fn trace_strip_pair(
+        _together: [&Self::Together; 2],
+        _lanes: [&Lanes; 2],
+        _strip: &LeafStrip,
+        _leaves: [&LeafLanes; 2],
+        _closest: &mut [[Closest; PACKET_WIDTH]; 2],
+    ) -> Option<u32> {
+        None
+    }
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! The AVX2 kernel (x86-64 with AVX2, BMI2, POPCNT and BMI1): strip blocks ([`blocks`]), the packets' box
 //! tests ([`packets`]), short strips tested for all of a packet's rays at once
-//! ([`packet_strips`]), the packet's rays prepared in registers ([`setup`]), a ray against all
+//! ([`packet_strips`]) and for both halves of a sixteen-ray occlusion packet
+//! ([`pair_strips`]), the packet's rays prepared in registers ([`setup`]), a ray against all
 //! eight children of a format 4 node ([`wide_nodes`]), and what they share ([`simd`]).
 //!
 //! `wide` picks its instructions when the crate is compiled, so it stays SSE2 inside a function
@@ -16,6 +17,7 @@
 mod blocks;
 mod packet_strips;
 mod packets;
+mod pair_strips;
 mod setup;
 mod simd;
 mod strip_alone;
@@ -165,6 +167,12 @@ impl TraceKernel for Avx2 {
     }
 
     #[inline(always)]
+    fn mixed_slots_pair(mixed: [&packets::Avx2Mixed; 2], planes: &packets::Avx2Planes) -> [u32; 2] {
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
+        unsafe { packets::mixed_slots_pair(mixed, planes) }
+    }
+
+    #[inline(always)]
     fn clip_slot_mixed(
         lanes: &Lanes,
         mixed: &packets::Avx2Mixed,
@@ -174,6 +182,18 @@ impl TraceKernel for Avx2 {
     ) -> (f32x8, f32x8, u32) {
         // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packets::clip_slot_mixed(lanes, mixed, planes, slot, t_far) }
+    }
+
+    #[inline(always)]
+    fn clip_slot_pair(
+        lanes: [&Lanes; 2],
+        mixed: [&packets::Avx2Mixed; 2],
+        planes: &packets::Avx2Planes,
+        slot: usize,
+        t_far: [f32x8; 2],
+    ) -> [(f32x8, f32x8, u32); 2] {
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
+        unsafe { packets::clip_slot_pair(lanes, mixed, planes, slot, t_far) }
     }
 
     #[inline(always)]
@@ -249,5 +269,17 @@ impl TraceKernel for Avx2 {
         let packet = (together, lanes);
         // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
         unsafe { packet_strips::trace_strip_together(packet, strip, leaf, any_hit, closest) }
+    }
+
+    #[inline(always)]
+    fn trace_strip_pair(
+        together: [&packet_strips::LaneSpaces; 2],
+        lanes: [&Lanes; 2],
+        strip: &LeafStrip,
+        leaves: [&LeafLanes; 2],
+        closest: &mut [[Closest; PACKET_WIDTH]; 2],
+    ) -> Option<u32> {
+        // SAFETY: as in `compiled`: the kernel's features were detected before this runs.
+        unsafe { pair_strips::trace_strip_pair((together, lanes), strip, leaves, closest) }
     }
 }

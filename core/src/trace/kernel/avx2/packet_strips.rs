@@ -63,7 +63,7 @@ pub(in crate::trace) struct LaneSpaces {
     tmin: __m256,
     /// Per model axis all ones in the lanes whose direction sign is not lane 0's (occlusion
     /// packets may mix signs): their entry and exit planes are lane 0's swapped.
-    flip: [__m256; 3],
+    pub(super) flip: [__m256; 3],
 }
 
 impl LaneSpaces {
@@ -124,7 +124,7 @@ impl LaneSpaces {
     /// may be read from memory when the window loop runs out of registers.
     #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
-    fn transform(&self, position: __m128) -> [__m256; 3] {
+    pub(super) fn transform(&self, position: __m128) -> [__m256; 3] {
         let both = _mm256_set_m128(position, position);
         let a = [0, 1, 2].map(|role| {
             _mm256_sub_ps(
@@ -220,7 +220,7 @@ pub(super) fn trace_strip_together(
 /// most two for closest hits, where each strip view of a camera packet serves few lanes; one
 /// for occlusion, whose strips serve more. Bits cleared (`blsr`) rather than counted.
 #[inline(always)]
-fn few_lanes(active: u32, any_hit: bool) -> bool {
+pub(super) fn few_lanes(active: u32, any_hit: bool) -> bool {
     let past_one = active & active.wrapping_sub(1);
     if any_hit {
         past_one == 0
@@ -241,7 +241,7 @@ pub(super) struct EnteredBlocks {
 }
 
 /// Most blocks of a strip tested for all lanes at once.
-const MAX_BLOCKS: usize = MAX_WINDOWS.div_ceil(BLOCK);
+pub(super) const MAX_BLOCKS: usize = MAX_WINDOWS.div_ceil(BLOCK);
 
 /// [`EnteredBlocks`] of the strip for the `active` lanes: each block box clipped for every
 /// lane with `BoxTest`'s decisions (its planes decoded as `block_boxes::decode_plane` does,
@@ -320,14 +320,14 @@ fn entered_blocks<const ANY_HIT: bool>(
 
 /// Lanes of [`BoxDecoder::planes`] before the exit planes: the entry planes of x, y, z, then
 /// a spare lane.
-const ENTRY_LANES: usize = 4;
+pub(super) const ENTRY_LANES: usize = 4;
 
 /// Decodes a block box's six planes in one pass: per lane a code picked from the box's bytes
 /// (the entry plane's nibble in lanes 0..3, the exit plane's in 4..7, by the packet's
 /// direction signs), then `block_boxes::decode_plane`'s operations in its order (the code less
 /// the bias, converted exactly, times the scale, added to the anchor; never fused), so every
 /// plane has the scalar decoding's bits.
-struct BoxDecoder {
+pub(super) struct BoxDecoder {
     /// Per lane the shift that brings its nibble down: 0 for a minimum's code, 4 for a
     /// maximum's.
     shift: __m256i,
@@ -340,7 +340,7 @@ impl BoxDecoder {
     /// `negative` (their entry plane is the maximum there).
     #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
-    fn new(frame: &BoxFrame, negative: [bool; 3]) -> BoxDecoder {
+    pub(super) fn new(frame: &BoxFrame, negative: [bool; 3]) -> BoxDecoder {
         let entry_shift = negative.map(|negative| if negative { 4 } else { 0 });
         let [ex, ey, ez] = entry_shift;
         let [sx, sy, sz] = frame.scale;
@@ -356,7 +356,7 @@ impl BoxDecoder {
     /// `codes`; the spare lanes hold 0.
     #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
     #[inline]
-    fn planes(&self, [x, y, z]: [u8; BOX_BYTES]) -> __m256 {
+    pub(super) fn planes(&self, [x, y, z]: [u8; BOX_BYTES]) -> __m256 {
         // The three bytes in lanes 0..3 and again in 4..7, a zero byte after each triple.
         let bytes = _mm_set1_epi32(i32::from_le_bytes([x, y, z, 0]));
         let codes = _mm256_and_si256(
@@ -426,7 +426,7 @@ fn trace_strip(
             if candidates != 0 && is_real(&references[k..k + 3]) {
                 let corners = [0, 1, 2].map(|c| references[k + c]);
                 let hit = (candidates, first + k, points, corners);
-                let done = resolve_lanes(spaces, &weights, hit, &mut lanes);
+                let done = resolve_lanes::<0>(spaces, &weights, hit, &mut lanes);
                 finished |= done;
                 lanes.active &= !done;
                 testing &= !done;
@@ -443,10 +443,12 @@ fn trace_strip(
 }
 
 /// Finishes window `window`'s candidate lanes one by one with [`resolve`], as the lane-by-lane
-/// walk does; returns the lanes done (a hit found with `any_hit`).
+/// walk does; returns the lanes done (a hit found with `any_hit`). `SITE` separates the
+/// instantiations of its callers (this module's and `super::pair_strips`'), so that each has
+/// one caller and is inlined.
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
-fn resolve_lanes(
+pub(super) fn resolve_lanes<const SITE: usize>(
     spaces: &LaneSpaces,
     weights: &[__m256; 3],
     (candidates, window, points, references): (u32, usize, &[[f32; 3]], [u8; 3]),
@@ -492,7 +494,7 @@ fn resolve_lanes(
 
 /// Whether a window's three references name three vertices (not a swap).
 #[inline(always)]
-fn is_real(corners: &[u8]) -> bool {
+pub(super) fn is_real(corners: &[u8]) -> bool {
     corners[0] != corners[1] && corners[1] != corners[2] && corners[0] != corners[2]
 }
 

@@ -51,6 +51,66 @@ pub(super) fn clip_slot_mixed(
     clip_lanes(lanes, &swapped, t_far)
 }
 
+/// `TraceKernel::clip_slot_pair`: [`clip_slot_mixed`] for both halves of a sixteen-ray
+/// packet whose halves' origins are equal lane for lane, each plane's difference from the
+/// origin computed once for both halves. The difference is taken before the flips' blends:
+/// a blend only picks per lane, so each lane subtracts its origin from the plane it clips by,
+/// as after the blend.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+pub(super) fn clip_slot_pair(
+    lanes: [&Lanes; 2],
+    mixed: [&Avx2Mixed; 2],
+    planes: &Avx2Planes,
+    slot: usize,
+    t_far: [f32x8; 2],
+) -> [(f32x8, f32x8, u32); 2] {
+    let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
+    let picked = slot_planes(planes, slot);
+    let mut differences = picked;
+    for (axis, (entry, exit)) in differences.iter_mut().enumerate() {
+        let origin = wide(lanes[0].origin[axis]);
+        (*entry, *exit) = (_mm256_sub_ps(*entry, origin), _mm256_sub_ps(*exit, origin));
+    }
+    [
+        clip_differences(lanes[0], mixed[0], &differences, t_far[0]),
+        clip_differences(lanes[1], mixed[1], &differences, t_far[1]),
+    ]
+}
+
+/// [`clip_lanes`] from the planes' differences from the lanes' origins, each lane's entry and
+/// exit swapped by its flips. Kept apart from `clip_lanes` so that the eight-lane walk's code
+/// is not reordered.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+fn clip_differences(
+    lanes: &Lanes,
+    mixed: &Avx2Mixed,
+    differences: &[(__m256, __m256); 3],
+    t_far: f32x8,
+) -> (f32x8, f32x8, u32) {
+    let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
+    let inflation = _mm256_set1_ps(FAR_INFLATION);
+    let mut near = wide(lanes.tmin);
+    let mut far = wide(t_far);
+    for (axis, &(entry, exit)) in differences.iter().enumerate() {
+        let flip = mixed.flip[axis];
+        let (entry, exit) = (
+            _mm256_blendv_ps(entry, exit, flip),
+            _mm256_blendv_ps(exit, entry, flip),
+        );
+        let entry = _mm256_mul_ps(entry, wide(lanes.entry_reciprocal[axis]));
+        let exit = _mm256_mul_ps(
+            _mm256_mul_ps(exit, wide(lanes.exit_reciprocal[axis])),
+            inflation,
+        );
+        near = _mm256_max_ps(entry, near);
+        far = _mm256_min_ps(exit, far);
+    }
+    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+    (bytemuck::cast(near), bytemuck::cast(far), mask)
+}
+
 /// Slot `slot`'s entry and exit planes per axis, in every lane.
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
@@ -371,6 +431,41 @@ pub(super) fn mixed_slots(mixed: &Avx2Mixed, planes: &Avx2Planes) -> u32 {
         let negative = mixed.negative[axis];
         let min = _mm256_blendv_ps(planes.entry[axis], planes.exit[axis], negative);
         let max = _mm256_blendv_ps(planes.exit[axis], planes.entry[axis], negative);
+        let below = _mm256_cmp_ps::<_CMP_LT_OQ>(max, low[axis]);
+        let above = _mm256_cmp_ps::<_CMP_GT_OQ>(min, high[axis]);
+        missed = _mm256_or_ps(missed, _mm256_or_ps(below, above));
+    }
+    !(_mm256_movemask_ps(missed) as u32) & 0xFF
+}
+
+/// `TraceKernel::mixed_slots_pair`: [`mixed_slots`] of both halves of a sixteen-ray packet,
+/// whose `negative` are both the first half's lane 0's: each slot's box picked back once.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+pub(super) fn mixed_slots_pair(mixed: [&Avx2Mixed; 2], planes: &Avx2Planes) -> [u32; 2] {
+    let boxes: [(__m256, __m256); 3] = std::array::from_fn(|axis| {
+        let negative = mixed[0].negative[axis];
+        (
+            _mm256_blendv_ps(planes.entry[axis], planes.exit[axis], negative),
+            _mm256_blendv_ps(planes.exit[axis], planes.entry[axis], negative),
+        )
+    });
+    [
+        slots_meeting(mixed[0], &boxes),
+        slots_meeting(mixed[1], &boxes),
+    ]
+}
+
+/// The slots whose box (per axis its minimum and maximum) meets the box of `mixed`'s
+/// segments, as [`mixed_slots`] finds them.
+#[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+#[inline]
+fn slots_meeting(mixed: &Avx2Mixed, boxes: &[(__m256, __m256); 3]) -> u32 {
+    let Some((low, high)) = &mixed.segments else {
+        return 0xFF;
+    };
+    let mut missed = _mm256_setzero_ps();
+    for (axis, &(min, max)) in boxes.iter().enumerate() {
         let below = _mm256_cmp_ps::<_CMP_LT_OQ>(max, low[axis]);
         let above = _mm256_cmp_ps::<_CMP_GT_OQ>(min, high[axis]);
         missed = _mm256_or_ps(missed, _mm256_or_ps(below, above));
