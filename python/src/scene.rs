@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use rayon::ThreadPool;
 use reducem_core::format::reader::ReducemFile;
 use reducem_core::query::occupancy::inside_rays;
-use reducem_core::trace::{surface_attributes, Kernel, TraceOptions, Tracer};
+use reducem_core::trace::{surface_attributes, Hit, Kernel, TraceOptions, Tracer};
 
 use crate::answers::{AnswerArrays, AnswerBuffers, Answers};
 use crate::crossings;
@@ -550,15 +550,23 @@ impl Scene {
                     first_invalid.fetch_min(invalid, Ordering::Relaxed);
                     return;
                 }
-                tracer.intersect_each(&traced.rays, |k, hit| {
-                    let id = hit.map_or(NO_PRIMITIVE, |hit| {
-                        ids.id(&self.file, hit.strip, hit.window)
-                    });
-                    let read = hit
-                        .filter(|_| attributes.per_vertex())
-                        .map(|hit| surface_attributes(&self.file, &hit));
-                    out.write(traced.places[k] as usize, hit.as_ref(), id, read);
-                });
+                let answer = |k: usize, hit: Option<Hit>| {
+                    let place = traced.places[k] as usize;
+                    let Some(hit) = hit else {
+                        return out.write_miss(place);
+                    };
+                    let id = ids.id(&self.file, hit.strip, hit.window);
+                    let read = attributes
+                        .per_vertex()
+                        .then(|| surface_attributes(&self.file, &hit));
+                    out.write_hit(place, &hit, id, read);
+                };
+                match order {
+                    ChunkOrder::Image { .. } => {
+                        tracer.intersect_each_in_order(&traced.rays, answer)
+                    }
+                    ChunkOrder::Input => tracer.intersect_each(&traced.rays, answer),
+                }
             });
         check_valid(first_invalid)
     }
