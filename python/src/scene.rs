@@ -538,7 +538,6 @@ impl Scene {
     ) -> Result<(), usize> {
         let tracer = Tracer::new(&self.file, trace_options(kernel));
         let ids = self.primitive_ids();
-        let attributes = self.file.attributes();
         let chunk_rays = order.chunk_rays();
         let first_invalid = AtomicUsize::new(usize::MAX);
         out.chunks(chunk_rays)
@@ -552,14 +551,10 @@ impl Scene {
                 }
                 let answer = |k: usize, hit: Option<Hit>| {
                     let place = traced.places[k] as usize;
-                    let Some(hit) = hit else {
-                        return out.write_miss(place);
-                    };
-                    let id = ids.id(&self.file, hit.strip, hit.window);
-                    let read = attributes
-                        .per_vertex()
-                        .then(|| surface_attributes(&self.file, &hit));
-                    out.write_hit(place, &hit, id, read);
+                    match hit {
+                        Some(hit) => self.write_hit(&mut out, place, &hit, ids),
+                        None => out.write_miss(place),
+                    }
                 };
                 match order {
                     ChunkOrder::Image { .. } => {
@@ -569,6 +564,20 @@ impl Scene {
                 }
             });
         check_valid(first_invalid)
+    }
+
+    /// Writes `hit`, named and with its attributes read, as ray `place`'s answer in `out`. Out
+    /// of line, so that the per-ray closure that calls it, a miss written inline, stays small
+    /// enough to be inlined into the tracing loop.
+    #[inline(never)]
+    fn write_hit(&self, out: &mut Answers, place: usize, hit: &Hit, ids: &PrimitiveIds) {
+        let id = ids.id(&self.file, hit.strip, hit.window);
+        let read = self
+            .file
+            .attributes()
+            .per_vertex()
+            .then(|| surface_attributes(&self.file, hit));
+        out.write_hit(place, hit, id, read);
     }
 
     /// Whether each of `rays` (leading shape `shape`) is occluded, or the index of the first
