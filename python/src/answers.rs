@@ -235,10 +235,19 @@ impl AnswerBuffers {
 }
 
 impl Answers<'_> {
+    /// Every element of every ray's answer written as a miss, before the hits are written over
+    /// them: a fill of each array, cheaper than a miss written ray by ray in the tracing loop.
+    pub fn fill_misses(&mut self) {
+        self.t.fill(f32::INFINITY);
+        self.ids.fill(NO_PRIMITIVE);
+        self.geometry_ids.fill(NO_PRIMITIVE);
+        self.uvs.fill(0.0);
+        self.normals.fill(0.0);
+        self.shading_normals.fill(0.0);
+        self.colors.fill(0);
+    }
+
     /// Writes every element of ray `k`'s answer as a miss: `t` inf, ids 4294967295, zeros.
-    /// Inlined into the tracing loop, as [`Answers::write_hit`], so that an answer is stored
-    /// where it is found rather than handed on through a call per ray.
-    #[inline(always)]
     pub fn write_miss(&mut self, k: usize) {
         self.t[k] = f32::INFINITY;
         self.ids[k] = NO_PRIMITIVE;
@@ -255,7 +264,6 @@ impl Answers<'_> {
 
     /// Writes every element of ray `k`'s answer: `hit` named `id`, with its attributes `read`
     /// (when the file has per-vertex ones).
-    #[inline(always)]
     pub fn write_hit(&mut self, k: usize, hit: &Hit, id: u32, read: Option<HitAttributes>) {
         self.t[k] = hit.t;
         self.ids[k] = id;

@@ -549,11 +549,10 @@ impl Scene {
                     first_invalid.fetch_min(invalid, Ordering::Relaxed);
                     return;
                 }
+                out.fill_misses();
                 let answer = |k: usize, hit: Option<Hit>| {
-                    let place = traced.places[k] as usize;
-                    match hit {
-                        Some(hit) => self.write_hit(&mut out, place, &hit, ids),
-                        None => out.write_miss(place),
+                    if let Some(hit) = hit {
+                        self.write_hit(&mut out, traced.places[k] as usize, &hit, ids);
                     }
                 };
                 match order {
@@ -566,9 +565,9 @@ impl Scene {
         check_valid(first_invalid)
     }
 
-    /// Writes `hit`, named and with its attributes read, as ray `place`'s answer in `out`. Out
-    /// of line, so that the per-ray closure that calls it, a miss written inline, stays small
-    /// enough to be inlined into the tracing loop.
+    /// Writes `hit`, named and with its attributes read, as ray `place`'s answer in `out` (whose
+    /// rays are misses until then). Out of line, so that the per-ray closure that calls it
+    /// stays small enough to be inlined into the tracing loop.
     #[inline(never)]
     fn write_hit(&self, out: &mut Answers, place: usize, hit: &Hit, ids: &PrimitiveIds) {
         let id = ids.id(&self.file, hit.strip, hit.window);
