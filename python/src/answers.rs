@@ -188,7 +188,7 @@ impl Answers<'_> {
             .for_each(|(mut out, sources)| {
                 for (k, &from) in sources.iter().enumerate() {
                     match from {
-                        usize::MAX => out.write(k, None, NO_PRIMITIVE, None),
+                        usize::MAX => out.write_miss(k),
                         from => out.copy(k, traced, from),
                     }
                 }
@@ -235,23 +235,36 @@ impl AnswerBuffers {
 }
 
 impl Answers<'_> {
-    /// Writes every element of ray `k`'s answer: `hit` named `id` with its attributes `read`
-    /// (when the file has per-vertex ones), or a miss (`t` inf, ids 4294967295, zeros).
-    pub fn write(&mut self, k: usize, hit: Option<&Hit>, id: u32, read: Option<HitAttributes>) {
-        let Some(hit) = hit else {
-            self.t[k] = f32::INFINITY;
-            self.ids[k] = NO_PRIMITIVE;
-            self.geometry_ids[k] = NO_PRIMITIVE;
-            self.uvs[2 * k..2 * k + 2].fill(0.0);
-            self.normals[3 * k..3 * k + 3].fill(0.0);
-            if !self.shading_normals.is_empty() {
-                self.shading_normals[3 * k..3 * k + 3].fill(0.0);
-            }
-            if !self.colors.is_empty() {
-                self.colors[4 * k..4 * k + 4].fill(0);
-            }
-            return;
-        };
+    /// Every element of every ray's answer written as a miss, before the hits are written over
+    /// them: a fill of each array, cheaper than a miss written ray by ray in the tracing loop.
+    pub fn fill_misses(&mut self) {
+        self.t.fill(f32::INFINITY);
+        self.ids.fill(NO_PRIMITIVE);
+        self.geometry_ids.fill(NO_PRIMITIVE);
+        self.uvs.fill(0.0);
+        self.normals.fill(0.0);
+        self.shading_normals.fill(0.0);
+        self.colors.fill(0);
+    }
+
+    /// Writes every element of ray `k`'s answer as a miss: `t` inf, ids 4294967295, zeros.
+    pub fn write_miss(&mut self, k: usize) {
+        self.t[k] = f32::INFINITY;
+        self.ids[k] = NO_PRIMITIVE;
+        self.geometry_ids[k] = NO_PRIMITIVE;
+        self.uvs[2 * k..2 * k + 2].fill(0.0);
+        self.normals[3 * k..3 * k + 3].fill(0.0);
+        if !self.shading_normals.is_empty() {
+            self.shading_normals[3 * k..3 * k + 3].fill(0.0);
+        }
+        if !self.colors.is_empty() {
+            self.colors[4 * k..4 * k + 4].fill(0);
+        }
+    }
+
+    /// Writes every element of ray `k`'s answer: `hit` named `id`, with its attributes `read`
+    /// (when the file has per-vertex ones).
+    pub fn write_hit(&mut self, k: usize, hit: &Hit, id: u32, read: Option<HitAttributes>) {
         self.t[k] = hit.t;
         self.ids[k] = id;
         self.geometry_ids[k] = 0;

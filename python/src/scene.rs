@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use rayon::ThreadPool;
 use reducem_core::format::reader::ReducemFile;
 use reducem_core::query::occupancy::inside_rays;
-use reducem_core::trace::{surface_attributes, Kernel, TraceOptions, Tracer};
+use reducem_core::trace::{surface_attributes, Hit, Kernel, TraceOptions, Tracer};
 
 use crate::answers::{AnswerArrays, AnswerBuffers, Answers};
 use crate::crossings;
@@ -538,7 +538,6 @@ impl Scene {
     ) -> Result<(), usize> {
         let tracer = Tracer::new(&self.file, trace_options(kernel));
         let ids = self.primitive_ids();
-        let attributes = self.file.attributes();
         let chunk_rays = order.chunk_rays();
         let first_invalid = AtomicUsize::new(usize::MAX);
         out.chunks(chunk_rays)
@@ -550,17 +549,34 @@ impl Scene {
                     first_invalid.fetch_min(invalid, Ordering::Relaxed);
                     return;
                 }
-                tracer.intersect_each(&traced.rays, |k, hit| {
-                    let id = hit.map_or(NO_PRIMITIVE, |hit| {
-                        ids.id(&self.file, hit.strip, hit.window)
-                    });
-                    let read = hit
-                        .filter(|_| attributes.per_vertex())
-                        .map(|hit| surface_attributes(&self.file, &hit));
-                    out.write(traced.places[k] as usize, hit.as_ref(), id, read);
-                });
+                out.fill_misses();
+                let answer = |k: usize, hit: Option<Hit>| {
+                    if let Some(hit) = hit {
+                        self.write_hit(&mut out, traced.places[k] as usize, &hit, ids);
+                    }
+                };
+                match order {
+                    ChunkOrder::Image { .. } => {
+                        tracer.intersect_each_in_order(&traced.rays, answer)
+                    }
+                    ChunkOrder::Input => tracer.intersect_each(&traced.rays, answer),
+                }
             });
         check_valid(first_invalid)
+    }
+
+    /// Writes `hit`, named and with its attributes read, as ray `place`'s answer in `out` (whose
+    /// rays are misses until then). Out of line, so that the per-ray closure that calls it
+    /// stays small enough to be inlined into the tracing loop.
+    #[inline(never)]
+    fn write_hit(&self, out: &mut Answers, place: usize, hit: &Hit, ids: &PrimitiveIds) {
+        let id = ids.id(&self.file, hit.strip, hit.window);
+        let read = self
+            .file
+            .attributes()
+            .per_vertex()
+            .then(|| surface_attributes(&self.file, hit));
+        out.write_hit(place, hit, id, read);
     }
 
     /// Whether each of `rays` (leading shape `shape`) is occluded, or the index of the first

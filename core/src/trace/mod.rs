@@ -168,6 +168,18 @@ impl<'f> Tracer<'f> {
         });
     }
 
+    /// [`Tracer::intersect_each`] for rays that come in runs of one octant as long as a packet
+    /// (a camera's rays in tile order): cut into packets in their order without counting the
+    /// runs first. Any rays give the same answers; others only cost more.
+    pub fn intersect_each_in_order(&self, rays: &[Ray], mut each: impl FnMut(usize, Option<Hit>)) {
+        if !self.options.packets {
+            return self.intersect_each(rays, each);
+        }
+        self.trace_packets(rays, None, false, |index, closest| {
+            each(index, self.finish(closest))
+        });
+    }
+
     /// [`Tracer::occluded`] over consecutive rays on the calling thread.
     pub fn occluded_chunk(&self, rays: &[Ray]) -> Vec<bool> {
         if !self.options.packets {
@@ -185,19 +197,25 @@ impl<'f> Tracer<'f> {
     /// into packets in their order; others (a hit point's ambient-occlusion rays, spread over a
     /// hemisphere) are first grouped by octant, stably, so that they still form packets. The
     /// answers are those of single rays (packets are bit-identical to them) whatever the grouping.
-    fn trace_by_octant(
-        &self,
-        rays: &[Ray],
-        any_hit: bool,
-        mut answer: impl FnMut(usize, &Closest),
-    ) {
+    fn trace_by_octant(&self, rays: &[Ray], any_hit: bool, answer: impl FnMut(usize, &Closest)) {
         // Occlusion packets of a kernel that mixes direction signs take the rays in their order:
         // a hit point's sixteen ambient-occlusion rays share their origin, where a packet of
         // one octant holds the rays of two or three hit points.
         if any_hit && self.options.kernel.mixes_occlusion_signs() {
             return occlusion16::trace_occlusion(self, rays, answer);
         }
-        let order = octant_order(rays);
+        self.trace_packets(rays, octant_order(rays), any_hit, answer);
+    }
+
+    /// Traces `rays` as packets of eight in `order` (indices into `rays`; theirs when `None`),
+    /// and gives ray `i`'s result to `answer(i, closest)`.
+    fn trace_packets(
+        &self,
+        rays: &[Ray],
+        order: Option<Vec<u32>>,
+        any_hit: bool,
+        mut answer: impl FnMut(usize, &Closest),
+    ) {
         let ray_at = |k: usize| order.as_ref().map_or(k, |order| order[k] as usize);
         let mut gathered = ArrayVec::<Ray, { PACKET_WIDTH }>::new();
         let mut found = [Closest::none(f32::NEG_INFINITY); PACKET_WIDTH];
