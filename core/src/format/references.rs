@@ -507,6 +507,15 @@ mod tests {
         }
     }
 
+    /// `references` packed for `vertices`, then `after` (other data past the area), and the
+    /// area's length.
+    fn packed_then(references: &[u8], vertices: usize, after: &[u8]) -> (Vec<u8>, usize) {
+        let mut bytes = pack(references, vertices);
+        let stored = bytes.len();
+        bytes.extend_from_slice(after);
+        (bytes, stored)
+    }
+
     /// The word-parallel search finds the same reference as a scan, and the range check
     /// decides as it, for every width, limit and position, in packed and byte areas, with
     /// other data after the references.
@@ -519,9 +528,7 @@ mod tests {
                 let references: Vec<u8> = (0..count)
                     .map(|k| ((k * 7919 + vertices * 31) % vertices) as u8)
                     .collect();
-                let mut bytes = pack(&references, vertices);
-                let stored = bytes.len();
-                bytes.extend([0xff; 5]);
+                let (bytes, stored) = packed_then(&references, vertices, &[0xff; 5]);
                 let packed = References::packed_before(&bytes, stored, count, vertices);
                 let unpacked = References::bytes(&references);
                 for limit in 1..=vertices {
@@ -561,9 +568,7 @@ mod tests {
                         (value as usize % vertices) as u8
                     })
                     .collect();
-                let mut bytes = pack(&references, vertices);
-                let stored = bytes.len();
-                bytes.extend([0xff; 5]);
+                let (bytes, stored) = packed_then(&references, vertices, &[0xff; 5]);
                 let packed = References::packed_before(&bytes, stored, count, vertices);
                 let unpacked = References::bytes(&references);
                 for windows in 0..=count - 2 {
@@ -587,9 +592,7 @@ mod tests {
             let references: Vec<u8> = (0..count)
                 .map(|k| ((k * 7919 + vertices * 13) % vertices) as u8)
                 .collect();
-            let mut bytes = pack(&references, vertices);
-            let stored = bytes.len();
-            bytes.extend([0xa5; 6]);
+            let (bytes, stored) = packed_then(&references, vertices, &[0xa5; 6]);
             let view = References::packed_before(&bytes, stored, count, vertices);
             for first in 0..count {
                 for length in 0..=count - first {

@@ -34,8 +34,8 @@ const PAIR_WIDTH: usize = 2 * PACKET_WIDTH;
 const HALF_LANES: u32 = (1 << PACKET_WIDTH) - 1;
 
 /// Traces `rays` for occlusion and gives ray `i`'s result to `answer(i, closest)`: sixteen
-/// rays together where ray `8 k`'s origin is ray `8 k + 8`'s (bit for bit: one hit point's),
-/// else eight as an eight-lane packet.
+/// rays together where each of rays `16 k .. 16 k + 8` starts where the ray eight after it
+/// does (bit for bit: one hit point's), else eight as an eight-lane packet.
 pub(super) fn trace_occlusion(
     tracer: &Tracer,
     rays: &[Ray],
@@ -62,15 +62,17 @@ pub(super) fn trace_occlusion(
     }
 }
 
-/// Whether the two halves' first rays start at the same point, bit for bit.
+/// Whether ray `i` of the first half starts where ray `i` of the second does, bit for bit, for
+/// every `i`: the slot clips share the planes' differences from the origins.
 fn same_origin(rays: &[Ray; PAIR_WIDTH]) -> bool {
     let bits = |ray: &Ray| ray.origin.map(f32::to_bits);
-    bits(&rays[0]) == bits(&rays[PACKET_WIDTH])
+    let (first, second) = rays.split_at(PACKET_WIDTH);
+    first.iter().zip(second).all(|(a, b)| bits(a) == bits(b))
 }
 
 /// Traces sixteen rays into `closest` (`closest[h][i]` for ray `8 h + i`), overwritten; false
 /// (nothing traced) on a kernel whose occlusion packets keep one octant, for which the walk is
-/// not compiled, or when ray `i`'s origin is not ray `8 + i`'s (bit for bit) for some `i`.
+/// not compiled.
 fn trace_pair(
     tracer: &Tracer,
     rays: &[Ray; PAIR_WIDTH],
@@ -84,7 +86,7 @@ fn trace_pair(
         rays,
         closest,
     };
-    dispatch_mixed_occlusion(tracer.options().kernel, walk) == Some(true)
+    dispatch_mixed_occlusion(tracer.options().kernel, walk).is_some()
 }
 
 /// [`trace_pair`]'s walk, for the kernels to run.
@@ -95,35 +97,23 @@ struct PairWalk<'a, 't> {
 }
 
 impl Walk for PairWalk<'_, '_> {
-    type Output = bool;
+    type Output = ();
 
     #[inline(always)]
-    fn run<K: TraceKernel>(self) -> bool {
+    fn run<K: TraceKernel>(self) {
         let (first, second) = self.rays.split_at(PACKET_WIDTH);
         let mut prepared = [K::prepared_rays(first), K::prepared_rays(second)];
         let lanes = [
             K::lanes(first, &prepared[0]),
             K::lanes(second, &prepared[1]),
         ];
-        // The slot clips share the planes' differences from the origins.
-        if !same_origins(&lanes) {
-            return false;
-        }
         let walk = PairNodes {
             pair: &mut Pair::<K>::new(&lanes, self.closest),
             tracer: self.tracer,
             prepared: &mut prepared,
         };
-        walk_top_level(self.tracer.file(), walk);
-        true
+        walk_top_level(self.tracer.file(), walk)
     }
-}
-
-/// Whether lane `i` of both halves starts at the same point, bit for bit, for every `i`.
-#[inline(always)]
-fn same_origins(lanes: &[Lanes; 2]) -> bool {
-    let bits = |origin: &f32x8| bytemuck::cast::<f32x8, [u32; PACKET_WIDTH]>(*origin);
-    (0..3).all(|axis| bits(&lanes[0].origin[axis]) == bits(&lanes[1].origin[axis]))
 }
 
 /// [`PairWalk`]'s walk from the root, for [`walk_top_level`].
