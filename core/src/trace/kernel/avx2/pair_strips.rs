@@ -35,7 +35,7 @@ use crate::trace::prepared::FAR_INFLATION;
 const HALF_LANES: u32 = (1 << PACKET_WIDTH) - 1;
 
 /// Tests strip `offered` for both halves' active lanes (`leaves[h]`, rays `lanes[h]` with ray
-/// spaces `spaces[h]`) in one pass when it is one that `trace_strip_together` tests for all
+/// spaces `spaces[h]`, the halves' origins equal lane for lane) in one pass when it is one that `trace_strip_together` tests for all
 /// lanes at once; returns the lanes that found an occluder (bit `8 h + i` for lane `i` of half
 /// `h`), or `None` when the strip is left to each half's own test.
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
@@ -65,13 +65,60 @@ pub(super) fn trace_strip_pair(
         closest,
     });
     let active = leaves[0].active | leaves[1].active << PACKET_WIDTH;
-    Some(trace_blocks(
-        (spaces, lanes),
-        (view, points),
-        &entered,
-        active,
-        strip_lanes,
-    ))
+    let shared = SharedOrigin::new(lanes);
+    let pair = (spaces, lanes, &shared);
+    let strip_at = (view, points);
+    Some(match shared.origin_of_all {
+        true => trace_blocks::<true>(pair, strip_at, &entered, active, strip_lanes),
+        false => trace_blocks::<false>(pair, strip_at, &entered, active, strip_lanes),
+    })
+}
+
+/// Both halves' ray spaces for a position's difference from the origin, when all sixteen
+/// lanes start at one origin (a hit point's rays): the difference is then taken once per
+/// position, and each lane picks its axes' coordinates from it, the same subtraction as
+/// [`LaneSpaces::transform`]'s.
+struct SharedOrigin {
+    /// Whether every lane's origin is lane 0's, bit for bit (the halves are equal lane for
+    /// lane already).
+    origin_of_all: bool,
+    origin: __m128,
+    axis: [[__m256i; 3]; 2],
+    shear: [[__m256; 2]; 2],
+}
+
+impl SharedOrigin {
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+    #[inline]
+    fn new(lanes: [&Lanes; 2]) -> SharedOrigin {
+        let int = |v: wide::i32x8| -> __m256i { bytemuck::cast(v) };
+        let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
+        let origin = lanes[0].origin.map(|axis| int(bytemuck::cast(axis)));
+        let first = origin.map(|axis| _mm256_permutevar8x32_epi32(axis, _mm256_setzero_si256()));
+        let equal = (0..3).fold(_mm256_set1_epi32(-1), |equal, axis| {
+            _mm256_and_si256(equal, _mm256_cmpeq_epi32(origin[axis], first[axis]))
+        });
+        let [x, y, z] = lanes[0].origin.map(|axis| axis.as_array()[0]);
+        SharedOrigin {
+            origin_of_all: _mm256_movemask_epi8(equal) == -1,
+            origin: _mm_setr_ps(x, y, z, 0.0),
+            axis: lanes.map(|lanes| lanes.space_axes.map(int)),
+            shear: lanes.map(|lanes| lanes.shear.map(wide)),
+        }
+    }
+
+    /// The ray-space x and y of `position` in every lane of the half `half`, from its
+    /// `difference` from the origin.
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+    #[inline]
+    fn xy(&self, difference: __m256, half: usize) -> [__m256; 2] {
+        let a = self.axis[half].map(|axis| _mm256_permutevar_ps(difference, axis));
+        let shear = &self.shear[half];
+        [
+            _mm256_sub_ps(a[0], _mm256_mul_ps(shear[0], a[2])),
+            _mm256_sub_ps(a[1], _mm256_mul_ps(shear[1], a[2])),
+        ]
+    }
 }
 
 /// Per block of [`BLOCK`] windows the lanes of both halves whose lane-by-lane walk would test
@@ -109,28 +156,26 @@ fn entered_blocks(
             continue;
         };
         let planes = lanes_of(decoder.planes(codes));
+        // The halves' origins are equal lane for lane: each plane's difference from them is
+        // taken once, before the flips' blends, which only pick per lane.
+        let differences: [(__m256, __m256); 3] = std::array::from_fn(|axis| {
+            let origin = wide(lanes[0].origin[axis]);
+            (
+                _mm256_sub_ps(_mm256_set1_ps(planes[axis]), origin),
+                _mm256_sub_ps(_mm256_set1_ps(planes[ENTRY_LANES + axis]), origin),
+            )
+        });
         for half in 0..2 {
             let (mut near, mut far) = interval[half];
-            for axis in 0..3 {
-                let origin = wide(lanes[half].origin[axis]);
-                let (entry, exit) = (
-                    _mm256_set1_ps(planes[axis]),
-                    _mm256_set1_ps(planes[ENTRY_LANES + axis]),
-                );
+            for (axis, &(entry, exit)) in differences.iter().enumerate() {
                 let flip = flips[half][axis];
                 let (entry, exit) = (
                     _mm256_blendv_ps(entry, exit, flip),
                     _mm256_blendv_ps(exit, entry, flip),
                 );
-                let entry = _mm256_mul_ps(
-                    _mm256_sub_ps(entry, origin),
-                    wide(lanes[half].entry_reciprocal[axis]),
-                );
+                let entry = _mm256_mul_ps(entry, wide(lanes[half].entry_reciprocal[axis]));
                 let exit = _mm256_mul_ps(
-                    _mm256_mul_ps(
-                        _mm256_sub_ps(exit, origin),
-                        wide(lanes[half].exit_reciprocal[axis]),
-                    ),
+                    _mm256_mul_ps(exit, wide(lanes[half].exit_reciprocal[axis])),
                     _mm256_set1_ps(FAR_INFLATION),
                 );
                 near = _mm256_max_ps(entry, near);
@@ -147,8 +192,8 @@ fn entered_blocks(
 /// (a sixteen-lane mask), block by block as `packet_strips::trace_strip` does for one half;
 /// returns the lanes that found an occluder.
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
-fn trace_blocks(
-    (spaces, rays): ([&LaneSpaces; 2], [&Lanes; 2]),
+fn trace_blocks<const SHARED: bool>(
+    (spaces, rays, shared): ([&LaneSpaces; 2], [&Lanes; 2], &SharedOrigin),
     (view, points): (&StripView, &[[f32; 3]]),
     entered: &[u32; MAX_BLOCKS],
     mut active: u32,
@@ -179,11 +224,14 @@ fn trace_blocks(
             }
         }
         let block_at = (points, &references, first, windows);
+        let pair = (spaces, shared);
         let done = match (testing & HALF_LANES, testing >> PACKET_WIDTH) {
             (0, 0) => 0,
-            (low, 0) => block_windows([0], spaces, block_at, [low], &mut lanes),
-            (0, high) => block_windows([1], spaces, block_at, [high], &mut lanes),
-            (low, high) => block_windows([0, 1], spaces, block_at, [low, high], &mut lanes),
+            (low, 0) => block_windows::<1, SHARED>([0], pair, block_at, [low], &mut lanes),
+            (0, high) => block_windows::<1, SHARED>([1], pair, block_at, [high], &mut lanes),
+            (low, high) => {
+                block_windows::<2, SHARED>([0, 1], pair, block_at, [low, high], &mut lanes)
+            }
         };
         finished |= done;
         active &= !done;
@@ -200,9 +248,9 @@ fn trace_blocks(
 /// mask.
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
 #[inline]
-fn block_windows<const N: usize>(
+fn block_windows<const N: usize, const SHARED: bool>(
     halves: [usize; N],
-    spaces: [&LaneSpaces; 2],
+    (spaces, shared): ([&LaneSpaces; 2], &SharedOrigin),
     (points, references, first, windows): (&[[f32; 3]], &[u8; BLOCK + 2], usize, usize),
     mut testing: [u32; N],
     lanes: &mut [StripLanes; 2],
@@ -210,10 +258,17 @@ fn block_windows<const N: usize>(
     let vertices = BlockVertices::new(points, references);
     let position = |k: usize| {
         let position = vertices.position(k);
-        halves.map(|half| {
-            let [x, y, _] = spaces[half].transform(position);
-            [x, y]
-        })
+        match SHARED {
+            true => {
+                let difference = _mm_sub_ps(position, shared.origin);
+                let both = _mm256_set_m128(difference, difference);
+                halves.map(|half| shared.xy(both, half))
+            }
+            false => halves.map(|half| {
+                let [x, y, _] = spaces[half].transform(position);
+                [x, y]
+            }),
+        }
     };
     let mut corner0 = position(0);
     let mut corner1 = position(1);
