@@ -367,10 +367,9 @@ impl<'l, 'c, C: TraceKernel> Pair<'l, 'c, C> {
                 t_near: &t_near[half],
                 t_far: &t_far[half],
             });
-            // Both halves in one pass where both have lanes and one has lanes enough for a
-            // pass of its own (the other's lone lane tests the blocks it enters alone).
-            let paired = reaching.iter().all(|leaf| leaf.active != 0)
-                && !reaching.iter().all(|leaf| at_most_one(leaf.active));
+            // Both halves in one pass where both have lanes (a lone lane tests the blocks it
+            // enters alone).
+            let paired = reaching.iter().all(|leaf| leaf.active != 0);
             let together = [&self.together[0], &self.together[1]];
             let pair = (together, [&self.lanes[0], &self.lanes[1]]);
             let leaves = [&reaching[0], &reaching[1]];
