@@ -35,7 +35,7 @@ use crate::trace::prepared::FAR_INFLATION;
 const HALF_LANES: u32 = (1 << PACKET_WIDTH) - 1;
 
 /// Tests strip `offered` for both halves' active lanes (`leaves[h]`, rays `lanes[h]` with ray
-/// spaces `spaces[h]`, the halves' origins equal lane for lane) in one pass when it is one that `trace_strip_together` tests for all
+/// spaces `spaces[h]`) in one pass when it is one that `trace_strip_together` tests for all
 /// lanes at once; returns the lanes that found an occluder (bit `8 h + i` for lane `i` of half
 /// `h`), or `None` when the strip is left to each half's own test.
 #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
@@ -156,26 +156,28 @@ fn entered_blocks(
             continue;
         };
         let planes = lanes_of(decoder.planes(codes));
-        // The halves' origins are equal lane for lane: each plane's difference from them is
-        // taken once, before the flips' blends, which only pick per lane.
-        let differences: [(__m256, __m256); 3] = std::array::from_fn(|axis| {
-            let origin = wide(lanes[0].origin[axis]);
-            (
-                _mm256_sub_ps(_mm256_set1_ps(planes[axis]), origin),
-                _mm256_sub_ps(_mm256_set1_ps(planes[ENTRY_LANES + axis]), origin),
-            )
-        });
         for half in 0..2 {
             let (mut near, mut far) = interval[half];
-            for (axis, &(entry, exit)) in differences.iter().enumerate() {
+            for axis in 0..3 {
+                let origin = wide(lanes[half].origin[axis]);
+                let (entry, exit) = (
+                    _mm256_set1_ps(planes[axis]),
+                    _mm256_set1_ps(planes[ENTRY_LANES + axis]),
+                );
                 let flip = flips[half][axis];
                 let (entry, exit) = (
                     _mm256_blendv_ps(entry, exit, flip),
                     _mm256_blendv_ps(exit, entry, flip),
                 );
-                let entry = _mm256_mul_ps(entry, wide(lanes[half].entry_reciprocal[axis]));
+                let entry = _mm256_mul_ps(
+                    _mm256_sub_ps(entry, origin),
+                    wide(lanes[half].entry_reciprocal[axis]),
+                );
                 let exit = _mm256_mul_ps(
-                    _mm256_mul_ps(exit, wide(lanes[half].exit_reciprocal[axis])),
+                    _mm256_mul_ps(
+                        _mm256_sub_ps(exit, origin),
+                        wide(lanes[half].exit_reciprocal[axis]),
+                    ),
                     _mm256_set1_ps(FAR_INFLATION),
                 );
                 near = _mm256_max_ps(entry, near);
