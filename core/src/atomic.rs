@@ -390,11 +390,12 @@ impl std::ops::DerefMut for Block {
 
 /// How [`write_queued`] writes blocks: past the page cache (O_DIRECT) while the file system
 /// allows it and the blocks are aligned, runs of consecutive blocks in one vectored write each;
-/// else through the page cache, counted for the syncing thread. Direct writes spare the writing
-/// thread the copy into cached pages and their block reservations, leave nothing for the
-/// syncing thread to write back and no cached pages for a later run's rename to free.
-/// Durability is unchanged: the final fsync still flushes the device's cache and commits the
-/// file's blocks.
+/// else through the page cache. Direct writes spare the writing thread the copy into cached
+/// pages and their block reservations, and leave no cached pages for a later run's rename to
+/// free. Both are counted for the syncing thread: a direct write still sits in a virtual disk's
+/// host cache, and one fsync at the end flushing all of it waited tens of milliseconds after the
+/// trace. Durability is unchanged: the final fsync still flushes the device's cache and commits
+/// the file's blocks.
 struct BlockWriter<'a> {
     file: &'a File,
     written: &'a (dyn Fn(usize) + Sync),
@@ -519,8 +520,8 @@ impl<'a> BlockWriter<'a> {
                 crate::mapping::set_direct_io(file, false);
             }
             write_blocks_at(file, &blocks, start)?;
-            written(len);
         }
+        written(len);
         self.recycle(blocks);
         Ok(())
     }
