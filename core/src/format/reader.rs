@@ -538,6 +538,17 @@ impl ReducemFile {
         self.strip_in_place(index)
     }
 
+    /// [`ReducemFile::strip`] inlined into its caller (a first view stays out of line), for the
+    /// packet walk, which views a strip per leaf strip: a call would save registers and copy
+    /// the view out. `strip` is left to the compiler for its other callers.
+    #[inline(always)]
+    pub fn strip_inlined(&self, index: usize) -> StripView<'_> {
+        if !self.checks.strips.get(index) {
+            return self.strip_on_first_view(index);
+        }
+        self.strip_in_place(index)
+    }
+
     /// Validates strip `index` and views it, or the stand-in without triangles when it is
     /// corrupt. Out of line: it runs once per strip. A sound strip takes checks that only
     /// decide ([`validate::sound_strip`]); the others are checked again to word the defect.
@@ -589,7 +600,7 @@ impl ReducemFile {
     /// open) and a valid block inside its section, so the view is the same as through the
     /// sections' slices, whose bounds and alignment checks, and those of the record slice, cost
     /// 10 of a view's 146 instructions (callgrind, 1M primary rays on the 1M scan).
-    #[inline]
+    #[inline(always)]
     fn strip_in_place(&self, index: usize) -> StripView<'_> {
         let Some(record) = self.record(index) else {
             return lazy::no_triangles();

@@ -555,7 +555,7 @@ fn trace_leaf_lanes<C: TraceKernel, P: LaneRays, const ANY_HIT: bool>(
                 break;
             }
         }
-        let view = tracer.file().strip(strip as usize);
+        let view = tracer.file().strip_inlined(strip as usize);
         let reaching = LeafLanes {
             active,
             t_near: &t_near,
