@@ -392,9 +392,9 @@ impl std::ops::DerefMut for Block {
 /// allows it and the blocks are aligned, runs of consecutive blocks in one vectored write each;
 /// else through the page cache. Direct writes spare the writing thread the copy into cached
 /// pages and their block reservations, and leave no cached pages for a later run's rename to
-/// free. Both are counted for the syncing thread: a direct write still sits in a virtual disk's
-/// host cache, and one fsync at the end flushing all of it waited tens of milliseconds after the
-/// trace. Durability is unchanged: the final fsync still flushes the device's cache and commits
+/// free. Both are counted for the syncing thread: a direct write may still sit in a virtual
+/// disk's host cache, which one fsync at the end would then flush all at once after the trace.
+/// Durability is unchanged: the final fsync still flushes the device's cache and commits
 /// the file's blocks.
 struct BlockWriter<'a> {
     file: &'a File,

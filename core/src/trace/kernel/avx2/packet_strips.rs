@@ -132,10 +132,27 @@ impl LaneSpaces {
                 self.origin[role],
             )
         });
+        let [x, y] = self.sheared(&a);
+        [x, y, a[2]]
+    }
+
+    /// [`LaneSpaces::transform`]'s x and y from a position's `difference` from the lanes' one
+    /// origin (held in both halves): the same subtraction, taken once for all lanes.
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+    #[inline]
+    pub(super) fn xy_of_difference(&self, difference: __m256) -> [__m256; 2] {
+        let a = [0, 1, 2].map(|role| _mm256_permutevar_ps(difference, self.axis[role]));
+        self.sheared(&a)
+    }
+
+    /// The ray-space x and y of the coordinates `a` on each lane's ray-space axes, relative
+    /// to the origin.
+    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
+    #[inline]
+    fn sheared(&self, a: &[__m256; 3]) -> [__m256; 2] {
         [
             _mm256_sub_ps(a[0], _mm256_mul_ps(self.shear[0], a[2])),
             _mm256_sub_ps(a[1], _mm256_mul_ps(self.shear[1], a[2])),
-            a[2],
         ]
     }
 }

@@ -74,17 +74,14 @@ pub(super) fn trace_strip_pair(
     })
 }
 
-/// Both halves' ray spaces for a position's difference from the origin, when all sixteen
-/// lanes start at one origin (a hit point's rays): the difference is then taken once per
-/// position, and each lane picks its axes' coordinates from it, the same subtraction as
-/// [`LaneSpaces::transform`]'s.
+/// The sixteen lanes' one origin, when they all start there (a hit point's rays): a
+/// position's difference from it is then taken once, and each half's lanes pick their axes'
+/// coordinates from it ([`LaneSpaces::xy_of_difference`]).
 struct SharedOrigin {
     /// Whether every lane's origin is lane 0's, bit for bit (the halves are equal lane for
     /// lane already).
     origin_of_all: bool,
     origin: __m128,
-    axis: [[__m256i; 3]; 2],
-    shear: [[__m256; 2]; 2],
 }
 
 impl SharedOrigin {
@@ -92,7 +89,6 @@ impl SharedOrigin {
     #[inline]
     fn new(lanes: [&Lanes; 2]) -> SharedOrigin {
         let int = |v: wide::i32x8| -> __m256i { bytemuck::cast(v) };
-        let wide = |v: f32x8| -> __m256 { bytemuck::cast(v) };
         let origin = lanes[0].origin.map(|axis| int(bytemuck::cast(axis)));
         let first = origin.map(|axis| _mm256_permutevar8x32_epi32(axis, _mm256_setzero_si256()));
         let equal = (0..3).fold(_mm256_set1_epi32(-1), |equal, axis| {
@@ -102,22 +98,7 @@ impl SharedOrigin {
         SharedOrigin {
             origin_of_all: _mm256_movemask_epi8(equal) == -1,
             origin: _mm_setr_ps(x, y, z, 0.0),
-            axis: lanes.map(|lanes| lanes.space_axes.map(int)),
-            shear: lanes.map(|lanes| lanes.shear.map(wide)),
         }
-    }
-
-    /// The ray-space x and y of `position` in every lane of the half `half`, from its
-    /// `difference` from the origin.
-    #[target_feature(enable = "avx2,bmi2,popcnt,bmi1")]
-    #[inline]
-    fn xy(&self, difference: __m256, half: usize) -> [__m256; 2] {
-        let a = self.axis[half].map(|axis| _mm256_permutevar_ps(difference, axis));
-        let shear = &self.shear[half];
-        [
-            _mm256_sub_ps(a[0], _mm256_mul_ps(shear[0], a[2])),
-            _mm256_sub_ps(a[1], _mm256_mul_ps(shear[1], a[2])),
-        ]
     }
 }
 
@@ -264,7 +245,7 @@ fn block_windows<const N: usize, const SHARED: bool>(
             true => {
                 let difference = _mm_sub_ps(position, shared.origin);
                 let both = _mm256_set_m128(difference, difference);
-                halves.map(|half| shared.xy(both, half))
+                halves.map(|half| spaces[half].xy_of_difference(both))
             }
             false => halves.map(|half| {
                 let [x, y, _] = spaces[half].transform(position);
