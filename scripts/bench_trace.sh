@@ -16,6 +16,11 @@
 #     above, which is what a batch job would pay on top of reading and building. Each run writes
 #     a new output (the previous run's is removed first, untimed): replacing an existing file
 #     adds the file system's freeing of its blocks, which is not the query's work;
+#   * paired (with Embree): `reducem query` and Embree's batch job (`bench/examples/embree_job.rs`,
+#     its trace phase: the figure the whole process is held to) run back to back on the same ray
+#     file, PAIRED_RUNS (default 5) pairs per ray kind on 2 threads; the median of each and the
+#     median of the pairs' ratios, which a shared machine's drift between the sections above
+#     does not skew (both runs of a pair see the same load);
 #   * with CALLGRIND=1: instructions per AO ray (callgrind, the first 100k AO rays, 1 thread,
 #     per kernel; the tracer's inclusive count divided by the rays).
 #
@@ -34,6 +39,9 @@ else
 fi
 cargo build --release -p reducem-bench --example bench_trace "${features[@]}"
 cargo build --release --bin reducem
+if [ ${#features[@]} -gt 0 ]; then
+    cargo build --release -p reducem-bench --example embree_job "${features[@]}"
+fi
 bench=target/release/examples/bench_trace
 reducem=target/release/reducem
 dir=/tmp/reducem-bench
@@ -82,6 +90,36 @@ whole_process() {
     done
 }
 
+# `reducem query` on `model` and Embree's job on `mesh`, back to back, PAIRED_RUNS (default 5)
+# pairs per ray kind on 2 threads: median whole-process seconds, median Embree trace seconds
+# (its job's `trace=` phase) and the median of the pairs' ratios, Embree's trace time over the
+# whole process's (the whole process's throughput as a fraction of Embree's).
+paired() {
+    local model=$1 mesh=$2 rays_dir=$3 runs=${PAIRED_RUNS:-5}
+    local embree=target/release/examples/embree_job out="$rays_dir/paired.out"
+    for kind in primary ao; do
+        local rays="$rays_dir/$kind.rays" flags=() whole=() traced=() ratios=()
+        [[ $kind == ao ]] && flags=(--occluded)
+        for _ in $(seq "$runs"); do
+            rm -f "$out"
+            local seconds embree_seconds
+            seconds=$(RAYON_NUM_THREADS=2 timed_run "$reducem" query "$model" --rays "$rays" \
+                -o "$out" "${flags[@]}" | cut -d' ' -f1)
+            rm -f "$out"
+            embree_seconds=$(RAYON_NUM_THREADS=2 "$embree" "$mesh" --rays "$rays" -o "$out" \
+                "${flags[@]}" 2>&1 | sed -n 's/.* trace=\([0-9.]*\) .*/\1/p')
+            whole+=("$seconds")
+            traced+=("$embree_seconds")
+            ratios+=("$(awk -v w="$seconds" -v e="$embree_seconds" 'BEGIN { print e / w }')")
+        done
+        rm -f "$out"
+        awk -v kind="$kind" -v runs="$runs" -v w="$(printf '%s\n' "${whole[@]}" | median)" \
+            -v e="$(printf '%s\n' "${traced[@]}" | median)" \
+            -v r="$(printf '%s\n' "${ratios[@]}" | median)" -v all="${ratios[*]}" \
+            'BEGIN { printf "  paired, 2 threads, %s: reducem query (whole process) %.3f s, Embree 3 trace %.3f s, whole / Embree %.2fx (median of %s pairs: %s)\n", kind, w, e, r, runs, all }'
+    done
+}
+
 # Instructions per AO ray under callgrind, per kernel.
 instructions_per_ao_ray() {
     local model=$1 rays_dir=$2
@@ -112,6 +150,9 @@ for triangles in ${TRIANGLES:-1000000 10000000}; do
         --max-strip-length "${FAST_LENGTH:-16}" "$@"
     model=$(sed -n 's/^  model: //p' "$log")
     whole_process "$model" "$rays_dir"
+    if [ ${#features[@]} -gt 0 ]; then
+        paired "$model" "$dir/scan-$triangles.ply" "$rays_dir"
+    fi
     if [[ ${CALLGRIND-} == 1 ]]; then
         instructions_per_ao_ray "$model" "$rays_dir"
     fi
