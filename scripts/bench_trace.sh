@@ -17,10 +17,10 @@
 #     a new output (the previous run's is removed first, untimed): replacing an existing file
 #     adds the file system's freeing of its blocks, which is not the query's work;
 #   * paired (with Embree): `reducem query` and Embree's batch job (`bench/examples/embree_job.rs`,
-#     its trace phase: the figure the whole process is held to) run back to back on the same ray
-#     file, PAIRED_RUNS (default 5) pairs per ray kind on 2 threads; the median of each and the
-#     median of the pairs' ratios, which a shared machine's drift between the sections above
-#     does not skew (both runs of a pair see the same load);
+#     its trace phase: a batch job's counterpart of Embree's trace-only figure above) run back to
+#     back on the same ray file, PAIRED_RUNS (default 5) pairs per ray kind on 2 threads; the
+#     median of each and the median of the pairs' ratios, which a shared machine's drift between
+#     the sections above does not skew (both runs of a pair see the same load);
 #   * with CALLGRIND=1: instructions per AO ray (callgrind, the first 100k AO rays, 1 thread,
 #     per kernel; the tracer's inclusive count divided by the rays).
 #
@@ -110,7 +110,7 @@ paired() {
                 "${flags[@]}" 2>&1 | sed -n 's/.* trace=\([0-9.]*\) .*/\1/p')
             whole+=("$seconds")
             traced+=("$embree_seconds")
-            ratios+=("$(awk -v w="$seconds" -v e="$embree_seconds" 'BEGIN { print e / w }')")
+            ratios+=("$(awk -v w="$seconds" -v e="$embree_seconds" 'BEGIN { printf "%.2f", e / w }')")
         done
         rm -f "$out"
         awk -v kind="$kind" -v runs="$runs" -v w="$(printf '%s\n' "${whole[@]}" | median)" \
