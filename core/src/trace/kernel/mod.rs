@@ -162,7 +162,11 @@ pub(super) fn dispatch<W: Walk>(kernel: Kernel, walk: W) -> W::Output {
 /// ([`TraceKernel::MIXED_OCCLUSION`]) on this CPU, else returns `None`: walks written for such
 /// packets are compiled for those kernels alone.
 #[inline(always)]
-pub(super) fn dispatch_mixed_occlusion<W: Walk>(kernel: Kernel, walk: W) -> Option<W::Output> {
+pub(super) fn dispatch_mixed_occlusion<W: Walk>(
+    kernel: Kernel,
+    // Only x86-64 has such a kernel; elsewhere the walk is never run.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(unused_variables))] walk: W,
+) -> Option<W::Output> {
     match kernel {
         #[cfg(target_arch = "x86_64")]
         Kernel::Avx2 if detect::avx2() && <avx2::Avx2 as TraceKernel>::MIXED_OCCLUSION => {
