@@ -324,27 +324,23 @@ fn write_queued(
     }
 }
 
-/// Alignment of the offsets, lengths and buffers of [`BlockWriter`]'s direct writes: a
-/// multiple of any device's logical block size up to 4 KiB, and of the page size.
-const DIRECT_ALIGN: usize = 4096;
-
-/// Bytes of consecutive blocks that [`BlockWriter`] gathers into one direct write: on a
-/// virtual disk each request costs an exit to the host, so 64 KiB requests cost more system
-/// time than the page cache they avoid.
-const DIRECT_RUN_BYTES: usize = 1 << 20;
+/// Bytes of consecutive blocks that [`BlockWriter`] gathers into one vectored write: a run of
+/// 64 KiB blocks takes one system call instead of sixteen.
+const RUN_BYTES: usize = 1 << 20;
 
 /// Runs of consecutive blocks [`BlockWriter`] gathers at once: the tracing threads each finish
 /// chunks in their own stretch of the file.
-const DIRECT_RUNS: usize = 4;
+const OPEN_RUNS: usize = 4;
 
-/// One aligned page of a [`Block`].
+/// One page of a [`Block`], page-aligned so that its pages can be populated in one call.
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C, align(4096))]
-struct Page([u8; DIRECT_ALIGN]);
+struct Page([u8; PAGE_BYTES]);
 
-/// A buffer of [`write_behind`]'s producers, aligned in memory as direct writes need it, so
-/// that the writing thread hands it to the kernel as it is rather than copying it into an
-/// aligned run. Its length is any; only whole pages are allocated.
+const PAGE_BYTES: usize = 4096;
+
+/// A buffer of [`write_behind`]'s producers, in whole pages, which [`Block::resize`] populates
+/// at once. Its length is any.
 #[derive(Default)]
 pub struct Block {
     pages: Vec<Page>,
@@ -364,12 +360,12 @@ impl Block {
     /// populated in one call before they are zeroed: a run's new blocks took a page fault
     /// every 4 KiB.
     pub fn resize(&mut self, len: usize) {
-        let pages = len.div_ceil(DIRECT_ALIGN);
+        let pages = len.div_ceil(PAGE_BYTES);
         if let Some(more) = pages.checked_sub(self.pages.len()).filter(|&more| more > 0) {
             self.pages.reserve_exact(more);
             crate::mapping::populate_for_writing(&mut self.pages.spare_capacity_mut()[..more]);
         }
-        self.pages.resize(pages, Page([0; DIRECT_ALIGN]));
+        self.pages.resize(pages, Page([0; PAGE_BYTES]));
         self.len = len;
     }
 }
@@ -388,14 +384,10 @@ impl std::ops::DerefMut for Block {
     }
 }
 
-/// How [`write_queued`] writes blocks: past the page cache (O_DIRECT) while the file system
-/// allows it and the blocks are aligned, runs of consecutive blocks in one vectored write each;
-/// else through the page cache. Direct writes spare the writing thread the copy into cached
-/// pages and their block reservations, and leave no cached pages for a later run's rename to
-/// free. Both are counted for the syncing thread: a direct write may still sit in a virtual
-/// disk's host cache, which one fsync at the end would then flush all at once after the trace.
-/// Durability is unchanged: the final fsync still flushes the device's cache and commits
-/// the file's blocks.
+/// How [`write_queued`] writes blocks: runs of consecutive blocks in one vectored write each,
+/// through the page cache, which the syncing thread flushes behind the writing. Writing past
+/// the page cache (O_DIRECT) was measured slower on a virtual disk: each write waits for the
+/// device, and the writing fell behind the trace (`docs/BENCHMARKS.md`, session 31).
 struct BlockWriter<'a> {
     file: &'a File,
     written: &'a (dyn Fn(usize) + Sync),
@@ -403,20 +395,19 @@ struct BlockWriter<'a> {
     spare: &'a Mutex<Vec<Block>>,
     /// Written blocks not handed back yet: the producers held the spares.
     unreturned: Vec<Block>,
-    direct: bool,
-    runs: Vec<DirectRun>,
+    runs: Vec<Run>,
 }
 
-/// Consecutive blocks gathered for one direct write, from `start` in the file.
-struct DirectRun {
+/// Consecutive blocks gathered for one vectored write, from `start` in the file.
+struct Run {
     start: u64,
     blocks: Vec<Block>,
     len: usize,
 }
 
-impl DirectRun {
-    fn new(start: u64) -> DirectRun {
-        DirectRun {
+impl Run {
+    fn new(start: u64) -> Run {
+        Run {
             start,
             blocks: Vec::new(),
             len: 0,
@@ -439,17 +430,13 @@ impl<'a> BlockWriter<'a> {
             written,
             spare,
             unreturned: Vec::new(),
-            direct: crate::mapping::set_direct_io(file, true),
             runs: Vec::new(),
         }
     }
 
-    /// Writes `block` at `offset`, or gathers it for a later direct write.
+    /// Writes `block` at `offset`, or gathers it for a later run's write.
     fn write(&mut self, block: Block, offset: u64) -> io::Result<()> {
-        let aligned = |value: u64| value.is_multiple_of(DIRECT_ALIGN as u64);
-        let gathered = aligned(offset) && aligned(block.len() as u64);
-        if !self.direct || !gathered || block.len() > DIRECT_RUN_BYTES {
-            self.stop_direct()?;
+        if block.len() > RUN_BYTES {
             write_all_at(self.file, &block, offset)?;
             (self.written)(block.len());
             self.recycle([block]);
@@ -472,17 +459,17 @@ impl<'a> BlockWriter<'a> {
     }
 
     /// The run that `len` bytes at `offset` continue, with room for them: an open one, else a
-    /// new one in place of the longest once [`DIRECT_RUNS`] are open.
+    /// new one in place of the longest once [`OPEN_RUNS`] are open.
     fn run_ending_at(&mut self, offset: u64, len: usize) -> io::Result<usize> {
-        let continued = |run: &DirectRun| run.end() == offset;
+        let continued = |run: &Run| run.end() == offset;
         if let Some(index) = self.runs.iter().position(continued) {
-            if self.runs[index].len + len > DIRECT_RUN_BYTES {
+            if self.runs[index].len + len > RUN_BYTES {
                 self.write_run(index)?;
             }
             return Ok(index);
         }
-        if self.runs.len() < DIRECT_RUNS {
-            self.runs.push(DirectRun::new(offset));
+        if self.runs.len() < OPEN_RUNS {
+            self.runs.push(Run::new(offset));
             return Ok(self.runs.len() - 1);
         }
         let longest = (0..self.runs.len())
@@ -493,10 +480,8 @@ impl<'a> BlockWriter<'a> {
         Ok(longest)
     }
 
-    /// Writes run `index`'s blocks, directly or (when the file system refuses the direct
-    /// write) through the page cache from then on; the run then continues after them.
+    /// Writes run `index`'s blocks; the run then continues after them.
     fn write_run(&mut self, index: usize) -> io::Result<()> {
-        let (file, written) = (self.file, self.written);
         let run = &mut self.runs[index];
         let (start, len) = (run.start, run.len);
         if len == 0 {
@@ -505,51 +490,18 @@ impl<'a> BlockWriter<'a> {
         let blocks = std::mem::take(&mut run.blocks);
         run.start += len as u64;
         run.len = 0;
-        let refused = match self.direct {
-            true => match write_blocks_at(file, &blocks, start) {
-                Err(error) if error.kind() == io::ErrorKind::InvalidInput => true,
-                done => {
-                    done?;
-                    false
-                }
-            },
-            false => true,
-        };
-        if refused {
-            if std::mem::take(&mut self.direct) {
-                crate::mapping::set_direct_io(file, false);
-            }
-            write_blocks_at(file, &blocks, start)?;
-        }
-        written(len);
+        write_blocks_at(self.file, &blocks, start)?;
+        (self.written)(len);
         self.recycle(blocks);
         Ok(())
     }
 
-    /// Writes every gathered run, then writes through the page cache.
-    fn stop_direct(&mut self) -> io::Result<()> {
+    /// Writes every gathered run.
+    fn finish(mut self) -> io::Result<()> {
         for index in 0..self.runs.len() {
             self.write_run(index)?;
         }
-        self.runs.clear();
-        if self.direct {
-            self.direct = false;
-            crate::mapping::set_direct_io(self.file, false);
-        }
         Ok(())
-    }
-
-    fn finish(mut self) -> io::Result<()> {
-        self.stop_direct()
-    }
-}
-
-impl Drop for BlockWriter<'_> {
-    /// The file's page-cache mode restored, also after an error.
-    fn drop(&mut self) {
-        if self.direct {
-            crate::mapping::set_direct_io(self.file, false);
-        }
     }
 }
 
@@ -785,33 +737,26 @@ mod tests {
         fs::remove_file(&path).expect("remove");
     }
 
-    /// Aligned blocks (written past the page cache where the file system allows it, gathered
-    /// into runs) from several threads, then an unaligned last block (through the page cache),
-    /// land at their offsets, and the file reads back through the page cache afterwards.
+    /// Blocks gathered into runs from several threads, more than the open runs hold and of a
+    /// size that is no divisor of a run, then a last short block and one larger than a run,
+    /// land at their offsets.
     #[test]
-    fn aligned_blocks_then_an_unaligned_one_land_at_their_offsets() {
-        let path = std::env::temp_dir().join(format!("write-direct-{}", std::process::id()));
+    fn blocks_gathered_into_runs_land_at_their_offsets() {
+        let path = std::env::temp_dir().join(format!("write-runs-{}", std::process::id()));
         let file = File::create(&path).expect("create");
-        let block_bytes = 3 * DIRECT_ALIGN;
-        let blocks = DIRECT_RUNS * DIRECT_RUN_BYTES / block_bytes + 9;
-        let tail = 1000;
-        let total = blocks * block_bytes + tail;
-        let mut expected: Vec<u8> = (0..total).map(|i| (i % 251) as u8).collect();
+        let block_bytes = 3 * PAGE_BYTES + 5;
+        let blocks = OPEN_RUNS * RUN_BYTES / block_bytes + 9;
+        let (tail, large) = (1000, RUN_BYTES + 3);
+        let total = blocks * block_bytes + tail + large;
+        let expected: Vec<u8> = (0..total).map(|i| (i % 251) as u8).collect();
         write_behind(&file, total as u64, |behind| {
-            write_blocks_from_threads(
-                behind,
-                &expected[..blocks * block_bytes],
-                block_bytes,
-                3,
-                false,
-            );
-            let last = Block::from_bytes(&expected[blocks * block_bytes..]);
-            behind.write_at(last, (blocks * block_bytes) as u64)
+            let (gathered, rest) = expected.split_at(blocks * block_bytes);
+            write_blocks_from_threads(behind, gathered, block_bytes, 3, false);
+            let at = gathered.len() as u64;
+            behind.write_at(Block::from_bytes(&rest[..tail]), at)?;
+            behind.write_at(Block::from_bytes(&rest[tail..]), at + tail as u64)
         })
         .expect("written");
-        // One byte at an unaligned offset: refused if the file were still in direct mode.
-        write_all_at(&file, &[7], total as u64).expect("written through the page cache");
-        expected.push(7);
         assert_eq!(fs::read(&path).expect("read"), expected);
         fs::remove_file(&path).expect("remove");
     }

@@ -150,33 +150,6 @@ pub fn populate_for_writing<T>(memory: &mut [std::mem::MaybeUninit<T>]) {
 #[cfg(not(target_os = "linux"))]
 pub fn populate_for_writing<T>(_memory: &mut [std::mem::MaybeUninit<T>]) {}
 
-/// Switches `file`'s reads and writes to bypass the page cache (O_DIRECT) or back to it;
-/// false when the file system refuses (tmpfs, say) or the flags cannot be read.
-#[cfg(target_os = "linux")]
-#[allow(unsafe_code)]
-pub fn set_direct_io(file: &File, direct: bool) -> bool {
-    use std::os::fd::AsRawFd;
-    let descriptor = file.as_raw_fd();
-    // SAFETY: fcntl reads and writes no memory of this process, and `file` stays open for the
-    // calls.
-    let flags = unsafe { libc::fcntl(descriptor, libc::F_GETFL) };
-    if flags < 0 {
-        return false;
-    }
-    let wanted = match direct {
-        true => flags | libc::O_DIRECT,
-        false => flags & !libc::O_DIRECT,
-    };
-    // SAFETY: as above.
-    unsafe { libc::fcntl(descriptor, libc::F_SETFL, wanted) == 0 }
-}
-
-/// Without O_DIRECT, every write goes through the page cache.
-#[cfg(not(target_os = "linux"))]
-pub fn set_direct_io(_file: &File, direct: bool) -> bool {
-    !direct
-}
-
 /// Writes all of `parts`, one after the other, from `offset` of `file`: one pwritev for up to
 /// [`VECTORED_PARTS`] of them, again for what a short write left.
 #[cfg(target_os = "linux")]
