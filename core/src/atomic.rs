@@ -301,7 +301,7 @@ impl WriteBehind<'_> {
             .map(|blocks| blocks.send((offset, bytes)));
         let blocks = self.queued.fetch_add(1, Ordering::Relaxed) + 1;
         let before = self.queued_bytes.fetch_add(len, Ordering::Relaxed);
-        if blocks % WAKE_BLOCKS == 0 || (before + len) / RUN_BYTES != before / RUN_BYTES {
+        if blocks.is_multiple_of(WAKE_BLOCKS) || (before + len) / RUN_BYTES != before / RUN_BYTES {
             self.writer.unpark();
         }
         match sent {
