@@ -350,12 +350,13 @@ const RUN_BYTES: usize = 1 << 20;
 /// chunks in their own stretch of the file.
 const OPEN_RUNS: usize = 4;
 
+/// Bytes of a [`Page`]: the smallest page size of the systems built for.
+const PAGE_BYTES: usize = 4096;
+
 /// One page of a [`Block`], page-aligned so that its pages can be populated in one call.
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C, align(4096))]
 struct Page([u8; PAGE_BYTES]);
-
-const PAGE_BYTES: usize = 4096;
 
 /// A buffer of [`write_behind`]'s producers, in whole pages, which [`Block::resize`] populates
 /// at once. Its length is any.
